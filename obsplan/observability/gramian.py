@@ -1,0 +1,302 @@
+"""Global observability: the augmented LTV model and its exact observability Gramian (eqs. 14–27).
+
+Augmented model
+---------------
+Integrating ``p' = ν``, ``ν' = u`` (``ν = v``, or ``v + v_f`` with current) gives
+``p(t) = p0 + ν0 (t - t0) + d(t, t0)`` (eqs. 14–15) and hence (eqs. 18–21)
+
+    ȳ(t) = y(t) - y0 + ½|d|² = dᵀ p(t) + (t - t0) p0ᵀν0 + ½ (t - t0)² |ν0|²
+
+with positions relative to the beacon. The augmented state is ``z = (p, v, p0ᵀν0, |ν0|²)``
+(eq. 20) or, with current, ``z = (p, v, v_f, p0ᵀν0, |ν0|²)``; ``z' = A z + B u`` (eq. 23) with
+``A²= 0`` so ``Φ(τ) = I + A τ`` (eq. 26). Output rows of each sensor, referred to ``z(t0)``:
+
+* range (eq. 21):      ``C Φ = (dᵀ, τ dᵀ, [τ dᵀ], τ, τ²/2)``           (τ = t - t0)
+* DVL (eq. 41):        ``C Φ = (0, I, [0], 0, 0)``   (water-profiling, or no current)
+                       ``C Φ = (0, I, I, 0, 0)``     (bottom-lock with current: ``v + v_f``)
+* depth:               ``C Φ = (e_zᵀ, τ e_zᵀ, [τ e_zᵀ], 0, 0)``
+
+With current the range and bottom-lock rows have identical ``v`` and ``v_f`` columns, so the
+direction ``(δv, δv_f) = (w, -w)`` is in the kernel of every row: the Gramian is rank deficient
+for *every* input (the paper's claim of section 4.3, shown here by construction).
+
+The Gramian does not depend on the beacon or on ``p0``, ``v0``: only on the inputs. Radial and
+non-radial straight lines with the same acceleration profile have the same Gramian.
+
+Exact Gramian
+-------------
+On an interval ``[t_k, t_k + h)`` with constant input, ``d(t_k + σ) = d_k + e_k σ + ½ u_k σ²``
+(``e_k = ν_k - ν_0``), so every row of ``C Φ`` is a cubic in σ: ``r(σ) = Σ_i R_i σ^i``. Then
+
+    G_k = ∫_0^h r rᵀ dσ = Σ_{i,j} R_i R_jᵀ h^{i+j+1} / (i+j+1)                  (eq. 25, exactly)
+
+which is built once as a CasADi function (:func:`interval_gramian_function`) and used both here,
+mapped over all intervals, and symbolically by the planner. Sums run on the nondimensionalised
+trajectory (see :mod:`obsplan.observability.scaling`), so entries stay O(1) over long horizons and
+the cumulative sum ``G(t_k, t_0) = Σ_{j<k} G_j`` is the exact Gramian at every sample.
+
+Note on eq. 27's companion claim ``G(t, t0) = Σ G(t_{i+1}, t_i)``: the terms of a correct
+decomposition are the t0-referenced integrals above; the Gramians of windows re-anchored at
+``t_i`` (whose ``C`` uses ``d(t, t_i)``, ``t - t_i``) are Gramians of a *different* augmented state
+and do not sum to ``G(t, t0)``. The paper's conclusion survives (a full-rank window makes
+``x(t_i)``, hence ``x(t0)``, observable) but the identity does not; see ``tests/test_gramian.py``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from obsplan.model import VehicleModel
+from obsplan.observability.scaling import (
+    DEFAULT_SCALES,
+    RANK_TOL,
+    Scales,
+    numerical_rank,
+    psd_metrics,
+)
+from obsplan.trajectory import Trajectory
+
+_AXES = "xyz"
+
+
+@dataclass(frozen=True)
+class AugmentedModel:
+    """The augmented LTV model ``z' = A z + B u``, ``ȳ = C(t) z`` for one sensor configuration."""
+
+    dim: int
+    sensors: tuple[str, ...]
+    current: bool
+
+    @property
+    def state_dim(self) -> int:
+        """``2n + 2``, or ``3n + 2`` with current."""
+        return (3 if self.current else 2) * self.dim + 2
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        axes = _AXES[: self.dim]
+        names = [f"p{a}" for a in axes] + [f"v{a}" for a in axes]
+        if self.current:
+            names += [f"vf{a}" for a in axes]
+        return (*names, "p0.nu0", "|nu0|^2")
+
+    @property
+    def A(self) -> np.ndarray:
+        """Dynamics matrix (eq. 23; with current ``p' = v + v_f``)."""
+        n, m = self.dim, self.state_dim
+        A = np.zeros((m, m))
+        A[:n, n : 2 * n] = np.eye(n)
+        if self.current:
+            A[:n, 2 * n : 3 * n] = np.eye(n)
+        return A
+
+    @property
+    def B(self) -> np.ndarray:
+        n = self.dim
+        B = np.zeros((self.state_dim, n))
+        B[n : 2 * n] = np.eye(n)
+        return B
+
+    @property
+    def n_outputs(self) -> int:
+        k = 1
+        if any(s.startswith("dvl") for s in self.sensors):
+            k += self.dim
+        if "depth" in self.sensors:
+            k += 1
+        return k
+
+    def output_matrix(self, d: np.ndarray, tau: float) -> np.ndarray:
+        """``C(t)`` (not multiplied by Φ) for displacement ``d`` and elapsed time ``tau``.
+
+        The rows are the range (``ȳ``), then DVL (n rows) and depth rows where present. Used by the
+        augmented Kalman filter; shape ``(n_outputs, state_dim)``.
+        """
+        n, m = self.dim, self.state_dim
+        rows = [np.concatenate([d, np.zeros(m - n - 2), [tau, 0.5 * tau**2]])]
+        if any(s.startswith("dvl") for s in self.sensors):
+            c = np.zeros((n, m))
+            c[:, n : 2 * n] = np.eye(n)
+            if self.current and "dvl-bottom" in self.sensors:
+                c[:, 2 * n : 3 * n] = np.eye(n)
+            rows.extend(c)
+        if "depth" in self.sensors:
+            c = np.zeros(m)
+            c[n - 1] = 1.0
+            rows.append(c)
+        return np.vstack(rows)
+
+    def _row_coeffs(self, d, e, u, tau0) -> list[list]:
+        """Cubic coefficients ``[R_0..R_3]`` of every row of ``C Φ`` on one interval (CasADi SX)."""
+        n, m = self.dim, self.state_dim
+        z = ca.SX.zeros(n)
+        nv = 2 if self.current else 1  # how many velocity-like blocks see τ dᵀ
+
+        def row(pos, vel, alpha, beta):
+            return ca.vertcat(pos, *([vel] * nv), alpha, beta)
+
+        rows = [
+            [
+                row(d, tau0 * d, tau0, 0.5 * tau0**2),
+                row(e, d + tau0 * e, 1.0, tau0),
+                row(0.5 * u, e + 0.5 * tau0 * u, 0.0, 0.5),
+                row(z, 0.5 * u, 0.0, 0.0),
+            ]
+        ]
+        zero_row = ca.SX.zeros(m)
+        if any(s.startswith("dvl") for s in self.sensors):
+            for i in range(n):
+                r0 = ca.SX.zeros(m)
+                r0[n + i] = 1.0
+                if self.current and "dvl-bottom" in self.sensors:
+                    r0[2 * n + i] = 1.0
+                rows.append([r0, zero_row, zero_row, zero_row])
+        if "depth" in self.sensors:
+            ez = ca.SX.zeros(n)
+            ez[n - 1] = 1.0
+            rows.append([row(ez, tau0 * ez, 0.0, 0.0), row(z, ez, 0.0, 0.0), zero_row, zero_row])
+        return rows
+
+
+def augmented_model(model: VehicleModel) -> AugmentedModel:
+    """The augmented LTV model of a vehicle model (beacon and range form do not matter)."""
+    return AugmentedModel(dim=model.dim, sensors=model.sensors, current=model.current)
+
+
+@cache
+def interval_gramian_function(aug: AugmentedModel) -> ca.Function:
+    """CasADi ``G_k = g(d_k, e_k, u_k, tau0, h)``: exact Gramian of one constant-input interval.
+
+    Inputs are the displacement ``d_k`` (n), velocity change ``e_k = ν_k - ν_0`` (n), input ``u_k``
+    (n), elapsed time ``tau0 = t_k - t_0`` and interval length ``h``, in consistent (normally
+    nondimensional) units. Output: the ``m × m`` symmetric contribution ``∫ Φᵀ Cᵀ C Φ``.
+    """
+    n = aug.dim
+    d, e, u = ca.SX.sym("d", n), ca.SX.sym("e", n), ca.SX.sym("u", n)
+    tau0, h = ca.SX.sym("tau0"), ca.SX.sym("h")
+    G = ca.SX.zeros(aug.state_dim, aug.state_dim)
+    hp = [h ** (k + 1) / (k + 1) for k in range(7)]
+    for coeffs in aug._row_coeffs(d, e, u, tau0):
+        R = ca.horzcat(*coeffs)  # m × 4
+        H = ca.SX.zeros(4, 4)
+        for i in range(4):
+            for j in range(4):
+                H[i, j] = hp[i + j]
+        G += R @ H @ R.T
+    return ca.Function("interval_gramian", [d, e, u, tau0, h], [G])
+
+
+def interval_gramians(
+    traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
+) -> np.ndarray:
+    """Exact per-interval contributions ``G_k``, shape ``(N-1, m, m)``, referred to ``z(t_0)``.
+
+    ``scales=None`` computes in the trajectory's own units (used by tests of unit invariance).
+    """
+    aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
+    if aug.dim != traj.dim:
+        raise ValueError(f"model is {aug.dim}D but the trajectory is {traj.dim}D")
+    tr = traj if scales is None else traj.scaled(scales.length_m, scales.time_s)
+    K, m = tr.n_samples - 1, aug.state_dim
+    d = tr.displacement()[:-1]
+    e = (tr.v - tr.v[0])[:-1]
+    tau0 = (tr.t - tr.t[0])[:-1]
+    fn = interval_gramian_function(aug).map(K, "serial")
+    out = np.asarray(fn(d.T, e.T, tr.u[:-1].T, tau0[None, :], tr.dt[None, :]))
+    return out.reshape(m, K, m).transpose(1, 0, 2)
+
+
+def cumulative_gramians(
+    traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
+) -> np.ndarray:
+    """``G(t_k, t_0)`` at every sample, shape ``(N, m, m)`` (the first is zero)."""
+    Gk = interval_gramians(traj, model, scales)
+    out = np.zeros((Gk.shape[0] + 1, *Gk.shape[1:]))
+    np.cumsum(Gk, axis=0, out=out[1:])
+    return out
+
+
+def gramian(
+    traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
+) -> np.ndarray:
+    """The exact observability Gramian ``G(t_N, t_0)`` (eq. 25), shape ``(m, m)``, in ``scales``."""
+    G = interval_gramians(traj, model, scales).sum(axis=0)
+    return 0.5 * (G + G.T)
+
+
+@dataclass(frozen=True)
+class GramianReport:
+    """Global-observability verdict of the augmented model along a trajectory.
+
+    ``rank`` and ``full_rank`` come from the unit-invariant test; ``min_eig``, ``log_det`` and
+    ``condition`` are of the Gramian nondimensionalised by ``scales``.
+    """
+
+    full_rank: bool
+    rank: int
+    dim: int
+    full_rank_from_t: float | None
+    min_eig: float
+    log_det: float
+    condition: float
+    scales: Scales = DEFAULT_SCALES
+
+    def to_dict(self) -> dict:
+        def num(x: float) -> float | None:
+            return float(x) if np.isfinite(x) else None
+
+        return {
+            "full_rank": bool(self.full_rank),
+            "rank": int(self.rank),
+            "dim": int(self.dim),
+            "full_rank_from_t": self.full_rank_from_t,
+            "min_eig": num(self.min_eig),
+            "log_det": num(self.log_det),
+            "condition": num(self.condition),
+        }
+
+
+def rank_over_time(
+    traj: Trajectory,
+    model: VehicleModel | AugmentedModel,
+    tol: float = RANK_TOL,
+) -> np.ndarray:
+    """Unit-invariant rank of ``G(t_k, t_0)`` at every sample, shape ``(N,)``."""
+    G = cumulative_gramians(traj, model, DEFAULT_SCALES)
+    ranks = np.zeros(G.shape[0], dtype=int)
+    ranks[1:] = numerical_rank(G[1:], tol)
+    return ranks
+
+
+def gramian_report(
+    traj: Trajectory,
+    model: VehicleModel | AugmentedModel,
+    scales: Scales = DEFAULT_SCALES,
+    tol: float = RANK_TOL,
+) -> GramianReport:
+    """Rank, first full-rank time and scaled metrics of the augmented Gramian along ``traj``."""
+    aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
+    Gcum = cumulative_gramians(traj, aug, scales)
+    G = 0.5 * (Gcum[-1] + Gcum[-1].T)
+    rank = numerical_rank(G, tol)
+    full = rank == aug.state_dim
+    t_full: float | None = None
+    if full:
+        ranks = numerical_rank(Gcum[1:], tol)
+        k = int(np.argmax(ranks == aug.state_dim)) + 1
+        t_full = float(traj.t[k])
+    min_eig, log_det, cond = psd_metrics(G)
+    return GramianReport(
+        full_rank=bool(full),
+        rank=int(rank),
+        dim=aug.state_dim,
+        full_rank_from_t=t_full,
+        min_eig=min_eig,
+        log_det=log_det,
+        condition=cond,
+        scales=scales,
+    )
