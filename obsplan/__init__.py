@@ -3,3 +3,7 @@
 from __future__ import annotations
 
 __version__ = "0.1.0"
+
+from obsplan.observability.analyze import ObservabilityReport, analyze  # noqa: E402
+
+__all__ = ["ObservabilityReport", "__version__", "analyze"]

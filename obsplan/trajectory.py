@@ -1,8 +1,8 @@
 """Trajectories: sampled paths of the double integrator, their CSV form and exact integration.
 
-A :class:`Trajectory` holds times ``t`` (N,), positions ``p`` (N, n), inertial velocities ``v`` (N, n)
-and accelerations ``u`` (N, n), where ``u[k]`` is held constant on ``[t_k, t_{k+1})`` (the CSV
-convention of PRODUCT.md). Generators of the motion classes of Tables 1–3 are in
+A :class:`Trajectory` holds times ``t`` (N,), positions ``p`` (N, n), inertial velocities ``v``
+(N, n) and accelerations ``u`` (N, n), where ``u[k]`` is held constant on ``[t_k, t_{k+1})`` (the
+CSV convention of PRODUCT.md). Generators of the motion classes of Tables 1–3 are in
 :mod:`obsplan.generators`.
 """
 
@@ -113,7 +113,7 @@ class Trajectory:
         return np.diff(self.t)
 
     def displacement(self) -> np.ndarray:
-        """The displacement ``d(t_k, t_0) = p_k - p_0 - v_0 (t_k - t_0)`` of eq. 15, shape (N, n) [m]."""
+        """Displacement ``d(t_k, t_0) = p_k - p_0 - v_0 (t_k - t_0)`` (eq. 15), shape (N, n) [m]."""
         return self.p - self.p[0] - np.outer(self.t - self.t[0], self.v[0])
 
     # ---------------------------------------------------------------- construction
@@ -172,15 +172,16 @@ class Trajectory:
     ) -> bool:
         """Warn (``InconsistentTrajectoryWarning``) if the inputs do not reproduce the samples.
 
-        Every observability verdict rests on ``u``: the Gramian is a function of the inputs only.
-        Returns True when consistent.
+        The augmented Gramian is, in exact terms, a function of the inputs only, while it is
+        computed from the sampled ``p`` and ``v``; the LWO test uses ``p``, ``v`` and ``u``. Both
+        assume that the samples and the inputs agree. Returns True when consistent.
         """
         pe, ve = self.consistency_error()
         if pe > tol_pos or ve > tol_vel:
             warnings.warn(
                 f"{source}: the inputs u do not reproduce the samples: one-step mismatch up to "
                 f"{pe:.3g} m in position and {ve:.3g} m/s in velocity (tolerance {tol_pos:g} m, "
-                f"{tol_vel:g} m/s); verdicts are computed from u",
+                f"{tol_vel:g} m/s); observability verdicts assume that they agree",
                 InconsistentTrajectoryWarning,
                 stacklevel=2,
             )
@@ -198,7 +199,7 @@ class Trajectory:
         return Trajectory(t=self.t, p=self.p + np.asarray(offset, float), v=self.v, u=self.u)
 
     def rotated(self, R: np.ndarray, about: np.ndarray | None = None) -> Trajectory:
-        """Rotate positions about ``about`` (default origin) and velocities/inputs by ``R`` (n×n)."""
+        """Rotate positions about ``about`` (default origin), velocities and inputs by ``R``."""
         R = np.asarray(R, float)
         c = np.zeros(self.dim) if about is None else np.asarray(about, float)
         return Trajectory(t=self.t, p=(self.p - c) @ R.T + c, v=self.v @ R.T, u=self.u @ R.T)
@@ -253,14 +254,34 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
     Raises
     ------
     TrajectoryFormatError
-        Naming the row (1-based, header is row 1) or column at fault.
+        Naming the row (the line number in the file, header is row 1 when it is the first line)
+        or column at fault.
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise TrajectoryFormatError(f"trajectory file not found: {path}")
-    with path.open(newline="") as fh:
-        rows = list(csv.reader(fh))
-    rows = [r for r in rows if any(c.strip() for c in r)]
+    if not path.is_file():
+        raise TrajectoryFormatError(f"{path} is not a file; give the path of a trajectory CSV")
+    # keep each row's line number in the file, so that messages point at the right line even
+    # when blank lines are skipped; utf-8-sig drops a byte-order mark before the header
+    numbered: list[tuple[int, list[str]]] = []
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh)
+            for r in reader:
+                if any(c.strip() for c in r):
+                    numbered.append((reader.line_num, r))
+    except UnicodeDecodeError as exc:
+        raise TrajectoryFormatError(
+            f"{path}: not a text CSV (undecodable byte at position {exc.start}); expected UTF-8 "
+            "text with a header row t,px,py,..."
+        ) from None
+    except csv.Error as exc:
+        raise TrajectoryFormatError(f"{path}: not a readable CSV: {exc}") from None
+    except OSError as exc:
+        raise TrajectoryFormatError(f"{path}: cannot be read: {exc.strerror}") from None
+    lines = [n for n, _ in numbered]
+    rows = [r for _, r in numbered]
     if not rows:
         raise TrajectoryFormatError(f"{path}: the file is empty; expected a header row t,px,py,...")
     header = [h.strip().lower() for h in rows[0]]
@@ -282,7 +303,7 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
     idx = [header.index(c) for c in cols]
     data = np.empty((len(rows) - 1, len(cols)))
     for i, r in enumerate(rows[1:]):
-        line = i + 2
+        line = lines[i + 1]
         for j, (c, k) in enumerate(zip(cols, idx, strict=True)):
             if k >= len(r):
                 raise TrajectoryFormatError(f"{path}: row {line} has no value for column {c!r}")
@@ -305,8 +326,8 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
     if bad.size:
         k = int(bad[0])
         raise TrajectoryFormatError(
-            f"{path}: row {k + 3}, column 't': time {t[k + 1]:g} does not increase "
-            f"(previous row has {t[k]:g}); times must be strictly increasing"
+            f"{path}: row {lines[k + 2]}, column 't': time {float(t[k + 1])!r} does not increase "
+            f"(row {lines[k + 1]} has {float(t[k])!r}); times must be strictly increasing"
         )
     n = dim
     traj = Trajectory(

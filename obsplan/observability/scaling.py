@@ -1,4 +1,4 @@
-"""Scaling of observability matrices: one fixed nondimensionalisation, and unit-invariant rank tests.
+"""Scaling of observability matrices: one fixed nondimensionalisation, unit-invariant rank tests.
 
 Two different jobs, two different tools:
 
@@ -15,8 +15,9 @@ Two different jobs, two different tools:
   ``RANK_TOL = 1e-10``: three decades above round-off, below any excitation a vehicle can fly.
 * **Objectives and metrics.** ``min_eig``, ``log_det`` and ``condition`` must grow with excitation,
   which equilibration would destroy. They are computed on the Gramian of the trajectory expressed
-  in the *fixed* units of :class:`Scales` (length ``L`` and time ``T``): ``t/T``, ``p/L``, ``v T/L``,
-  ``u T²/L``; every output is then dimensionless too (``ȳ/L²``, DVL ``v T/L``, depth ``p_z/L``).
+  in the *fixed* units of :class:`Scales` (length ``L`` and time ``T``): ``t/T``, ``p/L``,
+  ``v T/L``, ``u T²/L``; every output is then dimensionless too (``ȳ/L²``, DVL ``v T/L``,
+  depth ``p_z/L``).
   Defaults are ``L = 100 m`` and ``T = 100 s`` (the paper's scenarios: ranges of tens to a hundred
   metres, manoeuvres over minutes). A planning problem may set its own; comparisons are only made
   between numbers computed with the same scales.

@@ -1,0 +1,81 @@
+"""``obsplan paper``: the paper's Tables 1–3 with our verdict beside each of the paper's.
+
+Prints the tables (or JSON with ``--json``); with ``--out DIR`` also writes ``DIR/tables.txt`` and
+``DIR/tables.json`` and, unless ``--no-figures``, the figure scenarios (Figs. 1–9) when
+:mod:`obsplan.paper_figures` is available. Disagreements with the paper are results, not errors:
+the exit code is 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from obsplan.errors import InputError
+from obsplan.paper import all_rows, claims, paper_report, render_tables
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register the ``paper`` verb."""
+    p = subparsers.add_parser(
+        "paper",
+        help="regenerate the paper's Tables 1-3 (and figure scenarios) beside our verdicts",
+        description=(
+            "Recompute every row of the paper's Tables 1-3 (LWO along the trajectory and "
+            "augmented-Gramian rank) on representative trajectories, print the paper's verdicts "
+            "beside ours and explain each disagreement."
+        ),
+    )
+    p.add_argument("--out", metavar="DIR", help="also write tables.txt, tables.json (and figures)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of the text tables")
+    p.add_argument(
+        "--quick", action="store_true", help="sample at 0.1 s instead of 0.01 s (same verdicts)"
+    )
+    p.add_argument("--force", action="store_true", help="write into a non-empty --out DIR")
+    p.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
+    p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
+    return p
+
+
+def _out_dir(path: str, force: bool) -> Path:
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} is a file; give a directory")
+    if out.is_dir() and any(out.iterdir()) and not force:
+        raise InputError(f"--out {out} is not empty; choose another directory or pass --force")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    """Compute, print and optionally write the tables; returns the exit code."""
+    out = _out_dir(args.out, args.force) if args.out else None
+    if not args.quiet:
+        dt = "0.1 s" if args.quick else "0.01 s"
+        print(f"obsplan paper: computing Tables 1-3 (dt = {dt})...", file=sys.stderr)
+    rows, cl = all_rows(args.quick), claims(args.quick)
+    text = render_tables(rows, cl)
+    report = paper_report(args.quick)
+    print(json.dumps(report, indent=2) if args.json else text)
+    if out is None:
+        return 0
+    (out / "tables.txt").write_text(text + "\n", encoding="utf-8")
+    (out / "tables.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    if not args.quiet:
+        print(
+            f"obsplan paper: wrote {out / 'tables.txt'} and {out / 'tables.json'}", file=sys.stderr
+        )
+    if args.no_figures:
+        return 0
+    try:
+        from obsplan.paper_figures import write_figures
+    except ModuleNotFoundError as exc:
+        if exc.name != "obsplan.paper_figures":
+            raise
+        if not args.quiet:
+            print("obsplan paper: figure scenarios not available yet; skipped", file=sys.stderr)
+        return 0
+    write_figures(out, quick=args.quick, progress=not args.quiet)
+    return 0

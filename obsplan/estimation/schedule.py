@@ -1,0 +1,92 @@
+"""Multi-rate measurement schedule (paper section 7.3).
+
+The filters predict at every trajectory sample (the model rate, 100 Hz in the paper). A sensor of
+rate ``f`` reports at the first sample of every period ``1/f`` counted from ``t_0``: at sample
+``k`` when ``floor((t_k - t_0) f)`` increases (and always at ``k = 0``, so the augmented KF has its
+anchor range ``y0``). Case B of the paper (range at 0.1 Hz, the rest at 100 Hz) is
+``rates_hz={"range": 0.1}`` on a 100 Hz trajectory.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from obsplan.errors import ConfigError
+from obsplan.trajectory import Trajectory
+
+#: Relative slack when comparing a rate with the sample rate (times are floats).
+_RATE_SLACK = 1e-6
+
+
+def sample_rate(traj: Trajectory) -> float:
+    """The trajectory's sample rate ``1 / median(dt)`` [Hz]."""
+    return float(1.0 / np.median(traj.dt))
+
+
+@dataclass(frozen=True, eq=False)
+class Schedule:
+    """Which sensor reports at which sample.
+
+    Attributes
+    ----------
+    sensors : tuple of str
+        Sensor names, in the model's order.
+    mask : ndarray of bool, shape (N, len(sensors))
+        ``mask[k, j]`` is true when sensor ``j`` reports at sample ``k``.
+    rates_hz : tuple of float
+        The rate of each sensor [Hz].
+    """
+
+    sensors: tuple[str, ...]
+    mask: np.ndarray
+    rates_hz: tuple[float, ...]
+
+    def reports(self, sensor: str) -> np.ndarray:
+        """Boolean mask of shape ``(N,)`` of the samples where ``sensor`` reports."""
+        return self.mask[:, self.sensors.index(sensor)]
+
+
+def make_schedule(
+    traj: Trajectory, sensors: tuple[str, ...], rates_hz: Mapping[str, float]
+) -> Schedule:
+    """Build the schedule of ``sensors`` on the samples of ``traj``.
+
+    Parameters
+    ----------
+    traj
+        The trajectory whose samples are the model steps.
+    sensors
+        Canonical sensor names.
+    rates_hz
+        Rate per sensor [Hz]; missing sensors report at every sample.
+
+    Raises
+    ------
+    ConfigError
+        If a rate is not positive or exceeds the sample rate (reports would be lost).
+    """
+    fs = sample_rate(traj)
+    tau = traj.t - traj.t[0]
+    cols, rates = [], []
+    for s in sensors:
+        f = float(rates_hz.get(s, fs))
+        if not (np.isfinite(f) and f > 0):
+            raise ConfigError(f"rates_hz[{s!r}] must be a positive rate in Hz, got {f!r}")
+        if f > fs * (1 + _RATE_SLACK) + 1e-12:
+            raise ConfigError(
+                f"rates_hz[{s!r}] = {f:g} Hz exceeds the trajectory's sample rate {fs:g} Hz; "
+                "the filters predict at the sample rate: lower the rate or resample the trajectory"
+            )
+        # a small slack so that t_k = j/f computed in floating point counts as period j
+        period = np.floor(tau * f + 1e-6)
+        col = np.empty(traj.n_samples, dtype=bool)
+        col[0] = True
+        col[1:] = period[1:] > period[:-1]
+        cols.append(col)
+        rates.append(f)
+    mask = np.column_stack(cols) if cols else np.zeros((traj.n_samples, 0), dtype=bool)
+    mask.setflags(write=False)
+    return Schedule(sensors=tuple(sensors), mask=mask, rates_hz=tuple(rates))

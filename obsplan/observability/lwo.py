@@ -1,0 +1,337 @@
+"""Local weak observability: the Lie-derivative observability matrix of eq. 9, built by CasADi.
+
+Matrix
+------
+For each output ``h_j`` of :class:`~obsplan.model.VehicleModel` (in sensor order) the rows are the
+state gradients ``∇_x L^k h_j`` for ``k = 0..K`` (eq. 8-9); rows that are structurally zero (e.g.
+``∇ L^4 y = 0`` for the half-squared range) are dropped, so the half-squared range gives the four
+rows of eq. 13 and a DVL the identity block of eq. 40. Nothing is typed by hand: the rows come from
+``VehicleModel.f_expr`` / ``h_expr`` for any sensor set, range form and current option.
+
+Inputs. With ``input_derivatives = 0`` the input ``u`` is a constant parameter (the
+piecewise-constant inputs of trajectories and CSVs): this is the paper's "frozen-input" matrix
+(eqs. 13, 35, 38, 44, 50). With ``input_derivatives = m > 0`` the extended Lie derivative
+``L^{k+1} h = ∂_x(L^k h)·f + Σ_i ∂_{u^(i)}(L^k h)·u^(i+1)`` is used, with ``u^(m+1) = 0``: the
+matrix of a smooth, time-varying input. The two differ: on the centred circle (eq. 37) the frozen
+matrix has ``det O = 6ω⁴ρ⁴`` (the paper's value, right for eq. 35) but with ``u' = -ω² v`` the
+determinant of the first four rows is ``4ω⁴ρ⁴``; in 3D the frozen range-only matrix has at most 4
+non-zero rows (eq. 38), while with input derivatives its rank can exceed 4.
+
+Choice of K. Every output is a polynomial of degree ≤ 2 in ``(p, v, v_f)`` (``½|p-b|²``, ``v``,
+``v + v_f``, ``p_z``) and ``ẋ = A x + B u`` with ``A² = 0``. For the half-squared range with
+constant input, ``y' = p·ν``, ``y'' = |ν|² + p·u``, ``y''' = 3 ν·u``, and ``y'''' = 3|u|²`` has no
+state in it; each input derivative adds one order (``p·u^(m)`` first appears in ``y^(m+2)``, its
+state gradient is gone two orders later), so ``∇ L^k y = 0`` for ``k ≥ 4 + m``. DVL and depth
+rows vanish sooner. For the plain range ``r = √(2y)``, ``(r, ṙ, ..., r^(k))`` is a smooth function
+of ``(y, ..., y^(k))`` with a triangular Jacobian of diagonal ``1/r`` (r > 0), so its rows span the
+same space as the half-squared rows of the same orders. Hence ``K = 3 + m`` orders already contain
+every row that can raise the rank; ``tests/test_lwo.py`` checks that two more orders never do.
+
+Evaluation along a trajectory
+-----------------------------
+A trajectory gives ``p``, the inertial velocity ``ν = p'`` and ``u``. The state is
+``x = (p, ν)``, or with current ``x = (p, ν - v_f, v_f)`` with a nominal ``v_f = 0``: every row of
+O depends on the state only through ``p`` and ``ν = v + v_f`` (the range rows) or is constant (DVL
+rows), so the split does not change O (tested). For ``input_derivatives > 0`` the derivatives of u
+are estimated from the samples by finite differences (:func:`input_derivative_estimates`).
+
+Rank test
+---------
+O mixes units (rows of m², m²/s, ..., columns of m and m/s). Changing units multiplies O by fixed
+diagonal matrices on both sides, so the test first *nondimensionalises* with a length ``ℓ`` and a
+time ``T`` taken from the trajectory itself (``ℓ`` = RMS range to the beacon, ``T = ℓ / RMS speed``)
+which change covariantly with the units: the dimensionless O, hence every verdict, is the same in
+metres/seconds as in kilometres/hours (to round-off). The rank is then the number of singular values
+above ``LWO_RANK_TOL · σ_max`` per sample. Rows are *not* normalised one by one: near the beacon a
+row such as ``(p, 0)`` is round-off only, and normalising it would invent a direction.
+
+The rank is always computed on the half-squared rows. For ``r > 0`` the plain-range rows of orders
+``0..K`` span exactly the same space (triangular chain rule above), but they are badly conditioned:
+``∇ r^(k)`` carries terms in ``1/r^(2k-1)`` that cancel, and measured on 6e4-sample lines their
+numerical rank drops by one or two at ordinary samples. At ``r = 0`` the plain range is not
+differentiable, O is undefined (NaN from :func:`lwo_matrices`), and the documented verdict is
+the half-squared one, which is rank deficient there (the row ``(p - b, 0)`` vanishes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from obsplan.errors import InputError
+from obsplan.model import VehicleModel
+from obsplan.trajectory import Trajectory
+
+#: Relative tolerance on the singular values of the dimensionless O at one sample.
+#: Entries are low-degree polynomials of the samples (a few flops: relative error ~1e-15), and the
+#: samples of a long trajectory carry relative errors up to ~1e-13 (exact integration of 6e4 steps,
+#: CSV round trip at 17 digits). A singular value of 1e-9 σ_max is a direction that is 1e-9
+#: independent at the trajectory's own scale, e.g. a straight line passing 1e-9 ℓ (0.1 µm at
+#: 100 m) from the beacon, which no vehicle can tell from a radial one. Four decades above
+#: round-off, far below any manoeuvre; measured margins in tests/test_lwo.py.
+LWO_RANK_TOL: float = 1e-9
+
+
+def lwo_orders(model: VehicleModel, input_derivatives: int = 0) -> int:
+    """Highest Lie-derivative order ``K = 3 + input_derivatives`` used for ``model``.
+
+    See the module docstring for why no higher order can raise the rank.
+    """
+    del model  # the bound holds for every sensor set and range form of VehicleModel
+    return 3 + int(input_derivatives)
+
+
+def _check_m(input_derivatives: int) -> int:
+    m = int(input_derivatives)
+    if m != input_derivatives or m < 0:
+        raise InputError(
+            f"input_derivatives must be a non-negative integer, got {input_derivatives!r}"
+        )
+    return m
+
+
+@cache
+def _lwo_function(model: VehicleModel, m: int, orders: int) -> ca.Function:
+    x = ca.SX.sym("x", model.state_dim)
+    us = [ca.SX.sym(f"u{i}" if i else "u", model.dim) for i in range(m + 1)]
+    xdot = model.f_expr(x, us[0])
+    h = model.h_expr(x)
+    rows = []
+    for j in range(h.shape[0]):
+        L = h[j]
+        for _k in range(orders + 1):
+            g = ca.jacobian(L, x)
+            if g.nnz() > 0:
+                rows.append(ca.densify(g))
+            # extended Lie derivative: d/dt through x and through u, u', ... (u^(m+1) = 0)
+            dL = ca.jtimes(L, x, xdot)
+            for i in range(m):
+                dL += ca.jtimes(L, us[i], us[i + 1])
+            L = ca.simplify(dL) if dL.is_scalar() else dL
+    O = ca.vertcat(*rows) if rows else ca.SX.zeros(0, model.state_dim)
+    names = ["x"] + [f"u{i}" if i else "u" for i in range(m + 1)]
+    return ca.Function("lwo_matrix", [x, *us], [O], names, ["O"])
+
+
+def lwo_matrix_function(
+    model: VehicleModel, input_derivatives: int = 0, *, orders: int | None = None
+) -> ca.Function:
+    """CasADi function ``O(x, u[, u1..um])`` of the Lie-derivative observability matrix (eq. 9).
+
+    Parameters
+    ----------
+    model
+        Vehicle model (any sensors, range form, current, beacon).
+    input_derivatives
+        ``m``: number of time derivatives of ``u`` treated as extra inputs (extended Lie
+        derivatives; ``u^(m+1) = 0``). ``0``: constant input, the paper's matrices.
+    orders
+        Highest Lie-derivative order ``K``; default :func:`lwo_orders` (``3 + m``), enough for rank.
+
+    Returns
+    -------
+    casadi.Function
+        Inputs ``x`` (state_dim,), ``u`` (n,) [m/s²] and ``u1..um`` (n,) [m/s^(2+i)]; output ``O``
+        of shape ``(rows, state_dim)``, the non-zero gradient rows ordered by output, then order.
+        Built from SX; callable with numbers, SX or MX (e.g. inside an ``Opti`` problem).
+    """
+    m = _check_m(input_derivatives)
+    K = lwo_orders(model, m) if orders is None else int(orders)
+    return _lwo_function(model, m, K)
+
+
+def _trajectory_state(traj: Trajectory, model: VehicleModel) -> np.ndarray:
+    """States ``(p, ν)`` or ``(p, ν, 0)`` at every sample, shape ``(N, state_dim)``."""
+    parts = [traj.p, traj.v]
+    if model.current:
+        parts.append(np.zeros_like(traj.v))  # nominal v_f = 0: O depends on v + v_f only
+    return np.hstack(parts)
+
+
+def input_derivative_estimates(traj: Trajectory, order: int) -> list[np.ndarray]:
+    """Finite-difference estimates of ``u', ..., u^(order)`` at the samples, each ``(N, n)``.
+
+    Uses ``numpy.gradient`` (second-order central differences, one-sided at the ends) on the
+    sample times, applied repeatedly. Piecewise-constant inputs have zero derivative except at
+    their jumps, where this estimate is a smoothed spike: use ``input_derivatives > 0`` only for
+    trajectories that sample a smooth input.
+    """
+    out: list[np.ndarray] = []
+    cur = traj.u
+    for _ in range(order):
+        cur = np.gradient(cur, traj.t, axis=0) if traj.n_samples > 1 else np.zeros_like(cur)
+        out.append(cur)
+    return out
+
+
+def _check_dims(traj: Trajectory, model: VehicleModel) -> None:
+    if traj.dim != model.dim:
+        raise InputError(
+            f"the model is {model.dim}D but the trajectory is {traj.dim}D; build the model with "
+            f"dim={traj.dim}"
+        )
+
+
+def lwo_matrices(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0) -> np.ndarray:
+    """O (eq. 9) at every sample of ``traj``, in SI units, shape ``(N, rows, state_dim)``.
+
+    The state at each sample is ``(p, ν)`` (``(p, ν, 0)`` with current; see module docstring); the
+    input is ``u[k]``. With the ``"range"`` range form, O is not defined at a sample on the beacon
+    (``r = 0``): those rows are NaN there (:func:`lwo_ranks` does not use them; module docstring).
+    """
+    m = _check_m(input_derivatives)
+    _check_dims(traj, model)
+    fn = lwo_matrix_function(model, m)
+    N = traj.n_samples
+    x = _trajectory_state(traj, model)
+    us = [traj.u, *input_derivative_estimates(traj, m)]
+    out = np.asarray(fn.map(N, "serial")(x.T, *(u.T for u in us)))
+    rows = fn.size1_out(0)
+    return out.reshape(rows, N, model.state_dim).transpose(1, 0, 2)
+
+
+def characteristic_scales(traj: Trajectory, model: VehicleModel) -> tuple[float, float]:
+    """Length ``ℓ`` [m] and time ``T`` [s] of a trajectory, covariant with the units.
+
+    ``ℓ`` is the RMS range to the beacon (else the RMS distance from the mean position, else 1);
+    ``T = ℓ / RMS speed`` (else ``√(ℓ / RMS |u|)``, else the duration).
+    """
+    rel = traj.p - model.beacon_array
+    ell = float(np.sqrt(np.mean(np.sum(rel**2, axis=1))))
+    if not ell > 0:
+        spread = traj.p - traj.p.mean(axis=0)
+        ell = float(np.sqrt(np.mean(np.sum(spread**2, axis=1)))) or 1.0
+    speed = float(np.sqrt(np.mean(np.sum(traj.v**2, axis=1))))
+    accel = float(np.sqrt(np.mean(np.sum(traj.u**2, axis=1))))
+    if speed > 0:
+        T = ell / speed
+    elif accel > 0:
+        T = float(np.sqrt(ell / accel))
+    else:
+        T = traj.duration
+    return ell, T
+
+
+def _dimensionless(traj: Trajectory, model: VehicleModel, input_derivatives: int) -> np.ndarray:
+    """O of the trajectory nondimensionalised by :func:`characteristic_scales`."""
+    ell, T = characteristic_scales(traj, model)
+    tr = Trajectory(
+        t=traj.t / T,
+        p=(traj.p - model.beacon_array) / ell,
+        v=traj.v * T / ell,
+        u=traj.u * T**2 / ell,
+    )
+    # the same model in the dimensionless frame: beacon at the origin, half-squared range (same
+    # row space as the plain range for r > 0, well conditioned; see module docstring)
+    nd_model = VehicleModel(
+        dim=model.dim,
+        sensors=model.sensors,
+        current=model.current,
+        beacon=None,
+        range_form="half-squared",
+    )
+    return lwo_matrices(tr, nd_model, input_derivatives)
+
+
+def ranks_of(O: np.ndarray, tol: float = LWO_RANK_TOL) -> np.ndarray:
+    """Rank of each matrix of a stack ``(N, rows, cols)``: singular values above ``tol · σ_max``.
+
+    The matrices should be dimensionless (as :func:`lwo_ranks` makes them).
+    """
+    s = np.linalg.svd(np.asarray(O, float), compute_uv=False)
+    smax = s[..., :1]
+    return np.sum((s > tol * smax) & (smax > 0), axis=-1).astype(int)
+
+
+def lwo_ranks(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0) -> np.ndarray:
+    """Unit-invariant rank of O at every sample, shape ``(N,)`` int.
+
+    O is nondimensionalised by :func:`characteristic_scales` and its singular values compared with
+    ``LWO_RANK_TOL · σ_max``; the range rows are taken in half-squared form (module docstring).
+    """
+    return ranks_of(_dimensionless(traj, model, input_derivatives))
+
+
+@dataclass(frozen=True)
+class LWOReport:
+    """Verdict of the observability rank condition (Theorem 3.4) along a trajectory.
+
+    Attributes
+    ----------
+    along_trajectory
+        O has full column rank at every sample: "locally weakly observable along the trajectory"
+        (section 4.1). A sufficient condition: False does not prove unobservability.
+    full_rank_fraction
+        Fraction of samples where O has full column rank.
+    min_rank
+        Smallest rank over the samples.
+    state_dim
+        Number of states (full column rank).
+    ranks
+        Rank at each sample, shape ``(N,)``.
+    """
+
+    along_trajectory: bool
+    full_rank_fraction: float
+    min_rank: int
+    state_dim: int
+    ranks: np.ndarray = field(repr=False, compare=False)
+
+    def to_dict(self) -> dict:
+        """The ``lwo`` keys of ``obsplan analyze --json``."""
+        return {
+            "along_trajectory": bool(self.along_trajectory),
+            "full_rank_fraction": float(self.full_rank_fraction),
+            "min_rank": int(self.min_rank),
+            "state_dim": int(self.state_dim),
+        }
+
+
+def lwo_report(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0) -> LWOReport:
+    """Rank of O along ``traj`` summarised as an :class:`LWOReport`."""
+    ranks = lwo_ranks(traj, model, input_derivatives)
+    full = ranks == model.state_dim
+    ranks.setflags(write=False)
+    return LWOReport(
+        along_trajectory=bool(np.all(full)),
+        full_rank_fraction=float(np.mean(full)),
+        min_rank=int(ranks.min()),
+        state_dim=model.state_dim,
+        ranks=ranks,
+    )
+
+
+def lwo_structural_max_rank(
+    model: VehicleModel, input_derivatives: int = 0, samples: int = 64, seed: int = 0
+) -> int:
+    """Largest rank of O over random states and inputs (its generic rank).
+
+    Parameters
+    ----------
+    model
+        Vehicle model.
+    input_derivatives
+        As in :func:`lwo_matrix_function`.
+    samples
+        Number of random (state, input) points, standard normal in dimensionless units.
+    seed
+        Seed of the generator.
+
+    Returns
+    -------
+    int
+        E.g. 4 for 3D range-only with constant input: the frozen matrix can never reach 6.
+    """
+    m = _check_m(input_derivatives)
+    fn = lwo_matrix_function(replace(model, range_form="half-squared"), m)
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal((model.state_dim, samples))
+    x[: model.dim] += model.beacon_array[:, None]
+    us = [rng.standard_normal((model.dim, samples)) for _ in range(m + 1)]
+    out = np.asarray(fn.map(samples, "serial")(x, *us))
+    rows = fn.size1_out(0)
+    O = out.reshape(rows, samples, model.state_dim).transpose(1, 0, 2)
+    return int(ranks_of(O).max())

@@ -1,0 +1,243 @@
+"""Generators of the Tables 1–3 motion classes: dynamic consistency, geometry, argument errors."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from obsplan import generators as gen
+from obsplan.errors import ConfigError
+from obsplan.trajectory import Trajectory
+
+RHO, SPEED = 50.0, 2.6  # the paper's circle (Fig. 2)
+OMEGA = SPEED / RHO
+LAP = 2 * math.pi / OMEGA
+# exact integration of N steps accumulates ~N ulps: 1e-9 m is far above that, far below any path
+CONSISTENT = 1e-9
+
+
+def assert_consistent(tr: Trajectory) -> None:
+    pe, ve = tr.consistency_error()
+    assert pe < CONSISTENT and ve < CONSISTENT
+
+
+def _all_generated() -> list[Trajectory]:
+    dt = 0.1
+    return [
+        gen.straight((-100, 60), (1, 0), 0.1, accel=0.02, duration=50, dt=dt),
+        gen.straight(
+            (1, 2, 3), (0, 1, 1), 1.0, accel=gen.sine_profile(0.1, 0.05, 7), duration=30, dt=dt
+        ),
+        gen.circle(RHO, SPEED, LAP, dt),
+        gen.circle(RHO, SPEED, 60, dt, center=(10, -5), phase=1.0, z=5.0, ccw=False),
+        gen.circle_z(RHO, SPEED, 90, dt, z0=10, z_amp=5, z_period=90),
+        gen.circle_z(RHO, SPEED, 90, dt, z0=4, z_motion="straight", z_speed=-0.01),
+        gen.circle_then_straight(
+            RHO,
+            SPEED,
+            circle_duration=60,
+            straight_duration=20,
+            radial=True,
+            straight_accel=0.02,
+            dt=dt,
+        ),
+        gen.lawnmower((0, 0), 100, 20, 4, 2.0, dt, start_with_circle=True),
+        gen.lawnmower_within_limits((0, 0), 200, 100, 2.0, 0.2, 500, dt, z=-5, z_speed=0.01),
+        gen.paper_lawnmower(2, dt),
+        gen.paper_lawnmower(3, dt),
+    ]
+
+
+def test_every_generator_is_dynamically_consistent():
+    for tr in _all_generated():
+        assert_consistent(tr)
+        assert np.all(np.diff(tr.t) > 0)
+
+
+@pytest.mark.parametrize("dt", [0.01, 0.1])
+def test_circle_radius_and_velocity(dt):
+    tr = gen.circle(RHO, SPEED, LAP, dt)
+    radius_err = np.abs(np.linalg.norm(tr.p, axis=1) - RHO).max()
+    bound = RHO * (OMEGA * dt) ** 2 / 6  # trapezoidal step shortening (module docstring)
+    assert radius_err <= bound * 1.01
+    assert radius_err > bound * 0.5  # the error is the predicted one, not a lucky zero
+    th = OMEGA * tr.t
+    v_true = SPEED * np.column_stack([-np.sin(th), np.cos(th)])
+    assert np.abs(tr.v - v_true).max() < 1e-9
+    # chord inputs never exceed the centripetal acceleration
+    assert np.linalg.norm(tr.u, axis=1).max() <= SPEED**2 / RHO
+
+
+def test_circle_3d_plane_center_and_direction():
+    tr = gen.circle(10.0, 1.0, 30, 0.05, center=(3, 4), phase=math.pi / 2, z=-2.0, ccw=False)
+    assert tr.dim == 3
+    np.testing.assert_allclose(tr.p[0], (3, 14, -2), atol=1e-12)
+    np.testing.assert_allclose(tr.v[0], (1, 0, 0), atol=1e-12)  # clockwise from the top
+    assert np.all(tr.p[:, 2] == -2.0) and np.all(tr.u[:, 2] == 0.0)
+    assert np.abs(np.linalg.norm(tr.p[:, :2] - (3, 4), axis=1) - 10).max() < 1e-4
+
+
+def test_straight_is_exactly_straight_and_speed_profile_is_accurate():
+    prof = gen.sine_profile(0.02, 0.01, 20.0)
+    T, dt = 100.0, 0.01
+    tr = gen.straight((-100, 60), (1, 0), 0.1, accel=prof, duration=T, dt=dt)
+    assert np.all(tr.p[:, 1] == 60.0) and np.all(tr.u[:, 1] == 0.0)
+    assert np.all(tr.u[:-1, 0] >= 0.01 - 1e-15)  # never zero: LWO needs it (eq. 36)
+    exact = 0.1 + 0.02 * T + 0.01 * 20 / (2 * math.pi) * (1 - math.cos(2 * math.pi * T / 20))
+    assert abs(tr.v[-1, 0] - exact) < 1e-8  # midpoint rule: O(dt²)
+    radial = gen.straight((-80, 60, 20), (80, -60, -20), 0.5, accel=prof, duration=60, dt=0.1)
+    cross = np.cross(radial.p, radial.v)
+    assert np.abs(cross).max() < 1e-9 * 100 * 2  # exactly radial up to round-off
+
+
+def test_straight_accel_array_and_constant():
+    tr = gen.straight((0, 0), (0, 2), 1.0, accel=0.5, duration=10, dt=0.5)
+    np.testing.assert_allclose(tr.p[-1], (0, 1.0 * 10 + 0.25 * 100), atol=1e-12)
+    arr = np.linspace(0, 1, 20)
+    tr2 = gen.straight((0, 0), (1, 0), 1.0, accel=arr, duration=10, dt=0.5)
+    np.testing.assert_allclose(tr2.u[:-1, 0], arr)
+
+
+def test_time_grid_ends_exactly_at_duration():
+    tr = gen.circle(RHO, SPEED, 10.05, 0.1)
+    assert tr.t[-1] == 10.05 and np.all(np.diff(tr.t) > 0)
+    assert abs(tr.t[-1] - tr.t[-2] - 0.05) < 1e-9
+
+
+def test_circle_z_sine_and_straight():
+    tr = gen.circle_z(RHO, SPEED, 180, 0.01, z0=10, z_amp=5, z_period=90)
+    z_true = 10 + 5 * np.sin(2 * np.pi * tr.t / 90)
+    assert np.abs(tr.p[:, 2] - z_true).max() < 1e-6
+    assert np.abs(np.linalg.norm(tr.p[:, :2], axis=1) - RHO).max() < 1e-5
+    st = gen.circle_z(RHO, SPEED, 60, 0.1, z0=4, z_motion="straight", z_speed=-0.01)
+    assert np.all(st.u[:, 2] == 0.0)  # u_z = 0: the reason Fig. 5 is not observable
+    np.testing.assert_allclose(st.p[:, 2], 4 - 0.01 * st.t, atol=1e-12)
+
+
+@pytest.mark.parametrize("radial", [True, False])
+def test_circle_then_straight_geometry(radial):
+    tr = gen.circle_then_straight(
+        RHO,
+        SPEED,
+        circle_duration=100,
+        straight_duration=30,
+        radial=radial,
+        straight_accel=0.02,
+        dt=0.05,
+    )
+    leg = tr.t >= 100 - 1e-9
+    p, v = tr.p[leg], tr.v[leg]
+    e = v / np.linalg.norm(v, axis=1)[:, None]
+    dist_to_line = np.abs(p[:, 0] * e[:, 1] - p[:, 1] * e[:, 0])  # beacon's distance to the leg
+    if radial:
+        assert dist_to_line.max() < 1e-9
+    else:
+        np.testing.assert_allclose(dist_to_line, RHO, atol=1e-4)
+    assert np.all(np.abs(tr.u[leg][:-1, 0] - 0.02) < 1e-12)
+
+
+def test_lawnmower_turns_legs_and_area():
+    speed, spacing, L, n = 2.0, 30.0, 160.0, 5
+    tr = gen.lawnmower((-80, 60), L, spacing, n, speed, 0.05, first_turn="right")
+    acc = np.linalg.norm(tr.u, axis=1)
+    assert acc.max() <= 2 * speed**2 / spacing
+    np.testing.assert_allclose(tr.duration, (n * L + (n - 1) * math.pi * spacing / 2) / speed)
+    lo, hi = tr.p.min(axis=0), tr.p.max(axis=0)
+    np.testing.assert_allclose(lo, (-80 - spacing / 2, 60 - (n - 1) * spacing), atol=1e-3)
+    np.testing.assert_allclose(hi, (80 + spacing / 2, 60), atol=1e-3)
+    on_legs = acc == 0.0
+    lanes = 60.0 - spacing * np.arange(n)
+    lane_err = np.abs(tr.p[on_legs, 1][:, None] - lanes[None, :]).min(axis=1)
+    r, w = spacing / 2, speed / (spacing / 2)
+    assert lane_err.max() <= (n - 1) * r * (w * 0.05) ** 2 / 3  # O(dt²) per turn (module doc)
+
+
+def test_lawnmower_within_limits_respects_accel_and_fills_duration():
+    speed, amax = 2.0, 0.2
+    lay = gen.lawnmower_layout(200, 100, speed, amax)
+    assert lay.spacing == pytest.approx(2 * speed**2 / amax) and lay.n_legs == 3
+    assert lay.turn_accel == pytest.approx(amax) and lay.covered_height == 80.0
+    tr = gen.lawnmower_within_limits((0, 0), 200, 100, speed, amax, 2000.0, 0.1)
+    assert tr.t[-1] == 2000.0
+    assert np.linalg.norm(tr.u, axis=1).max() <= amax * (1 + 1e-12)
+    assert np.linalg.norm(tr.v, axis=1).max() <= speed * (1 + 1e-12)
+    lo, hi = tr.p.min(axis=0), tr.p.max(axis=0)
+    r = lay.turn_radius
+    assert lo[0] >= -r - 1e-3 and hi[0] <= 200 - r + 1e-3  # within the stated width
+    assert lo[1] >= -1e-3 and hi[1] <= lay.covered_height + 1e-3
+    assert hi[1] > lay.covered_height - 1e-3  # it reaches the far side and sweeps back
+    back = tr.p[tr.t > 0.8 * 2000, 1]
+    assert back.min() < lay.covered_height  # still sweeping after the first pass
+    from_rest = gen.lawnmower_within_limits(
+        (0, 0), 200, 100, speed, amax, 300, 0.1, initial_speed=0.0
+    )
+    assert np.all(from_rest.v[0] == 0)
+    assert np.linalg.norm(from_rest.u, axis=1).max() <= amax * (1 + 1e-12)  # to round-off
+
+
+def test_paper_lawnmower_start_states():
+    tr2 = gen.paper_lawnmower(2, 0.1)
+    np.testing.assert_allclose(tr2.p[0], (-80, 60))
+    np.testing.assert_allclose(tr2.v[0], (0, 0))  # Fig. 3 starts from rest
+    assert tr2.u[0, 0] > 0
+    tr3 = gen.paper_lawnmower(3, 0.1)
+    np.testing.assert_allclose(tr3.p[0], (-80, 60, 5))
+    np.testing.assert_allclose(tr3.v[0], (2, 0, -0.01))
+
+
+def test_concat_and_then_straight():
+    c = gen.circle(RHO, SPEED, 30, 0.1)
+    leg = gen.straight(c.p[-1], c.v[-1], SPEED, duration=10, dt=0.1)
+    both = gen.concat(c, leg)
+    assert both.n_samples == c.n_samples + leg.n_samples - 1
+    assert_consistent(both)
+    via = gen.then_straight(c, duration=10, dt=0.1)
+    np.testing.assert_allclose(via.p, both.p, atol=1e-12)
+    bad = gen.straight(c.p[-1], (1, 0), SPEED, duration=10, dt=0.1)
+    with pytest.raises(ConfigError, match="velocity"):
+        gen.concat(c, bad)
+    far = gen.straight(c.p[-1] + 1.0, c.v[-1], SPEED, duration=10, dt=0.1)
+    with pytest.raises(ConfigError, match="starts"):
+        gen.concat(c, far)
+    with pytest.raises(ConfigError, match="parallel"):
+        gen.then_straight(c, duration=5, direction=(1, 1))
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: gen.circle(0, SPEED, 10), "radius"),
+        (lambda: gen.circle(-5, SPEED, 10), "radius"),
+        (lambda: gen.circle(RHO, float("nan"), 10), "speed"),
+        (lambda: gen.circle(RHO, SPEED, 0.01, 0.01), "duration"),
+        (lambda: gen.circle(RHO, SPEED, 10, 0), "dt"),
+        (lambda: gen.circle(RHO, SPEED, 10, center=(0, 0, 1), z=2), "height"),
+        (lambda: gen.circle(RHO, SPEED, 10, center=(0,)), "center"),
+        (lambda: gen.straight((0, 0), (0, 0), 1, duration=5), "direction"),
+        (lambda: gen.straight((0, 0), (1, 0, 0), 1, duration=5), "direction"),
+        (lambda: gen.straight((0, 0), (1, 0), -1, duration=5), "speed0"),
+        (lambda: gen.straight((0, 0), (1, 0), 0, duration=5), "not move"),
+        (lambda: gen.straight((0, 0), (1, 0), 1, accel=[1, 2], duration=5), "accel"),
+        (lambda: gen.circle_z(RHO, SPEED, 10, z0=1), "z_amp"),
+        (lambda: gen.circle_z(RHO, SPEED, 10, z0=1, z_amp=0, z_period=5), "z_amp"),
+        (lambda: gen.circle_z(RHO, SPEED, 10, z0=1, z_motion="straight", z_speed=0), "z_speed"),
+        (lambda: gen.circle_z(RHO, SPEED, 10, z0=1, z_motion="zigzag"), "z_motion"),
+        (lambda: gen.lawnmower((0, 0), 100, 20, 0, 2.0), "n_legs"),
+        (lambda: gen.lawnmower((0, 0), 100, 20, 3, 2.0, turn="bulb"), "turn"),
+        (lambda: gen.lawnmower((0, 0), 100, -20, 3, 2.0), "spacing"),
+        (lambda: gen.lawnmower((0, 0), 100, 20, 3, 2.0, initial_speed=-1), "initial_speed"),
+        (
+            lambda: gen.lawnmower((0, 0), 10, 20, 3, 2.0, initial_speed=0, initial_accel=0.01),
+            "within the first leg",
+        ),
+        (lambda: gen.lawnmower_layout(200, 10, 2.0, 0.2), "too small"),
+        (lambda: gen.lawnmower_within_limits((0, 0), 200, 100, 2.0, 0.0, 100), "accel_max"),
+        (lambda: gen.sine_profile(0.1, 0.05, 0), "period"),
+        (lambda: gen.paper_lawnmower(4), "dim"),
+    ],
+)
+def test_argument_errors_name_the_parameter(call, match):
+    with pytest.raises(ConfigError, match=match):
+        call()
