@@ -251,8 +251,14 @@ def _accel_samples(accel: AccelProfile, t: np.ndarray) -> np.ndarray:
         mid = 0.5 * (t[:-1] + t[1:])  # midpoint: speed error O(dt²)
         try:
             a = np.broadcast_to(np.asarray(accel(mid), float), (K,)).copy()
-        except (TypeError, ValueError):
-            a = np.array([float(accel(float(s))) for s in mid])
+        except (TypeError, ValueError):  # a scalar-only callable
+            try:
+                a = np.array([float(accel(float(s))) for s in mid])
+            except (TypeError, ValueError) as exc:
+                raise ConfigError(
+                    "accel: the callable must map times [s] to accelerations [m/s²] "
+                    f"(an array of the same shape, or one number per time): {exc}"
+                ) from None
     elif np.ndim(accel) == 0:
         a = np.full(K, _finite("accel", accel))  # type: ignore[arg-type]
     else:

@@ -5,7 +5,8 @@ accelerations; our choices, consistent with the text, are:
 
 ========  =======================================================================================
 Fig. 1    2D straight line parallel to x from (-100, 60) m, v0 = (0.1, 0) m/s, constant
-          u_x = 0.005 m/s² (u_x ≠ 0 makes it LWO, eq. 36), 300 s.
+          u_x = 0.005 m/s² (u_x ≠ 0 makes it LWO, eq. 36), 200 s (just past the closest
+          approach to the beacon, x = 0 at t ≈ 180 s).
 Fig. 2    2D circle through p0 = (51, 2) m with v0 = (0, 2.6) m/s: radius 51 m centred at
           (0, 2) m (2 m from the beacon), 2.6 m/s, 300 s (2.4 laps).
 Fig. 3    2D lawn-mower from rest at (-80, 60) m (``generators.lawnmower``): legs of 160 m along
@@ -13,11 +14,13 @@ Fig. 3    2D lawn-mower from rest at (-80, 60) m (``generators.lawnmower``): leg
           accelerating from rest; 4 legs (3 turns).
 Fig. 4    Fig. 3 with the far initial estimate (-81, 50) m.
 Fig. 5    3D: the circle of Fig. 2 in (x, y) (radius 51 m centred at (0, 1) m, p0 = (51, 1, 4) m)
-          with a straight motion along z starting at v_z = -0.01 m/s: u_z = -0.002 m/s² for
-          30 s, +0.002 m/s² for 30 s, then 0 (a constant u_z ≠ 0 leaves d_z ∝ t², parallel to
-          the |v0|² column, and u_z = 0 leaves d_z = 0: either way the Gramian is singular).
+          with a straight descent along z from v_z = -0.01 m/s whose sink rate varies,
+          ``v_z = v_z0 - 0.1 (1 - cos(2π t / 60 s))`` m/s. A constant u_z ≠ 0 leaves d_z ∝ t²
+          (parallel to the |v0|² column), u_z = 0 leaves d_z = 0, and a single dive that ends
+          leaves d_z affine afterwards (in the span of the τ and 1 columns): in each case the z
+          information stops growing, and the KF's z error drifts with the process noise.
 Fig. 6    3D lawn-mower of Fig. 3 flown at 2 m/s from (-80, 60, 5) m, v0 = (2, 0, 0) m/s, with
-          the z profile of Fig. 5 starting from v_z = 0.
+          the descent of Fig. 5 starting from v_z = 0.
 Fig. 7    3D circle of radius 50 m at z = 5 m (out of the beacon's plane), 2.6 m/s, range + DVL.
 Fig. 8    Fig. 7's circle with z = 5 + 2 sin(2π t / 60 s) m, range + DVL.
 Fig. 9    Fig. 8 with the range at 0.1 Hz (case B); DVL and prediction at 100 Hz.
@@ -25,7 +28,7 @@ Fig. 9    Fig. 8 with the range at 0.1 Hz (case B); DVL and prediction at 100 Hz
 
 All at the paper's 100 Hz with the paper's R, Q and P0 (:meth:`EstimationConfig.paper`), truth
 with process noise. ``quick=True`` shortens the paths and lowers the model rate to 20 Hz for a
-fast preview (the covariances follow the step: ``Q ∝ Ts²``).
+fast preview (``Q`` keeps the paper's noise per unit time, see :meth:`PaperScenario.config`).
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from obsplan import generators as gen
-from obsplan.estimation.config import EstimationConfig
+from obsplan.estimation.config import EstimationConfig, paper_covariances
 from obsplan.estimation.crlb import sampled_rank_over_time
 from obsplan.estimation.simulate import MonteCarloResult, monte_carlo
 from obsplan.model import make_model
@@ -59,9 +62,16 @@ def _with_z(traj: Trajectory, z0: float, vz0: float, uz: np.ndarray) -> Trajecto
     )
 
 
-def _dive(t: np.ndarray, accel: float = 0.002, half: float = 30.0) -> np.ndarray:
-    """``u_z``: ``-accel`` for ``half`` s, ``+accel`` for ``half`` s, then 0 (a straight dive)."""
-    return np.where(t < half, -accel, np.where(t < 2 * half, accel, 0.0))
+#: Descent of Figs. 5–6: extra sink rate [m/s] varying with this period [s].
+DESCENT_DV, DESCENT_PERIOD = 0.1, 60.0
+
+
+def _descent(t: np.ndarray, dv: float = DESCENT_DV, period: float = DESCENT_PERIOD) -> np.ndarray:
+    """``u_z`` of a straight descent whose sink rate grows and shrinks: ``v_z(t) = v_z0 -
+    dv (1 - cos(2π t/period))``, sampled at interval midpoints."""
+    w = 2 * np.pi / period
+    tm = t + 0.5 * np.median(np.diff(t))
+    return -dv * w * np.sin(w * tm)
 
 
 @dataclass(frozen=True)
@@ -91,15 +101,28 @@ class PaperScenario:
     claim: str
 
     def config(self, dt: float) -> EstimationConfig:
-        """The paper's filter configuration of this figure for model step ``dt`` [s]."""
+        """The paper's filter configuration of this figure for model step ``dt`` [s].
+
+        ``R`` and ``P0`` are the paper's; ``Q`` is the paper's at 100 Hz scaled by
+        ``dt / 0.01 s`` so that a coarser step keeps the same noise per unit time (the paper's
+        ``Q ∝ Ts²`` per step would make the noise intensity grow with the step).
+        """
         model = make_model(self.dim, self.sensors)
-        return EstimationConfig.paper(
-            model, dt, init_error=np.asarray(self.init_error), rates_hz=self.rates_hz
+        cov = paper_covariances(model, PAPER_DT)
+        scale = dt / PAPER_DT
+        return EstimationConfig(
+            model=model,
+            q_ekf=cov["q_ekf"] * scale,
+            q_kf=cov["q_kf"] * scale,
+            p0_ekf=cov["p0_ekf"],
+            p0_kf=cov["p0_kf"],
+            init_error=np.asarray(self.init_error),
+            rates_hz=self.rates_hz,
         )
 
 
 def _fig1(dt: float, quick: bool) -> Trajectory:
-    return gen.straight((-100.0, 60.0), (1.0, 0.0), 0.1, accel=0.005, duration=300.0, dt=dt)
+    return gen.straight((-100.0, 60.0), (1.0, 0.0), 0.1, accel=0.005, duration=200.0, dt=dt)
 
 
 def _fig2(dt: float, quick: bool) -> Trajectory:
@@ -119,12 +142,12 @@ def _fig3(dt: float, quick: bool) -> Trajectory:
 
 def _fig5(dt: float, quick: bool) -> Trajectory:
     xy = gen.circle(51.0, 2.6, 150.0 if quick else 300.0, dt, center=(0.0, 1.0))
-    return _with_z(xy, 4.0, -0.01, _dive(xy.t))
+    return _with_z(xy, 4.0, -0.01, _descent(xy.t))
 
 
 def _fig6(dt: float, quick: bool) -> Trajectory:
     xy = _lawn(dt, quick, False)
-    return _with_z(xy, 5.0, 0.0, _dive(xy.t))
+    return _with_z(xy, 5.0, 0.0, _descent(xy.t))
 
 
 def _fig7(dt: float, quick: bool) -> Trajectory:

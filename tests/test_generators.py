@@ -235,6 +235,7 @@ def test_concat_and_then_straight():
         (lambda: gen.lawnmower_layout(200, 10, 2.0, 0.2), "too small"),
         (lambda: gen.lawnmower_within_limits((0, 0), 200, 100, 2.0, 0.0, 100), "accel_max"),
         (lambda: gen.sine_profile(0.1, 0.05, 0), "period"),
+        (lambda: gen.straight((0, 0), (1, 0), 1, accel=lambda t: "x", duration=5), "accel"),
         (lambda: gen.paper_lawnmower(4), "dim"),
     ],
 )

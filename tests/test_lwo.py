@@ -59,13 +59,15 @@ def sympy_O(dim, sensors, current, range_form="half-squared", m=0, orders=None):
     for h in outs:
         L = h
         for _ in range(K + 1):
-            g = sp.Matrix([L]).jacobian(x)
-            if any(sp.simplify(e) != 0 for e in g):
+            # polynomial outputs are kept expanded, so a zero gradient is literally 0; the
+            # plain range's derivatives never vanish (and simplify on them is very slow)
+            g = sp.Matrix([L]).jacobian(x).applyfunc(sp.expand if L.is_polynomial() else sp.S)
+            if any(e != 0 for e in g):
                 rows.append(g)
             dL = (sp.Matrix([L]).jacobian(x) * f)[0]
             for i in range(m):
                 dL += (sp.Matrix([L]).jacobian(us[i]) * us[i + 1])[0]
-            L = sp.expand(dL)
+            L = sp.expand(dL) if dL.is_polynomial() else dL
     return x, us, sp.Matrix.vstack(*rows)
 
 
@@ -79,9 +81,16 @@ SENSOR_CASES = [
 ]
 
 
-@pytest.mark.parametrize("dim,sensors,current", SENSOR_CASES)
-@pytest.mark.parametrize("range_form", ["half-squared", "range"])
-@pytest.mark.parametrize("m", [0, 1])
+ORACLE_CASES = [(*c, "half-squared", m) for c in SENSOR_CASES for m in (0, 1)] + [
+    # plain range: sympy is slow on its nested square roots, so fewer cases
+    (2, ("range",), False, "range", 0),
+    (2, ("range",), False, "range", 1),
+    (3, ("range", "dvl-water"), True, "range", 0),
+    (3, ("range", "dvl-bottom", "depth"), False, "range", 0),
+]
+
+
+@pytest.mark.parametrize("dim,sensors,current,range_form,m", ORACLE_CASES)
 def test_matches_independent_sympy_derivation(dim, sensors, current, range_form, m):
     model = make_model(dim, sensors, current, range_form=range_form)
     x, us, O = sympy_O(dim, sensors, current, range_form, m)
@@ -156,9 +165,7 @@ def test_closed_form_determinants_sympy():
     """
     x, us, O = sympy_O(2, ("range",), False, m=0)
     sl, q, px, s, a = sp.symbols("m q p_x s a", real=True)
-    line = dict(
-        zip(list(x) + list(us[0]), [px, sl * px + q, s, sl * s, a, sl * a], strict=True)
-    )
+    line = dict(zip(list(x) + list(us[0]), [px, sl * px + q, s, sl * s, a, sl * a], strict=True))
     assert sp.simplify(O.subs(line).det() + 3 * a**2 * q**2) == 0
 
     rho, w, t = sp.symbols("rho omega t", positive=True)
@@ -214,7 +221,7 @@ def test_3d_range_only_rank_can_exceed_4_with_input_derivatives():
 
 
 # ----------------------------------------------------------------------------- along trajectories
-def straight_line(dim, q, accel=0.05, n=400, dt=0.5, seed=0):
+def straight_line(dim, q, accel=0.05, n=400, dt=0.5, seed=0, speed=1.0):
     """A straight line along a random direction, passing at distance ``q`` from the beacon."""
     rng = np.random.default_rng(seed)
     b = rng.standard_normal(dim)
@@ -223,7 +230,7 @@ def straight_line(dim, q, accel=0.05, n=400, dt=0.5, seed=0):
     nrm -= (nrm @ b) * b
     nrm /= np.linalg.norm(nrm)
     t = np.arange(n) * dt
-    return Trajectory.from_inputs(t, -60 * b + q * nrm, 1.0 * b, np.tile(accel * b, (n, 1)))
+    return Trajectory.from_inputs(t, -60 * b + q * nrm, speed * b, np.tile(accel * b, (n, 1)))
 
 
 def circle(rho=50.0, w=0.1, n=300, dt=0.2, z=None):
@@ -331,15 +338,17 @@ def test_ranks_invariant_to_units_and_rotation_about_beacon(seed, L, T, angle):
 def test_tolerance_margins_on_long_lines():
     """LWO_RANK_TOL sits between round-off and real directions on a 6000-sample line.
 
-    Radial (rank 2): the 3rd singular value stays below 1e-12 σ_max; a line passing 0.1 m from
-    the beacon at ~100 m ranges (σ_3 ~ 1e-5 σ_max) is full rank at every sample.
+    Radial (rank 2): the 3rd singular value stays below 1e-12 σ_max (measured ~1e-13 at 6e4
+    samples); a line passing 0.1 m from the beacon at ranges up to 80 m (σ_4 ≥ 1e-6 σ_max) is
+    full rank at every sample.
     """
     from obsplan.observability.lwo import _dimensionless
 
-    radial = straight_line(2, 0.0, n=6000, dt=0.1)
+    kw = dict(n=6000, dt=0.1, speed=0.2, accel=1e-4)
+    radial = straight_line(2, 0.0, **kw)
     s = np.linalg.svd(_dimensionless(radial, make_model(2), 0), compute_uv=False)
     assert np.max(s[:, 2] / s[:, 0]) < 1e-3 * LWO_RANK_TOL
-    near = straight_line(2, 0.1, n=6000, dt=0.1)
+    near = straight_line(2, 0.1, **kw)
     s = np.linalg.svd(_dimensionless(near, make_model(2), 0), compute_uv=False)
     assert np.min(s[:, 3] / s[:, 0]) > 1e3 * LWO_RANK_TOL
     assert np.all(lwo_ranks(near, make_model(2)) == 4)
@@ -353,7 +362,7 @@ def test_symbolic_use_with_mx_and_sx():
         O = fn(X, U)
         assert O.shape == (4, 4)
         cond = ca.Function("c", [X, U], [ca.trace(O.T @ O)])
-        assert float(cond(np.ones(4), np.ones(2))) == pytest.approx(4 + 6 + 9 + 18)
+        assert float(cond(np.ones(4), np.ones(2))) == pytest.approx(2 + 4 + 10 + 18)  # rows (p,0),(v,p),(u,2v),(0,3u)
 
 
 def test_report_fields_and_dict():

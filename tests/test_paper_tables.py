@@ -223,8 +223,11 @@ def _lines(dim: int, accel) -> tuple[Trajectory, Trajectory]:
     e = np.eye(dim)[0]
     radial_p0 = -100 * e
     off_p0 = radial_p0 + 60 * np.eye(dim)[1]
-    mk = lambda p0: gen.straight(p0, e, 1.0, accel=accel, duration=40, dt=0.1)  # noqa: E731
-    return mk(radial_p0), mk(off_p0)
+
+    def line(p0: np.ndarray) -> Trajectory:
+        return gen.straight(p0, e, 1.0, accel=accel, duration=40, dt=0.1)
+
+    return line(radial_p0), line(off_p0)
 
 
 @pytest.mark.parametrize("dim", [2, 3])

@@ -60,6 +60,8 @@ class FilterStats:
         run-averaged NEES.
     rmse_pos_axes_t, pos_std_axes_t : ndarray, shape (N, n)
         The same per axis.
+    final_pos_err_runs : ndarray, shape (runs,)
+        ``|p̂ - p|`` of each run at the last sample [m].
     """
 
     rmse_pos: float
@@ -80,6 +82,7 @@ class FilterStats:
     nees_t: np.ndarray
     rmse_pos_axes_t: np.ndarray
     pos_std_axes_t: np.ndarray
+    final_pos_err_runs: np.ndarray
 
     def to_dict(self) -> dict:
         """The stable keys of ``obsplan simulate --json`` first, then the extras (no arrays)."""
@@ -93,6 +96,7 @@ class FilterStats:
             "threshold_m": float(self.threshold_m),
             "nees_bounds": [float(b) for b in self.nees_bounds],
             "nees_inside_fraction": _num(self.nees_inside_fraction),
+            "final_pos_err_median": _num(float(np.median(self.final_pos_err_runs))),
             "final_vel_err": _num(self.final_vel_err),
             "diverged_runs": int(self.diverged_runs),
         }
@@ -168,4 +172,5 @@ class StatsAccumulator:
             nees_t=nees_t,
             rmse_pos_axes_t=np.sqrt(self.se_pos_axes),
             pos_std_axes_t=np.sqrt(self.var_pos_axes),
+            final_pos_err_runs=self.final_pos_err.copy(),
         )

@@ -85,6 +85,12 @@ class AugmentedModel:
         return (*names, "p0.nu0", "|nu0|^2")
 
     @property
+    def unit_groups(self) -> tuple[int, ...]:
+        """Unit group of each state (p: 0, v and v_f: 1, p0·ν0: 2, |ν0|²: 3), for rank tests."""
+        n = self.dim
+        return (0,) * n + (1,) * (self.state_dim - 2 - n) + (2, 3)
+
+    @property
     def A(self) -> np.ndarray:
         """Dynamics matrix (eq. 23; with current ``p' = v + v_f``)."""
         n, m = self.dim, self.state_dim
@@ -266,9 +272,10 @@ def rank_over_time(
     tol: float = RANK_TOL,
 ) -> np.ndarray:
     """Unit-invariant rank of ``G(t_k, t_0)`` at every sample, shape ``(N,)``."""
-    G = cumulative_gramians(traj, model, DEFAULT_SCALES)
+    aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
+    G = cumulative_gramians(traj, aug, DEFAULT_SCALES)
     ranks = np.zeros(G.shape[0], dtype=int)
-    ranks[1:] = numerical_rank(G[1:], tol)
+    ranks[1:] = numerical_rank(G[1:], tol, aug.unit_groups)
     return ranks
 
 
@@ -282,11 +289,11 @@ def gramian_report(
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     Gcum = cumulative_gramians(traj, aug, scales)
     G = 0.5 * (Gcum[-1] + Gcum[-1].T)
-    rank = numerical_rank(G, tol)
+    rank = numerical_rank(G, tol, aug.unit_groups)
     full = rank == aug.state_dim
     t_full: float | None = None
     if full:
-        ranks = numerical_rank(Gcum[1:], tol)
+        ranks = numerical_rank(Gcum[1:], tol, aug.unit_groups)
         k = int(np.argmax(ranks == aug.state_dim)) + 1
         t_full = float(traj.t[k])
     min_eig, log_det, cond = psd_metrics(G)

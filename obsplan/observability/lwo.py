@@ -199,6 +199,7 @@ def characteristic_scales(traj: Trajectory, model: VehicleModel) -> tuple[float,
     ``ℓ`` is the RMS range to the beacon (else the RMS distance from the mean position, else 1);
     ``T = ℓ / RMS speed`` (else ``√(ℓ / RMS |u|)``, else the duration).
     """
+    _check_dims(traj, model)
     rel = traj.p - model.beacon_array
     ell = float(np.sqrt(np.mean(np.sum(rel**2, axis=1))))
     if not ell > 0:

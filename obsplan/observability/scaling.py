@@ -25,6 +25,7 @@ Two different jobs, two different tools:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +34,8 @@ from obsplan.errors import ConfigError
 
 #: Absolute tolerance on the eigenvalues of an equilibrated (unit-diagonal) symmetric matrix.
 RANK_TOL: float = 1e-10
-#: A diagonal entry this small relative to the largest one marks a column with no information.
+#: A diagonal entry this small relative to the largest one *of the same unit group* (see
+#: :func:`equilibrate`) marks a column with no information (round-off only).
 ZERO_DIAG_TOL: float = 1e-14
 
 
@@ -54,12 +56,21 @@ class Scales:
 DEFAULT_SCALES = Scales()
 
 
-def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def equilibrate(
+    G: np.ndarray, groups: Sequence[int] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Symmetric diagonal equilibration of PSD matrices.
 
     Parameters
     ----------
     G : ndarray, shape (..., m, m)
+    groups : sequence of m ints, optional
+        Unit group of each state (e.g. positions 0, velocities 1, ...; see
+        ``AugmentedModel.unit_groups``). A diagonal entry is compared with ``ZERO_DIAG_TOL`` times
+        the largest diagonal entry *of its group*, which has the same units, so the test is
+        unit-invariant. Without groups the largest entry overall is used: then a change of
+        units can move a column across the threshold (m -> km with s -> 1/3600 s turned a
+        full-rank Gramian into rank 3 this way).
 
     Returns
     -------
@@ -70,7 +81,16 @@ def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     G = np.asarray(G, float)
     diag = np.diagonal(G, axis1=-2, axis2=-1)
-    scale = np.max(np.abs(diag), axis=-1, keepdims=True)
+    if groups is None:
+        scale = np.max(np.abs(diag), axis=-1, keepdims=True)
+    else:
+        g = np.asarray(groups)
+        if g.shape != diag.shape[-1:]:
+            raise ValueError(f"groups needs {diag.shape[-1]} entries, got {g.shape}")
+        scale = np.zeros_like(diag)
+        for label in np.unique(g):
+            cols = g == label
+            scale[..., cols] = np.max(np.abs(diag[..., cols]), axis=-1, keepdims=True)
     informative = diag > ZERO_DIAG_TOL * np.where(scale > 0, scale, 1.0)
     informative &= diag > 0
     dinv = np.where(informative, 1.0 / np.sqrt(np.where(informative, diag, 1.0)), 0.0)
@@ -78,18 +98,22 @@ def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return 0.5 * (Gn + np.swapaxes(Gn, -1, -2)), informative
 
 
-def equilibrated_eigvals(G: np.ndarray) -> np.ndarray:
-    """Eigenvalues (ascending) of ``D G D``; shape ``(..., m)``."""
-    Gn, _ = equilibrate(G)
+def equilibrated_eigvals(G: np.ndarray, groups: Sequence[int] | None = None) -> np.ndarray:
+    """Eigenvalues (ascending) of ``D G D``; shape ``(..., m)``. ``groups``: see equilibrate."""
+    Gn, _ = equilibrate(G, groups)
     return np.linalg.eigvalsh(Gn)
 
 
-def numerical_rank(G: np.ndarray, tol: float = RANK_TOL) -> np.ndarray | int:
+def numerical_rank(
+    G: np.ndarray, tol: float = RANK_TOL, groups: Sequence[int] | None = None
+) -> np.ndarray | int:
     """Unit-invariant rank of symmetric PSD matrices (batched over leading axes).
 
     The number of eigenvalues of the equilibrated matrix above ``tol`` (see module docstring).
+    Pass ``groups`` (the unit group of each state, :func:`equilibrate`) for a test that is
+    unit-invariant also for columns with almost no information.
     """
-    ev = equilibrated_eigvals(G)
+    ev = equilibrated_eigvals(G, groups)
     r = np.sum(ev > tol, axis=-1)
     return int(r) if np.ndim(r) == 0 else r
 

@@ -1,8 +1,8 @@
 """Symbolic pieces of the planning NLP: the exact discretised double integrator and the objectives.
 
-Everything is in the problem's fixed nondimensional units (:class:`~obsplan.observability.scaling.Scales`
-``L``, ``T``): time ``t/T``, position relative to the beacon ``(p - b)/L``, velocity ``v T/L``,
-input ``u T²/L``. This is the frame of the reported metrics, and it keeps the NLP O(1).
+Everything is in the problem's fixed nondimensional units
+(:class:`~obsplan.observability.scaling.Scales` ``L``, ``T``): time ``t/T``, position relative
+to the beacon ``(p - b)/L``, velocity ``v T/L``, input ``u T²/L``.
 
 Decision variables: ``W`` of shape ``(3n, N)``, column ``k`` = ``(u_k, p_{k+1}, v_{k+1})`` (stage
 ordering, so the KKT matrix is banded), followed by objective-specific lifting variables.
@@ -194,7 +194,7 @@ class KFNoise:
 
 
 def kf_noise(pb: PlanningProblem) -> KFNoise:
-    """The planning KF's noise model: the validation KF's (:meth:`PlanningProblem.estimation_config`).
+    """The planning KF's noise model: the validation KF's (``PlanningProblem.estimation_config``).
 
     Same prior ``p0_kf`` and per-step ``q_kf`` (accumulated over a range epoch), same range noise,
     and the anchor state ``β = -ε_0`` of ``y0_mode="augment"`` appended last (prior variance

@@ -1,0 +1,139 @@
+"""``obsplan plan [PROBLEM.toml] [--out DIR]``: plan a path, compare with baselines, validate."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from obsplan.errors import InputError
+from obsplan.planning.figures import (
+    plot_filter_errors,
+    plot_gramian_eigs,
+    plot_paths,
+    save_figure,
+)
+from obsplan.planning.plan import PlanResult, plan
+from obsplan.planning.problem import DEFAULT_PROBLEM, Horizon, PlanningProblem, load_problem
+from obsplan.trajectory import write_csv
+
+DEFAULT_OUT = "obsplan-plan"
+FIGURES = ("path.png", "gramian.png", "filters.png")
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register the ``plan`` verb."""
+    p = subparsers.add_parser(
+        "plan",
+        help="plan an observability-optimal path and validate it against baselines",
+        description=(
+            "Solve a planning problem (TOML; see docs/problem-files.md), compare the plan with "
+            "the lawn-mower and other baselines under the same limits, run EKF/KF Monte Carlo "
+            "on each, and write DIR/plan.csv, DIR/report.json and figures."
+        ),
+    )
+    p.add_argument(
+        "problem",
+        nargs="?",
+        metavar="PROBLEM.toml",
+        help=f"problem file (default: {DEFAULT_PROBLEM.relative_to(DEFAULT_PROBLEM.parents[1])})",
+    )
+    p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder ({DEFAULT_OUT})")
+    p.add_argument("--force", action="store_true", help="write into a non-empty DIR")
+    p.add_argument("--runs", type=int, metavar="N", help="override validation.runs")
+    p.add_argument("--steps", type=int, metavar="N", help="override horizon.steps")
+    p.add_argument("--starts", type=int, metavar="N", help="override objective.starts")
+    p.add_argument("--no-validate", action="store_true", help="skip the Monte Carlo validation")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--verbose", action="store_true", help="show IPOPT's output")
+    return p
+
+
+def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningProblem:
+    if args.runs is not None and args.runs < 1:
+        raise InputError(f"--runs must be at least 1, got {args.runs}")
+    if args.steps is not None:
+        pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=args.steps))
+    if args.starts is not None:
+        pb = replace(pb, objective=replace(pb.objective, starts=args.starts))
+    return pb
+
+
+def _fmt(x: float | None, spec: str = ".4g") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return format(x, spec)
+
+
+def summary_table(result: PlanResult) -> str:
+    """Planned vs baselines: objective, Gramian metrics, predicted KF std, Monte Carlo RMSE."""
+    head = (
+        f"{'path':<16} {'objective':>10} {'min_eig':>10} {'log_det':>9} {'KF std':>8} "
+        f"{'EKF rmse':>9} {'KF rmse':>9} {'limits':>6}"
+    )
+    lines = [head, "-" * len(head)]
+    for name, m in result.metrics.items():
+        v = result.validation.get(name)
+        ekf = v.result.ekf.rmse_pos if v is not None and v.result.ekf is not None else None
+        kf = v.result.kf.rmse_pos if v is not None and v.result.kf is not None else None
+        lines.append(
+            f"{name:<16} {_fmt(m.objective):>10} {_fmt(m.min_eig):>10} {_fmt(m.log_det):>9} "
+            f"{_fmt(m.kf_final_pos_std):>8} {_fmt(ekf):>9} {_fmt(kf):>9} "
+            f"{'ok' if m.within_limits else 'NO':>6}"
+        )
+    return "\n".join(lines)
+
+
+def write_outputs(result: PlanResult, out: Path) -> list[Path]:
+    """Write plan.csv (if a path was found), report.json and the figures into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    if result.trajectory is not None:
+        written.append(write_csv(result.trajectory, out / "plan.csv"))
+    report = out / "report.json"
+    report.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n")
+    written.append(report)
+    paths = result.paths()
+    pb = result.problem
+    written.append(save_figure(plot_paths(paths, pb), out / FIGURES[0]))
+    written.append(save_figure(plot_gramian_eigs(paths, pb), out / FIGURES[1]))
+    if result.validation:
+        written.append(save_figure(plot_filter_errors(result.validation), out / FIGURES[2]))
+    return written
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the verb; 0 on success, 1 if no start converged (outputs are still written)."""
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not args.force:
+        raise InputError(f"--out {out} is not empty; pass --force to overwrite its files")
+    pb = _apply_overrides(load_problem(args.problem), args)
+    result = plan(
+        pb,
+        validate=not args.no_validate,
+        runs=args.runs,
+        progress=not args.quiet,
+        verbose=args.verbose,
+    )
+    written = write_outputs(result, out)
+    s = result.solve
+    print(
+        f"{pb.name or 'problem'}: {pb.objective.kind}, N = {pb.horizon.steps}: {s.status} "
+        f"(best of {len(s.starts)} starts: {s.best_start}, {s.iterations} iterations), "
+        f"{s.wall_s:.1f} s solve, {result.wall_s:.1f} s total"
+    )
+    print(summary_table(result))
+    print(f"wrote {', '.join(str(p) for p in written)}")
+    if not result.success:
+        print(
+            "obsplan plan: failed: no start converged"
+            + (" (the best feasible iterate was written)" if result.trajectory is not None else ""),
+            file=sys.stderr,
+        )
+        return 1
+    return 0
