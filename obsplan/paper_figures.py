@@ -27,7 +27,7 @@ Fig. 9    Fig. 8 with the range at 0.1 Hz (case B); DVL and prediction at 100 Hz
 ========  =======================================================================================
 
 All at the paper's 100 Hz with the paper's R, Q and P0 (:meth:`EstimationConfig.paper`), truth
-with process noise. ``quick=True`` shortens the paths and lowers the model rate to 20 Hz for a
+with process noise. ``quick=True`` shortens the paths and lowers the model rate to 10 Hz for a
 fast preview (``Q`` keeps the paper's noise per unit time, see :meth:`PaperScenario.config`).
 """
 
@@ -126,7 +126,7 @@ def _fig1(dt: float, quick: bool) -> Trajectory:
 
 
 def _fig2(dt: float, quick: bool) -> Trajectory:
-    return gen.circle(51.0, 2.6, 150.0 if quick else 300.0, dt, center=(0.0, 2.0))
+    return gen.circle(51.0, 2.6, 100.0 if quick else 300.0, dt, center=(0.0, 2.0))
 
 
 def _lawn(dt: float, quick: bool, from_rest: bool) -> Trajectory:
@@ -141,7 +141,7 @@ def _fig3(dt: float, quick: bool) -> Trajectory:
 
 
 def _fig5(dt: float, quick: bool) -> Trajectory:
-    xy = gen.circle(51.0, 2.6, 150.0 if quick else 300.0, dt, center=(0.0, 1.0))
+    xy = gen.circle(51.0, 2.6, 100.0 if quick else 300.0, dt, center=(0.0, 1.0))
     return _with_z(xy, 4.0, -0.01, _descent(xy.t))
 
 
@@ -151,51 +151,95 @@ def _fig6(dt: float, quick: bool) -> Trajectory:
 
 
 def _fig7(dt: float, quick: bool) -> Trajectory:
-    return gen.circle(50.0, 2.6, 150.0 if quick else 300.0, dt, z=5.0)
+    return gen.circle(50.0, 2.6, 100.0 if quick else 300.0, dt, z=5.0)
 
 
 def _fig8(dt: float, quick: bool) -> Trajectory:
-    return gen.circle_z(
-        50.0, 2.6, 150.0 if quick else 300.0, dt, z0=5.0, z_amp=2.0, z_period=60.0
-    )
+    return gen.circle_z(50.0, 2.6, 100.0 if quick else 300.0, dt, z0=5.0, z_amp=2.0, z_period=60.0)
 
 
 SCENARIOS: tuple[PaperScenario, ...] = (
     PaperScenario(
-        1, "Straight line in 2D", _fig1, 2, "range", (-1.0, 1.0, 0.1, 0.0), {},
+        1,
+        "Straight line in 2D",
+        _fig1,
+        2,
+        "range",
+        (-1.0, 1.0, 0.1, 0.0),
+        {},
         "EKF converges; KF does not (p_y error and std stay large)",
     ),
     PaperScenario(
         2, "Circle in 2D", _fig2, 2, "range", (-1.0, -2.0, 0.0, 0.0), {}, "both converge"
     ),
     PaperScenario(
-        3, "Lawn-mower in 2D", _fig3, 2, "range", (-1.0, 1.0, 0.0, 0.0), {},
+        3,
+        "Lawn-mower in 2D",
+        _fig3,
+        2,
+        "range",
+        (-1.0, 1.0, 0.0, 0.0),
+        {},
         "EKF converges; KF converges once the first turn makes the Gramian full rank",
     ),
     PaperScenario(
-        4, "Lawn-mower in 2D, far initial estimate", _fig3, 2, "range",
-        (-1.0, -10.0, 0.0, 0.0), {}, "EKF fails; KF converges",
+        4,
+        "Lawn-mower in 2D, far initial estimate",
+        _fig3,
+        2,
+        "range",
+        (-1.0, -10.0, 0.0, 0.0),
+        {},
+        "EKF fails; KF converges",
     ),
     PaperScenario(
-        5, "Circle in 3D with straight z", _fig5, 3, "range", (-1.0, -1.0, 1.0, 0.0, 0.0, 0.0),
-        {}, "EKF does not converge; KF converges after the Gramian is full rank",
-    ),
-    PaperScenario(
-        6, "Lawn-mower in 3D with straight z", _fig6, 3, "range",
-        (-1.0, 1.0, 1.0, 0.0, 0.0, 0.0), {},
+        5,
+        "Circle in 3D with straight z",
+        _fig5,
+        3,
+        "range",
+        (-1.0, -1.0, 1.0, 0.0, 0.0, 0.0),
+        {},
         "EKF does not converge; KF converges after the Gramian is full rank",
     ),
     PaperScenario(
-        7, "Circle in 3D out of the beacon's plane, DVL", _fig7, 3, "range,dvl",
-        (1.0, -1.0, -2.0, 0.0, 0.0, 0.0), {}, "EKF converges; KF does not",
+        6,
+        "Lawn-mower in 3D with straight z",
+        _fig6,
+        3,
+        "range",
+        (-1.0, 1.0, 1.0, 0.0, 0.0, 0.0),
+        {},
+        "EKF does not converge; KF converges after the Gramian is full rank",
     ),
     PaperScenario(
-        8, "Circle in 3D with exciting z, DVL", _fig8, 3, "range,dvl",
-        (1.0, -1.0, -2.0, 0.0, 0.0, 0.0), {}, "both converge",
+        7,
+        "Circle in 3D out of the beacon's plane, DVL",
+        _fig7,
+        3,
+        "range,dvl",
+        (1.0, -1.0, -2.0, 0.0, 0.0, 0.0),
+        {},
+        "EKF converges; KF does not",
     ),
     PaperScenario(
-        9, "Case B: Fig. 8 with range at 0.1 Hz", _fig8, 3, "range,dvl",
-        (1.0, -1.0, -2.0, 0.0, 0.0, 0.0), {"range": 0.1},
+        8,
+        "Circle in 3D with exciting z, DVL",
+        _fig8,
+        3,
+        "range,dvl",
+        (1.0, -1.0, -2.0, 0.0, 0.0, 0.0),
+        {},
+        "both converge",
+    ),
+    PaperScenario(
+        9,
+        "Case B: Fig. 8 with range at 0.1 Hz",
+        _fig8,
+        3,
+        "range,dvl",
+        (1.0, -1.0, -2.0, 0.0, 0.0, 0.0),
+        {"range": 0.1},
         "both converge, more slowly than in Fig. 8",
     ),
 )
@@ -260,18 +304,24 @@ def run_scenario(
 def write_figures(out_dir: Path, quick: bool = False, progress: bool = True) -> list:
     """Run the scenarios of Figs. 1–9 and write one PNG per figure to ``out_dir``.
 
-    Returns the list of written paths. ``quick`` uses shorter paths at 20 Hz (well under a minute).
+    Returns the list of written paths. ``quick`` uses shorter paths at 10 Hz (well under a minute).
     """
     from obsplan import plots
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    dt = 0.05 if quick else PAPER_DT
+    dt = 0.1 if quick else PAPER_DT
     written = []
     for sc in SCENARIOS:
         run = run_scenario(sc.fig, dt=dt, quick=quick, progress=progress)
-        fig = plots.scenario_figure(run.traj, run.result, run.rank_t, run.rank, run.full_rank,
-                                    title=f"Fig. {sc.fig}: {sc.title}")
+        fig = plots.scenario_figure(
+            run.traj,
+            run.result,
+            run.rank_t,
+            run.rank,
+            run.full_rank,
+            title=f"Fig. {sc.fig}: {sc.title}",
+        )
         path = out_dir / f"fig{sc.fig}.png"
         fig.savefig(path, dpi=110)
         plots.close(fig)
@@ -288,4 +338,3 @@ __all__ = [
     "scenario",
     "write_figures",
 ]
-

@@ -78,8 +78,13 @@ def plot_std(hist: RunHistory, ax=None, velocity: bool = False) -> Figure:
     styles = ["-", "--", ":"]
     for name, std in hist.std.items():
         for i in range(n):
-            ax.semilogy(hist.t, np.maximum(std[:, off + i], 1e-9), color=COLORS[name],
-                        ls=styles[i], label=f"{LABELS[name]} σ_{'v' if velocity else 'p'}{_AXES[i]}")
+            ax.semilogy(
+                hist.t,
+                np.maximum(std[:, off + i], 1e-9),
+                color=COLORS[name],
+                ls=styles[i],
+                label=f"{LABELS[name]} σ_{'v' if velocity else 'p'}{_AXES[i]}",
+            )
     ax.set_xlabel("t [s]")
     ax.set_ylabel("std of velocity [m/s]" if velocity else "std of position [m]")
     ax.grid(True, which="both", alpha=0.3)

@@ -24,8 +24,9 @@ from obsplan.model import make_model
     ],
 )
 def test_output_model_matches_casadi(dim, sensors, current, form):
-    model = make_model(dim, sensors, current=current, beacon=[3.0, -2.0, 1.0][:dim],
-                       range_form=form)
+    model = make_model(
+        dim, sensors, current=current, beacon=[3.0, -2.0, 1.0][:dim], range_form=form
+    )
     x = np.random.default_rng(0).normal(scale=40.0, size=(7, model.state_dim))
     h, H = output_model(model).evaluate(x)
     for r in range(7):
@@ -38,8 +39,9 @@ def test_half_squared_reading_is_unbiased():
     model = make_model(2, "range")
     rng = np.random.default_rng(1)
     r, sig, n = 50.0, 2.0, 400_000
-    y, var = to_outputs(model, {"range": (r + sig * rng.standard_normal(n))[:, None]},
-                        {"range": sig})
+    y, var = to_outputs(
+        model, {"range": (r + sig * rng.standard_normal(n))[:, None]}, {"range": sig}
+    )
     se = np.sqrt(r**2 * sig**2 / n)
     assert abs(y.mean() - 0.5 * r**2) < 4 * se
     # variance r²σ² + ½σ⁴ (exact for Gaussian ε at the true r)

@@ -362,7 +362,9 @@ def test_symbolic_use_with_mx_and_sx():
         O = fn(X, U)
         assert O.shape == (4, 4)
         cond = ca.Function("c", [X, U], [ca.trace(O.T @ O)])
-        assert float(cond(np.ones(4), np.ones(2))) == pytest.approx(2 + 4 + 10 + 18)  # rows (p,0),(v,p),(u,2v),(0,3u)
+        assert float(cond(np.ones(4), np.ones(2))) == pytest.approx(
+            2 + 4 + 10 + 18
+        )  # rows (p,0),(v,p),(u,2v),(0,3u)
 
 
 def test_report_fields_and_dict():

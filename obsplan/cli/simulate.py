@@ -60,9 +60,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="initial estimate error x0_hat - x0 of (p, v[, v_f]), or 'sample' to draw it from "
         "P0 (default)",
     )
-    p.add_argument(
-        "--no-process-noise", action="store_true", help="truth without process noise"
-    )
+    p.add_argument("--no-process-noise", action="store_true", help="truth without process noise")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     p.add_argument("--out", metavar="DIR", default=None, help="write figures to DIR")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -52,9 +52,7 @@ def _sensor_key(model: VehicleModel, key: str, fieldname: str) -> str:
     else:
         name = SENSOR_ALIASES.get(raw, raw)
     if name not in SENSORS:
-        raise ConfigError(
-            f"{fieldname}: unknown sensor {key!r}; choose from {', '.join(SENSORS)}"
-        )
+        raise ConfigError(f"{fieldname}: unknown sensor {key!r}; choose from {', '.join(SENSORS)}")
     if name not in model.sensors:
         raise ConfigError(
             f"{fieldname}: sensor {name!r} is not in the model's sensors "

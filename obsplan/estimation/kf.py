@@ -150,7 +150,10 @@ class AugmentedKalmanFilter:
         dt = float(self.traj.t[k + 1] - self.traj.t[k])
         FG = self._steps.get(dt)
         if FG is None:
-            FG = (np.eye(self.state_dim) + self._A * dt, self._B * dt + self._A @ self._B * (0.5 * dt**2))
+            FG = (
+                np.eye(self.state_dim) + self._A * dt,
+                self._B * dt + self._A @ self._B * (0.5 * dt**2),
+            )
             self._steps[dt] = FG
         F, G = FG
         Gu = G @ self.traj.u[k]

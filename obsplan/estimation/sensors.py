@@ -97,9 +97,7 @@ def output_model(model: VehicleModel) -> OutputModel:
     c, g, M = (np.asarray(a, float) for a in fn(np.zeros(m)))
     M = M.reshape(p, m, m)
     M[~quadratic] = 0.0
-    return OutputModel(
-        model=model, c=c.reshape(p), g=g.reshape(p, m), M=M, quadratic=quadratic
-    )
+    return OutputModel(model=model, c=c.reshape(p), g=g.reshape(p, m), M=M, quadratic=quadratic)
 
 
 # ---------------------------------------------------------------------- readings

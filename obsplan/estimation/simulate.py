@@ -200,7 +200,9 @@ def monte_carlo(
     N, n = traj.n_samples, model.dim
     stride = max(1, N // 5000) if record_every is None else int(record_every)
     if stride < 1:
-        raise ConfigError(f"record_every must be a positive number of samples, got {record_every!r}")
+        raise ConfigError(
+            f"record_every must be a positive number of samples, got {record_every!r}"
+        )
     rec = np.zeros(N, dtype=bool)
     rec[::stride] = True
     rec[-1] = True

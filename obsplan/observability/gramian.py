@@ -85,12 +85,6 @@ class AugmentedModel:
         return (*names, "p0.nu0", "|nu0|^2")
 
     @property
-    def unit_groups(self) -> tuple[int, ...]:
-        """Unit group of each state (p: 0, v and v_f: 1, p0·ν0: 2, |ν0|²: 3), for rank tests."""
-        n = self.dim
-        return (0,) * n + (1,) * (self.state_dim - 2 - n) + (2, 3)
-
-    @property
     def A(self) -> np.ndarray:
         """Dynamics matrix (eq. 23; with current ``p' = v + v_f``)."""
         n, m = self.dim, self.state_dim
@@ -131,9 +125,9 @@ class AugmentedModel:
                 c[:, 2 * n : 3 * n] = np.eye(n)
             rows.extend(c)
         if "depth" in self.sensors:
-            c = np.zeros(m)
-            c[n - 1] = 1.0
-            rows.append(c)
+            cz = np.zeros(m)
+            cz[n - 1] = 1.0
+            rows.append(cz)
         return np.vstack(rows)
 
     def _row_coeffs(self, d, e, u, tau0) -> list[list]:
@@ -266,16 +260,40 @@ class GramianReport:
         }
 
 
+def rank_scales(traj: Trajectory) -> Scales:
+    """Scales of the rank test, taken from the trajectory so that they change with its units.
+
+    Length: the larger of the RMS displacement ``|d|`` (eq. 15) and the RMS spread of the
+    positions about their mean, else the RMS speed times the duration, else 1; time: the duration.
+    The Gramian sums sensors with different output units (ȳ in m², DVL in m/s, depth in m): in
+    fixed scales a change of units re-weights them against each other, which the diagonal
+    equilibration cannot undo (range + DVL in km and hours lost the range's information below the
+    DVL's round-off). In these covariant scales the weights, hence the verdicts, are the same in
+    any units; the exact rank never depends on them. The spread matters when ``d`` is round-off
+    only (constant velocity): a length taken from ``d`` alone would blow that noise up to O(1).
+    """
+    d = traj.displacement()
+    rms_d = float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
+    spread = traj.p - traj.p.mean(axis=0)
+    ell = max(rms_d, float(np.sqrt(np.mean(np.sum(spread**2, axis=1)))))
+    if not ell > 0:
+        ell = float(np.sqrt(np.mean(np.sum(traj.v**2, axis=1)))) * traj.duration
+    return Scales(length_m=ell if ell > 0 else 1.0, time_s=traj.duration)
+
+
 def rank_over_time(
     traj: Trajectory,
     model: VehicleModel | AugmentedModel,
     tol: float = RANK_TOL,
 ) -> np.ndarray:
-    """Unit-invariant rank of ``G(t_k, t_0)`` at every sample, shape ``(N,)``."""
+    """Unit-invariant rank of ``G(t_k, t_0)`` at every sample, shape ``(N,)``.
+
+    Computed in :func:`rank_scales`, then equilibrated (see ``scaling.py``).
+    """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
-    G = cumulative_gramians(traj, aug, DEFAULT_SCALES)
+    G = cumulative_gramians(traj, aug, rank_scales(traj))
     ranks = np.zeros(G.shape[0], dtype=int)
-    ranks[1:] = numerical_rank(G[1:], tol, aug.unit_groups)
+    ranks[1:] = numerical_rank(G[1:], tol)
     return ranks
 
 
@@ -285,18 +303,21 @@ def gramian_report(
     scales: Scales = DEFAULT_SCALES,
     tol: float = RANK_TOL,
 ) -> GramianReport:
-    """Rank, first full-rank time and scaled metrics of the augmented Gramian along ``traj``."""
+    """Rank, first full-rank time and scaled metrics of the augmented Gramian along ``traj``.
+
+    ``rank``, ``full_rank`` and ``full_rank_from_t`` come from the unit-invariant test
+    (Gramian in :func:`rank_scales`, equilibrated); the metrics from the Gramian in ``scales``.
+    """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
-    Gcum = cumulative_gramians(traj, aug, scales)
-    G = 0.5 * (Gcum[-1] + Gcum[-1].T)
-    rank = numerical_rank(G, tol, aug.unit_groups)
+    Gcum = cumulative_gramians(traj, aug, rank_scales(traj))
+    rank = numerical_rank(0.5 * (Gcum[-1] + Gcum[-1].T), tol)
     full = rank == aug.state_dim
     t_full: float | None = None
     if full:
-        ranks = numerical_rank(Gcum[1:], tol, aug.unit_groups)
+        ranks = numerical_rank(Gcum[1:], tol)
         k = int(np.argmax(ranks == aug.state_dim)) + 1
         t_full = float(traj.t[k])
-    min_eig, log_det, cond = psd_metrics(G)
+    min_eig, log_det, cond = psd_metrics(gramian(traj, aug, scales))
     return GramianReport(
         full_rank=bool(full),
         rank=int(rank),

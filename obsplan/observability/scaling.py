@@ -13,6 +13,13 @@ Two different jobs, two different tools:
   Gramians are accurate to a few ulps; summing 1e5 of them loses at most ~1e-12), while a direction
   that is 1e-9 "independent" of the others is already a real, if weak, observable direction. We take
   ``RANK_TOL = 1e-10``: three decades above round-off, below any excitation a vehicle can fly.
+  Two caveats make the *input* of the test matter: a Gramian summing sensors of different output
+  units (ȳ in m², DVL in m/s) is *not* mapped to ``c·S G S`` by a change of units (the sensors are
+  re-weighted against each other), and ``ZERO_DIAG_TOL`` compares columns of different units. So
+  rank tests run on the Gramian in scales taken from the trajectory itself
+  (``gramian.rank_scales``), which change with the units; then every verdict is unit-invariant.
+  Measured by ``benchmarks/bench_observability.py``: the true zeros of rank-deficient Gramians
+  stay below ~1e-14 up to 6e4 samples.
 * **Objectives and metrics.** ``min_eig``, ``log_det`` and ``condition`` must grow with excitation,
   which equilibration would destroy. They are computed on the Gramian of the trajectory expressed
   in the *fixed* units of :class:`Scales` (length ``L`` and time ``T``): ``t/T``, ``p/L``,
@@ -25,7 +32,6 @@ Two different jobs, two different tools:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,8 +40,7 @@ from obsplan.errors import ConfigError
 
 #: Absolute tolerance on the eigenvalues of an equilibrated (unit-diagonal) symmetric matrix.
 RANK_TOL: float = 1e-10
-#: A diagonal entry this small relative to the largest one *of the same unit group* (see
-#: :func:`equilibrate`) marks a column with no information (round-off only).
+#: A diagonal entry this small relative to the largest one marks a column with no information.
 ZERO_DIAG_TOL: float = 1e-14
 
 
@@ -56,21 +61,12 @@ class Scales:
 DEFAULT_SCALES = Scales()
 
 
-def equilibrate(
-    G: np.ndarray, groups: Sequence[int] | None = None
-) -> tuple[np.ndarray, np.ndarray]:
+def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Symmetric diagonal equilibration of PSD matrices.
 
     Parameters
     ----------
     G : ndarray, shape (..., m, m)
-    groups : sequence of m ints, optional
-        Unit group of each state (e.g. positions 0, velocities 1, ...; see
-        ``AugmentedModel.unit_groups``). A diagonal entry is compared with ``ZERO_DIAG_TOL`` times
-        the largest diagonal entry *of its group*, which has the same units, so the test is
-        unit-invariant. Without groups the largest entry overall is used: then a change of
-        units can move a column across the threshold (m -> km with s -> 1/3600 s turned a
-        full-rank Gramian into rank 3 this way).
 
     Returns
     -------
@@ -78,19 +74,13 @@ def equilibrate(
         ``D G D`` with unit diagonal; rows/columns of (numerically) zero diagonal are set to zero.
     informative : ndarray of bool, shape (..., m)
         False where the diagonal was zero (a state the data says nothing about).
+
+    The zero-diagonal test compares columns with each other, so it is unit-invariant only for a
+    matrix in scales that change with the units (as ``gramian.rank_scales`` provides).
     """
     G = np.asarray(G, float)
     diag = np.diagonal(G, axis1=-2, axis2=-1)
-    if groups is None:
-        scale = np.max(np.abs(diag), axis=-1, keepdims=True)
-    else:
-        g = np.asarray(groups)
-        if g.shape != diag.shape[-1:]:
-            raise ValueError(f"groups needs {diag.shape[-1]} entries, got {g.shape}")
-        scale = np.zeros_like(diag)
-        for label in np.unique(g):
-            cols = g == label
-            scale[..., cols] = np.max(np.abs(diag[..., cols]), axis=-1, keepdims=True)
+    scale = np.max(np.abs(diag), axis=-1, keepdims=True)
     informative = diag > ZERO_DIAG_TOL * np.where(scale > 0, scale, 1.0)
     informative &= diag > 0
     dinv = np.where(informative, 1.0 / np.sqrt(np.where(informative, diag, 1.0)), 0.0)
@@ -98,22 +88,18 @@ def equilibrate(
     return 0.5 * (Gn + np.swapaxes(Gn, -1, -2)), informative
 
 
-def equilibrated_eigvals(G: np.ndarray, groups: Sequence[int] | None = None) -> np.ndarray:
-    """Eigenvalues (ascending) of ``D G D``; shape ``(..., m)``. ``groups``: see equilibrate."""
-    Gn, _ = equilibrate(G, groups)
+def equilibrated_eigvals(G: np.ndarray) -> np.ndarray:
+    """Eigenvalues (ascending) of ``D G D``; shape ``(..., m)``."""
+    Gn, _ = equilibrate(G)
     return np.linalg.eigvalsh(Gn)
 
 
-def numerical_rank(
-    G: np.ndarray, tol: float = RANK_TOL, groups: Sequence[int] | None = None
-) -> np.ndarray | int:
+def numerical_rank(G: np.ndarray, tol: float = RANK_TOL) -> np.ndarray | int:
     """Unit-invariant rank of symmetric PSD matrices (batched over leading axes).
 
     The number of eigenvalues of the equilibrated matrix above ``tol`` (see module docstring).
-    Pass ``groups`` (the unit group of each state, :func:`equilibrate`) for a test that is
-    unit-invariant also for columns with almost no information.
     """
-    ev = equilibrated_eigvals(G, groups)
+    ev = equilibrated_eigvals(G)
     r = np.sum(ev > tol, axis=-1)
     return int(r) if np.ndim(r) == 0 else r
 

@@ -73,8 +73,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "vec",
             _NONE,
             "m/s",
-            "True (nominal) current used by the truth simulation and as the LWO nominal; "
-            "default zeros; non-zero only with current = true.",
+            "True current v_f of the validation's truth simulation; default zeros; non-zero "
+            "only with current = true.",
         ),
         FieldSpec(
             "range_form",
@@ -685,3 +685,24 @@ def _check_objective_structure(pb: PlanningProblem) -> None:
                 f"rank {r} < {m} for every input (section 4.3); use kf-position-std or change "
                 "the sensors",
             )
+
+
+def schema_markdown() -> str:
+    """The field tables of ``docs/problem-files.md`` (one table per section), from :data:`SCHEMA`."""
+    out: list[str] = []
+    for section, fields in SCHEMA.items():
+        out.append(f"### `[{section}]`\n")
+        out.append("| field | unit | default | meaning |")
+        out.append("|---|---|---|---|")
+        for f in fields:
+            if f.required:
+                default = "**required**"
+            elif f.default is None:
+                default = "see meaning"
+            else:
+                default = repr(f.default).replace("'", '"')
+                default = default.replace("True", "true").replace("False", "false")
+            doc = f.doc.replace("|", "\\|")
+            out.append(f"| `{f.name}` | {f.unit} | {default} | {doc} |")
+        out.append("")
+    return "\n".join(out)
