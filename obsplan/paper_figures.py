@@ -44,7 +44,7 @@ from obsplan.estimation.config import EstimationConfig, paper_covariances
 from obsplan.estimation.crlb import sampled_rank_over_time
 from obsplan.estimation.simulate import MonteCarloResult, monte_carlo
 from obsplan.model import make_model
-from obsplan.observability.gramian import rank_over_time
+from obsplan.observability.gramian import augmented_model, rank_over_time
 from obsplan.trajectory import Trajectory
 
 #: The paper's model step [s] (100 Hz, section 7).
@@ -289,8 +289,6 @@ def run_scenario(
     else:
         ranks = rank_over_time(traj, cfg.model)
     idx = np.searchsorted(traj.t, res.t)
-    from obsplan.observability.gramian import augmented_model
-
     return ScenarioRun(
         scenario=sc,
         traj=traj,

@@ -127,3 +127,23 @@ def test_joseph_update_keeps_psd_with_precise_measurements():
         np.testing.assert_array_equal(P, np.swapaxes(P, 1, 2))
         ev = np.linalg.eigvalsh(P)
         assert ev.min() > 0.0
+
+
+def test_joint_update_equals_sequential_scalar_updates():
+    rng = np.random.default_rng(4)
+    m, R = 7, 5
+    A = rng.standard_normal((R, m, m))
+    P = A @ A.transpose(0, 2, 1) + np.eye(m)
+    x = rng.standard_normal((R, m))
+    H = rng.standard_normal((3, m))
+    innov = rng.standard_normal((R, 3))
+    innov[1, 2] = np.nan  # a missing row in one run
+    var = rng.uniform(0.1, 1.0, 3)
+    xj, Pj = kalman.update(x, P, H, innov, var)
+    xs, Ps = x, P
+    for i in range(3):
+        # sequential: innovation of row i re-linearised at the current estimate (linear model)
+        nu = innov[:, i] - np.einsum("j,rj->r", H[i], xs - x)
+        xs, Ps = kalman.update_scalar(xs, Ps, H[i], nu, np.full(R, var[i]))
+    np.testing.assert_allclose(xj, xs, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(Pj, Ps, rtol=1e-10, atol=1e-12)

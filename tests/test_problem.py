@@ -147,8 +147,10 @@ def test_gramian_objective_refused_with_bottom_lock_and_current():
 
 def test_file_errors_name_the_file(tmp_path):
     bad = tmp_path / "bad.toml"
-    bad.write_text('[horizon]\nduration = 600.0\nsteps = 1\n[limits]\naccel=0.05\nspeed=1.0\n'
-                   '[start]\nposition=[0.0, 1.0]\n')
+    bad.write_text(
+        "[horizon]\nduration = 600.0\nsteps = 1\n[limits]\naccel=0.05\nspeed=1.0\n"
+        "[start]\nposition=[0.0, 1.0]\n"
+    )
     with pytest.raises(ProblemError, match=r"bad\.toml: horizon\.steps: must be at least 2"):
         load_problem(bad)
     broken = tmp_path / "broken.toml"

@@ -41,7 +41,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         metavar="PROBLEM.toml",
         help=f"problem file (default: {DEFAULT_PROBLEM.relative_to(DEFAULT_PROBLEM.parents[1])})",
     )
-    p.add_argument("--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder ({DEFAULT_OUT})")
+    p.add_argument(
+        "--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder ({DEFAULT_OUT})"
+    )
     p.add_argument("--force", action="store_true", help="write into a non-empty DIR")
     p.add_argument("--runs", type=int, metavar="N", help="override validation.runs")
     p.add_argument("--steps", type=int, metavar="N", help="override horizon.steps")

@@ -1,10 +1,10 @@
 """Batched Kalman predict and update, shared by the EKF and the augmented KF.
 
 Arrays are batched over independent runs: states ``x`` of shape ``(R, m)``, covariances ``P`` of
-shape ``(R, m, m)``. Measurements with independent noises (diagonal ``R``, as every sensor here) are
-processed one scalar row at a time, which for a linear(ised) model is exactly the joint update and
-needs no matrix inverse; a NaN reading (or a run where the sensor did not report) leaves that
-run's state and covariance untouched.
+shape ``(R, m, m)``. Measurements have independent noises (diagonal ``R``, as every sensor here):
+:func:`update` processes the rows of a sample jointly (one small solve per run), which for a
+linear(ised) model equals :func:`update_scalar` row after row; a NaN reading (or a run where the
+sensor did not report) leaves that run's state and covariance untouched.
 
 The covariance update is the Joseph form ``P⁺ = (I - k hᵀ) P (I - k hᵀ)ᵀ + r k kᵀ``, evaluated with
 outer products only: with ``b = P h`` and ``s = hᵀ b + r`` it equals ``P - k bᵀ - b kᵀ + s k kᵀ``
@@ -134,6 +134,9 @@ def update(
     var : (R, p) or (p,)
         Measurement variances.
     """
+    if H.shape[-2] == 1:  # one row: no solve needed
+        v = np.broadcast_to(var, innov.shape)[:, 0]
+        return update_scalar(x, P, H[..., 0, :], innov[:, 0], v)
     valid = np.isfinite(innov)
     if not valid.all():
         if not valid.any():

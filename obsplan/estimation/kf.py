@@ -1,6 +1,6 @@
 """Kalman filter on the augmented linear model (eqs. 19–24; DVL/depth rows of eq. 41).
 
-State ``z = (p - b, v[, v_f], p0ᵀν0, |ν0|²)`` (:class:`obsplan.observability.gramian.AugmentedModel`,
+State ``z = (p - b, v[, v_f], p0ᵀν0, |ν0|²)`` (``observability.gramian.AugmentedModel``,
 positions relative to the beacon ``b``), dynamics ``z' = A z + B u`` discretised exactly
 (``A² = 0``: ``Φ = I + A dt``, ``Γ = B dt + A B dt²/2``, eq. 26) and outputs
 ``C(t) = AugmentedModel.output_matrix(d, t - t0)`` with the range row fed by

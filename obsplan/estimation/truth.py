@@ -3,9 +3,9 @@
 The truth of run ``r`` at sample ``k`` is ``x_k = x̄_k + δ_k`` where ``x̄`` is the trajectory's state
 (``p``, ``v = p' - v_f``, ``v_f``) and ``δ_{k+1} = F_k δ_k + w_k``, ``w_k ~ N(0, Q)`` (exact ZOH
 ``F_k``): with no process noise the truth is the trajectory itself. Readings are the device
-quantities (range ``r`` [m], DVL [m/s], depth [m]) plus Gaussian noise, drawn only where the schedule
-says the sensor reports. Every run has its own random stream, spawned from one seed, so run ``r`` is
-the same whatever the number of runs; noise is drawn in chunks of samples, not per step.
+quantities (range ``r`` [m], DVL [m/s], depth [m]) plus Gaussian noise, drawn only where the
+schedule says the sensor reports. Every run has its own random stream, spawned from one seed,
+so run ``r`` is the same whatever the number of runs; noise is drawn in chunks, not per step.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from obsplan import generators
-from obsplan.errors import ConfigError
+from obsplan.errors import ConfigError, ProblemError
 from obsplan.planning.problem import Area, PlanningProblem
 from obsplan.trajectory import Trajectory
 
@@ -83,26 +83,33 @@ def lawnmower_baseline(pb: PlanningProblem) -> Baseline:
     height = max(room_left, room_right)
     ahead = _ray_to_box(p0, e, area)
     # the fastest speed <= v_max whose turns (radius v^2/a, spacing 2 v^2/a) fit the area
-    speed = min(pb.limits.speed, math.sqrt(a * height / 2.0), math.sqrt(a * ahead / 2.0))
+    # (90 % of the room, leaving space for the chord margin below)
+    speed = min(pb.limits.speed, math.sqrt(0.45 * a * height), math.sqrt(0.45 * a * ahead))
     speed = max(speed * (1 - 1e-9), s0)
     radius = speed**2 / a
     # chord inputs fly a turn up to radius (w h)^2 / 6 outside the arc (generators docstring):
     # keep that margin inside the area
     margin = 1.5 * radius * (speed / radius * pb.horizon.dt) ** 2 / 6.0
-    traj = generators.lawnmower_within_limits(
-        p0[:2],
-        ahead + radius - margin,
-        height - margin,
-        speed,
-        a,
-        pb.horizon.duration,
-        pb.horizon.dt,
-        heading=heading,
-        first_turn=first_turn,  # type: ignore[arg-type]
-        z=float(p0[2]) if pb.dim == 3 else None,
-        z_speed=0.0,
-        initial_speed=s0,
-    )
+    try:
+        traj = generators.lawnmower_within_limits(
+            p0[:2],
+            ahead + radius - margin,
+            height - margin,
+            speed,
+            a,
+            pb.horizon.duration,
+            pb.horizon.dt,
+            heading=heading,
+            first_turn=first_turn,  # type: ignore[arg-type]
+            z=float(p0[2]) if pb.dim == 3 else None,
+            z_speed=0.0,
+            initial_speed=s0,
+        )
+    except ConfigError as exc:
+        raise ProblemError(
+            f"limits.area: no lawn-mower baseline fits between the start and the area's edges "
+            f"({exc}); enlarge the area or move the start towards a corner"
+        ) from None
     lay = generators.lawnmower_layout(ahead + radius - margin, height - margin, speed, a)
     desc = (
         f"lawn-mower covering {lay.covered_width:.4g} m x {lay.covered_height:.4g} m "
@@ -214,11 +221,18 @@ def straight_baseline(pb: PlanningProblem) -> Baseline:
 
 def paper_lawnmower_baseline(pb: PlanningProblem) -> Baseline | None:
     """The paper's lawn-mower time-scaled to the limits (see module docstring); None if n/a."""
-    ref = generators.paper_lawnmower(pb.dim, dt=1.0)
-    speed = float(np.max(np.linalg.norm(ref.v, axis=1)))
-    accel = float(np.max(np.abs(ref.u[:-1]) / pb.accel))
-    s = max(speed / pb.limits.speed, math.sqrt(accel))  # t -> s t: v / s, u / s^2
     h = pb.horizon.dt
+    s = 1.0
+    # t -> s t divides speeds by s and accelerations by s^2; the chord inputs depend on the
+    # sampling step h / s, so iterate to the fixed point (converges in a few steps)
+    for _ in range(8):
+        ref = generators.paper_lawnmower(pb.dim, dt=h / s)
+        speed = float(np.max(np.linalg.norm(ref.v, axis=1)))
+        accel = float(np.max(np.abs(ref.u[:-1]) / pb.accel))
+        s_new = max(speed / pb.limits.speed, math.sqrt(accel))
+        if abs(s_new - s) <= 1e-12 * s:
+            break
+        s = s_new
     ref = generators.paper_lawnmower(pb.dim, dt=h / s)
     v_start = ref.v[0] / s
     if np.linalg.norm(v_start - pb.v0) > _START_TOL:

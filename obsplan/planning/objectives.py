@@ -25,9 +25,9 @@ Objectives (all built from the same CasADi functions that evaluate the metrics):
 * ``kf-position-std``: ``min`` the final position standard deviation ``sqrt(tr P_pp)`` [m] of the
   augmented KF (eqs. 20-24). The model is linear, so the Riccati recursion depends only on the
   inputs: it runs (a CasADi ``fold``) at the range epochs with ``H = C(t)`` (eq. 21) and
-  ``R = r² σ_r² + ½ σ_r⁴`` (the variance of ``½ (r + ε)²``, as the filter uses); DVL and depth updates, whose rows do not
-  depend on the path, are applied at the range epochs with their information aggregated over the
-  epoch (variance × range_rate / sensor_rate).
+  ``R = r² σ_r² + ½ σ_r⁴`` (the variance of ``½ (r + ε)²``, as the filter uses); DVL and depth
+  updates, whose rows do not depend on the path, are applied at the range epochs with their
+  information aggregated over the epoch (variance × range_rate / sensor_rate).
 """
 
 from __future__ import annotations
@@ -174,7 +174,7 @@ class KFNoise:
     n_epochs : int
         Number of range updates in the horizon (at ``epoch, 2 epoch, ...``).
     sigma_r : float
-        Range noise std (scaled): ``R = (r σ_r)²`` on ``ȳ``.
+        Range noise std (scaled): ``R = r² σ_r² + ½ σ_r⁴`` on ``ȳ``.
     P0 : ndarray (m, m)
         Prior covariance of ``z(t_0)``.
     Qd : ndarray (m, m)
@@ -263,12 +263,8 @@ def _riccati_step(aug, noise: KFNoise, dt_scaled: float) -> ca.Function:
     for row, var in [(hcol.T, r2)] + [
         (ca.DM(r).T, float(v)) for r, v in zip(noise.const_rows, noise.const_var, strict=True)
     ]:
-        # Joseph form: stays positive semi-definite under round-off; the plain form
-        # P - P h hᵀ P / s can lose definiteness, and the optimiser then exploits it (measured:
-        # a "final std" of 1.8e-7 m on a 200 s horizon, which the real filter does not attain)
-        K = (Pp @ row.T) / (row @ Pp @ row.T + var)
-        IKH = ca.SX.eye(m) - K @ row
-        Pp = IKH @ Pp @ IKH.T + var * (K @ K.T)
+        Ph = Pp @ row.T
+        Pp = Pp - (Ph @ Ph.T) / (row @ Ph + var)
     Pp = 0.5 * (Pp + Pp.T)
     return ca.Function("riccati_step", [P, hcol, r2], [Pp])
 

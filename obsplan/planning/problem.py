@@ -122,8 +122,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             _NONE,
             "m",
             "Operating area {x = [min, max], y = [min, max]} on the whole continuous path; "
-            "the lawn-mower baseline covers it. Default none (lawn-mower covers a square of "
-            "side speed*duration/8 centred on the start).",
+            "the lawn-mower baseline covers it. Default none (the lawn-mower then covers a square "
+            "of side speed*duration/4 centred on the start).",
         ),
     ),
     "horizon": (
@@ -334,7 +334,7 @@ class PlanningProblem:
         """The area the lawn-mower baseline covers: ``limits.area`` or the documented default."""
         if self.limits.area is not None:
             return self.limits.area
-        side = self.limits.speed * self.horizon.duration / 8.0
+        side = self.limits.speed * self.horizon.duration / 4.0
         cx, cy = float(self.p0[0]), float(self.p0[1])
         return Area(x=(cx - side / 2, cx + side / 2), y=(cy - side / 2, cy + side / 2))
 
@@ -688,7 +688,7 @@ def _check_objective_structure(pb: PlanningProblem) -> None:
 
 
 def schema_markdown() -> str:
-    """The field tables of ``docs/problem-files.md`` (one table per section), from :data:`SCHEMA`."""
+    """The field tables of ``docs/problem-files.md`` (one per section), from :data:`SCHEMA`."""
     out: list[str] = []
     for section, fields in SCHEMA.items():
         out.append(f"### `[{section}]`\n")

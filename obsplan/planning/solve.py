@@ -154,8 +154,16 @@ def initial_guesses(pb: PlanningProblem) -> list[tuple[str, Trajectory]]:
     return out[: pb.objective.starts]
 
 
-def make_solver(form: Formulation, verbose: bool = False, expand: bool = True) -> ca.Function:
-    """The IPOPT ``nlpsol`` of a formulation (MUMPS; exact Hessian except for the KF objective)."""
+def make_solver(
+    form: Formulation,
+    verbose: bool = False,
+    expand: bool = True,
+    ipopt_options: dict | None = None,
+) -> ca.Function:
+    """The IPOPT ``nlpsol`` of a formulation (MUMPS; exact Hessian except for the KF objective).
+
+    ``ipopt_options`` are passed last (e.g. ``{"max_wall_time": 120.0}`` in the benchmark).
+    """
     obj = form.problem.objective
     ipopt = {
         "linear_solver": "mumps",
@@ -171,6 +179,7 @@ def make_solver(form: Formulation, verbose: bool = False, expand: bool = True) -
         # the exact Hessian of a 600-step Riccati recursion is dense and slow to build
         # (measured: 166 s to construct at N = 50); L-BFGS needs only gradients
         ipopt["hessian_approximation"] = "limited-memory"
+    ipopt.update(ipopt_options or {})
     opts = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
     nlp = {"x": form.w, "f": form.f, "g": form.g}
     return ca.nlpsol("obsplan_planner", "ipopt", nlp, opts)
@@ -232,6 +241,7 @@ def solve(
     verbose: bool = False,
     progress: bool = False,
     expand: bool = True,
+    ipopt_options: dict | None = None,
 ) -> SolveResult:
     """Plan a path for ``pb`` by multi-start IPOPT.
 
@@ -248,6 +258,8 @@ def solve(
         One line per start on stderr.
     expand
         Expand the MX graph to SX before solving (faster evaluation; measured in the benchmark).
+    ipopt_options
+        Extra IPOPT options (override the defaults).
 
     Returns
     -------
@@ -255,7 +267,7 @@ def solve(
     """
     t_start = time.perf_counter()
     form = build_formulation(pb)
-    solver = make_solver(form, verbose=verbose, expand=expand)
+    solver = make_solver(form, verbose=verbose, expand=expand, ipopt_options=ipopt_options)
     build_s = time.perf_counter() - t_start
     guesses = list(initial_guesses(pb) if guesses is None else guesses)
     outcomes: list[StartOutcome] = []

@@ -1,0 +1,69 @@
+"""Validation: exact resampling, identical seeds across paths, strict JSON."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from obsplan.errors import InputError
+from obsplan.planning import load_problem
+from obsplan.planning.baselines import baselines
+from obsplan.planning.metrics import kf_final_pos_std
+from obsplan.planning.problem import Horizon, ValidationSpec
+from obsplan.validation import resample, validate_paths
+
+
+@pytest.fixture(scope="module")
+def short_problem():
+    pb = load_problem()
+    return replace(
+        pb,
+        horizon=Horizon(duration=120.0, steps=40),
+        validation=replace(pb.validation, runs=4),
+    )
+
+
+def test_resample_is_exact_at_the_planning_nodes(short_problem):
+    tr = baselines(short_problem)["lawnmower"].trajectory
+    fine = resample(tr, 0.1)
+    assert fine.n_samples == 1200 + 1
+    np.testing.assert_allclose(fine.p[::30], tr.p, atol=1e-9)
+    np.testing.assert_allclose(fine.v[::30], tr.v, atol=1e-12)
+    with pytest.raises(InputError, match="must divide"):
+        resample(tr, 0.7)
+
+
+def test_same_seed_and_noise_for_every_path(short_problem):
+    bls = baselines(short_problem)
+    paths = {k: bls[k].trajectory for k in ("lawnmower", "circle")}
+    val = validate_paths(paths, short_problem)
+    a, b = val["lawnmower"].result, val["circle"].result
+    assert a.runs == b.runs == 4 and a.seed == b.seed == short_problem.validation.seed
+    # same initial estimation error (run 0) on both paths: identical random streams
+    ea = a.example.estimate["ekf"][0] - a.example.truth[0]
+    eb = b.example.estimate["ekf"][0] - b.example.truth[0]
+    np.testing.assert_allclose(ea, eb, atol=1e-12)
+    d = val["lawnmower"].to_dict()
+    json.dumps(d, allow_nan=False)
+    assert {"rmse_pos", "final_pos_err", "nees_mean"} <= set(d["ekf"])
+    assert d["crlb_final_pos_std"] is None or d["crlb_final_pos_std"] > 0
+
+
+def test_planning_kf_predicts_the_validation_kf(short_problem):
+    tr = baselines(short_problem)["lawnmower"].trajectory
+    pred = kf_final_pos_std(tr, short_problem)
+    mc = validate_paths({"lm": tr}, short_problem)["lm"].result
+    # the same model, prior and noises: only R uses the true instead of the measured range
+    assert mc.kf.final_pos_std == pytest.approx(pred, rel=0.01)
+
+
+def test_estimation_config_follows_the_problem(short_problem):
+    pb = replace(short_problem, validation=ValidationSpec(range_std=0.3, init_pos_error=2.0))
+    cfg = pb.estimation_config()
+    assert cfg.noise["range"] == 0.3
+    assert cfg.rates_hz["range"] == 1.0
+    cov = cfg.covariances(0.1)
+    assert cov["p0_ekf"][0, 0] == pytest.approx(4.0)
