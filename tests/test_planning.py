@@ -210,3 +210,22 @@ def test_problem_from_dict_3d_plans_without_area():
     res = solve(pb)
     assert res.success
     assert_limits_and_dynamics(res.trajectory, pb)
+
+
+@pytest.mark.parametrize(
+    "name", ["default", "range3d", "range-dvl3d", "range-dvl-water-current2d", "lowrate-range"]
+)
+def test_every_shipped_problem_solves_at_reduced_size(name):
+    pb = load_problem(f"problems/{name}.toml")
+    obj = pb.objective
+    pb = replace(
+        pb,
+        horizon=Horizon(duration=pb.horizon.duration, steps=16),
+        objective=replace(obj, starts=2, tol=max(obj.tol, 1e-5 if "kf" in obj.kind else 1e-8)),
+    )
+    res = solve(pb)
+    assert res.success, res.status
+    assert_limits_and_dynamics(res.trajectory, pb)
+    lm = lawnmower_baseline(pb).trajectory
+    own, base = res.objective, objective_value(lm, pb)
+    assert own < base if obj.kind == "kf-position-std" else own > base
