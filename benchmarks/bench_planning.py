@@ -170,6 +170,28 @@ def slsqp_row(pb: PlanningProblem, wall: float, maxiter: int = 300) -> dict:
     }
 
 
+def shipped_problems(wall: float) -> int:
+    """Every problems/*.toml at full size with its own multi-start settings."""
+    print("## Shipped problems at full size (all starts)\n")
+    print(
+        "| problem | objective | N | starts | status | best start | wall [s] | objective | "
+        "lawn-mower | feasible |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for path in sorted((ROOT / "problems").glob("*.toml")):
+        pb = load_problem(path)
+        res = solve(pb, ipopt_options={"max_wall_time": wall})
+        lm = objective_value(lawnmower_baseline(pb).trajectory, pb)
+        feas = res.trajectory is not None and check_limits(res.trajectory, pb).ok()
+        print(
+            f"| {path.stem} | {pb.objective.kind} | {pb.horizon.steps} | {len(res.starts)} | "
+            f"{res.status} | {res.best_start} | {res.wall_s:.1f} | {fmt(res.objective)} | "
+            f"{fmt(lm)} | {feas} |",
+            flush=True,
+        )
+    return 0
+
+
 def fmt(x, spec=".4g"):
     return "-" if x is None else format(x, spec)
 
@@ -182,7 +204,10 @@ def main() -> int:
     )
     ap.add_argument("--only", default="", help="comma-separated objectives to run")
     ap.add_argument("--no-slsqp", action="store_true")
+    ap.add_argument("--problems", action="store_true", help="only the shipped problems, full size")
     args = ap.parse_args()
+    if args.problems:
+        return shipped_problems(args.wall)
     Ns = (50,) if args.quick else (50, 200, 1000)
     kinds = [
         k

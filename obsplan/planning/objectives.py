@@ -32,6 +32,7 @@ Objectives (all built from the same CasADi functions that evaluate the metrics):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -225,7 +226,8 @@ def kf_noise(pb: PlanningProblem) -> KFNoise:
     Qd = np.zeros((m + 1, m + 1))
     Qd[:m, :m] = cov["q_kf"] * (epoch_s / val.dt)
     S = np.diag(scale)
-    rows, var = [], []
+    rows: list[np.ndarray] = []
+    var: list[float] = []
     full = aug.output_matrix(np.zeros(n), 0.0)
     i = 1
     for s in model.sensors:
@@ -355,7 +357,7 @@ class Formulation:
     lbg: np.ndarray
     ubg: np.ndarray
     n_extra: int
-    extra_init: ca.Function  # W -> initial values of the lifting variables
+    extra_init: Callable[[np.ndarray], np.ndarray]  # W -> initial lifting variables
     objective_sign: float  # +1: objective = f; -1: objective = -f (maximised)
 
     @property
@@ -535,16 +537,6 @@ def build_formulation(pb: PlanningProblem) -> Formulation:
         lbg=np.concatenate(lbg),
         ubg=np.concatenate(ubg),
         n_extra=int(extra.shape[0]),
-        extra_init=_PyInit(extra_init_np),
+        extra_init=extra_init_np,
         objective_sign=sign,
     )
-
-
-class _PyInit:
-    """Callable wrapper so that Formulation.pack can call a numpy initialiser."""
-
-    def __init__(self, fn) -> None:
-        self._fn = fn
-
-    def __call__(self, W: np.ndarray) -> np.ndarray:
-        return self._fn(W)

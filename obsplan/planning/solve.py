@@ -182,7 +182,7 @@ def make_solver(
     ipopt.update(ipopt_options or {})
     opts = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
     nlp = {"x": form.w, "f": form.f, "g": form.g}
-    return ca.nlpsol("obsplan_planner", "ipopt", nlp, opts)
+    return ca.nlpsol("obsplan_planner", "ipopt", nlp, opts)  # type: ignore[arg-type]
 
 
 def _run_start(
