@@ -317,7 +317,12 @@ def gramian_report(
         ranks = numerical_rank(Gcum[1:], tol)
         k = int(np.argmax(ranks == aug.state_dim)) + 1
         t_full = float(traj.t[k])
-    min_eig, log_det, cond = psd_metrics(gramian(traj, aug, scales))
+    if full:
+        min_eig, log_det, cond = psd_metrics(gramian(traj, aug, scales))
+    else:
+        # The unit-invariant test found a null direction: the fixed-scale eigenvalue there is
+        # round-off (e.g. 1e-16 beside a DVL block), not information, so report it as zero.
+        min_eig, log_det, cond = 0.0, float("-inf"), float("inf")
     return GramianReport(
         full_rank=bool(full),
         rank=int(rank),
