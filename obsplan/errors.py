@@ -1,8 +1,9 @@
 """Exception hierarchy.
 
-The command line maps :class:`InputError` (a problem with what the user gave) to exit code 2 and any
-other :class:`ObsplanError` (a solver or validation failure) to exit code 1. Messages name the field,
-row or column at fault and say how to fix it; they are shown to the user without a traceback.
+The command line maps :class:`InputError` (a problem with what the user gave) to exit code 2 and
+any other :class:`ObsplanError` (a solver or validation failure) to exit code 1. Messages name the
+field, row or column at fault and say how to fix it; they are shown to the user without a
+traceback.
 """
 
 from __future__ import annotations
