@@ -1,9 +1,33 @@
-"""obsplan: observability-aware trajectory planning for single-beacon range localisation."""
+"""obsplan: observability-aware trajectory planning for single-beacon range localisation.
+
+The public API in one place (see README.md): build or read a :class:`Trajectory`, judge it with
+:func:`analyze`, estimate along it with :func:`monte_carlo`, and plan one with :func:`plan`.
+"""
 
 from __future__ import annotations
 
 __version__ = "0.1.0"
 
+from obsplan.estimation import EstimationConfig, MonteCarloResult, monte_carlo  # noqa: E402
+from obsplan.model import VehicleModel, make_model  # noqa: E402
 from obsplan.observability.analyze import ObservabilityReport, analyze  # noqa: E402
+from obsplan.planning import PlanningProblem, PlanResult, load_problem, plan  # noqa: E402
+from obsplan.trajectory import Trajectory, read_csv, write_csv  # noqa: E402
 
-__all__ = ["ObservabilityReport", "__version__", "analyze"]
+__all__ = [
+    "EstimationConfig",
+    "MonteCarloResult",
+    "ObservabilityReport",
+    "PlanResult",
+    "PlanningProblem",
+    "Trajectory",
+    "VehicleModel",
+    "__version__",
+    "analyze",
+    "load_problem",
+    "make_model",
+    "monte_carlo",
+    "plan",
+    "read_csv",
+    "write_csv",
+]
