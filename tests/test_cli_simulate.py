@@ -73,3 +73,17 @@ def test_bad_options_exit_2(csv_2d, capsys, args, match):
 def test_missing_file_exit_2(tmp_path, capsys):
     assert main(["simulate", str(tmp_path / "nope.csv")]) == 2
     assert "not found" in capsys.readouterr().err
+
+
+def test_out_folder_with_user_files_is_not_overwritten(csv_2d, tmp_path, capsys):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "estimation.png").write_bytes(b"the user's own figure")
+    code = main(["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out)])
+    assert code == 2
+    assert "--force" in capsys.readouterr().err
+    assert (out / "estimation.png").read_bytes() == b"the user's own figure"
+    assert (
+        main(["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]) == 0
+    )
+    assert (out / "estimation.png").read_bytes() != b"the user's own figure"

@@ -176,3 +176,16 @@ def test_docs_tables_are_generated_from_the_schema():
     from obsplan.planning.problem import schema_markdown
 
     assert schema_markdown() in DOCS.read_text()
+    readme = (DOCS.parents[1] / "README.md").read_text()
+    assert schema_markdown().replace("### `", "#### `") in readme
+
+
+def test_rates_of_sensors_not_fitted_do_not_veto_the_filter_step():
+    # range-only at a 0.5 s filter step: the default DVL rate (10 Hz) must not matter ...
+    pb = problem_from_dict(_with("validation.dt", 0.5))
+    assert pb.validation.dt == 0.5
+    # ... but a fitted DVL at 10 Hz cannot be served by a 0.5 s filter step
+    data = _with("validation.dt", 0.5)
+    data["vehicle"]["sensors"] = ["range", "dvl-water"]
+    with pytest.raises(ProblemError, match=r"validation\.dvl_rate"):
+        problem_from_dict(data)

@@ -4,14 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import sys
-import warnings
 
-from obsplan.errors import InputError
+from obsplan.cli.common import add_vehicle_arguments, parse_beacon, read_trajectory
 from obsplan.observability.analyze import ObservabilityReport, analyze
 from obsplan.observability.scaling import DEFAULT_SCALES, Scales
-from obsplan.trajectory import InconsistentTrajectoryWarning, read_csv
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -26,16 +22,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         ),
     )
     p.add_argument("trajectory", metavar="TRAJ.csv", help="trajectory CSV file")
-    p.add_argument(
-        "--sensors",
-        default="range",
-        help="comma-separated: range, dvl-bottom|dvl-water (dvl = dvl-bottom), depth "
-        "(default: range)",
-    )
-    p.add_argument("--current", action="store_true", help="include an unknown constant current")
-    p.add_argument(
-        "--beacon", metavar="X,Y[,Z]", default=None, help="beacon position [m] (default: origin)"
-    )
+    add_vehicle_arguments(p)
     p.add_argument(
         "--length-scale",
         metavar="M",
@@ -52,26 +39,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     return p
-
-
-def parse_beacon(text: str | None, dim: int) -> tuple[float, ...] | None:
-    """``"x,y[,z]"`` -> floats, checked against the trajectory dimension."""
-    if text is None:
-        return None
-    parts = [s.strip() for s in text.split(",")]
-    try:
-        values = tuple(float(s) for s in parts)
-    except ValueError:
-        raise InputError(
-            f"--beacon {text!r}: expected {dim} numbers separated by commas, e.g. "
-            f"--beacon {','.join(['0'] * dim)}"
-        ) from None
-    if len(values) != dim or not all(math.isfinite(v) for v in values):
-        raise InputError(
-            f"--beacon {text!r}: the trajectory is {dim}D, so the beacon needs {dim} finite "
-            f"coordinates [m], e.g. --beacon {','.join(['0'] * dim)}"
-        )
-    return values
 
 
 def format_report(rep: ObservabilityReport, path: str) -> str:
@@ -95,14 +62,7 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``obsplan analyze``; exit code 0 (errors raise, mapped by the dispatcher)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", InconsistentTrajectoryWarning)
-        traj = read_csv(args.trajectory, check=True)
-    for w in caught:
-        if issubclass(w.category, InconsistentTrajectoryWarning):
-            print(f"obsplan analyze: warning: {w.message}", file=sys.stderr)
-        else:  # pragma: no cover - pass other warnings on untouched
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    traj = read_trajectory(args.trajectory, "analyze")
     beacon = parse_beacon(args.beacon, traj.dim)
     scales = Scales(length_m=args.length_scale, time_s=args.time_scale)
     rep = analyze(traj, sensors=args.sensors, current=args.current, beacon=beacon, scales=scales)

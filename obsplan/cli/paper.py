@@ -11,9 +11,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
-from obsplan.errors import InputError
+from obsplan.cli.common import output_dir
 from obsplan.paper import all_rows, claims, paper_report, render_tables
 
 
@@ -39,19 +38,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     return p
 
 
-def _out_dir(path: str, force: bool) -> Path:
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} is a file; give a directory")
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise InputError(f"--out {out} is not empty; choose another directory or pass --force")
-    out.mkdir(parents=True, exist_ok=True)
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     """Compute, print and optionally write the tables; returns the exit code."""
-    out = _out_dir(args.out, args.force) if args.out else None
+    out = output_dir(args.out, args.force) if args.out else None
     if not args.quiet:
         dt = "0.1 s" if args.quick else "0.01 s"
         print(f"obsplan paper: computing Tables 1-3 (dt = {dt})...", file=sys.stderr)

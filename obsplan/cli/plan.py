@@ -9,6 +9,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from obsplan.cli.common import output_dir
 from obsplan.errors import InputError
 from obsplan.planning.figures import (
     plot_filter_errors,
@@ -109,12 +110,9 @@ def write_outputs(result: PlanResult, out: Path) -> list[Path]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the verb; 0 on success, 1 if no start converged (outputs are still written)."""
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()) and not args.force:
-        raise InputError(f"--out {out} is not empty; pass --force to overwrite its files")
+    # validate the problem before touching the output folder
     pb = _apply_overrides(load_problem(args.problem), args)
+    out = output_dir(args.out, args.force)
     result = plan(
         pb,
         validate=not args.no_validate,

@@ -5,17 +5,21 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import warnings
-from pathlib import Path
 
 import numpy as np
 
+from obsplan.cli.common import (
+    add_output_arguments,
+    add_vehicle_arguments,
+    output_dir,
+    parse_beacon,
+    read_trajectory,
+)
 from obsplan.errors import InputError
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.schedule import sample_rate
 from obsplan.estimation.simulate import MonteCarloResult, monte_carlo
 from obsplan.model import make_model
-from obsplan.trajectory import InconsistentTrajectoryWarning, read_csv
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -31,14 +35,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         ),
     )
     p.add_argument("trajectory", metavar="TRAJ.csv", help="trajectory CSV file")
-    p.add_argument(
-        "--sensors",
-        default="range",
-        help="comma-separated: range, dvl-bottom|dvl-water (dvl = dvl-bottom), depth "
-        "(default: range)",
-    )
-    p.add_argument("--current", action="store_true", help="include an unknown constant current")
-    p.add_argument("--beacon", metavar="X,Y[,Z]", default=None, help="beacon position [m]")
+    add_vehicle_arguments(p)
     p.add_argument(
         "--rates",
         metavar="S=HZ,...",
@@ -62,7 +59,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("--no-process-noise", action="store_true", help="truth without process noise")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
-    p.add_argument("--out", metavar="DIR", default=None, help="write figures to DIR")
+    add_output_arguments(p, "figures", None)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -124,13 +121,8 @@ def format_result(res: MonteCarloResult, path: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``obsplan simulate``."""
-    from obsplan.cli.analyze import parse_beacon
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", InconsistentTrajectoryWarning)
-        traj = read_csv(args.trajectory)
-    for w in caught:
-        print(f"obsplan simulate: warning: {w.message}", file=sys.stderr)
+    traj = read_trajectory(args.trajectory, "simulate")
+    out = output_dir(args.out, args.force) if args.out else None
     if args.runs < 1:
         raise InputError(f"--runs {args.runs}: needs at least 1 run")
     model = make_model(
@@ -154,12 +146,11 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(res.to_dict(), indent=2))
     else:
         print(format_result(res, args.trajectory))
-    if args.out:
+    if out is not None:
         from obsplan import plots
         from obsplan.estimation.crlb import sampled_rank_over_time
         from obsplan.observability.gramian import augmented_model
 
-        out = Path(args.out)
         ranks = sampled_rank_over_time(traj, cfg)
         idx = np.searchsorted(traj.t, res.t)
         full = augmented_model(model).state_dim

@@ -530,7 +530,17 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
     ProblemError
         If the file is missing, is not TOML, or any field is unknown, mistyped or infeasible.
     """
-    path = DEFAULT_PROBLEM if path is None else Path(path)
+    if path is None:
+        # problems/ sits beside the package in a clone (editable install); a copied-out
+        # install finds it in the working directory instead
+        candidates = (DEFAULT_PROBLEM, Path.cwd() / "problems" / "default.toml")
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is None:
+            raise ProblemError(
+                f"the default problem {DEFAULT_PROBLEM} is not installed; run from a clone of "
+                "the repository (pip install -e .) or pass a PROBLEM.toml"
+            )
+    path = Path(path)
     if not path.is_file():
         raise ProblemError(f"problem file not found: {path}")
     try:
@@ -643,8 +653,12 @@ def _check_problem(pb: PlanningProblem) -> None:
             f"the filter step {val.dt:g} s must divide the planning step "
             f"horizon.duration / horizon.steps = {hor.dt:g} s",
         )
+    fitted = {"range_rate": True}
+    fitted["dvl_rate"] = any(s.startswith("dvl") for s in pb.model.sensors)
+    fitted["depth_rate"] = "depth" in pb.model.sensors
     for name in ("range_rate", "dvl_rate", "depth_rate"):
-        if getattr(val, name) > 1.0 / val.dt * (1 + 1e-9):
+        # a sensor that is not fitted keeps its default rate and must not veto the filter step
+        if fitted[name] and getattr(val, name) > 1.0 / val.dt * (1 + 1e-9):
             raise _err(
                 f"validation.{name}",
                 f"{getattr(val, name):g} Hz is faster than the filter step "
