@@ -54,7 +54,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--init-error",
         metavar="sample|E1,E2,...",
         default="sample",
-        help="initial estimate error x0_hat - x0 of (p, v[, v_f]), or 'sample' to draw it from "
+        help="initial estimate error x0_hat - x0 of (p [m], v [m/s][, v_f [m/s]]), or 'sample' to draw it from "
         "P0 (default)",
     )
     p.add_argument("--no-process-noise", action="store_true", help="truth without process noise")
