@@ -21,10 +21,11 @@ from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
 
 
-def resample(traj: Trajectory, dt: float) -> Trajectory:
+def resample(traj: Trajectory, dt: float, name: str = "validation.dt") -> Trajectory:
     """The same path sampled every ``dt`` [s] (exact for piecewise-constant inputs).
 
-    Each interval of ``traj`` must be an integer multiple of ``dt``.
+    Each interval of ``traj`` must be an integer multiple of ``dt``; ``name`` is how the error
+    message calls ``dt`` (the problem field or the command-line option).
 
     Raises
     ------
@@ -35,7 +36,7 @@ def resample(traj: Trajectory, dt: float) -> Trajectory:
     k = np.rint(steps).astype(int)
     if np.any(np.abs(steps - k) > 1e-6 * np.maximum(steps, 1.0)) or np.any(k < 1):
         raise InputError(
-            f"validation.dt = {dt:g} s must divide every interval of the path "
+            f"{name} = {dt:g} s must divide every interval of the path "
             f"(intervals from {traj.dt.min():g} to {traj.dt.max():g} s)"
         )
     u = np.repeat(traj.u[:-1], k, axis=0)

@@ -87,3 +87,16 @@ def test_out_folder_with_user_files_is_not_overwritten(csv_2d, tmp_path, capsys)
         main(["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]) == 0
     )
     assert (out / "estimation.png").read_bytes() != b"the user's own figure"
+
+
+def test_dt_resamples_a_coarse_plan_onto_the_filter_grid(tmp_path, capsys):
+    path = tmp_path / "coarse.csv"
+    write_csv(gen.circle(30.0, 1.5, 20.0, 1.0), path)  # 1 s samples, like a plan.csv
+    assert main(["simulate", str(path), "--runs", "2", "--dt", "0.1", "--json"]) == 0
+    fine = json.loads(capsys.readouterr().out)
+    assert main(["simulate", str(path), "--runs", "2", "--json"]) == 0
+    coarse = json.loads(capsys.readouterr().out)
+    # ten times the range updates along the same path: the bound on the final position shrinks
+    assert fine["crlb_final_pos_std"] < coarse["crlb_final_pos_std"]
+    assert main(["simulate", str(path), "--runs", "2", "--dt", "0.3"]) == 2
+    assert "--dt = 0.3 s must divide" in capsys.readouterr().err

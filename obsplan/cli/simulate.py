@@ -48,14 +48,23 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         default="",
         help="noise std per sensor: range [m], dvl [m/s], depth [m] (default: the paper's)",
     )
+    p.add_argument(
+        "--dt",
+        metavar="S",
+        type=float,
+        default=None,
+        help="filter step [s]: resample the CSV's piecewise-constant inputs onto this grid (it "
+        "must divide every interval; e.g. 0.1 for a plan.csv of 3 s steps); default: the CSV's "
+        "own samples",
+    )
     p.add_argument("--runs", type=int, default=50, help="Monte Carlo runs (default 50)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument(
         "--init-error",
         metavar="sample|E1,E2,...",
         default="sample",
-        help="initial estimate error x0_hat - x0 of (p [m], v [m/s][, v_f [m/s]]), or 'sample' to draw it from "
-        "P0 (default)",
+        help="initial estimate error x0_hat - x0 of (p [m], v [m/s][, v_f [m/s]]), or "
+        "'sample' to draw it from P0 (default)",
     )
     p.add_argument("--no-process-noise", action="store_true", help="truth without process noise")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
@@ -122,6 +131,12 @@ def format_result(res: MonteCarloResult, path: str) -> str:
 def run(args: argparse.Namespace) -> int:
     """Execute ``obsplan simulate``."""
     traj = read_trajectory(args.trajectory, "simulate")
+    if args.dt is not None:
+        from obsplan.validation import resample
+
+        if not args.dt > 0:
+            raise InputError(f"--dt {args.dt:g}: the filter step must be > 0 s")
+        traj = resample(traj, args.dt, name="--dt")
     out = output_dir(args.out, args.force) if args.out else None
     if args.runs < 1:
         raise InputError(f"--runs {args.runs}: needs at least 1 run")
