@@ -161,6 +161,8 @@ def scenario_figure(
     if title:
         fig.suptitle(title)
     fig.tight_layout()
+    if n == 3:  # tight_layout ignores the 3D axes' z label, which then overlaps panel (b)
+        fig.subplots_adjust(wspace=0.45)
     return fig
 
 
