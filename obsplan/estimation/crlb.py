@@ -20,8 +20,8 @@ from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.schedule import Schedule, make_schedule, sample_rate
 from obsplan.estimation.sensors import output_model, to_outputs, true_readings
 from obsplan.estimation.truth import nominal_states
-from obsplan.observability.gramian import augmented_model
-from obsplan.observability.scaling import DEFAULT_SCALES, Scales, numerical_rank
+from obsplan.observability.gramian import augmented_model, rank_scales
+from obsplan.observability.scaling import Scales, numerical_rank
 from obsplan.trajectory import Trajectory
 
 
@@ -101,28 +101,26 @@ def posterior_crlb(
 
 
 def sampled_rank_over_time(
-    traj: Trajectory, config: EstimationConfig, scales: Scales = DEFAULT_SCALES
+    traj: Trajectory, config: EstimationConfig, scales: Scales | None = None
 ) -> np.ndarray:
     """Rank of the augmented model's *sampled* observability Gramian at each sample, shape (N,).
 
     ``Σ_j (C_j Φ_j)ᵀ (C_j Φ_j)`` over the samples where each sensor reports (multi-rate case B,
-    Fig. 9b), with ``C = AugmentedModel.output_matrix`` and ``Φ = I + A τ`` (eq. 26) in the fixed
-    ``scales``; rank by the unit-invariant test of :mod:`obsplan.observability.scaling`. With
-    every sensor at the sample rate it tracks the continuous Gramian's rank.
+    Fig. 9b), with ``C = AugmentedModel.output_matrix`` and ``Φ = I + A τ`` (eq. 26), in the
+    trajectory's own scales (:func:`~obsplan.observability.gramian.rank_scales`, as the continuous
+    rank test) unless ``scales`` is given; rank by the unit-invariant test of
+    :mod:`obsplan.observability.scaling`. With every sensor at the sample rate it tracks the
+    continuous Gramian's rank.
     """
     model = config.model
     aug = augmented_model(model)
     sched = make_schedule(traj, model.sensors, config.rates_hz)
+    scales = rank_scales(traj) if scales is None else scales
     tr = traj.scaled(scales.length_m, scales.time_s)
     d = tr.displacement()
     tau = tr.t - tr.t[0]
     m = aug.state_dim
-    rows_of = {}
-    i = 0
-    for s in model.sensors:
-        w = model.dim if s.startswith("dvl") else 1
-        rows_of[s] = slice(i, i + w)
-        i += w
+    rows_of = model.output_slices  # output_matrix stacks its rows in the same sensor order
     G = np.zeros((traj.n_samples, m, m))
     acc = np.zeros((m, m))
     for k in range(traj.n_samples):

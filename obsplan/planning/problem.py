@@ -674,14 +674,15 @@ def _check_problem(pb: PlanningProblem) -> None:
 
 def _check_objective_structure(pb: PlanningProblem) -> None:
     """Refuse objectives that the sensors make impossible for every input, before solving."""
-    from obsplan.planning.structure import gramian_generic_rank, lwo_max_rank
+    from obsplan.observability.lwo import lwo_structural_max_rank
+    from obsplan.planning.structure import gramian_generic_rank
 
     kind = pb.objective.kind
     veh = pb.vehicle
     model = VehicleModel(dim=veh.dim, sensors=parse_sensors(veh.sensors), current=veh.current)
     if kind == "lwo-condition":
-        r = lwo_max_rank(model)
-        if r is not None and r < model.state_dim:
+        r = lwo_structural_max_rank(model)
+        if r < model.state_dim:
             raise _err(
                 "objective.kind",
                 f"lwo-condition is impossible with sensors {','.join(model.sensors)} in "

@@ -7,7 +7,7 @@ from functools import cache
 import numpy as np
 
 from obsplan.model import VehicleModel
-from obsplan.observability.gramian import augmented_model, gramian
+from obsplan.observability.gramian import augmented_model, gramian, rank_scales
 from obsplan.observability.scaling import numerical_rank
 from obsplan.trajectory import Trajectory
 
@@ -31,13 +31,4 @@ def gramian_generic_rank(model: VehicleModel) -> tuple[int, int]:
         t, rng.normal(size=n) * 10, rng.normal(size=n), rng.normal(size=(40, n))
     )
     aug = augmented_model(model)
-    return int(numerical_rank(gramian(traj, aug))), aug.state_dim
-
-
-def lwo_max_rank(model: VehicleModel) -> int | None:
-    """Structural maximum rank of the LWO matrix (``None`` if the LWO module is unavailable)."""
-    try:
-        from obsplan.observability.lwo import lwo_structural_max_rank
-    except ImportError:  # pragma: no cover - lwo.py is written by another engineer
-        return None
-    return int(lwo_structural_max_rank(model))
+    return int(numerical_rank(gramian(traj, aug, rank_scales(traj)))), aug.state_dim
