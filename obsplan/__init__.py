@@ -14,6 +14,16 @@ from obsplan.observability.analyze import ObservabilityReport, analyze  # noqa: 
 from obsplan.planning import PlanningProblem, PlanResult, load_problem, plan  # noqa: E402
 from obsplan.trajectory import Trajectory, read_csv, write_csv  # noqa: E402
 
+
+def __getattr__(name: str):
+    # obsplan.sweep (parameter studies) needs pandas and Dask: imported on first use only
+    if name == "sweep":
+        from obsplan.sweeps import sweep
+
+        return sweep
+    raise AttributeError(f"module 'obsplan' has no attribute {name!r}")
+
+
 __all__ = [
     "EstimationConfig",
     "MonteCarloResult",
@@ -29,5 +39,6 @@ __all__ = [
     "monte_carlo",
     "plan",
     "read_csv",
+    "sweep",
     "write_csv",
 ]

@@ -21,6 +21,14 @@ Straight lines take their inputs along the line only, so they are exactly straig
 stay exactly radial); a callable acceleration profile is sampled at interval midpoints
 (speed error O(dt²)).
 
+Smooth paths. ``circle_path``, ``circle_z_path``, ``lawnmower_path`` and ``paper_lawnmower_path``
+return the analytic path (:class:`AnalyticPath`: lines, arcs and a z motion, with positions,
+velocities and accelerations at any time) that ``circle``, ``circle_z``, ``lawnmower`` and
+``paper_lawnmower`` sample: ``path.sample(dt)`` is the generator's trajectory, bit for bit. The
+two are different inputs for the LWO test: the held-input trajectory has a constant input on each
+interval, the path a smooth one (``obsplan.observability.lwo.lwo_path_report`` checks it between
+samples).
+
 Units are SI: positions [m], speeds [m/s], accelerations [m/s²], times [s], angles [rad].
 ``dt`` defaults to 0.01 s, the paper's 100 Hz (section 7).
 """
@@ -49,16 +57,22 @@ AccelProfile = float | Callable[..., Any] | Sequence[float] | np.ndarray
 
 __all__ = [
     "DT",
+    "AnalyticPath",
     "LawnmowerLayout",
     "SineProfile",
     "circle",
+    "circle_path",
     "circle_then_straight",
     "circle_z",
+    "circle_z_path",
     "concat",
     "lawnmower",
     "lawnmower_layout",
+    "lawnmower_path",
     "lawnmower_within_limits",
     "paper_lawnmower",
+    "paper_lawnmower_path",
+    "parabola",
     "sine_profile",
     "straight",
     "then_straight",
@@ -134,6 +148,9 @@ class _Line:
     def vel(self, tau: np.ndarray) -> np.ndarray:
         return np.outer(self.s0 + self.a * tau, self.e)
 
+    def acc(self, tau: np.ndarray) -> np.ndarray:
+        return np.outer(np.full(np.shape(tau), self.a), self.e)
+
 
 @dataclass(frozen=True)
 class _Arc:
@@ -155,6 +172,12 @@ class _Arc:
         th = self.phi0 + self.omega * tau
         return (self.r * self.omega) * (
             np.outer(-np.sin(th), self.e1) + np.outer(np.cos(th), self.e2)
+        )
+
+    def acc(self, tau: np.ndarray) -> np.ndarray:
+        th = self.phi0 + self.omega * tau
+        return (-self.r * self.omega**2) * (
+            np.outer(np.cos(th), self.e1) + np.outer(np.sin(th), self.e2)
         )
 
 
@@ -201,6 +224,126 @@ def _add_z(
     vel_xy: Callable[[np.ndarray], np.ndarray], vz: Callable[[np.ndarray], np.ndarray]
 ) -> Callable[[np.ndarray], np.ndarray]:
     return lambda t: np.column_stack([vel_xy(t)[:, :2], vz(t)])
+
+
+# ------------------------------------------------------------------ smooth paths
+@dataclass(frozen=True)
+class _ZLine:
+    """``z(t) = z0 + w t``: a straight (constant-speed) motion along z, ``u_z = 0``."""
+
+    z0: float
+    w: float
+
+    @property
+    def start(self) -> float:
+        return self.z0
+
+    def pos(self, t: np.ndarray) -> np.ndarray:
+        return self.z0 + self.w * np.asarray(t)
+
+    def vel(self, t: np.ndarray) -> np.ndarray:
+        return np.full(np.shape(t), self.w)
+
+    def acc(self, t: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(t))
+
+
+@dataclass(frozen=True)
+class _ZSine:
+    """``z(t) = z0 + amp sin(Ω t + phase)``."""
+
+    z0: float
+    amp: float
+    Om: float
+    ph: float
+
+    @property
+    def start(self) -> float:
+        return self.z0 + self.amp * math.sin(self.ph)
+
+    def pos(self, t: np.ndarray) -> np.ndarray:
+        return self.z0 + self.amp * np.sin(self.Om * np.asarray(t) + self.ph)
+
+    def vel(self, t: np.ndarray) -> np.ndarray:
+        return self.amp * self.Om * np.cos(self.Om * t + self.ph)
+
+    def acc(self, t: np.ndarray) -> np.ndarray:
+        return -self.amp * self.Om**2 * np.sin(self.Om * np.asarray(t) + self.ph)
+
+
+@dataclass(frozen=True)
+class AnalyticPath:
+    """A smooth path: consecutive lines and arcs (pieces), optionally with a motion along z.
+
+    The path the generators sample (module docstring). Within a piece, position, velocity and
+    acceleration are analytic in time; at a breakpoint the acceleration may jump (a leg meets a
+    turn). Picklable (no closures).
+
+    Attributes
+    ----------
+    segments
+        The pieces, in order; each lasts its ``T`` [s] from the previous one's end.
+    z
+        Motion along z for a path whose pieces are in (x, y); None for a 2D path or a path whose
+        pieces are already 3D (a circle in a plane ``z = const``).
+    """
+
+    segments: tuple[_Segment, ...]
+    z: _ZLine | _ZSine | None = None
+
+    @property
+    def dim(self) -> int:
+        """2 or 3."""
+        return 3 if self.z is not None else int(self.segments[0].pos(np.zeros(1)).shape[1])
+
+    @property
+    def breakpoints(self) -> np.ndarray:
+        """Start time of every piece and the end time, shape ``(n_pieces + 1,)`` [s]."""
+        return np.concatenate([[0.0], np.cumsum([s.T for s in self.segments])])
+
+    @property
+    def duration(self) -> float:
+        """Length of the path [s]."""
+        return float(self.breakpoints[-1])
+
+    def evaluate(
+        self, t: np.ndarray | float, piece: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position [m], velocity [m/s] and acceleration [m/s²] at times ``t`` [s], each (N, dim).
+
+        ``piece=None``: the piece that contains each time (right-continuous at breakpoints);
+        ``piece=i``: the formulas of piece ``i`` (e.g. its limit at its end time).
+        """
+        t = np.atleast_1d(np.asarray(t, float))
+        starts = self.breakpoints
+        if piece is None:
+            idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.segments) - 1)
+        elif not 0 <= int(piece) < len(self.segments):
+            raise ConfigError(f"piece must be in 0..{len(self.segments) - 1}, got {piece!r}")
+        else:
+            idx = np.full(t.size, int(piece))
+        out = [np.empty((t.size, self.dim)) for _ in range(3)]
+        for i in np.unique(idx):
+            sel, seg = idx == i, self.segments[i]
+            tau = t[sel] - starts[i]
+            for arr, f in zip(out, (seg.pos, seg.vel, seg.acc), strict=True):
+                val = f(tau)
+                arr[sel, : val.shape[1]] = val
+        if self.z is not None:
+            for arr, f in zip(out, (self.z.pos, self.z.vel, self.z.acc), strict=True):
+                arr[:, 2] = f(t)
+        return out[0], out[1], out[2]
+
+    def sample(self, dt: float = DT, duration: float | None = None) -> Trajectory:
+        """The held-input trajectory of the path: chord inputs (module docstring), sampled at
+        ``dt`` [s] for ``duration`` [s] (default: the whole path)."""
+        dt = _positive("dt", dt)
+        _, vel, total = _piecewise(self.segments)
+        t = _time_grid(total if duration is None else duration, dt)
+        p0 = self.segments[0].pos(np.zeros(1))[0]
+        if self.z is None:
+            return _fly(t, p0, vel)
+        return _fly(t, np.append(p0, self.z.start), _add_z(vel, self.z.vel))
 
 
 # ------------------------------------------------------------------ straight lines
@@ -321,6 +464,32 @@ def straight(
     if s0 == 0.0 and not np.any(a):
         raise ConfigError("speed0 and accel are both zero: the vehicle would not move")
     return Trajectory.from_inputs(t, p, s0 * e, np.outer(a, e))
+
+
+def parabola(p0: Vec, v0: Vec, accel: Vec, *, duration: float, dt: float = DT) -> Trajectory:
+    """Constant acceleration in any direction: ``p(t) = p0 + v0 t + ½ a t²`` (a parabola).
+
+    Parameters
+    ----------
+    p0, v0, accel : shape (n,)
+        Start position [m], start velocity [m/s] and the constant acceleration [m/s²]; with
+        ``accel`` parallel to ``v0`` the path is a straight line (use :func:`straight`).
+    duration, dt
+        Length [s] and sampling interval [s].
+
+    Returns
+    -------
+    Trajectory
+        One input held for the whole path: exactly the held-input trajectory of the parabola.
+    """
+    duration, dt = _check_timing(duration, dt)
+    p = _vector("p0", p0)
+    v = _vector("v0", v0, (p.size,))
+    a = _vector("accel", accel, (p.size,))
+    if not (np.any(v) or np.any(a)):
+        raise ConfigError("v0 and accel are both zero: the vehicle would not move")
+    t = _time_grid(duration, dt)
+    return Trajectory.from_inputs(t, p, v, np.tile(a, (t.size - 1, 1)))
 
 
 def then_straight(
@@ -448,11 +617,25 @@ def circle(
         Velocities exact at the samples; radius error ``<= radius (ω dt)²/6``, ``ω = speed/radius``.
     """
     duration, dt = _check_timing(duration, dt)
+    path = circle_path(radius, speed, duration, center=center, phase=phase, z=z, ccw=ccw)
+    return path.sample(dt)
+
+
+def circle_path(
+    radius: float,
+    speed: float,
+    duration: float,
+    *,
+    center: Vec = (0.0, 0.0),
+    phase: float = 0.0,
+    z: float | None = None,
+    ccw: bool = True,
+) -> AnalyticPath:
+    """The smooth path that :func:`circle` samples (same parameters, no ``dt``)."""
+    duration = _positive("duration", duration)
     radius, speed = _positive("radius", radius), _positive("speed", speed)
     c, _ = _circle_plane(center, z)
-    arc = _circle_arc(radius, speed, duration, c, _finite("phase", phase), ccw)
-    t = _time_grid(duration, dt)
-    return _fly(t, arc.pos(np.zeros(1))[0], arc.vel)
+    return AnalyticPath((_circle_arc(radius, speed, duration, c, _finite("phase", phase), ccw),))
 
 
 def circle_z(
@@ -490,9 +673,43 @@ def circle_z(
         Vertical speed [m/s] (non-zero) of the straight motion. Note ``u_z = 0`` then.
     """
     duration, dt = _check_timing(duration, dt)
+    return circle_z_path(
+        radius,
+        speed,
+        duration,
+        z0=z0,
+        z_motion=z_motion,
+        z_amp=z_amp,
+        z_period=z_period,
+        z_speed=z_speed,
+        z_phase=z_phase,
+        center=center,
+        phase=phase,
+        ccw=ccw,
+    ).sample(dt)
+
+
+def circle_z_path(
+    radius: float,
+    speed: float,
+    duration: float,
+    *,
+    z0: float,
+    z_motion: Literal["sine", "straight"] = "sine",
+    z_amp: float | None = None,
+    z_period: float | None = None,
+    z_speed: float | None = None,
+    z_phase: float = 0.0,
+    center: Vec = (0.0, 0.0),
+    phase: float = 0.0,
+    ccw: bool = True,
+) -> AnalyticPath:
+    """The smooth path that :func:`circle_z` samples (same parameters, no ``dt``)."""
+    duration = _positive("duration", duration)
     radius, speed = _positive("radius", radius), _positive("speed", speed)
     c = _vector("center", center, (2,))
     z0 = _finite("z0", z0)
+    zm: _ZLine | _ZSine
     if z_motion == "sine":
         if z_amp is None or z_period is None or z_speed is not None:
             raise ConfigError(
@@ -501,11 +718,7 @@ def circle_z(
         amp, period = _finite("z_amp", z_amp), _positive("z_period", z_period)
         if amp == 0.0:
             raise ConfigError("z_amp must be non-zero (use circle(..., z=z0) for a flat circle)")
-        Om, ph = 2.0 * np.pi / period, _finite("z_phase", z_phase)
-        z_start = z0 + amp * math.sin(ph)
-
-        def vz(t: np.ndarray) -> np.ndarray:
-            return amp * Om * np.cos(Om * t + ph)
+        zm = _ZSine(z0, amp, 2.0 * np.pi / period, _finite("z_phase", z_phase))
     elif z_motion == "straight":
         if z_speed is None or z_amp is not None or z_period is not None:
             raise ConfigError(
@@ -514,16 +727,11 @@ def circle_z(
         w = _finite("z_speed", z_speed)
         if w == 0.0:
             raise ConfigError("z_speed must be non-zero (use circle(..., z=z0) for a flat circle)")
-        z_start = z0
-
-        def vz(t: np.ndarray) -> np.ndarray:
-            return np.full(np.shape(t), w)
+        zm = _ZLine(z0, w)
     else:
         raise ConfigError(f"z_motion must be 'sine' or 'straight', got {z_motion!r}")
     arc = _circle_arc(radius, speed, duration, c, _finite("phase", phase), ccw)
-    t = _time_grid(duration, dt)
-    p0 = np.append(arc.pos(np.zeros(1))[0], z_start)
-    return _fly(t, p0, _add_z(arc.vel, vz))
+    return AnalyticPath((arc,), zm)
 
 
 def circle_then_straight(
@@ -640,6 +848,14 @@ def _lawnmower_segments(
     return segs
 
 
+def _segments_path(segs: Sequence[_Segment], z: float | None, z_speed: float) -> AnalyticPath:
+    """Pieces in (x, y), with a constant vertical speed from height ``z`` if given."""
+    if z is None:
+        return AnalyticPath(tuple(segs))
+    w = _finite("z_speed", z_speed)
+    return AnalyticPath(tuple(segs), _ZLine(_finite("z", z), w))
+
+
 def _fly_segments(
     segs: Sequence[_Segment],
     dt: float,
@@ -647,14 +863,7 @@ def _fly_segments(
     z_speed: float,
     duration: float | None = None,
 ) -> Trajectory:
-    _, vel, total = _piecewise(segs)
-    T = total if duration is None else duration
-    t = _time_grid(T, dt)
-    p0 = segs[0].pos(np.zeros(1))[0]
-    if z is None:
-        return _fly(t, p0, vel)
-    w = _finite("z_speed", z_speed)
-    return _fly(t, np.append(p0, _finite("z", z)), _add_z(vel, lambda s: np.full(np.shape(s), w)))
+    return _segments_path(segs, z, z_speed).sample(dt, duration)
 
 
 def _check_turn(turn: str, first_turn: str) -> None:
@@ -712,11 +921,46 @@ def lawnmower(
         accelerate at ``initial_accel`` [m/s²] (default: the constant value reaching ``speed`` at
         the end of the first leg), then cruise.
     """
+    dt = _positive("dt", dt)
+    return lawnmower_path(
+        start,
+        leg_length,
+        spacing,
+        n_legs,
+        speed,
+        heading=heading,
+        turn=turn,
+        first_turn=first_turn,
+        z=z,
+        z_speed=z_speed,
+        start_with_circle=start_with_circle,
+        initial_speed=initial_speed,
+        initial_accel=initial_accel,
+    ).sample(dt)
+
+
+def lawnmower_path(
+    start: Vec,
+    leg_length: float,
+    spacing: float,
+    n_legs: int,
+    speed: float,
+    *,
+    heading: float = 0.0,
+    turn: str = "semicircle",
+    first_turn: Literal["left", "right"] = "left",
+    z: float | None = None,
+    z_speed: float = 0.0,
+    start_with_circle: bool = False,
+    initial_speed: float | None = None,
+    initial_accel: float | None = None,
+) -> AnalyticPath:
+    """The smooth path that :func:`lawnmower` samples (same parameters, no ``dt``): legs and
+    semicircular turns as separate pieces."""
     _check_turn(turn, first_turn)
     p = _vector("start", start, (2,))
     L, s = _positive("leg_length", leg_length), _positive("spacing", spacing)
     v = _positive("speed", speed)
-    dt = _positive("dt", dt)
     if int(n_legs) != n_legs or n_legs < 1:
         raise ConfigError(f"n_legs must be a positive integer, got {n_legs!r}")
     if initial_speed is not None:
@@ -742,7 +986,7 @@ def lawnmower(
         initial_accel,
         start_with_circle,
     )
-    return _fly_segments(segs, dt, z, z_speed)
+    return _segments_path(segs, z, z_speed)
 
 
 @dataclass(frozen=True)
@@ -899,25 +1143,44 @@ def paper_lawnmower(
     full rank; in 3D the vehicle starts at ``speed`` with the constant vertical speed ``z_speed``
     (Fig. 6's "straight motion along z"; the paper does not state its value).
     """
+    dt = _positive("dt", dt)
+    path = paper_lawnmower_path(
+        dim, speed=speed, leg_length=leg_length, spacing=spacing, n_legs=n_legs, z_speed=z_speed
+    )
+    return path.sample(dt)
+
+
+def paper_lawnmower_path(
+    dim: int = 2,
+    *,
+    speed: float = 2.0,
+    leg_length: float = 160.0,
+    spacing: float = 30.0,
+    n_legs: int = 5,
+    z_speed: float = -0.01,
+) -> AnalyticPath:
+    """The smooth path that :func:`paper_lawnmower` samples (same parameters, no ``dt``).
+
+    In 2D its pieces are: the accelerating first leg, then (turn, leg) four times; the turns are
+    semicircles of radius ``spacing / 2`` centred at ``(±80, 45)``, ``(±80, -15)``.
+    """
     if dim == 2:
-        return lawnmower(
+        return lawnmower_path(
             (-80.0, 60.0),
             leg_length,
             spacing,
             n_legs,
             speed,
-            dt,
             first_turn="right",
             initial_speed=0.0,
         )
     if dim == 3:
-        return lawnmower(
+        return lawnmower_path(
             (-80.0, 60.0),
             leg_length,
             spacing,
             n_legs,
             speed,
-            dt,
             first_turn="right",
             z=5.0,
             z_speed=z_speed,

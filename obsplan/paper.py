@@ -11,6 +11,11 @@ them, and the keys of the :data:`NOTES` that explain a disagreement or a conditi
 
 Rank verdicts do not depend on the sampling interval, so ``quick=True`` samples at 0.1 s instead
 of the paper's 0.01 s (same durations).
+
+Beside the tables, :func:`claims` checks statements of sections 4-7 (windows of eq. 27, DVL
+ranks, Table 3's water-profiling circle, the smooth turns of Fig. 3) and :func:`structural`
+reports the exact (rational) first full-rank interval of the held-input Gramian beside the
+conditioning time ``full_rank_from_t`` at several tolerances.
 """
 
 from __future__ import annotations
@@ -21,9 +26,21 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import cache
 
+import numpy as np
+
 from obsplan import generators as gen
 from obsplan.generators import DT
+from obsplan.model import VehicleModel, make_model
 from obsplan.observability.analyze import ObservabilityReport, analyze
+from obsplan.observability.gramian import cumulative_gramians, gramian_report, rank_scales
+from obsplan.observability.lwo import lwo_path_report
+from obsplan.observability.scaling import DEFAULT_SCALES, RANK_TOL, equilibrated_eigvals
+from obsplan.observability.structural import (
+    exact_gramian,
+    exact_min_eigenvalue,
+    exact_rank,
+    exact_rank_profile,
+)
 from obsplan.trajectory import Trajectory
 
 QUICK_DT: float = 0.1
@@ -215,7 +232,8 @@ NOTES: dict[str, str] = {
         "z0 + A sin Wt) this is w rho^2 (w^2 z0 + A (w^2 - W^2) sin Wt): LWO at every instant "
         "needs w^2 |z0| > A |w^2 - W^2| (our trajectory: z0 = 10 m, A = 5 m, W = 2pi/90 s). A z "
         "oscillation about the beacon's plane (z0 = 0) loses rank at isolated instants, which a "
-        "sampled test with chord inputs does not see."
+        "sampled test with chord inputs does not see (held inputs never meet them); "
+        "lwo_path_report on the smooth path finds them, where sin Wt = 0."
     ),
     "water-circle": (
         "With water-profiling DVL the DVL rows measure v, and the range row sees p, v_f and "
@@ -223,7 +241,12 @@ NOTES: dict[str, str] = {
         "On a circle that is full rank, so the augmented Gramian is full rank (8/8): v is "
         "measured, nu = v + v_f is observable from range, hence v_f too. Section 6.3 and Table 3 "
         "say O: NO. On straight lines it is rank deficient (rank <= 2 + 4). Bottom-lock is "
-        "always deficient: (w, -w) in (v, v_f) changes no output."
+        "always deficient: (w, -w) in (v, v_f) changes no output. The paper's NO is what a "
+        "redundant ('expanded') augmentation gives: writing p0.nu0 = p0.v0 + p0.v_f and "
+        "|nu0|^2 = |v0|^2 + 2 v0.v_f + |v_f|^2 with each product as a state of its own (11 "
+        "states in 2D), the range row has the columns (tau, tau) and (tau^2/2, tau^2, tau^2/2): "
+        "three duplicated directions, rank 8 of 11 for every input (exact on this circle: see "
+        "the claim of section 6.3), the likely source of the error."
     ),
     "radial-water": (
         "A radial leg: p, nu and u are parallel, so the range rows of O_w have rank 2 in the "
@@ -237,15 +260,57 @@ NOTES: dict[str, str] = {
         "structurally impossible in 3D with current (at most 4 + 3 = 7 < 9 rows of O)."
     ),
     "fig3-legs": (
-        "Fig. 3's claim that the whole lawn-mower is LWO needs u != 0 at every sample; with "
-        "constant-speed legs (the paper does not give the legs' speed profile) O has rank 3 on "
-        "the legs."
+        "Fig. 3's claim that the whole lawn-mower is LWO. For the trajectory the generators fly "
+        "(each input held on its sampling interval, as in a CSV) the turns are full rank at "
+        "every sample, so it holds iff every leg meets eq. 36 (u != 0, not through the "
+        "beacon): with constant-speed legs (the paper does not "
+        "give the legs' speed profile) O has rank 3 on the legs, and 2 on the third (y = 0), "
+        "which runs through the beacon whatever its speed. For the paper's smooth turns it "
+        "fails even with accelerated legs: on a turn of radius r centred at distance c from the "
+        "beacon, with the input frozen (u = p''), det O = 3 w^4 r^2 (2 r^2 + 2 c r cos(phi) - "
+        "c^2 sin^2(phi)) (phi: angle of p - centre from the direction of the centre), zero at "
+        "cos(phi) = (sqrt(c^2 - r^2) - r)/c whenever c > r: two isolated zeros inside every "
+        "turn of this lawn-mower (first turn, centre (80, 45), r = 15 m: phi = -5.24 and 63.96 "
+        "deg from the x axis). The held-input version never meets them: det O is constant on "
+        "each hold interval (note on held inputs) and jumps across zero at an input switch."
+    ),
+    "hold-exact": (
+        "Why checking samples is exact for a CSV: with the input held constant, d/dt det O = 0. "
+        "For the flow phi_tau of the double integrator with u fixed, L^k h(phi_tau(x)) = sum_j "
+        "tau^j/j! L^(k+j) h(x) (a finite sum), so O(phi_tau(x)) Dphi_tau = T(tau) O(x) with T "
+        "unit upper triangular and det Dphi_tau = 1: O later in a hold interval is an "
+        "invertible transform of O at its start and has the same rank. Checking every sample "
+        "of a held-input trajectory is therefore exactly the paper's 'at all times' rule; for a "
+        "smooth input it is not: obsplan.observability.lwo.lwo_path_report finds the rank "
+        "drops between samples by root finding on the analytic path."
+    ),
+    "beacon-parabola": (
+        "Not in the paper, beside the radial rows: a constant-acceleration parabola through "
+        "the beacon. At the beacon the row (p, 0) of O vanishes, so det O = 0 there; the input "
+        "being constant on the whole segment, O elsewhere on it is an invertible transform of O "
+        "at the beacon (note on held inputs): rank 3 on the whole segment, not only at the "
+        "beacon (symbolically, det O = 0 for all t when p(t*) = 0). A radial line is the "
+        "special case of p0, v0 and u parallel (rank 2)."
+    ),
+    "windows": (
+        "Section 4.2 (after eq. 27) proposes testing the terms of G(t, t0) = sum G(t_(i+1), "
+        "t_i) over short windows, whose 'condition number cannot diverge'. The identity does "
+        "not hold for windows re-anchored at t_i (their augmented states differ; "
+        "obsplan/observability/gramian.py), and short windows are nearly singular, not well "
+        "conditioned: the columns of eq. 27 are powers tau^0..tau^4 of the elapsed time, "
+        "nearly collinear over a short window, and the condition number grows without bound as "
+        "the window shrinks (exact smallest eigenvalues in the claim). Equilibration (unit "
+        "diagonal, the package's rank test) gains six decades, yet a 10 s window that is "
+        "exactly 6/6 still tests as rank 5 at RANK_TOL = 1e-10: the package tests the "
+        "cumulative Gramian instead."
     ),
     "gramian-straight-rank": (
         "On any straight line d(t, t0) is parallel to the line, so every row of C Phi lies in "
         "the span of (e, 0, 0, 0), (0, e, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1): range-only rank "
-        "<= 4 in 2D and 3D, and + n with DVL (v measured); 2 if u = 0, 3 if u is constant. The "
-        "Gramian depends on the inputs only, so radial and non-radial lines have the same rank."
+        "<= 4 in 2D and 3D (2 if u = 0, 3 if u is constant). The DVL rows (0, I, 0, 0) add the "
+        "n velocity directions, one of which, (0, e, 0, 0), the range rows already span: rank "
+        "<= n + 3 with DVL (2D: 4 -> 5, 3D: 4 -> 6), not 4 + n. The Gramian depends on the "
+        "inputs only, so radial and non-radial lines have the same rank."
     ),
 }
 
@@ -305,6 +370,10 @@ SCENARIOS: dict[str, _Call] = {
         duration=60.0,
     ),
     # Fig. 1: p0 = (-100, 60) m, v0 = (0.1, 0) m/s, parallel to x
+    # through the beacon at t = 30 s: p(30) = p0 + 30 v0 + 450 u = 0
+    "2d-parabola-beacon": _call(
+        gen.parabola, p0=(-30.0, -18.0), v0=(1.0, 0.0), accel=(0.0, 0.04), duration=60.0
+    ),
     "2d-line-const-speed": _call(
         gen.straight, p0=(-100.0, 60.0), direction=(1.0, 0.0), speed0=0.1, accel=0.0, duration=100.0
     ),
@@ -392,7 +461,7 @@ def scenario(name: str, quick: bool = False) -> Trajectory:
 def _analysis(
     name: str, sensors: tuple[str, ...], current: bool, quick: bool
 ) -> ObservabilityReport:
-    return analyze(scenario(name, quick), sensors=sensors, current=current)
+    return analyze(scenario(name, quick), sensors=sensors, current=current, exact=False)
 
 
 # ------------------------------------------------------------------ tables as data
@@ -428,6 +497,7 @@ class _Spec:
 # "-" marks a row the paper has no verdict for (ours only, to show a condition).
 _TABLE1 = """
 2d-straight-radial       |2| Straight (radial)                | varying acceleration                  | 2d-radial            | NO/NO   | gramian-straight-rank
+2d-parabola-beacon       |2| Constant acceleration through the beacon (not in Table 1) | parabola, u not parallel to v0 | 2d-parabola-beacon | - | beacon-parabola
 2d-straight-const-accel  |2| Straight (not radial)            | constant acceleration (Fig. 1 start)  | 2d-line-const-accel  | YES/NO  |
 2d-straight-varying      |2| Straight (not radial)            | varying acceleration, never zero      | 2d-line-varying      | YES/NO  |
 2d-straight-const-speed  |2| Straight (not radial)            | constant speed (Fig. 1 start)         | 2d-line-const-speed  | YES/NO  | lwo-needs-accel
@@ -550,6 +620,237 @@ def all_rows(quick: bool = False) -> tuple[TableRow, ...]:
     return table1(quick) + table2(quick) + table3(quick)
 
 
+# ------------------------------------------------------------------ exact record
+@dataclass(frozen=True)
+class SmoothTurns:
+    """LWO of the 2D paper lawn-mower flown as a smooth path (input frozen at ``u = p''``).
+
+    ``zeros``: times [s] of the isolated zeros of ``det O`` (root finding between samples);
+    ``zeros_per_turn``: their number in each turn (-1 if it differs between turns);
+    ``first_turn_deg``: angles [deg] of ``p - centre`` from the x axis at the first turn's zeros;
+    ``leg_ranks``: rank of O on each constant-speed leg; ``held_turns_full``: the held-input
+    trajectory of the same path has full rank at every sample whose hold interval is in a turn.
+    """
+
+    zeros: tuple[float, ...]
+    n_turns: int
+    zeros_per_turn: int
+    first_turn_deg: tuple[float, ...]
+    leg_ranks: tuple[int, ...]
+    held_turns_full: bool
+
+    def to_dict(self) -> dict:
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+
+def _turn_centre(p: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Centre of the circle a uniform turn is on: ``c = p + a |v|² / |a|²``."""
+    return p + a * (v @ v) / (a @ a)
+
+
+@cache
+def smooth_turns(quick: bool = False) -> SmoothTurns:
+    """Point 1 of the record: the smooth turns of Fig. 3 have isolated LWO rank drops."""
+    path = gen.paper_lawnmower_path(2)
+    rep = lwo_path_report(path, make_model(2, RANGE))
+    bp = path.breakpoints
+    turns, legs = [], []
+    for i in range(len(bp) - 1):
+        p, v, a = (x[0] for x in path.evaluate(0.5 * (bp[i] + bp[i + 1]), piece=i))
+        if a @ a > 0 and abs(a @ v) <= 1e-9 * np.linalg.norm(a) * np.linalg.norm(v):
+            turns.append(i)
+        elif not a @ a > 0:
+            legs.append(i)
+    zeros = [d for d in rep.drops if d.isolated]
+    per_turn = {sum(d.piece == i for d in zeros) for i in turns}
+    first = [d for d in zeros if d.piece == turns[0]]
+    deg = []
+    for d in first:
+        p, v, a = (x[0] for x in path.evaluate(d.t_start, piece=d.piece))
+        q = p - _turn_centre(p, v, a)
+        deg.append(math.degrees(math.atan2(q[1], q[0])))
+    leg_ranks = tuple(
+        min((d.rank for d in rep.drops if d.piece == i and not d.isolated), default=4) for i in legs
+    )
+    tr = scenario("2d-lawnmower", quick)
+    ranks = _analysis("2d-lawnmower", RANGE, False, quick).lwo.ranks
+    held = all(
+        np.all(ranks[:-1][(tr.t[:-1] >= bp[i]) & (tr.t[1:] <= bp[i + 1])] == 4) for i in turns
+    )
+    return SmoothTurns(
+        zeros=tuple(d.t_start for d in zeros),
+        n_turns=len(turns),
+        zeros_per_turn=per_turn.pop() if len(per_turn) == 1 else -1,
+        first_turn_deg=tuple(sorted(deg)),
+        leg_ranks=leg_ranks,
+        held_turns_full=bool(held),
+    )
+
+
+@dataclass(frozen=True)
+class WindowEig:
+    """Exact smallest eigenvalue of the Gramian of the first ``window_s`` [s] of the Fig. 2 circle.
+
+    ``min_eig_fixed``: enclosure ``(lo, hi)`` in the fixed scales (100 m, 100 s);
+    ``min_eig_equilibrated``: of ``D G D`` (unit diagonal, the rank test's matrix); ``rank``:
+    the conditioning rank of the window at ``RANK_TOL``. On a circle centred on the beacon every
+    window of the same length, re-anchored at its start, has the same spectrum.
+    """
+
+    window_s: float
+    min_eig_fixed: tuple[float, float]
+    min_eig_equilibrated: tuple[float, float]
+    rank: int
+
+    def to_dict(self) -> dict:
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+
+@cache
+def windows(quick: bool = False, lengths: tuple[float, ...] = (10.0, 20.0, 40.0)) -> tuple:
+    """Point 5 of the record: short windows of eq. 27 are nearly singular (exact arithmetic)."""
+    circ = scenario("2d-circle", quick)
+    dt = QUICK_DT if quick else DT
+    model = make_model(2, RANGE)
+    out = []
+    for h in lengths:
+        w = circ.window(0, round(h / dt) + 1)
+        G = exact_gramian(w, model, DEFAULT_SCALES)
+        fixed = tuple(float(x) for x in exact_min_eigenvalue(G, rtol=1e-3))
+        equil = tuple(float(x) for x in exact_min_eigenvalue(G, equilibrate=True, rtol=1e-3))
+        out.append(WindowEig(h, fixed, equil, gramian_report(w, model).rank))
+    return tuple(out)
+
+
+def expansion_matrix(dim: int) -> np.ndarray:
+    """``E`` with ``z = E z_e``: the augmented state with current, eq. 20 (``p, v, v_f, p0·ν0,
+    |ν0|²``), from the expanded one (``p, v, v_f, p0·v0, p0·v_f, |v0|², v0·v_f, |v_f|²``).
+
+    ``p0·ν0 = p0·v0 + p0·v_f`` and ``|ν0|² = |v0|² + 2 v0·v_f + |v_f|²``; the expanded
+    Gramian is ``Eᵀ G E``, of rank ``rank G <= 3n + 2`` out of ``3n + 5``.
+    """
+    m = 3 * dim
+    E = np.zeros((m + 2, m + 5), dtype=int)
+    E[:m, :m] = np.eye(m, dtype=int)
+    E[m, m : m + 2] = 1
+    E[m + 1, m + 2 : m + 5] = (1, 2, 1)
+    return E
+
+
+@dataclass(frozen=True)
+class ExpandedAugmentation:
+    """Exact ranks of the 2D water-profiling circle's Gramian: compact and expanded state."""
+
+    rank_compact: int
+    dim_compact: int
+    rank_expanded: int
+    dim_expanded: int
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@cache
+def expanded_water_circle(quick: bool = False) -> ExpandedAugmentation:
+    """Point 4 of the record: the paper's NO is the expanded augmentation's rank 8 of 11."""
+    circ = scenario("2d-circle", quick)
+    model = make_model(2, DVL_WATER, current=True)
+    prof = exact_rank_profile(circ, model)
+    E = expansion_matrix(2)
+    k = prof.full_rank_interval if prof.full_rank_interval is not None else circ.n_samples - 2
+    # rank Eᵀ G E can only grow with t and never exceeds rank E = 8: its value once G is full
+    # rank (after interval k) is its value on the whole circle
+    G = np.array(exact_gramian(circ.window(0, k + 2), model), dtype=object)
+    return ExpandedAugmentation(
+        rank_compact=prof.rank,
+        dim_compact=prof.dim,
+        rank_expanded=exact_rank(E.T.astype(object) @ G @ E.astype(object)),
+        dim_expanded=E.shape[1],
+    )
+
+
+@dataclass(frozen=True)
+class StructuralRow:
+    """Exact first full-rank interval of a held-input Gramian beside its conditioning times.
+
+    ``ranks``: exact rank of ``G(t_(k+1), t_0)`` after each interval ``k`` until it is full;
+    ``full_rank_interval_exact`` / ``full_rank_from_t_exact`` [s]: where it first is;
+    ``conditioning``: ``(tol, full_rank_from_t [s] or None)`` of the equilibrated rank test.
+    """
+
+    key: str
+    configuration: str
+    trajectory: str
+    sensors: tuple[str, ...]
+    current: bool
+    ranks: tuple[int, ...]
+    full_rank_interval_exact: int | None
+    full_rank_from_t_exact: float | None
+    conditioning: tuple[tuple[float, float | None], ...]
+
+    def to_dict(self) -> dict:
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        d["sensors"] = list(self.sensors)
+        d["ranks"] = list(self.ranks)
+        d["conditioning"] = [{"tol": t, "full_rank_from_t": v} for t, v in self.conditioning]
+        return d
+
+
+#: (key, label, scenario, sensors, current): the three configurations of the exact record.
+STRUCTURAL_CONFIGS: tuple[tuple[str, str, str, tuple[str, ...], bool], ...] = (
+    ("2d-range", "2D, range", "2d-circle", RANGE, False),
+    ("3d-range-depth", "3D, range + depth", "3d-circle-zsine", ("range", "depth"), False),
+    (
+        "3d-current-water",
+        "3D, range + water-profiling DVL, current",
+        "3d-circle-zsine",
+        DVL_WATER,
+        True,
+    ),
+)
+#: Tolerances at which the conditioning time is shown (the verdicts use RANK_TOL).
+CONDITIONING_TOLS: tuple[float, ...] = (1e-12, RANK_TOL, 1e-8)
+
+
+def _conditioning_times(
+    tr: Trajectory, model: VehicleModel
+) -> tuple[tuple[float, float | None], ...]:
+    """``full_rank_from_t`` of :func:`gramian_report` at each of :data:`CONDITIONING_TOLS`, from
+    one eigen-decomposition of the equilibrated cumulative Gramians (``scaling.numerical_rank``)."""
+    G = cumulative_gramians(tr, model, rank_scales(tr))[1:]
+    ev = equilibrated_eigvals(G)
+    out = []
+    for tol in CONDITIONING_TOLS:
+        full = np.flatnonzero(np.sum(ev > tol, axis=-1) == G.shape[-1])
+        out.append((tol, float(tr.t[full[0] + 1]) if full.size else None))
+    return tuple(out)
+
+
+@cache
+def structural(quick: bool = False) -> tuple[StructuralRow, ...]:
+    """Point 6 of the record: exact structural interval vs conditioning time, per configuration."""
+    out = []
+    for key, label, name, sensors, current in STRUCTURAL_CONFIGS:
+        tr = scenario(name, quick)
+        model = make_model(tr.dim, sensors, current=current)
+        prof = exact_rank_profile(tr, model)
+        n = (prof.full_rank_interval if prof.full_rank_interval is not None else 5) + 1
+        out.append(
+            StructuralRow(
+                key=key,
+                configuration=label,
+                trajectory=str(SCENARIOS[name]),
+                sensors=model.sensors,
+                current=current,
+                ranks=prof.ranks(n),
+                full_rank_interval_exact=prof.full_rank_interval,
+                full_rank_from_t_exact=prof.full_rank_from_t,
+                conditioning=_conditioning_times(tr, model),
+            )
+        )
+    return tuple(out)
+
+
 # ------------------------------------------------------------------ claims of sections 6–7
 def _ranks(name: str, sensors: tuple[str, ...], quick: bool) -> Evidence:
     return Evidence.of(_analysis(name, sensors, False, quick))
@@ -603,6 +904,7 @@ def claims(quick: bool = False) -> tuple[Claim, ...]:
         )
     )
     lm = _analysis("2d-lawnmower", RANGE, False, quick)
+    lm_exact = exact_rank_profile(scenario("2d-lawnmower", quick), make_model(2, RANGE))
     out.append(
         Claim(
             "7.1-fig3-lwo",
@@ -610,10 +912,29 @@ def claims(quick: bool = False) -> tuple[Claim, ...]:
             "2D lawn-mower: states along the whole trajectory LWO",
             "LWO along the trajectory",
             f"LWO at {lm.lwo.full_rank_fraction:.0%} of samples (min rank {lm.lwo.min_rank}/4); "
-            f"Gramian full rank from t = {lm.gramian.full_rank_from_t:.1f} s",
+            f"Gramian full rank from t = {lm.gramian.full_rank_from_t:.1f} s (conditioning, "
+            f"tol {RANK_TOL:g}; exactly from {lm_exact.full_rank_from_t:.2f} s)",
             lm.lwo.along_trajectory,
             str(SCENARIOS["2d-lawnmower"]),
             ("fig3-legs",),
+        )
+    )
+    st = smooth_turns(quick)
+    out.append(
+        Claim(
+            "7.1-fig3-smooth-turns",
+            "7.1 (Fig. 3)",
+            "2D lawn-mower with the paper's smooth turns (input frozen at p''): LWO at all times",
+            "LWO along the trajectory",
+            f"det O = 0 at {len(st.zeros)} isolated instants, {st.zeros_per_turn} in each of "
+            f"the {st.n_turns} turns (first turn at {st.first_turn_deg[0]:.2f} and "
+            f"{st.first_turn_deg[1]:.2f} deg), rank {min(st.leg_ranks)}-{max(st.leg_ranks)} on "
+            "the constant-speed legs; "
+            f"held-input samples: {'full' if st.held_turns_full else 'NOT full'} rank in every "
+            "turn",
+            not st.zeros and min(st.leg_ranks, default=4) == 4,
+            "paper_lawnmower_path(dim=2)",
+            ("fig3-legs", "hold-exact"),
         )
     )
     for key, sec, what, name in (
@@ -643,6 +964,40 @@ def claims(quick: bool = False) -> tuple[Claim, ...]:
                 ("straight-z",),
             )
         )
+    w = windows(quick)
+    out.append(
+        Claim(
+            "4.2-windows",
+            "4.2 (eq. 27)",
+            "Short windows G(t_(i+1), t_i): condition number bounded, test their rank instead",
+            "well conditioned",
+            "Fig. 2 circle, exact smallest eigenvalue of the window Gramian: "
+            + ", ".join(
+                f"{x.window_s:g} s: {float(x.min_eig_equilibrated[1]):.2g} equilibrated "
+                f"({float(x.min_eig_fixed[1]):.2g} in 100 m, 100 s; rank {x.rank}/6 at "
+                f"{RANK_TOL:g})"
+                for x in w
+            ),
+            False,
+            str(SCENARIOS["2d-circle"]),
+            ("windows",),
+        )
+    )
+    e = expanded_water_circle(quick)
+    out.append(
+        Claim(
+            "6.3-water-circle",
+            "6.3 (Table 3)",
+            "2D circle, range + water-profiling DVL with current: augmented Gramian deficient",
+            "rank deficient",
+            f"full {e.rank_compact}/{e.dim_compact} (z of eq. 20 with current); "
+            f"{e.rank_expanded}/{e.dim_expanded} with the expanded augmentation "
+            "(duplicated columns)",
+            e.rank_compact < e.dim_compact,
+            str(SCENARIOS["2d-circle"]),
+            ("water-circle",),
+        )
+    )
     return tuple(out)
 
 
@@ -680,12 +1035,57 @@ _TITLES = {
 }
 
 
-def render_tables(rows: Sequence[TableRow], claim_list: Sequence[Claim] = ()) -> str:
+def _structural_lines(rows: Sequence[StructuralRow]) -> list[str]:
+    def t(x: float | None) -> str:
+        return "never" if x is None else f"{x:.6g} s"
+
+    tols = [tol for tol, _ in rows[0].conditioning]
+    body = [
+        [
+            r.configuration,
+            ", ".join(str(k) for k in r.ranks),
+            f"{t(r.full_rank_from_t_exact)} (interval {r.full_rank_interval_exact})",
+            *(t(v) for _, v in r.conditioning),
+        ]
+        for r in rows
+    ]
+    headers = [
+        "Configuration",
+        "Exact rank after intervals 1, 2, ...",
+        "Exactly full from",
+        *(f"full_rank_from_t, tol {tol:g}" for tol in tols),
+    ]
+    text = (
+        "Exact: rank over the rationals of G(t_(k+1), t_0) of the held-input trajectory (the "
+        "inputs are the exact rationals the doubles are; obsplan/observability/structural.py), "
+        "full 3-4 intervals after excitation starts. full_rank_from_t: first sample whose "
+        f"equilibrated Gramian has every eigenvalue above tol (the verdicts use {RANK_TOL:g}): a "
+        "conditioning time, later than the exact one and moving with tol. obsplan analyze "
+        "--json reports both (full_rank_interval_exact, full_rank_from_t_exact)."
+    )
+    traj = dict.fromkeys(r.trajectory for r in rows)
+    return [
+        "Exact structural ranks of the held-input Gramian",
+        "",
+        *_grid(headers, body),
+        "",
+        *textwrap.wrap(text, width=100),
+        *(f"  {x}" for x in traj),
+        "",
+    ]
+
+
+def render_tables(
+    rows: Sequence[TableRow],
+    claim_list: Sequence[Claim] = (),
+    structural_rows: Sequence[StructuralRow] = (),
+) -> str:
     """Plain-text tables: per column ``paper ours`` (LWO/O), ``≠`` where they differ, ranks.
 
     Each cell reads ``paper ours ≠ (O rank/n, G rank/m) [notes]``: ``O`` is the smallest rank of
     the LWO matrix over the samples, ``G`` the rank of the augmented Gramian. Numbered notes
-    explaining every disagreement (and conditions behind some agreements) follow the tables.
+    explaining every disagreement (and conditions behind some agreements) follow the tables;
+    then, if given, the exact structural ranks of :func:`structural`.
     """
     numbers = _note_numbers(rows, claim_list)
     out: list[str] = []
@@ -722,7 +1122,7 @@ def render_tables(rows: Sequence[TableRow], claim_list: Sequence[Claim] = ()) ->
             ]
             for c in claim_list
         ]
-        out += ["Claims of sections 6-7", ""]
+        out += ["Claims of sections 4-7", ""]
         out += _grid(["Section", "Statement", "Paper", "Ours", "Agree", "Notes"], body) + [""]
     out += [
         "Verdicts: LWO/O = locally weakly observable along the trajectory (O full rank at "
@@ -737,6 +1137,8 @@ def render_tables(rows: Sequence[TableRow], claim_list: Sequence[Claim] = ()) ->
     traj = {r.trajectory: None for r in rows} | {c.trajectory: None for c in claim_list}
     out += ["Trajectories (obsplan.generators; dt = sampling interval)", ""]
     out += [f"  {t}" for t in traj] + [""]
+    if structural_rows:
+        out += _structural_lines(structural_rows)
     return "\n".join(out)
 
 
@@ -751,6 +1153,12 @@ def paper_report(quick: bool = False) -> dict:
         "tables": {str(t): [r.to_dict() for r in rows if r.table == t] for t in (1, 2, 3)},
         "claims": [c.to_dict() for c in cl],
         "notes": {k: {"number": i, "text": NOTES[k]} for k, i in numbers.items()},
+        "structural": [r.to_dict() for r in structural(quick)],
+        "record": {
+            "smooth_turns": smooth_turns(quick).to_dict(),
+            "windows": [w.to_dict() for w in windows(quick)],
+            "expanded_water_circle": expanded_water_circle(quick).to_dict(),
+        },
         "summary": {
             "rows": len(rows),
             "cells": len(cells),

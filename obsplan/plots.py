@@ -15,9 +15,30 @@ from matplotlib.figure import Figure
 from obsplan.estimation.simulate import MonteCarloResult, RunHistory
 from obsplan.trajectory import Trajectory
 
-COLORS = {"ekf": "tab:red", "kf": "tab:blue", "truth": "k", "crlb": "tab:gray"}
-LABELS = {"ekf": "EKF", "kf": "KF (augmented)"}
+COLORS = {"ekf": "tab:red", "kf": "tab:blue", "gsf": "tab:orange", "truth": "k", "crlb": "tab:gray"}
+LABELS = {"ekf": "EKF", "kf": "KF (augmented)", "gsf": "Gaussian-sum EKF"}
 _AXES = "xyz"
+_MORE_COLORS = ("tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
+
+
+def _color(name: str) -> str:
+    """A filter's colour; filters added later get the next free one."""
+    if name not in COLORS:
+        COLORS[name] = _MORE_COLORS[(len(COLORS) - 5) % len(_MORE_COLORS)]
+    return COLORS[name]
+
+
+def _label(name: str) -> str:
+    return LABELS.get(name, name.upper())
+
+
+def filter_stats(result: MonteCarloResult) -> dict:
+    """Every filter's statistics, by name (``ekf``, ``kf`` and any other that was run)."""
+    stats = dict(getattr(result, "filters", None) or {})
+    for name in ("ekf", "kf"):
+        if name not in stats and getattr(result, name, None) is not None:
+            stats[name] = getattr(result, name)
+    return stats
 
 
 def _ax(ax, projection: str | None = None):
@@ -44,7 +65,7 @@ def plot_trajectory_estimates(hist: RunHistory, ax=None, beacon=None) -> Figure:
 
     draw(hist.truth, color=COLORS["truth"], lw=1.5, label="true")
     for name, est in hist.estimate.items():
-        draw(est, color=COLORS[name], lw=1.0, ls="--", label=LABELS[name])
+        draw(est, color=_color(name), lw=1.0, ls="--", label=_label(name))
     b = np.zeros(n) if beacon is None else np.asarray(beacon, float)
     ax.scatter(*b[:k], marker="^", color="g", s=40, label="beacon")
     ax.set_xlabel("x [m]")
@@ -62,7 +83,7 @@ def plot_error_norms(hist: RunHistory, ax=None, velocity: bool = False) -> Figur
     fig, ax = _ax(ax)
     for name in hist.estimate:
         e = hist.vel_error(name) if velocity else hist.pos_error(name)
-        ax.semilogy(hist.t, np.maximum(e, 1e-6), color=COLORS[name], label=LABELS[name])
+        ax.semilogy(hist.t, np.maximum(e, 1e-6), color=_color(name), label=_label(name))
     ax.set_xlabel("t [s]")
     ax.set_ylabel("|velocity error| [m/s]" if velocity else "|position error| [m]")
     ax.grid(True, which="both", alpha=0.3)
@@ -81,9 +102,9 @@ def plot_std(hist: RunHistory, ax=None, velocity: bool = False) -> Figure:
             ax.semilogy(
                 hist.t,
                 np.maximum(std[:, off + i], 1e-9),
-                color=COLORS[name],
+                color=_color(name),
                 ls=styles[i],
-                label=f"{LABELS[name]} σ_{'v' if velocity else 'p'}{_AXES[i]}",
+                label=f"{_label(name)} σ_{'v' if velocity else 'p'}{_AXES[i]}",
             )
     ax.set_xlabel("t [s]")
     ax.set_ylabel("std of velocity [m/s]" if velocity else "std of position [m]")
@@ -117,12 +138,9 @@ def plot_range_measurements(hist: RunHistory, ax=None) -> Figure:
 def plot_monte_carlo(result: MonteCarloResult, ax=None) -> Figure:
     """RMSE of position over the runs for each filter with its mean std and the CRB."""
     fig, ax = _ax(ax)
-    for name in ("ekf", "kf"):
-        s = getattr(result, name)
-        if s is None:
-            continue
-        ax.semilogy(result.t, s.rmse_pos_t, color=COLORS[name], label=f"{LABELS[name]} RMSE")
-        ax.semilogy(result.t, s.pos_std_t, color=COLORS[name], ls=":", label=f"{LABELS[name]} std")
+    for name, s in filter_stats(result).items():
+        ax.semilogy(result.t, s.rmse_pos_t, color=_color(name), label=f"{_label(name)} RMSE")
+        ax.semilogy(result.t, s.pos_std_t, color=_color(name), ls=":", label=f"{_label(name)} std")
     ax.semilogy(result.t, result.crlb_pos_std_t, color=COLORS["crlb"], ls="--", label="CRB")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("position [m]")

@@ -8,8 +8,6 @@ CSV convention of PRODUCT.md). Generators of the motion classes of Tables 1–3 
 
 from __future__ import annotations
 
-import csv
-import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +20,25 @@ _AXES = "xyz"
 #: Default tolerance of the consistency check: positions within 1 mm, velocities within 1 mm/s.
 CONSISTENCY_TOL_POS_M = 1e-3
 CONSISTENCY_TOL_VEL_MS = 1e-3
+
+
+def check_samples(t: np.ndarray, arrays: dict[str, np.ndarray], what: str) -> None:
+    """Refuse non-finite values and times that do not strictly increase (trajectories, tracks).
+
+    ``t`` has shape (N,), each array (N, ...); ``what`` starts the messages (``"trajectory"``).
+    """
+    for name, a in (("t", t), *arrays.items()):
+        bad = np.argwhere(~np.isfinite(a.reshape(a.shape[0], -1) if a.size else a[:, None]))
+        if bad.size:
+            raise TrajectoryFormatError(
+                f"{what} field {name!r} has a non-finite value at sample {bad[0][0]}"
+            )
+    dt = np.diff(t)
+    if np.any(dt <= 0):
+        k = int(np.argmax(dt <= 0))
+        raise TrajectoryFormatError(
+            f"{what}: time must be strictly increasing: t[{k + 1}] = {t[k + 1]} <= t[{k}] = {t[k]}"
+        )
 
 
 class InconsistentTrajectoryWarning(UserWarning):
@@ -74,18 +91,7 @@ class Trajectory:
             )
         if t.size < 2:
             raise TrajectoryFormatError("a trajectory needs at least 2 samples")
-        for name, a in (("t", t), *arrays.items()):
-            bad = np.argwhere(~np.isfinite(a if a.ndim == 2 else a[:, None]))
-            if bad.size:
-                raise TrajectoryFormatError(
-                    f"trajectory field {name!r} has a non-finite value at sample {bad[0][0]}"
-                )
-        dt = np.diff(t)
-        if np.any(dt <= 0):
-            k = int(np.argmax(dt <= 0))
-            raise TrajectoryFormatError(
-                f"time must be strictly increasing: t[{k + 1}] = {t[k + 1]} <= t[{k}] = {t[k]}"
-            )
+        check_samples(t, arrays, "trajectory")
         for name, a in (("t", t), *arrays.items()):
             a.setflags(write=False)
             object.__setattr__(self, name, a)
@@ -235,99 +241,105 @@ class Trajectory:
 
 
 # -------------------------------------------------------------------- CSV
+#: Header of the 2D trajectory CSV, shown in hints.
+_EXAMPLE_HEADER = ",".join(csv_columns(2))
+#: Relative distance (in grid steps) within which every time must lie of a decimal grid
+#: ``t0 + k h`` for the times to be written on that grid.
+_GRID_TOL = 1e-6
+
+
+def grid_times(t: np.ndarray) -> np.ndarray:
+    """Times with the floating-point noise of grid arithmetic removed (used by ``write_csv``).
+
+    If every time lies within ``1e-6`` steps of a decimal grid ``t0 + k h`` (``h`` the shortest
+    interval to 10 significant digits, ``t0`` the first time to 12), the times are that grid,
+    computed in exact decimal arithmetic: ``56.99999999999999`` becomes ``57.0``, and a grid
+    with longer holds (multiples of ``h``) is kept. Times on no such grid are returned unchanged.
+    """
+    from decimal import Decimal
+
+    t = np.asarray(t, float)
+    if t.size < 2 or not np.all(np.isfinite(t)):
+        return t
+    h_dec = Decimal(f"{float(np.min(np.diff(t))):.10g}")
+    t0_dec = Decimal(f"{float(t[0]):.12g}")
+    h, t0 = float(h_dec), float(t0_dec)
+    if not h > 0:
+        return t
+    k = np.rint((t - t0) / h)
+    if np.max(np.abs(t - (t0 + k * h))) > _GRID_TOL * h or np.any(np.diff(k) < 1):
+        return t
+    return np.array([float(t0_dec + int(ki) * h_dec) for ki in k])
+
+
 def write_csv(traj: Trajectory, path: str | Path, overwrite: bool = True) -> Path:
-    """Write the trajectory CSV of PRODUCT.md (one header row, SI units)."""
+    """Write the trajectory CSV of PRODUCT.md (one header row, SI units), atomically.
+
+    Positions, velocities and inputs are written with ``repr`` (exact round trip); times are
+    written on their grid (:func:`grid_times`: ``57.0``, not ``56.99999999999999``), other
+    times exactly. The file is
+    written to a temporary name and renamed, so an interruption never leaves half a file.
+    """
+    from obsplan.io.csvtable import write_table
+
     path = Path(path)
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
-    with path.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(csv_columns(traj.dim))
-        for row in traj.to_array():
-            w.writerow([repr(float(x)) for x in row])
-    return path
+    data = traj.to_array().copy()
+    data[:, 0] = grid_times(traj.t)
+    return write_table(path, csv_columns(traj.dim), data)
 
 
 def read_csv(path: str | Path, check: bool = True) -> Trajectory:
     """Read a trajectory CSV; extra columns are ignored.
 
+    The separator may be a comma, a semicolon or a tab (found from the header line).
+
     Raises
     ------
     TrajectoryFormatError
         Naming the row (the line number in the file, header is row 1 when it is the first line)
-        or column at fault.
+        or column at fault, a column that appears twice, or a missing header row.
     """
-    path = Path(path)
-    if not path.exists():
-        raise TrajectoryFormatError(f"trajectory file not found: {path}")
-    if not path.is_file():
-        raise TrajectoryFormatError(f"{path} is not a file; give the path of a trajectory CSV")
-    # keep each row's line number in the file, so that messages point at the right line even
-    # when blank lines are skipped; utf-8-sig drops a byte-order mark before the header
-    numbered: list[tuple[int, list[str]]] = []
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:
-            reader = csv.reader(fh)
-            for r in reader:
-                if any(c.strip() for c in r):
-                    numbered.append((reader.line_num, r))
-    except UnicodeDecodeError as exc:
-        raise TrajectoryFormatError(
-            f"{path}: not a text CSV (undecodable byte at position {exc.start}); expected UTF-8 "
-            "text with a header row t,px,py,..."
-        ) from None
-    except csv.Error as exc:
-        raise TrajectoryFormatError(f"{path}: not a readable CSV: {exc}") from None
-    except OSError as exc:
-        raise TrajectoryFormatError(f"{path}: cannot be read: {exc.strerror}") from None
-    lines = [n for n, _ in numbered]
-    rows = [r for _, r in numbered]
-    if not rows:
-        raise TrajectoryFormatError(f"{path}: the file is empty; expected a header row t,px,py,...")
-    header = [h.strip().lower() for h in rows[0]]
-    has_z = [c in header for c in ("pz", "vz", "uz")]
+    from obsplan.io.csvtable import read_table
+
+    return trajectory_from_table(read_table(path, _EXAMPLE_HEADER), check=check)
+
+
+def trajectory_dim(columns: tuple[str, ...], path: object) -> int:
+    """2 or 3 from the header (``pz`` present); mixed 2D/3D columns are an error."""
+    has_z = [c in columns for c in ("pz", "vz", "uz")]
     if any(has_z) and not all(has_z):
         missing = [c for c, h in zip(("pz", "vz", "uz"), has_z, strict=True) if not h]
         raise TrajectoryFormatError(
             f"{path}: mixed 2D/3D columns: has some of pz,vz,uz but not {', '.join(missing)}; "
             "a 3D file needs all of t,px,py,pz,vx,vy,vz,ux,uy,uz"
         )
-    dim = 3 if all(has_z) else 2
+    return 3 if all(has_z) else 2
+
+
+def trajectory_from_table(table, check: bool = True) -> Trajectory:
+    """A :class:`Trajectory` from a :class:`~obsplan.io.csvtable.CsvTable` (like read_csv)."""
+    path = table.path
+    dim = trajectory_dim(table.columns, path)
     cols = csv_columns(dim)
-    missing = [c for c in cols if c not in header]
+    missing = [c for c in cols if c not in table.columns]
     if missing:
         raise TrajectoryFormatError(
             f"{path}: missing column(s) {', '.join(missing)}; the header must contain "
             f"{','.join(cols)}"
         )
-    idx = [header.index(c) for c in cols]
-    data = np.empty((len(rows) - 1, len(cols)))
-    for i, r in enumerate(rows[1:]):
-        line = lines[i + 1]
-        for j, (c, k) in enumerate(zip(cols, idx, strict=True)):
-            if k >= len(r):
-                raise TrajectoryFormatError(f"{path}: row {line} has no value for column {c!r}")
-            cell = r[k].strip()
-            try:
-                val = float(cell)
-            except ValueError:
-                raise TrajectoryFormatError(
-                    f"{path}: row {line}, column {c!r}: {cell!r} is not a number"
-                ) from None
-            if not math.isfinite(val):
-                raise TrajectoryFormatError(
-                    f"{path}: row {line}, column {c!r}: {cell!r} is not finite (NaN/inf)"
-                )
-            data[i, j] = val
+    data = table.numbers(cols)
     if data.shape[0] < 2:
         raise TrajectoryFormatError(f"{path}: needs at least 2 data rows, found {data.shape[0]}")
     t = data[:, 0]
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
         k = int(bad[0])
+        lines = table.lines
         raise TrajectoryFormatError(
-            f"{path}: row {lines[k + 2]}, column 't': time {float(t[k + 1])!r} does not increase "
-            f"(row {lines[k + 1]} has {float(t[k])!r}); times must be strictly increasing"
+            f"{path}: row {lines[k + 1]}, column 't': time {float(t[k + 1])!r} does not increase "
+            f"(row {lines[k]} has {float(t[k])!r}); times must be strictly increasing"
         )
     n = dim
     traj = Trajectory(

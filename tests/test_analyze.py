@@ -61,7 +61,9 @@ def test_keys_are_exactly_the_product_keys():
     d = analyze(tr).to_dict()
     assert set(d) == {"dim", "sensors", "current", "lwo", "gramian"}
     assert set(d["lwo"]) == PRODUCT_KEYS["lwo"]
-    assert set(d["gramian"]) == PRODUCT_KEYS["gramian"]
+    # the stable keys, plus the exact structural keys beside them (observability/structural.py)
+    exact = {"rank_tol", "rank_exact", "full_rank_interval_exact", "full_rank_from_t_exact"}
+    assert set(d["gramian"]) == PRODUCT_KEYS["gramian"] | exact
     assert d["dim"] == 2 and d["sensors"] == ["range"] and d["current"] is False
     json.dumps(d, allow_nan=False)  # strict JSON: no NaN/inf anywhere
 

@@ -13,7 +13,7 @@ from obsplan.observability.scaling import numerical_rank, psd_metrics
 from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
 from obsplan.planning.feasibility import check_limits
-from obsplan.planning.metrics import path_metrics
+from obsplan.planning.metrics import covariance_stds, objective_value, path_metrics
 from obsplan.planning.problem import Horizon
 
 
@@ -91,6 +91,45 @@ def test_metrics_are_computed_the_same_way_for_every_path():
         m = path_metrics(b.trajectory, pb)
         expect = psd_metrics(gramian(b.trajectory, pb.model, pb.scales))
         assert (m.min_eig, m.log_det, m.condition) == expect, name
-        assert m.objective == m.min_eig
+        assert m.objective == objective_value(b.trajectory, pb)
+        mean, final = covariance_stds(b.trajectory, pb, "pcrb-position")
+        assert (m.pcrb_mean_pos_std, m.pcrb_final_pos_std) == (mean, final)
+        assert 0 < m.pcrb_final_pos_std and m.closest_approach_m >= pb.limits.min_range
         d = m.to_dict()
-        assert set(d) >= {"min_eig", "log_det", "condition", "kf_final_pos_std"}
+        assert set(d) >= {
+            "min_eig",
+            "log_det",
+            "condition",
+            "kf_final_pos_std",
+            "pcrb_final_pos_std",
+            "pcrb_mean_pos_std",
+            "closest_approach_m",
+        }
+
+
+def test_unfitted_baselines_are_reported_with_a_reason():
+    from obsplan.planning.baselines import unfitted_baselines
+
+    pb = load_problem("problems/suite/moving-start.toml")
+    assert "lawnmower" in baselines(pb)
+    why = unfitted_baselines(pb)
+    assert "not tangent" in why["circle"]
+    assert set(why) | set(baselines(pb)) == {"lawnmower", "circle", "straight", "paper-lawnmower"}
+
+
+def test_lawnmower_keeps_clear_of_the_beacon():
+    # a lawn-mower whose legs would pass over the beacon shifts its legs (slower cruise)
+    pb = load_problem()
+    pb = replace(pb, limits=replace(pb.limits, min_range=25.0))
+    tr = baselines(pb)["lawnmower"].trajectory
+    assert check_limits(tr, pb).ok()
+    assert pb.model.range_to_beacon(tr.p).min() >= 25.0 - 1e-6
+
+
+def test_a_coarse_grid_still_gets_a_lawnmower_with_gentler_turns():
+    # at 150 s per step a turn at the acceleration limit would last under one step; the
+    # lawn-mower turns more gently (each turn at least 4 steps) and still keeps every limit
+    pb = replace(load_problem(), horizon=Horizon(duration=600.0, steps=4))
+    bl = baselines(pb)["lawnmower"]
+    assert check_limits(bl.trajectory, pb).ok()
+    assert "turns of radius" in bl.description

@@ -100,3 +100,49 @@ def test_console_entry_point_without_traceback(tmp_path):
     )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------- rows of the CLI issue
+def test_negative_first_beacon_coordinate_needs_no_equals_sign(circle_csv, capsys):
+    """``--beacon -50,10`` used to be read as an unknown option ("expected one argument")."""
+    assert main(["analyze", str(circle_csv), "--json", "--beacon=-50,10"]) == 0
+    with_equals = json.loads(capsys.readouterr().out)
+    assert main(["analyze", str(circle_csv), "--json", "--beacon", "-50,10"]) == 0
+    assert json.loads(capsys.readouterr().out) == with_equals
+    assert main(["analyze", str(circle_csv), "--json", "--beacon", "-5e1,-1e1"]) == 0
+    assert json.loads(capsys.readouterr().out)["gramian"]["rank"] == 6
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_semicolon_and_tab_files_are_read(circle_csv, tmp_path, capsys, sep):
+    assert main(["analyze", str(circle_csv), "--json"]) == 0
+    ref = json.loads(capsys.readouterr().out)
+    other = tmp_path / "other.csv"
+    other.write_text(circle_csv.read_text().replace(",", sep))
+    assert main(["analyze", str(other), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == ref
+
+
+@pytest.mark.parametrize(
+    "content,match",
+    [
+        ("0,0,0,1,0,0,0\n1,1,0,1,0,0,0\n", "looks like data, not a header"),
+        ("t,px,py,px,vx,vy,ux,uy\n0,0,0,0,1,0,0,0\n1,1,0,1,1,0,0,0\n", "'px' appears 2 times"),
+    ],
+)
+def test_headerless_and_duplicated_columns_exit_2_with_the_fix(tmp_path, capsys, content, match):
+    path = tmp_path / "bad.csv"
+    path.write_text(content)
+    assert main(["analyze", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and match in err
+
+
+def test_ctrl_c_exits_130_with_one_line(circle_csv, capsys, monkeypatch):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("obsplan.cli.analyze.analyze", interrupted)
+    assert main(["analyze", str(circle_csv)]) == 130
+    err = capsys.readouterr().err.strip()
+    assert err == "obsplan analyze: interrupted; nothing was written"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from obsplan.cli import main
@@ -61,7 +62,30 @@ def test_summary_table_printed(tmp_path, capsys):
     code = main(["plan", "--out", str(tmp_path / "o"), "--no-validate", *SMALL])
     assert code == 0
     text = capsys.readouterr().out
-    assert "planned" in text and "lawnmower" in text and "min_eig" in text
+    assert "planned" in text and "lawnmower" in text and "PCRB avg" in text
+    # without validation nothing says the plan is better, and the words say so
+    assert "no validation was run" in text
+
+
+def test_verdict_in_words_and_in_the_report(tmp_path, capsys):
+    out = tmp_path / "o"
+    code = main(["plan", "--out", str(out), "--runs", "3", *SMALL])
+    assert code == 0
+    text = capsys.readouterr().out
+    rep = _strict_json(out / "report.json")
+    verdict = rep["verdict"]
+    assert set(verdict["baselines"]) == set(rep["validation"]) - {"planned"}
+    for comps in verdict["baselines"].values():
+        assert {"ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos"} <= set(comps)
+        for c in comps.values():
+            assert c["better"] == (
+                c["planned"] is not None and (c["baseline"] is None or c["planned"] < c["baseline"])
+            )
+    # every loss in the report is printed, in words
+    for loss in verdict["losses"]:
+        assert loss in text
+    if verdict["beats_all"] and not verdict["losses"]:
+        assert "beats every validated baseline on every metric" in text
 
 
 def test_bad_problem_file_exit_2_names_field(tmp_path, capsys):
@@ -90,3 +114,154 @@ def test_failed_solve_exits_1(tmp_path, capsys):
     rep = _strict_json(tmp_path / "o" / "report.json")
     assert rep["solver"]["success"] is False
     assert rep["solver"]["status"] == "Maximum_Iterations_Exceeded"
+
+
+# ---------------------------------------------------------------- rows of the CLI issue
+PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
+
+
+def test_times_are_written_on_the_planning_grid(default_run):
+    _, out = default_run
+    times = [line.split(",")[0] for line in (out / "plan.csv").read_text().splitlines()[1:]]
+    assert times[:3] == ["0.0", "30.0", "60.0"] and times[-1] == "600.0"
+    assert all(len(s) <= 6 for s in times)  # never 56.99999999999999
+
+
+def test_simulate_with_the_problem_reproduces_the_plan_validation(tmp_path, capsys):
+    """``simulate plan.csv --problem P.toml`` runs exactly the validation of ``plan``."""
+    out = tmp_path / "plan"
+    assert main(["plan", str(PROBLEMS / "default.toml"), "--out", str(out), *SMALL]) == 0
+    capsys.readouterr()
+    rep = _strict_json(out / "report.json")["validation"]["planned"]
+    figs = tmp_path / "figs"
+    args = ["simulate", str(out / "plan.csv"), "--problem", str(PROBLEMS / "default.toml")]
+    assert main([*args, "--runs", "2", "--json", "--out", str(figs)]) == 0
+    sim = json.loads(capsys.readouterr().out)
+    assert sim["runs"] == rep["runs"] == 2 and sim["seed"] == rep["seed"]
+    for f in ("ekf", "kf"):
+        for key in ("rmse_pos", "final_pos_err", "final_pos_std", "nees_mean"):
+            # same path, configuration, runs and seed: equal up to the times' grid rounding
+            assert sim[f][key] == pytest.approx(rep[f][key], rel=1e-9), (f, key)
+    assert sim["crlb_final_pos_std"] == pytest.approx(rep["crlb_final_pos_std"], rel=1e-9)
+    assert {"filters.png", "estimation.png", "monte_carlo.png"} <= {p.name for p in figs.iterdir()}
+
+
+def test_force_replaces_the_results_folder_whole(tmp_path, capsys):
+    """The old filters.png no longer stays beside a new plan written with --no-validate."""
+    out = tmp_path / "results"
+    out.mkdir()
+    for name in ("filters.png", "plan.csv", "notes.txt"):
+        (out / name).write_text("old")
+    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert names == {"plan.csv", "report.json", "path.png", "gramian.png"}
+    assert (out / "plan.csv").read_text() != "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["results"]  # no staging or old copy left
+
+
+@pytest.mark.parametrize("case", ["under-a-file", "read-only-folder", "sys"])
+def test_unwritable_out_is_refused_before_planning(tmp_path, capsys, monkeypatch, case):
+    def never(*a, **k):
+        raise AssertionError("the plan ran before the output folder was checked")
+
+    monkeypatch.setattr("obsplan.cli.plan.plan", never)
+    if case == "under-a-file":
+        (tmp_path / "f").write_text("x")
+        out, extra = tmp_path / "f" / "out", []
+    elif case == "read-only-folder":
+        out, extra = tmp_path / "ro", ["--force"]
+        out.mkdir()
+        (out / "keep.txt").write_text("mine")
+        out.chmod(0o555)
+    else:
+        out, extra = Path("/sys/obsplan-test-out"), []
+        if not Path("/sys").is_dir():
+            pytest.skip("no /sys")
+    try:
+        code = main(["plan", "--out", str(out), *extra, *SMALL])
+    finally:
+        if case == "read-only-folder":
+            out.chmod(0o755)
+    if case == "sys" and code != 2:
+        pytest.skip("/sys is writable here")
+    assert code == 2
+    err = capsys.readouterr().err
+    assert {"under-a-file": "is a file", "read-only-folder": "read-only", "sys": "cannot write"}[
+        case
+    ] in err
+    if case == "read-only-folder":
+        assert (out / "keep.txt").read_text() == "mine"
+
+
+def test_interrupt_while_writing_leaves_nothing(tmp_path, capsys, monkeypatch):
+    """Ctrl-C after plan.csv is written but before the figures: no half-written folder."""
+    import obsplan.cli.plan as cli_plan
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_plan, "save_figure", interrupted)
+    out = tmp_path / "o"
+    assert main(["plan", "--out", str(out), "--no-validate", *SMALL]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+    # an existing results folder replaced with --force is left untouched
+    out.mkdir()
+    (out / "plan.csv").write_text("old plan")
+    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 130
+    assert [p.name for p in tmp_path.iterdir()] == ["o"]
+    assert [p.name for p in out.iterdir()] == ["plan.csv"]
+    assert (out / "plan.csv").read_text() == "old plan"
+
+
+@pytest.mark.parametrize("existing", [True])
+def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing):
+    """SIGINT to the real process while IPOPT runs: exit 130, DIR untouched (``existing``;
+    an absent DIR staying absent is ``test_interrupt_while_writing_leaves_nothing``)."""
+    from _interrupt import interrupt_after
+
+    out = tmp_path / "o"
+    extra = []
+    if existing:
+        out.mkdir()
+        (out / "plan.csv").write_text("old plan")
+        extra = ["--force"]
+    # the default problem at full size (N = 200, 4 starts): the solve takes seconds
+    code, err = interrupt_after(["plan", "--out", str(out), *extra], b"starts", 1.0)
+    assert code == 130, err
+    assert "Traceback" not in err
+    if existing:
+        assert [p.name for p in out.iterdir()] == ["plan.csv"]
+        assert (out / "plan.csv").read_text() == "old plan"
+    else:
+        assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_3d_path_figure_has_a_depth_view_and_the_area_in_the_legend():
+    from obsplan import generators as gen
+    from obsplan.planning.figures import plot_gramian_eigs, plot_paths
+    from obsplan.planning.problem import load_problem
+
+    pb = load_problem(PROBLEMS / "range3d.toml")
+    path = gen.circle_z(
+        30.0, 1.0, 120.0, 1.0, center=(-80.0, 30.0), z0=10.0, z_amp=2.0, z_period=60.0
+    )
+    fig = plot_paths({"planned": path}, pb)
+    ax_xy, ax_z = fig.axes
+    assert ax_z.get_ylabel() == "z = depth [m]" and ax_z.yaxis_inverted()
+    assert "operating area" in [t.get_text() for t in ax_xy.get_legend().get_texts()]
+    assert "depth band" in [t.get_text() for t in ax_z.get_legend().get_texts()]
+    assert np.allclose(ax_z.lines[0].get_ydata(), path.p[:, 2])
+    g = plot_gramian_eigs({"planned": path}, pb)
+    assert "smallest eigenvalue of the scaled augmented Gramian" in g.axes[0].get_title()
+
+
+def test_force_never_deletes_the_problem_file(tmp_path, capsys):
+    res = tmp_path / "res"
+    res.mkdir()
+    prob = res / "p.toml"
+    prob.write_text((PROBLEMS / "default.toml").read_text())
+    assert main(["plan", str(prob), "--out", str(res), "--force", *SMALL]) == 2
+    assert "holds the input" in capsys.readouterr().err
+    assert prob.is_file()

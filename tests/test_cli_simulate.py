@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
 from obsplan import generators as gen
 from obsplan.cli import main
 from obsplan.trajectory import write_csv
+
+PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 
 
 @pytest.fixture(scope="module")
@@ -100,3 +103,91 @@ def test_dt_resamples_a_coarse_plan_onto_the_filter_grid(tmp_path, capsys):
     assert fine["crlb_final_pos_std"] < coarse["crlb_final_pos_std"]
     assert main(["simulate", str(path), "--runs", "2", "--dt", "0.3"]) == 2
     assert "--dt = 0.3 s must divide" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- rows of the CLI issue
+def test_negative_seed_is_refused_with_the_fix(csv_2d, capsys):
+    assert main(["simulate", str(csv_2d), "--seed", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert "--seed -1: a seed must be a non-negative integer" in err and err.count("\n") == 1
+
+
+def test_absurd_resampling_is_refused_before_allocating(csv_2d, capsys):
+    """``--dt 1e-7`` used to end in a MemoryError of 89 GiB; now one line with the limit."""
+    import tracemalloc
+
+    tracemalloc.start()
+    code = main(["simulate", str(csv_2d), "--dt", "1e-7", "--quiet"])
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "more than the limit of 2000000 samples per run" in err and "--dt >=" in err
+    assert peak < 50 * 2**20  # nothing near the 89 GiB was attempted (50 MiB: imports etc.)
+    assert main(["simulate", str(csv_2d), "--runs", "100000000", "--quiet"]) == 2
+    assert "Monte Carlo budget" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("where", ["under-a-file", "sys"])
+def test_unwritable_out_is_refused_before_any_work(csv_2d, tmp_path, capsys, where, monkeypatch):
+    out = {"under-a-file": csv_2d / "figs", "sys": Path("/sys/obsplan-test-out")}[where]
+    if where == "sys" and not Path("/sys").is_dir():
+        pytest.skip("no /sys")
+
+    def never(*a, **k):
+        raise AssertionError("the simulation ran before the output was checked")
+
+    monkeypatch.setattr("obsplan.cli.simulate.monte_carlo", never)
+    code = main(["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out)])
+    if where == "sys" and code != 2:
+        pytest.skip("/sys is writable here")
+    assert code == 2
+    cap = capsys.readouterr()
+    assert "cannot write" in cap.err or "is a file" in cap.err
+    assert cap.out == ""
+
+
+def test_force_replaces_the_figure_folder_whole(csv_2d, tmp_path, capsys):
+    out = tmp_path / "figs"
+    out.mkdir()
+    (out / "stale.png").write_bytes(b"from an earlier run")
+    args = ["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]
+    assert main(args) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["estimation.png", "monte_carlo.png"]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no staging left
+
+
+def test_filters_option_and_problem_conflicts(csv_2d, capsys):
+    assert main(["simulate", str(csv_2d), "--runs", "2", "--json", "--filters", "ekf"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["ekf"] is not None and d["kf"] is None
+    assert main(["simulate", str(csv_2d), "--filters", "ukf9"]) == 2
+    assert "filters" in capsys.readouterr().err
+    prob = str(PROBLEMS / "default.toml")
+    assert main(["simulate", str(csv_2d), "--problem", prob, "--dt", "0.1"]) == 2
+    err = capsys.readouterr().err
+    assert "--dt cannot be combined with --problem" in err and "validation.dt" in err
+    assert main(["simulate", str(csv_2d), "--problem", str(PROBLEMS / "range3d.toml")]) == 2
+    assert "is 3D (vehicle.dim)" in capsys.readouterr().err
+
+
+def test_ctrl_c_during_the_monte_carlo_exits_130_and_writes_nothing(csv_2d, tmp_path):
+    out = tmp_path / "figs"
+    from _interrupt import interrupt_after
+
+    code, err = interrupt_after(
+        ["simulate", str(csv_2d), "--runs", "100000", "--out", str(out)], b"run", 0.5
+    )
+    assert code == 130, err
+    assert "interrupted" in err and "Traceback" not in err
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_force_never_deletes_the_input_trajectory(csv_2d, tmp_path, capsys):
+    res = tmp_path / "res"
+    res.mkdir()
+    traj = res / "plan.csv"
+    traj.write_bytes(csv_2d.read_bytes())
+    args = ["simulate", str(traj), "--runs", "2", "--quiet", "--out", str(res), "--force"]
+    assert main(args) == 2
+    assert "holds the input" in capsys.readouterr().err and traj.is_file()

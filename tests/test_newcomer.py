@@ -56,6 +56,11 @@ def test_plan_then_analyze_reads_the_plan_back(tmp_path):
         "min_eig",
         "log_det",
         "condition",
+        # beside the stable keys: the exact structural interval (observability/structural.py)
+        "rank_tol",
+        "rank_exact",
+        "full_rank_interval_exact",
+        "full_rank_from_t_exact",
     }
     # the planner maximised the Gramian's smallest eigenvalue: reading the plan back must find
     # it full rank, with the same fixed-scale λ_min the report gave (same path, same scales)

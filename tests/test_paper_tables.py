@@ -25,6 +25,7 @@ Y, N = True, False
 # ours, per row key: ((LWO, O) per column)
 EXPECTED: dict[str, tuple[tuple[bool, bool], ...]] = {
     "t1-2d-straight-radial": ((N, N),),
+    "t1-2d-parabola-beacon": ((N, N),),  # rank 3 on the whole segment (tests/test_paper_record.py)
     "t1-2d-straight-const-accel": ((Y, N),),
     "t1-2d-straight-varying": ((Y, N),),
     "t1-2d-straight-const-speed": ((N, N),),
@@ -116,7 +117,11 @@ def test_paper_transcription_and_coverage(rows):
         key = (r.table, r.dim, r.motion)
         if all(c.paper is None for c in r.cells):
             # ours only: rows that show a condition the paper leaves implicit
-            assert r.key in ("t1-3d-circle-zsine-lap", "t3-3d-circle-zsine")
+            assert r.key in (
+                "t1-2d-parabola-beacon",
+                "t1-3d-circle-zsine-lap",
+                "t3-3d-circle-zsine",
+            )
             continue
         assert key in PAPER, key
         assert tuple((c.paper.lwo, c.paper.o) for c in r.cells) == PAPER[key], r.key
@@ -173,8 +178,11 @@ def test_claims_of_sections_6_and_7():
         "6.2-lwo-3d-straight": True,
         "6.2-gramian-3d-straight": False,
         "7.1-fig3-lwo": False,
+        "7.1-fig3-smooth-turns": False,
         "7.2-fig5-gramian": False,
         "7.2-fig6-gramian": False,
+        "4.2-windows": False,
+        "6.3-water-circle": False,
     }
     assert all(c.notes or c.agrees for c in paper.claims(quick=True))
 
@@ -274,7 +282,7 @@ def test_constant_vertical_acceleration_is_not_enough():
 # ------------------------------------------------------------------ rendering and CLI
 def test_render_marks_every_disagreement_and_numbers_notes(rows):
     cl = paper.claims(quick=True)
-    text = paper.render_tables(rows, cl)
+    text = paper.render_tables(rows, cl, paper.structural(quick=True))
     n_dis = sum(c.agrees is False for r in rows for c in r.cells)
     assert text.count("≠ (") == n_dis
     keys = dict.fromkeys([n for r in rows for n in r.notes] + [n for c in cl for n in c.notes])
@@ -282,6 +290,24 @@ def test_render_marks_every_disagreement_and_numbers_notes(rows):
         assert f"\n[{i}] " in text
     for r in rows:
         assert r.motion in text and r.trajectory in text
+    # the exact structural section: per-interval ranks beside the conditioning times
+    section = text[text.index("Exact structural ranks") :]
+    for r in paper.structural(quick=True):
+        assert r.configuration in section and ", ".join(map(str, r.ranks)) in section
+    assert "full_rank_from_t, tol 1e-10" in section
+
+
+def test_structural_rows_are_the_exact_and_conditioning_times():
+    for r, (_, _, name, sensors, current) in zip(
+        paper.structural(quick=True), paper.STRUCTURAL_CONFIGS, strict=True
+    ):
+        tr = paper.scenario(name, True)
+        model = make_model(tr.dim, sensors, current=current)
+        assert r.full_rank_from_t_exact == tr.t[r.full_rank_interval_exact + 1]
+        assert r.ranks[-1] == model.state_dim + 2 and r.ranks == tuple(sorted(r.ranks))
+        for tol, t in r.conditioning:  # the stable full_rank_from_t at each tolerance
+            assert t == gramian_report(tr, model, tol=tol).full_rank_from_t
+            assert t > r.full_rank_from_t_exact
 
 
 def test_paper_report_is_json(rows):
@@ -289,7 +315,10 @@ def test_paper_report_is_json(rows):
     json.dumps(rep)
     s = rep["summary"]
     assert s["rows"] == len(rows) == sum(len(v) for v in rep["tables"].values())
-    assert s["cells_disagreeing"] == 9 and s["cells_not_in_paper"] == 3
+    assert s["cells_disagreeing"] == 9 and s["cells_not_in_paper"] == 4
+    assert s["claims_disagreeing"] == 7
+    assert [r["key"] for r in rep["structural"]] == [k for k, *_ in paper.STRUCTURAL_CONFIGS]
+    assert set(rep["record"]) == {"smooth_turns", "windows", "expanded_water_circle"}
     first = rep["tables"]["1"][0]["cells"][0]
     assert set(first) >= {"paper", "ours", "agrees", "evidence", "notes"}
 
@@ -298,7 +327,8 @@ def test_cli_paper_writes_and_refuses_to_overwrite(tmp_path, capsys):
     out = tmp_path / "paper"
     argv = ["paper", "--quick", "--out", str(out), "--no-figures", "--quiet"]
     assert main(argv) == 0
-    assert "Table 1" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "Table 1" in printed and "Exact structural ranks" in printed
     assert (out / "tables.txt").read_text().startswith("Table 1")
     assert json.loads((out / "tables.json").read_text())["summary"]["rows"] == len(EXPECTED)
     assert main(argv) == 2

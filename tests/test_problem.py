@@ -15,6 +15,7 @@ from obsplan.planning.problem import (
     SCHEMA,
     load_problem,
     problem_from_dict,
+    problem_to_dict,
 )
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "problem-files.md"
@@ -40,7 +41,9 @@ def _with(path: str, value) -> dict:
 def test_default_problem_loads_with_documented_defaults():
     pb = load_problem()
     assert pb.dim == 2 and pb.vehicle.sensors == ("range",)
-    assert pb.objective.kind == "gramian-min-eig"
+    assert pb.objective.kind == "pcrb-position"
+    assert pb.objective_mode == "average-and-final"
+    assert pb.limits.min_range == 5.0  # the schema default
     assert pb.horizon.dt == pytest.approx(3.0)
     assert pb.scales.length_m == 100.0 and pb.scales.time_s == 100.0  # [scales] defaults
     assert load_problem(DEFAULT_PROBLEM) == pb
@@ -99,6 +102,18 @@ def test_minimal_dict_fills_defaults():
         ("validation.range_rate", 20.0, "validation.range_rate", "faster than"),
         ("vehicle.current_velocity", [0.1, 0.0], "vehicle.current_velocity", "current = false"),
         ("scales.length_m", -1.0, "scales.length_m", "positive"),
+        ("objective.mode", "sometimes", "objective.mode", "must be one of"),
+        ("limits.min_range", -1.0, "limits.min_range", ">= 0"),
+        ("limits.min_range", 150.0, "start.position", "inside limits.min_range"),
+        ("limits.min_range", 99.9, "horizon.steps", "use more horizon.steps"),
+        ("limits.max_range", 50.0, "start.position", "beyond"),
+        ("limits.max_range", 3.0, "limits.max_range", "above limits.min_range"),
+        ("limits.min_speed", 2.0, "limits.min_speed", "below limits.speed"),
+        ("limits.min_speed", 0.6, "start.velocity", "through the water"),
+        ("horizon.steps", 100000, "horizon.steps", "limit of 5000"),
+        ("limits.accel", 1e-12, "limits.accel", "range noise"),
+        ("validation.runs", 100000, "validation.runs", "at most"),
+        ("beacon.position", [-80.0, 60.0], "start.position", "inside limits.min_range"),
     ],
 )
 def test_bad_field_is_named(path, value, field, hint):
@@ -107,6 +122,21 @@ def test_bad_field_is_named(path, value, field, hint):
     msg = str(exc.value)
     assert field in msg, msg
     assert hint in msg, msg
+
+
+def test_objective_mode_only_for_timed_objectives():
+    d = _with("objective.kind", "gramian-min-eig")
+    d["objective"]["mode"] = "final"
+    with pytest.raises(ProblemError, match=r"objective\.mode: gramian-min-eig has no time mode"):
+        problem_from_dict(d)
+
+
+def test_problem_to_dict_round_trips_every_shipped_problem():
+    for path in [*PROBLEMS_DIR.glob("*.toml"), *(PROBLEMS_DIR / "suite").glob("*.toml")]:
+        pb = load_problem(path)
+        d = problem_to_dict(pb)
+        assert problem_from_dict(d) == pb, path
+        assert problem_to_dict(problem_from_dict(d)) == d
 
 
 def test_missing_required_field_is_named():
@@ -139,6 +169,7 @@ def test_lwo_objective_refused_where_structurally_impossible():
 def test_gramian_objective_refused_with_bottom_lock_and_current():
     d = _with("vehicle.sensors", ["range", "dvl-bottom"])
     d["vehicle"]["current"] = True
+    d["objective"] = {"kind": "gramian-min-eig"}
     with pytest.raises(ProblemError, match=r"objective\.kind: gramian-min-eig is impossible"):
         problem_from_dict(d)
     d["objective"] = {"kind": "kf-position-std"}

@@ -136,3 +136,76 @@ def test_array_validation():
         Trajectory(t=[0, 1], p=np.zeros((3, 2)), v=np.zeros((2, 2)), u=np.zeros((2, 2)))
     with pytest.raises(TrajectoryFormatError, match="non-finite value at sample 1"):
         Trajectory(t=[0, 1], p=[[0, 0], [np.inf, 0]], v=np.zeros((2, 2)), u=np.zeros((2, 2)))
+
+
+# ---------------------------------------------------------------- CSV dialects and grid times
+CANONICAL = "t,px,py,vx,vy,ux,uy\n0,0,0,1,0,0,0\n1,1,0,1,0,0,0\n"
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_semicolon_and_tab_separators_are_detected(tmp_path, sep):
+    path = tmp_path / "x.csv"
+    path.write_text(CANONICAL.replace(",", sep))
+    tr = read_csv(path)
+    np.testing.assert_array_equal(tr.p, [[0, 0], [1, 0]])
+
+
+@pytest.mark.parametrize(
+    "content,match",
+    [
+        # no header: one hint naming the header to add
+        ("0,0,0,1,0,0,0\n1,1,0,1,0,0,0\n", r"line 1 looks like data, not a header.*t,px,py"),
+        ("0;0;0;1;0;0;0\n1;1;0;1;0;0;0\n", r"looks like data.*t;px;py"),
+        # a duplicated column is an error, not a silent choice of the first
+        ("t,px,py,px,vx,vy,ux,uy\n0,0,0,9,1,0,0,0\n1,1,0,9,1,0,0,0\n", r"'px' appears 2 times"),
+        # decimal commas with semicolon separators get a hint
+        ("t;px;py;vx;vy;ux;uy\n0;0,5;0;1;0;0;0\n1;1;0;1;0;0;0\n", r"decimal commas"),
+        ("t px py vx vy ux uy\n0 0 0 1 0 0 0\n", r"separated by spaces are not supported"),
+    ],
+)
+def test_csv_dialect_errors_give_the_fix(tmp_path, content, match):
+    path = tmp_path / "x.csv"
+    path.write_text(content)
+    with pytest.raises(TrajectoryFormatError, match=match):
+        read_csv(path)
+
+
+def test_times_are_written_on_their_grid(tmp_path):
+    """``k * dt`` accumulated in floating point is written as the grid time (57.0, not
+    56.99999999999999), while times that are not grid noise keep their exact value."""
+    t = np.cumsum(np.full(600, 0.1))  # 0.1, 0.2, ... with accumulated rounding error
+    t = np.r_[0.0, t]
+    assert t[570] != 57.0  # the noise the file must not show
+    tr = Trajectory.from_inputs(t, [0.0, 0.0], [1.0, 0.0], np.zeros((t.size, 2)))
+    path = write_csv(tr, tmp_path / "grid.csv")
+    times = [line.split(",")[0] for line in path.read_text().splitlines()[1:]]
+    assert times[570] == "57.0" and times[1] == "0.1" and times[3] == "0.3"
+    assert all(len(s) <= 6 for s in times)
+    back = read_csv(path)
+    np.testing.assert_allclose(back.t, t, rtol=0, atol=1e-12)  # moved by ulps only
+    # arbitrary times are written exactly (round trip of test_csv_round_trip_is_exact)
+    rnd = random_traj(9)
+    np.testing.assert_array_equal(read_csv(write_csv(rnd, tmp_path / "r.csv")).t, rnd.t)
+
+
+def test_write_csv_is_atomic(tmp_path, monkeypatch):
+    """An interruption while writing leaves the old file and no temporary file."""
+    path = write_csv(random_traj(1), tmp_path / "t.csv")
+    before = path.read_bytes()
+    real_writer = __import__("csv").writer
+
+    class Boom:
+        def __init__(self, fh):
+            self.w, self.n = real_writer(fh), 0
+
+        def writerow(self, row):
+            self.n += 1
+            if self.n > 5:
+                raise KeyboardInterrupt
+            self.w.writerow(row)
+
+    monkeypatch.setattr("obsplan.io.csvtable.csv.writer", Boom)
+    with pytest.raises(KeyboardInterrupt):
+        write_csv(random_traj(2), path)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]

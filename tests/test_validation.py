@@ -67,3 +67,25 @@ def test_estimation_config_follows_the_problem(short_problem):
     assert cfg.rates_hz["range"] == 1.0
     cov = cfg.covariances(0.1)
     assert cov["p0_ekf"][0, 0] == pytest.approx(4.0)
+
+
+def test_one_pass_equals_separate_monte_carlos(short_problem):
+    """validate_paths runs every path in one pass sharing the random draws; each result is
+    exactly the separate ``monte_carlo`` of that path (same seed, same streams)."""
+    from obsplan.estimation import monte_carlo
+
+    bls = baselines(short_problem)
+    paths = {k: bls[k].trajectory for k in ("lawnmower", "circle")}
+    val = validate_paths(paths, short_problem, filters=("ekf", "kf", "gsf"))
+    cfg = short_problem.estimation_config()
+    for name, tr in paths.items():
+        alone = monte_carlo(
+            resample(tr, short_problem.validation.dt),
+            cfg,
+            runs=4,
+            seed=short_problem.validation.seed,
+            filters=("ekf", "kf", "gsf"),
+        )
+        for f in ("ekf", "kf", "gsf"):
+            np.testing.assert_array_equal(val[name].result.stats(f).nees_t, alone.stats(f).nees_t)
+        assert val[name].to_dict()["gsf"]["flagged_runs"] == alone.stats("gsf").flagged_runs

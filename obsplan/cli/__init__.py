@@ -13,9 +13,12 @@ import sys
 from collections.abc import Sequence
 
 from obsplan import __version__
+from obsplan.cli.common import join_negative_values
 from obsplan.errors import InputError, ObsplanError
 
-VERBS = ("plan", "analyze", "simulate", "paper")
+VERBS = ("plan", "analyze", "simulate", "paper", "sweep", "import", "export")
+#: Module of each verb whose name is not a valid module name.
+_MODULES = {"import": "import_track"}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,9 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for verb in VERBS:
         try:
-            mod = importlib.import_module(f"obsplan.cli.{verb}")
+            mod = importlib.import_module(f"obsplan.cli.{_MODULES.get(verb, verb)}")
         except ModuleNotFoundError as exc:  # a verb not built yet must not break the others
-            if exc.name != f"obsplan.cli.{verb}":
+            if exc.name != f"obsplan.cli.{_MODULES.get(verb, verb)}":
                 raise
             continue
         p = mod.add_parser(sub)
@@ -42,24 +45,37 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``obsplan`` console script."""
+    """Entry point of the ``obsplan`` console script; returns the exit code.
+
+    0 success, 1 solver/validation failure (or an output that could not be written), 2 bad
+    input (one line naming the field and the fix), 130 interrupted (Ctrl-C; outputs are written
+    atomically, so nothing half-written is left).
+    """
     os.environ.setdefault("MPLBACKEND", "Agg")
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    verb = "?"
     try:
+        parser = build_parser()
+        args = parser.parse_args(
+            join_negative_values(parser, sys.argv[1:] if argv is None else argv)
+        )
+        verb = args.verb
         return int(args._run(args) or 0)
     except InputError as exc:
-        print(f"obsplan {args.verb}: error: {exc}", file=sys.stderr)
+        print(f"obsplan {verb}: error: {exc}", file=sys.stderr)
         return 2
     except FileExistsError as exc:
-        print(f"obsplan {args.verb}: error: {exc}", file=sys.stderr)
+        print(f"obsplan {verb}: error: {exc}", file=sys.stderr)
         return 2
     except ObsplanError as exc:
-        print(f"obsplan {args.verb}: failed: {exc}", file=sys.stderr)
+        print(f"obsplan {verb}: failed: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print(f"obsplan {args.verb}: interrupted", file=sys.stderr)
+        print(f"obsplan {verb}: interrupted; nothing was written", file=sys.stderr)
         return 130
+    except OSError as exc:  # e.g. the disk filled up while writing results
+        where = f" ({exc.filename})" if exc.filename else ""
+        print(f"obsplan {verb}: failed: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from obsplan.cli.common import add_vehicle_arguments, parse_beacon, read_trajectory
+from obsplan.cli.common import add_vehicle_arguments, read_trajectory, resolve_beacon
 from obsplan.observability.analyze import ObservabilityReport, analyze
 from obsplan.observability.scaling import DEFAULT_SCALES, Scales
 
@@ -18,7 +18,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         description=(
             "Both observability verdicts for a trajectory CSV (t,px,py[,pz],vx,vy[,vz],ux,uy[,uz], "
             "SI units): the Lie-derivative rank condition at every sample and the rank and "
-            "metrics of the augmented observability Gramian."
+            "metrics of the augmented observability Gramian. A position-only track "
+            "(t,px,py[,pz]) is fitted on the fly (see obsplan import)."
         ),
     )
     p.add_argument("trajectory", metavar="TRAJ.csv", help="trajectory CSV file")
@@ -63,11 +64,21 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run ``obsplan analyze``; exit code 0 (errors raise, mapped by the dispatcher)."""
     traj = read_trajectory(args.trajectory, "analyze")
-    beacon = parse_beacon(args.beacon, traj.dim)
+    beacon, origin = resolve_beacon(args, traj.dim)
     scales = Scales(length_m=args.length_scale, time_s=args.time_scale)
-    rep = analyze(traj, sensors=args.sensors, current=args.current, beacon=beacon, scales=scales)
+    rep = analyze(
+        traj,
+        sensors=args.sensors or "range",
+        current=bool(args.current),
+        beacon=beacon,
+        scales=scales,
+    )
     if args.json:
-        print(json.dumps(rep.to_dict(), indent=2))
+        out = rep.to_dict()
+        if origin is not None:
+            out["origin"] = origin.to_dict()
+            out["beacon"] = list(beacon) if beacon is not None else [0.0] * traj.dim
+        print(json.dumps(out, indent=2))
     else:
         print(format_report(rep, args.trajectory))
     return 0

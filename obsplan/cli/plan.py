@@ -9,7 +9,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from obsplan.cli.common import output_dir
+from obsplan.cli.common import OutputDir
 from obsplan.errors import InputError
 from obsplan.planning.figures import (
     plot_filter_errors,
@@ -45,7 +45,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument(
         "--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder ({DEFAULT_OUT})"
     )
-    p.add_argument("--force", action="store_true", help="write into a non-empty DIR")
+    p.add_argument(
+        "--force", action="store_true", help="replace a non-empty DIR whole (old files removed)"
+    )
     p.add_argument("--runs", type=int, metavar="N", help="override validation.runs")
     p.add_argument("--steps", type=int, metavar="N", help="override horizon.steps")
     p.add_argument("--starts", type=int, metavar="N", help="override objective.starts")
@@ -72,35 +74,53 @@ def _fmt(x: float | None, spec: str = ".4g") -> str:
 
 
 def summary_table(result: PlanResult) -> str:
-    """Planned vs baselines: objective, Gramian metrics, predicted KF std, Monte Carlo RMSE."""
+    """Planned vs baselines: objective, bounds, Monte Carlo errors [m], closest approach [m]."""
     head = (
-        f"{'path':<16} {'objective':>10} {'min_eig':>10} {'log_det':>9} {'KF std':>8} "
-        f"{'EKF rmse':>9} {'KF rmse':>9} {'limits':>6}"
+        f"{'path':<16} {'objective':>10} {'PCRB avg':>9} {'PCRB fin':>9} {'EKF rmse':>9} "
+        f"{'EKF fin':>8} {'KF rmse':>8} {'closest':>8} {'limits':>6}"
     )
     lines = [head, "-" * len(head)]
     for name, m in result.metrics.items():
         v = result.validation.get(name)
-        ekf = v.result.ekf.rmse_pos if v is not None and v.result.ekf is not None else None
-        kf = v.result.kf.rmse_pos if v is not None and v.result.kf is not None else None
+        r = v.result if v is not None else None
+        ekf = r.ekf if r is not None else None
+        kf = r.kf if r is not None else None
         lines.append(
-            f"{name:<16} {_fmt(m.objective):>10} {_fmt(m.min_eig):>10} {_fmt(m.log_det):>9} "
-            f"{_fmt(m.kf_final_pos_std):>8} {_fmt(ekf):>9} {_fmt(kf):>9} "
+            f"{name:<16} {_fmt(m.objective):>10} {_fmt(m.pcrb_mean_pos_std):>9} "
+            f"{_fmt(m.pcrb_final_pos_std):>9} "
+            f"{_fmt(ekf.rmse_pos if ekf else None):>9} "
+            f"{_fmt(ekf.final_pos_err if ekf else None):>8} "
+            f"{_fmt(kf.rmse_pos if kf else None):>8} {_fmt(m.closest_approach_m, '.1f'):>8} "
             f"{'ok' if m.within_limits else 'NO':>6}"
         )
     return "\n".join(lines)
 
 
 def write_outputs(result: PlanResult, out: Path) -> list[Path]:
-    """Write plan.csv (if a path was found), report.json and the figures into ``out``."""
+    """Write plan.csv (if a path was found), report.json and the figures into ``out``.
+
+    With a geodetic problem (an ``[origin]``) report.json carries the origin and
+    ``plan-geodetic.csv`` has the plan as time, latitude, longitude[, depth].
+    """
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
+    pb = result.problem
+    origin = getattr(pb, "origin", None)
     if result.trajectory is not None:
         written.append(write_csv(result.trajectory, out / "plan.csv"))
+        if origin is not None:
+            from obsplan.io.waypoints import write_geodetic_samples
+
+            written.append(
+                write_geodetic_samples(result.trajectory, origin, out / "plan-geodetic.csv")
+            )
     report = out / "report.json"
-    report.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n")
+    doc = result.to_dict()
+    if origin is not None:
+        doc["origin"] = origin.to_dict()
+    report.write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
     written.append(report)
     paths = result.paths()
-    pb = result.problem
     written.append(save_figure(plot_paths(paths, pb), out / FIGURES[0]))
     written.append(save_figure(plot_gramian_eigs(paths, pb), out / FIGURES[1]))
     if result.validation:
@@ -110,24 +130,32 @@ def write_outputs(result: PlanResult, out: Path) -> list[Path]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the verb; 0 on success, 1 if no start converged (outputs are still written)."""
-    # validate the problem before touching the output folder
+    # validate the problem and the output folder before any work
     pb = _apply_overrides(load_problem(args.problem), args)
-    out = output_dir(args.out, args.force)
-    result = plan(
-        pb,
-        validate=not args.no_validate,
-        runs=args.runs,
-        progress=not args.quiet,
-        verbose=args.verbose,
-    )
-    written = write_outputs(result, out)
+    out = OutputDir(args.out, args.force, inputs=[args.problem])
+    with out:  # Ctrl-C or an error: no output folder, an old one untouched
+        result = plan(
+            pb,
+            validate=not args.no_validate,
+            runs=args.runs,
+            progress=not args.quiet,
+            verbose=args.verbose,
+        )
+        staged = write_outputs(result, out.stage())
+        written = [out.final(p) for p in staged]
+        out.commit()  # DIR replaced whole: no stale file of an earlier run survives
     s = result.solve
+    converged = sum(st.success for st in s.starts)
     print(
         f"{pb.name or 'problem'}: {pb.objective.kind}, N = {pb.horizon.steps}: {s.status} "
-        f"(best of {len(s.starts)} starts: {s.best_start}, {s.iterations} iterations), "
+        f"({converged} of {len(s.starts)} starts converged; plan from {s.chosen}), "
         f"{s.wall_s:.1f} s solve, {result.wall_s:.1f} s total"
     )
+    if s.note:
+        print(f"note: {s.note}")
     print(summary_table(result))
+    for line in result.verdict.summary():
+        print(line)
     print(f"wrote {', '.join(str(p) for p in written)}")
     if not result.success:
         print(

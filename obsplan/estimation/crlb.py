@@ -2,11 +2,17 @@
 
 Posterior CRB (Tichavský et al. 1998) for ``x_{k+1} = F_k x_k + w_k``, ``w ~ N(0, Q)``, and
 measurements with Gaussian noise: ``J_{k+1} = (F J_k⁻¹ Fᵀ + Q)⁻¹ + E[Hᵀ R⁻¹ H]``, ``J_0 = P_0⁻¹``.
-It is run here in covariance form (``P = J⁻¹``, a Kalman covariance recursion) with the Jacobians at
-the noise-free truth along the path, which is exact without process noise and the usual
-approximation of the expectation with it. The range information is that of ``r`` with noise
-``σ_r``: ``∇r ∇rᵀ/σ_r²``, equal to the half-squared form ``(p-b)(p-b)ᵀ / (r² σ_r²)``. No estimator
-with the same prior ``P_0`` and the same readings has a smaller error covariance.
+It is run in covariance form (``P = J⁻¹``) at the measurement epochs
+(:mod:`obsplan.estimation.riccati`, the same recursion the planner's ``pcrb-position`` objective
+optimises) with the Jacobians at the noise-free truth along the path, which is exact without
+process noise and the usual approximation of the expectation with it. No estimator with the same
+prior ``P_0`` and the same readings has a smaller error covariance.
+
+Range information. A reading ``r + ε``, ``ε ~ N(0, σ_r²)``, carries the Fisher information
+``u uᵀ / σ_r²`` about ``p`` (``u = (p - b)/r``), whatever form a filter feeds it in. At the
+beacon ``∇r`` is undefined; the bound uses ``(p - b)(p - b)ᵀ / (σ_r² (r² + r_ε²))`` with
+``r_ε =`` :data:`RANGE_REG_M`, which differs from ``u uᵀ/σ_r²`` by less than ``r_ε²/r²`` (1e-6
+beyond 1 m) and tends to no information (a finite bound) at the beacon.
 """
 
 from __future__ import annotations
@@ -15,14 +21,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.estimation import kalman
 from obsplan.estimation.config import EstimationConfig
+from obsplan.estimation.riccati import (
+    RecursionModel,
+    constant_rows,
+    make_epochs,
+    run_recursion,
+)
 from obsplan.estimation.schedule import Schedule, make_schedule, sample_rate
-from obsplan.estimation.sensors import output_model, to_outputs, true_readings
+from obsplan.estimation.sensors import output_model
 from obsplan.estimation.truth import nominal_states
+from obsplan.model import VehicleModel
 from obsplan.observability.gramian import augmented_model, rank_scales
 from obsplan.observability.scaling import Scales, numerical_rank
 from obsplan.trajectory import Trajectory
+
+#: Regularisation length of the range information at the beacon [m] (module docstring).
+RANGE_REG_M = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,6 +51,9 @@ class CRLBResult:
         ``sqrt(tr)`` of the bound on the position [m] and inertial-velocity [m/s] covariance.
     pos_std_axes_t : ndarray, shape (N, n)
     final_pos_std : float
+        ``pos_std_t`` at the last sample [m].
+    mean_pos_std : float
+        Time average of ``pos_std_t`` over the samples [m] (the mission-average bound).
     """
 
     t: np.ndarray
@@ -43,6 +61,59 @@ class CRLBResult:
     vel_std_t: np.ndarray
     pos_std_axes_t: np.ndarray
     final_pos_std: float
+    mean_pos_std: float
+
+
+def nav_rows(model: VehicleModel) -> np.ndarray:
+    """Rows of ``(p, p')`` in the state ``(p, v[, v_f])``, shape (2n, state_dim)."""
+    n, m = model.dim, model.state_dim
+    T = np.zeros((2 * n, m))
+    T[:n, :n] = np.eye(n)
+    T[n:, n : 2 * n] = np.eye(n)
+    if model.current:
+        T[n:, 2 * n :] = np.eye(n)
+    return T
+
+
+def pcrb_model(model: VehicleModel, q: np.ndarray, noise: dict[str, float]) -> RecursionModel:
+    """The :class:`~obsplan.estimation.riccati.RecursionModel` of the posterior CRB.
+
+    State ``(p, v[, v_f])`` of ``model``, per-step process noise ``q``, the model's constant DVL
+    and depth rows with the noise of ``noise`` (std per sensor); the range row is per epoch
+    (:func:`range_information`).
+    """
+    n, m = model.dim, model.state_dim
+    A = np.zeros((m, m))
+    A[:n, n : 2 * n] = np.eye(n)
+    if model.current:
+        A[:n, 2 * n :] = np.eye(n)
+    out = output_model(model)
+    rows, var, which = constant_rows(model.sensors, out.g, noise, model.output_slices)
+    return RecursionModel(
+        A=A,
+        q=np.asarray(q, float),
+        nav=nav_rows(model),
+        rows=rows,
+        row_var=var,
+        row_sensor=which,
+        range_sensor=model.sensors.index("range"),
+        n_sensors=len(model.sensors),
+        range_support=tuple(range(n)),
+    )
+
+
+def range_information(rel, sigma: float):
+    """Range row ``h`` (n, J) (its position entries) and variance ``ρ`` (1, J) at positions
+    ``rel`` (n, J) relative to the beacon.
+
+    ``h hᵀ / ρ`` is the regularised Fisher information of the module docstring. Works on numpy
+    arrays and on CasADi expressions (the planner's objective).
+    """
+    import casadi as ca
+
+    if isinstance(rel, np.ndarray):
+        return rel, sigma**2 * (np.sum(rel**2, axis=0, keepdims=True) + RANGE_REG_M**2)
+    return rel, sigma**2 * (ca.sum1(rel**2) + RANGE_REG_M**2)
 
 
 def posterior_crlb(
@@ -58,45 +129,23 @@ def posterior_crlb(
     if schedule is None:
         schedule = make_schedule(traj, model.sensors, config.rates_hz)
     q = cov["q_ekf"] if config.process_noise else np.zeros_like(cov["q_ekf"])
+    epochs = make_epochs(traj.t, schedule.mask)
+    rec = pcrb_model(model, q, dict(config.noise))
     xs = nominal_states(traj, model, config.current_array)
-    noise = dict(config.noise)
-    n, N, m = model.dim, traj.n_samples, model.state_dim
-    # Jacobians and variances at the truth for every sample at once
-    _, H = output_model(model).evaluate(xs)
-    y, var = to_outputs(model, true_readings(model, xs), noise)
-    if model.range_form == "half-squared":
-        var[:, 0] = (2.0 * y[:, 0] + noise["range"] ** 2) * noise["range"] ** 2  # r² σ_r²
-    rows_of = model.output_slices
-    report = np.zeros((N, model.output_dim), dtype=bool)
-    for j, s in enumerate(model.sensors):
-        report[:, rows_of[s]] = schedule.mask[:, j : j + 1]
-    T = kalman.nav_matrix(n, model.current, m)
-    P = cov["p0_ekf"].copy()
-    pos = np.zeros((N, n))
-    vel = np.zeros(N)
-    F_cache: dict[float, np.ndarray] = {}
-    for k in range(N):
-        for i in np.flatnonzero(report[k]):
-            h = H[k, i]
-            b = P @ h
-            P = P - np.outer(b, b) / (h @ b + var[k, i])
-        P = kalman.symmetrize(P)
-        d = np.diag(T @ P @ T.T)
-        pos[k] = d[:n]
-        vel[k] = d[n:].sum()
-        if k < N - 1:
-            dt = float(traj.t[k + 1] - traj.t[k])
-            F = F_cache.get(dt)
-            if F is None:
-                F = F_cache.setdefault(dt, model.transition(dt)[0])
-            P = F @ P @ F.T + q
-    pos_std = np.sqrt(pos.sum(axis=1))
+    n = model.dim
+    rel = (xs[epochs.index, :n] - model.beacon_array).T
+    h, rho = range_information(rel, config.noise["range"])
+    _, D = run_recursion(rec, epochs, cov["p0_ekf"], h, rho)
+    var = epochs.sample_values(np.asarray(D))  # (2n, N)
+    var = np.maximum(var, 0.0)
+    pos_std = np.sqrt(var[:n].sum(axis=0))
     return CRLBResult(
         t=traj.t.copy(),
         pos_std_t=pos_std,
-        vel_std_t=np.sqrt(vel),
-        pos_std_axes_t=np.sqrt(pos),
+        vel_std_t=np.sqrt(var[n:].sum(axis=0)),
+        pos_std_axes_t=np.sqrt(var[:n].T),
         final_pos_std=float(pos_std[-1]),
+        mean_pos_std=float(np.mean(pos_std)),
     )
 
 

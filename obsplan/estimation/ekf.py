@@ -1,106 +1,118 @@
 """Extended Kalman filter on the nonlinear model (paper section 7, eqs. 4–5, 28–30, 48–49).
 
-State ``x = (p, v[, v_f])`` of :class:`obsplan.model.VehicleModel`, exact ZOH prediction
-(``VehicleModel.transition``) and the model's outputs ``h``/``H`` (range in the model's
-``range_form``, DVL, depth), batched over runs. At each sample the filter first updates jointly
-with the sensors that report, linearised once at the prior, then predicts to the next sample with
-the input held over the interval.
+State ``x = (p, v[, v_f])`` of :class:`obsplan.model.VehicleModel`. Between measurement epochs
+the exact ZOH prediction composes (:mod:`obsplan.estimation.epochs`); at an epoch the filter
+updates with the sensors that report, the range linearised once at the prior, in closed form for
+either range form:
+
+* ``"half-squared"``: ``h = ½|p - b|²``, ``H = (p - b)ᵀ`` on ``p``; the reading ``r_m`` enters as
+  ``y = ½ r_m² - ½ σ_r²`` with variance ``r_m² σ_r² + ½ σ_r⁴`` (:mod:`obsplan.estimation.sensors`);
+* ``"range"``: ``h = |p - b|``, ``H = (p - b)ᵀ / |p - b|``, ``y = r_m``, variance ``σ_r²``; at the
+  beacon itself (``p̂ = b``) the range has no gradient and the update is skipped;
+
+then the linear DVL (``v``, or ``v + v_f`` bottom-locked with current) and depth (``p_z``) rows.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import NamedTuple
-
 import numpy as np
 
 from obsplan.estimation import kalman
-from obsplan.estimation.sensors import OutputModel, output_model, to_outputs
+from obsplan.estimation.epochs import RunContext
 from obsplan.model import VehicleModel
-from obsplan.trajectory import Trajectory
 
 
-class EKFState(NamedTuple):
-    """Batched EKF state: estimates ``x`` (R, m) and covariances ``P`` (R, m, m)."""
-
-    x: np.ndarray
-    P: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
 class ExtendedKalmanFilter:
-    """Batched EKF bound to the inputs and step times of one trajectory.
+    """EKF of one vehicle model with per-step process noise ``q`` and sensor noises.
 
     Parameters
     ----------
     model
         Vehicle model (sensors, current, beacon, range form).
-    traj
-        Supplies the inputs ``u_k`` [m/s²] and steps ``dt_k`` [s] for prediction.
     q
-        Process-noise covariance per step, shape ``(m, m)``.
+        Per-step process-noise covariance, shape ``(state_dim, state_dim)``.
+    p0
+        Initial covariance of ``(p, v[, v_f])``.
     noise
         Measurement standard deviation per sensor (range [m] on ``r``, DVL [m/s], depth [m]).
     """
 
-    model: VehicleModel
-    traj: Trajectory
-    q: np.ndarray
-    noise: dict[str, float]
-    _out: OutputModel = field(init=False, repr=False)
-    _lin: np.ndarray = field(init=False, repr=False)
-    _steps: dict = field(init=False, repr=False)
+    name = "ekf"
 
-    def __post_init__(self) -> None:
-        out = output_model(self.model)
-        object.__setattr__(self, "_out", out)
-        object.__setattr__(self, "_lin", out.linear_rows)
-        object.__setattr__(self, "_steps", {})  # (F, G) per step length: a cache, not state
+    def __init__(
+        self, model: VehicleModel, q: np.ndarray, p0: np.ndarray, noise: dict[str, float]
+    ) -> None:
+        self.model = model
+        self.p0 = np.array(p0, dtype=float)
+        n, m = model.dim, model.state_dim
+        self.state_dim = m
+        self.noise = dict(noise)
+        self.q = np.asarray(q, float)
+        self.q_terms = kalman.composed_noise_terms(self.q, n, model.current)
+        self.q_nav = kalman.nav_noise(self.q, n, model.current)
+        self.transition = kalman.Transition.build(kalman.kinematic_entries(n, model.current))
+        self.rows = kalman.linear_rows(model, self.noise, 0.0)
+        self._tr, self._lin = self.transition.packed(), self.rows.packed()
 
-    @property
-    def state_dim(self) -> int:
-        return self.model.state_dim
+    def start(
+        self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The filter's ``(x0, P0)`` from the estimate ``xhat0`` of ``(p, v[, v_f])`` (the KF's
+        extras and anchor range are not used)."""
+        return np.array(xhat0, dtype=float), self.p0.copy()
 
-    def init(self, x0: np.ndarray, P0: np.ndarray) -> EKFState:
-        """Initial state from estimates ``x0`` (R, m) and a common covariance ``P0`` (m, m)."""
-        x0 = np.array(x0, dtype=float, ndmin=2)
-        return EKFState(x0, np.broadcast_to(P0, (x0.shape[0], *P0.shape)).copy())
+    def run(
+        self,
+        ctx: RunContext,
+        states: list[tuple[np.ndarray, np.ndarray]],
+        Y: np.ndarray,
+        truth_rec: np.ndarray,
+        sums: np.ndarray,
+        info: np.ndarray,
+        ex_run: int = -1,
+        example: np.ndarray | None = None,
+    ) -> None:
+        """Filter a batch of runs over the epochs of ``ctx`` and add their statistics to ``sums``.
 
-    def predict(self, st: EKFState, k: int) -> EKFState:
-        """Propagate from sample ``k`` to ``k + 1`` with ``u_k`` held on the interval."""
-        dt = float(self.traj.t[k + 1] - self.traj.t[k])
-        FG = self._steps.get(dt)
-        if FG is None:
-            FG = self._steps.setdefault(dt, self.model.transition(dt))
-        F, G = FG
-        return EKFState(*kalman.predict(st.x, st.P, F, G @ self.traj.u[k], self.q))
+        ``states`` from :meth:`start` (one per run), ``Y`` (E, output_dim, R) the readings at
+        the epochs (NaN: no report), ``truth_rec`` (R, Nr, 2n) the true ``(p, p')`` at the
+        records; ``info`` (R, 8) receives the runs' verdicts (``stats.INFO_*``) and ``example``
+        (2, Nr, 2n) the estimate and std of run ``ex_run`` of the batch.
+        """
+        X0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
+        P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
+        self._batch(
+            ctx, X0, P0, np.zeros(len(states)), 1, Y, truth_rec, sums, info, ex_run, example
+        )
 
-    def update(self, st: EKFState, readings: dict[str, np.ndarray]) -> EKFState:
-        """Update with device readings (per sensor, shape (R, k); NaN or absent = no report)."""
-        if not readings:
-            return st
-        y, var = to_outputs(self.model, readings, self.noise)
-        return self.update_outputs(st, y, var)
+    def _batch(self, ctx, X0, P0, lw0, G, Y, truth_rec, sums, info, ex_run, example) -> None:
+        from obsplan.estimation import kernels
 
-    def update_outputs(self, st: EKFState, y: np.ndarray, var: np.ndarray) -> EKFState:
-        """Update with outputs ``y`` (R, p) in the model's form and variances ``var`` (R, p)."""
-        rows = np.flatnonzero(np.any(np.isfinite(y), axis=0))
-        if rows.size == 0:
-            return st
-        out = self._out
-        x = st.x
-        if np.all(self._lin[rows]):
-            H = out.g[rows]
-            hx = out.c[rows] + x @ H.T
-        else:  # one linearisation at the prior for every row: the joint EKF update
-            h0, H0 = out.evaluate(x)
-            H, hx = H0[:, rows], h0[:, rows]
-        return EKFState(*kalman.update(x, st.P, H, y[:, rows] - hx, var[:, rows]))
-
-    def nav(self, st: EKFState) -> tuple[np.ndarray, np.ndarray]:
-        """Navigation estimate ``(p, p')`` (R, 2n) and its covariance (R, 2n, 2n)."""
-        n = self.model.dim
-        if not self.model.current:
-            return st.x[:, : 2 * n], st.P[:, : 2 * n, : 2 * n]
-        T = kalman.nav_matrix(n, True, self.state_dim)
-        return st.x @ T.T, T @ st.P @ T.T
+        m, plan = self.model, ctx.plan
+        kernels.ekf_batch(
+            X0,
+            P0,
+            lw0,
+            G,
+            plan.seg_tab,
+            self.q_terms,
+            self._tr,
+            np.ascontiguousarray(Y),
+            m.dim,
+            m.current,
+            m.beacon_array,
+            m.range_form == "half-squared",
+            float(self.noise["range"]),
+            self._lin,
+            plan.rec_base,
+            ctx.records_with_truth(truth_rec),
+            self.q_nav,
+            ctx.t_rec,
+            ctx.threshold_m,
+            ctx.nees_bound,
+            ctx.window_s,
+            sums,
+            info,
+            ex_run if example is not None else -1,
+            ctx.no_example if example is None else example,
+        )

@@ -1,100 +1,32 @@
-"""Batched Kalman predict and update, shared by the EKF and the augmented KF.
+"""Structure shared by the filters: sparse transitions, composed noise terms, measurement rows.
 
-Arrays are batched over independent runs: states ``x`` of shape ``(R, m)``, covariances ``P`` of
-shape ``(R, m, m)``. Measurements have independent noises (diagonal ``R``, as every sensor here):
-:func:`update` processes the rows of a sample jointly (one small solve per run), which for a
-linear(ised) model equals :func:`update_scalar` row after row; a NaN reading (or a run where the
-sensor did not report) leaves that run's state and covariance untouched.
+Both filters order their states ``(p, v[, v_f], ...)`` and predict with ``F = I + N`` where ``N``
+is nilpotent and sparse (``p_i ← v_i [+ v_f,i]`` with coefficient ``T``; the augmented KF adds its
+chain, :mod:`obsplan.estimation.kf`). The kernels (:mod:`obsplan.estimation.kernels`) take ``N``
+as a list of ``(row, col, mult, power)`` entries, ``N[row, col] = mult · T^power``, and the
+composed process noise of a segment as ``Q = S0 q0 + S1 q1 + S2 q2`` with ``q0 = q``,
+``q1 = A q + q Aᵀ``, ``q2 = A q Aᵀ`` (:mod:`obsplan.estimation.epochs`).
 
-The covariance update is the Joseph form ``P⁺ = (I - k hᵀ) P (I - k hᵀ)ᵀ + r k kᵀ``, evaluated with
-outer products only: with ``b = P h`` and ``s = hᵀ b + r`` it equals ``P - k bᵀ - b kᵀ + s k kᵀ``
-(valid for any gain ``k``, so an error in ``k`` changes ``P⁺`` only to second order), computed as
-``P - (k wᵀ + w kᵀ)``, ``w = b - s k/2``, which is exactly symmetric. The prediction symmetrises.
+Every measurement is a scalar update in the Joseph form, ``P⁺ = (I - k hᵀ) P (I - k hᵀ)ᵀ + r k
+kᵀ``, evaluated as ``P - (k wᵀ + w kᵀ)`` with ``b = P h``, ``s = hᵀ b + r``, ``k = b/s``,
+``w = b - s k/2`` (valid for any gain, so an error in ``k`` changes ``P⁺`` only to second order),
+which is exactly symmetric. Rows of one epoch are processed in the model's output order; every row
+after the range is linear, so for the EKF this equals the joint update linearised once at the
+prior.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from obsplan.model import VehicleModel
 
 
 def symmetrize(P: np.ndarray) -> np.ndarray:
     """``(P + Pᵀ)/2`` over the last two axes."""
     return 0.5 * (P + np.swapaxes(P, -1, -2))
-
-
-def predict(
-    x: np.ndarray, P: np.ndarray, F: np.ndarray, Gu: np.ndarray, Q: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """``x⁺ = F x + G u``, ``P⁺ = F P Fᵀ + Q``.
-
-    Parameters
-    ----------
-    x : (R, m)
-    P : (R, m, m)
-    F : (m, m)
-        Transition matrix of the step.
-    Gu : (m,) or (R, m)
-        Input contribution ``G u`` of the step.
-    Q : (m, m)
-        Process-noise covariance of the step.
-    """
-    R, m = x.shape
-    x = x @ F.T + Gu
-    # F P Fᵀ as two (R m × m)(m × m) GEMMs: much faster than broadcasting F over the batch
-    Ft = F.T
-    PFt = (P.reshape(R * m, m) @ Ft).reshape(R, m, m)
-    FPFt = (np.swapaxes(PFt, 1, 2).reshape(R * m, m) @ Ft).reshape(R, m, m)  # (F (P Fᵀ))ᵀ
-    return x, symmetrize(FPFt) + Q
-
-
-def update_scalar(
-    x: np.ndarray,
-    P: np.ndarray,
-    h: np.ndarray,
-    innov: np.ndarray,
-    var: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """One scalar measurement update (Joseph form) for every run.
-
-    Parameters
-    ----------
-    x : (R, m)
-    P : (R, m, m)
-    h : (m,) or (R, m)
-        Measurement row (Jacobian row for the EKF).
-    innov : (R,)
-        Innovation ``y - ŷ``; NaN where the run has no reading (no update).
-    var : (R,) or scalar
-        Measurement variance ``r``.
-
-    Returns
-    -------
-    x, P
-        Updated arrays (new objects).
-    """
-    valid = np.isfinite(innov)
-    if not np.any(valid):
-        return x, P
-    if h.ndim == 1:  # one row for every run (linear model): plain matmuls
-        R, m = x.shape
-        b = (P.reshape(R * m, m) @ h).reshape(R, m)
-        s = b @ h + var
-    else:
-        b = np.einsum("rij,rj->ri", P, h)
-        s = np.einsum("ri,ri->r", h, b) + var
-    s = np.where(valid, s, 1.0)
-    k = b / s[:, None]
-    nu = innov
-    if not np.all(valid):
-        k[~valid] = 0.0
-        nu = np.where(valid, innov, 0.0)
-    x = x + k * nu[:, None]
-    # Joseph: P - k bᵀ - b kᵀ + s k kᵀ = P - (k wᵀ + w kᵀ) with w = b - s k / 2; a matrix plus its
-    # transpose is exactly symmetric in floating point, so P stays symmetric bit for bit
-    w = b - (0.5 * s)[:, None] * k
-    kw = k[:, :, None] * w[:, None, :]
-    P = P - (kw + np.swapaxes(kw, 1, 2))
-    return x, P
 
 
 def nav_matrix(n: int, current: bool, m: int) -> np.ndarray:
@@ -110,51 +42,118 @@ def nav_matrix(n: int, current: bool, m: int) -> np.ndarray:
     return T
 
 
-def update(
-    x: np.ndarray,
-    P: np.ndarray,
-    H: np.ndarray,
-    innov: np.ndarray,
-    var: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Joint measurement update of several rows with independent noises (Joseph form).
+def kinematic_A(n: int, current: bool, m: int) -> np.ndarray:
+    """``A`` of ``p' = v [+ v_f]`` on the first ``2n [+ n]`` of ``m`` states."""
+    A = np.zeros((m, m))
+    A[:n, n : 2 * n] = np.eye(n)
+    if current:
+        A[:n, 2 * n : 3 * n] = np.eye(n)
+    return A
 
-    Equivalent to :func:`update_scalar` row after row for a linear(ised) model, with a third of
-    the numpy calls: one ``p × p`` solve per run instead of ``p`` rank-one updates.
 
-    Parameters
-    ----------
-    x : (R, m)
-    P : (R, m, m)
-    H : (p, m) or (R, p, m)
-        Measurement rows (Jacobian rows for the EKF).
-    innov : (R, p)
-        Innovations; NaN where a run has no reading of that row (the row is dropped for that run
-        by zeroing it, which removes it from the update exactly).
-    var : (R, p) or (p,)
-        Measurement variances.
+@dataclass(frozen=True, eq=False)
+class Transition:
+    """Sparse ``N`` of ``F = I + N``: ``N[row, col] = mult · T^power`` (kernel arrays)."""
+
+    row: np.ndarray
+    col: np.ndarray
+    mult: np.ndarray
+    power: np.ndarray
+
+    @classmethod
+    def build(cls, entries: list[tuple[int, int, float, int]]) -> Transition:
+        """From ``(row, col, mult, power)`` entries; ``N`` must be strictly upper triangular
+        (``row < col``: the kernels predict in place, row by row)."""
+        if any(r >= c for r, c, _, _ in entries):
+            raise ValueError("N must be strictly upper triangular (row < col)")
+        r, c, mu, pw = zip(*sorted(entries), strict=True)
+        return cls(
+            np.array(r, dtype=np.int64),
+            np.array(c, dtype=np.int64),
+            np.array(mu, dtype=float),
+            np.array(pw, dtype=np.int64),
+        )
+
+    def packed(self) -> np.ndarray:
+        """Rows ``(row, col, mult, power)`` as floats (the kernels' layout), shape (K, 4)."""
+        return np.ascontiguousarray(
+            np.column_stack([self.row, self.col, self.mult, self.power]).astype(float)
+        )
+
+    def matrix(self, m: int, T: float) -> np.ndarray:
+        """Dense ``F`` for a segment of length ``T`` (tests, documentation)."""
+        F = np.eye(m)
+        for r, c, mu, pw in zip(self.row, self.col, self.mult, self.power, strict=True):
+            F[r, c] += mu * T**pw
+        return F
+
+
+def kinematic_entries(n: int, current: bool) -> list[tuple[int, int, float, int]]:
+    """Entries of ``N = T A`` for ``p' = v [+ v_f]``."""
+    out = [(i, n + i, 1.0, 1) for i in range(n)]
+    if current:
+        out += [(i, 2 * n + i, 1.0, 1) for i in range(n)]
+    return out
+
+
+def composed_noise_terms(q: np.ndarray, n: int, current: bool) -> np.ndarray:
+    """``(q, A q + q Aᵀ, A q Aᵀ)`` for the kinematic block, so ``Q = S0 q0 + S1 q1 + S2 q2``.
+
+    Shape (3, m, m).
     """
-    if H.shape[-2] == 1:  # one row: no solve needed
-        v = np.broadcast_to(var, innov.shape)[:, 0]
-        return update_scalar(x, P, H[..., 0, :], innov[:, 0], v)
-    valid = np.isfinite(innov)
-    if not valid.all():
-        if not valid.any():
-            return x, P
-        H = H * valid[..., None]
-        innov = np.where(valid, innov, 0.0)
-        var = np.where(valid, var, 1.0)
-    R, m = x.shape
-    if H.ndim == 2:
-        B = (P.reshape(R * m, m) @ H.T).reshape(R, m, H.shape[0])  # P Hᵀ
-    else:
-        B = P @ np.swapaxes(H, -1, -2)
-    S = H @ B
-    idx = np.arange(S.shape[-1])
-    S[:, idx, idx] += var
-    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(B, 1, 2)), 1, 2)  # S symmetric
-    x = x + (K @ innov[:, :, None])[:, :, 0]
-    # Joseph: P - K Bᵀ - B Kᵀ + K S Kᵀ = P - (K Wᵀ + W Kᵀ), W = B - K S / 2 (exactly symmetric)
-    W = B - 0.5 * (K @ S)
-    KW = K @ np.swapaxes(W, 1, 2)
-    return x, P - (KW + np.swapaxes(KW, 1, 2))
+    m = q.shape[0]
+    A = kinematic_A(n, current, m)
+    return np.ascontiguousarray(np.stack([q, A @ q + q @ A.T, A @ q @ A.T]).astype(float))
+
+
+def nav_noise(q: np.ndarray, n: int, current: bool) -> np.ndarray:
+    """Per-step noise of the navigation state ``(p, p')``: ``T q Tᵀ``, shape (2n, 2n)."""
+    T = nav_matrix(n, current, q.shape[0])
+    return np.ascontiguousarray(T @ q @ T.T)
+
+
+@dataclass(frozen=True, eq=False)
+class LinearRows:
+    """The linear output rows (DVL, depth) as kernel arrays; row 0 (the range) is unused.
+
+    ``h_o(x) = off[o] + Σ_t x[idx[o, t]]`` for ``t < nnz[o]``, noise variance ``var[o]``.
+    """
+
+    idx: np.ndarray
+    nnz: np.ndarray
+    var: np.ndarray
+    off: np.ndarray
+
+    def packed(self) -> np.ndarray:
+        """Rows ``(nnz, idx0, idx1, var, off)`` as floats (the kernels' layout), (p, 5)."""
+        return np.ascontiguousarray(
+            np.column_stack([self.nnz, self.idx, self.var, self.off]).astype(float)
+        )
+
+
+def linear_rows(model: VehicleModel, noise: dict[str, float], depth_offset: float) -> LinearRows:
+    """Rows of the DVL (``v``, or ``v + v_f`` in bottom-lock with current) and depth (``p_z``).
+
+    ``depth_offset`` is added to the depth state's prediction (the beacon's ``z`` for the KF,
+    whose positions are relative to the beacon).
+    """
+    n, p = model.dim, model.output_dim
+    idx = np.zeros((p, 2), dtype=np.int64)
+    nnz = np.zeros(p, dtype=np.int64)
+    var = np.ones(p)
+    off = np.zeros(p)
+    for s, sl in model.output_slices.items():
+        if s.startswith("dvl"):
+            for i, o in enumerate(range(sl.start, sl.stop)):
+                idx[o, 0] = n + i
+                nnz[o] = 1
+                if s == "dvl-bottom" and model.current:
+                    idx[o, 1] = 2 * n + i
+                    nnz[o] = 2
+                var[o] = noise[s] ** 2
+        elif s == "depth":
+            idx[sl.start, 0] = 2
+            nnz[sl.start] = 1
+            var[sl.start] = noise[s] ** 2
+            off[sl.start] = depth_offset
+    return LinearRows(idx=idx, nnz=nnz, var=var, off=off)

@@ -23,6 +23,7 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
+from obsplan.estimation.truth import true_readings  # noqa: F401  (re-exported: one definition)
 from obsplan.model import VehicleModel
 
 
@@ -101,21 +102,6 @@ def output_model(model: VehicleModel) -> OutputModel:
 
 
 # ---------------------------------------------------------------------- readings
-def true_readings(model: VehicleModel, x: np.ndarray) -> dict[str, np.ndarray]:
-    """Noise-free device readings at true states ``x`` (R, m): range ``r`` [m], DVL [m/s], depth."""
-    n = model.dim
-    p, v = x[:, :n], x[:, n : 2 * n]
-    out: dict[str, np.ndarray] = {}
-    for s in model.sensors:
-        if s == "range":
-            out[s] = model.range_to_beacon(p)[:, None]
-        elif s == "dvl-bottom":
-            out[s] = v + x[:, 2 * n : 3 * n] if model.current else v.copy()
-        elif s == "dvl-water":
-            out[s] = v.copy()
-        elif s == "depth":
-            out[s] = p[:, 2:3].copy()
-    return out
 
 
 def to_outputs(

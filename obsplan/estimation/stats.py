@@ -1,23 +1,64 @@
-"""Statistics over Monte Carlo runs: RMSE, standard deviations, NEES with χ² bounds, convergence.
+"""Statistics over Monte Carlo runs: RMSE, standard deviations, NEES with χ² bounds, convergence,
+and the divergence monitor.
 
 Everything is on the navigation state ``(p, p')`` (position and inertial velocity, dof ``2n``),
-the same for both filters. Over ``M`` runs the average NEES at one time, times ``M``, is
+the same for every filter. Over ``M`` runs the average NEES at one time, times ``M``, is
 ``χ²(M·2n)`` for a consistent filter, which gives the 95 % interval of :func:`nees_bounds`.
+
+Divergence monitor
+------------------
+A run is *flagged* when its own NEES, averaged over the records of its final ``window`` (default
+10 % of the duration), is above the 99.9 % quantile of ``χ²(2n)``, or when its estimate becomes
+non-finite. For a consistent filter that average has mean ``2n`` and is less spread than one
+sample, which exceeds the quantile 0.1 % of the time; ending far above it means the covariance no
+longer describes the error: the estimate has left the truth's basin (the mirror of a straight leg,
+a lost linearisation) while the filter still claims to know where it is. An inconsistent
+transient that the filter recovers from (the EKF's first seconds from a far initial estimate) is
+not flagged. The statistics are reported over all runs (the stable keys) and separately over the
+unflagged and the flagged runs.
+
+Sufficient statistics
+---------------------
+The kernels add every run's per-record squares to the sums of its group (:class:`StatsSums`), and
+keep a few numbers per run; :class:`FilterStats` is computed from those alone, so shards of runs
+merge exactly by adding sums (:meth:`StatsSums.merge`), never by averaging averages.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri
+
+from obsplan.errors import ConfigError
+
+#: Columns of the kernels' per-record buffer: NEES, |e_v|², tr P_vv, then e_p,i² and P_pp,ii.
+COL_NEES, COL_SE_VEL, COL_VAR_VEL, COL_AXES = 0, 1, 2, 3
+#: Per-run info of the kernels (see :class:`StatsSums`).
+INFO_FINAL_POS, INFO_FINAL_VEL, INFO_FINAL_STD, INFO_LAST_ABOVE = 0, 1, 2, 3
+INFO_NONFINITE, INFO_FLAGGED, INFO_FLAG_TIME, INFO_NIS = 4, 5, 6, 7
+N_INFO = 8
+
+#: Quantile of one run's NEES above which the monitor counts a record as inconsistent.
+MONITOR_LEVEL = 0.999
+#: Default monitor window as a fraction of the duration.
+MONITOR_WINDOW_FRACTION = 0.1
+
+
+def chi2_quantile(p: float, dof: float) -> float:
+    """``p``-quantile of ``χ²(dof)``."""
+    return float(chdtri(dof, 1.0 - p))
 
 
 def nees_bounds(runs: int, dof: int, level: float = 0.95) -> tuple[float, float]:
     """Two-sided ``level`` interval of the run-averaged NEES of a consistent filter."""
+    if runs < 1:
+        return (float("nan"), float("nan"))
     a = 0.5 * (1.0 - level)
     k = runs * dof
-    return float(chi2.ppf(a, k) / runs), float(chi2.ppf(1.0 - a, k) / runs)
+    return chi2_quantile(a, k) / runs, chi2_quantile(1.0 - a, k) / runs
 
 
 def convergence_time(t: np.ndarray, err: np.ndarray, threshold: float) -> float | None:
@@ -31,6 +72,116 @@ def convergence_time(t: np.ndarray, err: np.ndarray, threshold: float) -> float 
 
 def _num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
+
+
+@dataclass(frozen=True, eq=False)
+class StatsSums:
+    """Sufficient statistics of one filter over a set of runs.
+
+    Attributes
+    ----------
+    sums : ndarray, shape (2, Nr, 3 + 2n)
+        Per record, summed over the runs of group 0 (unflagged) and 1 (flagged): NEES,
+        ``|p̂' - p'|²``, ``tr P_vv``, then ``(p̂_i - p_i)²`` and ``P_pp,ii`` per axis.
+    info : ndarray, shape (runs, 8)
+        Per run (in run order): final ``|p̂ - p|``, final ``|p̂' - p'|``, final
+        ``sqrt(tr P_pp)``, index of the last record above the convergence threshold (-1: none),
+        non-finite (0/1), flagged (0/1), flag time [s] (NaN), mean normalised innovation squared.
+    """
+
+    sums: np.ndarray
+    info: np.ndarray
+
+    @property
+    def dim(self) -> int:
+        return (self.sums.shape[2] - COL_AXES) // 2
+
+    @staticmethod
+    def merge(parts: Sequence[StatsSums]) -> StatsSums:
+        """The statistics of the union of disjoint sets of runs (parts in run order)."""
+        shapes = {p.sums.shape for p in parts}
+        if len(shapes) != 1:
+            raise ConfigError(f"cannot merge statistics recorded on different grids: {shapes}")
+        return StatsSums(
+            sums=np.sum([p.sums for p in parts], axis=0),
+            info=np.concatenate([p.info for p in parts], axis=0),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class GroupStats:
+    """Statistics over a group of runs (those the monitor did, or did not, flag).
+
+    Attributes
+    ----------
+    runs : int
+    rmse_pos, final_pos_err, final_pos_std, nees_mean, nees_inside_fraction : float
+        As in :class:`FilterStats`, over this group (NaN when it is empty).
+    nees_bounds : (float, float)
+        95 % interval of the run-averaged NEES for ``runs`` runs.
+    converged_fraction : float
+    convergence_time : float or None
+        First time [s] after which this group's RMSE stays below the threshold.
+    rmse_pos_t, pos_std_t, nees_t : ndarray, shape (Nr,)
+    """
+
+    runs: int
+    rmse_pos: float
+    final_pos_err: float
+    final_pos_std: float
+    nees_mean: float
+    nees_bounds: tuple[float, float]
+    nees_inside_fraction: float
+    converged_fraction: float
+    convergence_time: float | None
+    rmse_pos_t: np.ndarray
+    pos_std_t: np.ndarray
+    nees_t: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {
+            "runs": int(self.runs),
+            "rmse_pos": _num(self.rmse_pos),
+            "final_pos_err": _num(self.final_pos_err),
+            "final_pos_std": _num(self.final_pos_std),
+            "nees_mean": _num(self.nees_mean),
+            "nees_bounds": [_num(b) for b in self.nees_bounds],
+            "nees_inside_fraction": _num(self.nees_inside_fraction),
+            "converged_fraction": _num(self.converged_fraction),
+            "convergence_time": self.convergence_time,
+        }
+
+
+def _group(
+    sums: np.ndarray, info: np.ndarray, dof: int, t: np.ndarray, threshold: float
+) -> GroupStats:
+    R = info.shape[0]
+    n = dof // 2
+    Nr = sums.shape[0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        se_pos = sums[:, COL_AXES : COL_AXES + n].sum(axis=1) / R
+        var_pos = sums[:, COL_AXES + n :].sum(axis=1) / R
+        nees_t = sums[:, COL_NEES] / R
+        bounds = nees_bounds(R, dof)
+        inside = (nees_t >= bounds[0]) & (nees_t <= bounds[1])
+        rmse_pos_t = np.sqrt(se_pos)
+    empty = R == 0
+    return GroupStats(
+        runs=R,
+        rmse_pos=float("nan") if empty else float(np.mean(rmse_pos_t)),
+        final_pos_err=float("nan") if empty else float(np.mean(info[:, INFO_FINAL_POS])),
+        final_pos_std=float("nan") if empty else float(np.mean(info[:, INFO_FINAL_STD])),
+        nees_mean=float("nan") if empty else float(np.mean(nees_t)),
+        nees_bounds=bounds,
+        nees_inside_fraction=float("nan") if empty else float(np.mean(inside)),
+        converged_fraction=(
+            float("nan") if empty else float(np.mean(info[:, INFO_LAST_ABOVE] < Nr - 1))
+        ),
+        convergence_time=None if empty else convergence_time(t, rmse_pos_t, threshold),
+        rmse_pos_t=rmse_pos_t,
+        pos_std_t=np.sqrt(var_pos),
+        nees_t=nees_t,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,13 +206,24 @@ class FilterStats:
         Fraction of samples whose run-averaged NEES is inside ``nees_bounds``.
     diverged_runs : int
         Runs whose estimate became non-finite.
-    rmse_pos_t, rmse_vel_t, pos_std_t, vel_std_t, nees_t : ndarray, shape (N,)
+    rmse_pos_t, rmse_vel_t, pos_std_t, vel_std_t, nees_t : ndarray, shape (Nr,)
         RMS over runs of the position / velocity error, ``sqrt(mean tr P)`` of position / velocity,
-        run-averaged NEES.
-    rmse_pos_axes_t, pos_std_axes_t : ndarray, shape (N, n)
+        run-averaged NEES, at the recorded times.
+    rmse_pos_axes_t, pos_std_axes_t : ndarray, shape (Nr, n)
         The same per axis.
     final_pos_err_runs : ndarray, shape (runs,)
         ``|p̂ - p|`` of each run at the last sample [m].
+    flagged_runs : int
+        Runs the divergence monitor flagged (module docstring; includes the non-finite ones).
+    run_flagged : ndarray of bool, shape (runs,)
+    run_flag_time : ndarray, shape (runs,)
+        Time [s] at which the monitor flagged each run (NaN if it did not).
+    nis_mean : float
+        Mean over runs and updates of the normalised innovation squared (1 if consistent).
+    unflagged, flagged : GroupStats
+        The statistics over the runs the monitor did not flag, and over those it flagged.
+    sums : StatsSums
+        The sufficient statistics everything above is computed from (for exact merging).
     """
 
     rmse_pos: float
@@ -83,6 +245,56 @@ class FilterStats:
     rmse_pos_axes_t: np.ndarray
     pos_std_axes_t: np.ndarray
     final_pos_err_runs: np.ndarray
+    flagged_runs: int
+    run_flagged: np.ndarray
+    run_flag_time: np.ndarray
+    nis_mean: float
+    unflagged: GroupStats
+    flagged: GroupStats
+    sums: StatsSums
+
+    @classmethod
+    def from_sums(cls, s: StatsSums, t: np.ndarray, threshold: float) -> FilterStats:
+        """Statistics over all runs of ``s`` recorded at times ``t``."""
+        n = s.dim
+        info = s.info
+        R = info.shape[0]
+        total = s.sums[0] + s.sums[1]
+        flag = info[:, INFO_FLAGGED] > 0
+        se_axes = total[:, COL_AXES : COL_AXES + n] / R
+        var_axes = total[:, COL_AXES + n :] / R
+        rmse_pos_t = np.sqrt(se_axes.sum(axis=1))
+        nees_t = total[:, COL_NEES] / R
+        bounds = nees_bounds(R, 2 * n)
+        inside = (nees_t >= bounds[0]) & (nees_t <= bounds[1])
+        return cls(
+            rmse_pos=float(np.mean(rmse_pos_t)),
+            final_pos_err=float(np.mean(info[:, INFO_FINAL_POS])),
+            final_pos_std=float(np.mean(info[:, INFO_FINAL_STD])),
+            nees_mean=float(np.mean(nees_t)),
+            convergence_time=convergence_time(t, rmse_pos_t, threshold),
+            converged_fraction=float(np.mean(info[:, INFO_LAST_ABOVE] < t.size - 1)),
+            threshold_m=float(threshold),
+            nees_bounds=bounds,
+            nees_inside_fraction=float(np.mean(inside)),
+            diverged_runs=int(np.sum(info[:, INFO_NONFINITE] > 0)),
+            final_vel_err=float(np.mean(info[:, INFO_FINAL_VEL])),
+            rmse_pos_t=rmse_pos_t,
+            rmse_vel_t=np.sqrt(total[:, COL_SE_VEL] / R),
+            pos_std_t=np.sqrt(var_axes.sum(axis=1)),
+            vel_std_t=np.sqrt(total[:, COL_VAR_VEL] / R),
+            nees_t=nees_t,
+            rmse_pos_axes_t=np.sqrt(se_axes),
+            pos_std_axes_t=np.sqrt(var_axes),
+            final_pos_err_runs=info[:, INFO_FINAL_POS].copy(),
+            flagged_runs=int(flag.sum()),
+            run_flagged=flag,
+            run_flag_time=info[:, INFO_FLAG_TIME].copy(),
+            nis_mean=float(np.nanmean(info[:, INFO_NIS])) if R else float("nan"),
+            unflagged=_group(s.sums[0], info[~flag], 2 * n, t, threshold),
+            flagged=_group(s.sums[1], info[flag], 2 * n, t, threshold),
+            sums=s,
+        )
 
     def to_dict(self) -> dict:
         """The stable keys of ``obsplan simulate --json`` first, then the extras (no arrays)."""
@@ -99,78 +311,8 @@ class FilterStats:
             "final_pos_err_median": _num(float(np.median(self.final_pos_err_runs))),
             "final_vel_err": _num(self.final_vel_err),
             "diverged_runs": int(self.diverged_runs),
+            "flagged_runs": int(self.flagged_runs),
+            "nis_mean": _num(self.nis_mean),
+            "unflagged": self.unflagged.to_dict(),
+            "flagged": self.flagged.to_dict(),
         }
-
-
-class StatsAccumulator:
-    """Accumulates per-sample statistics over the runs without storing every run's history."""
-
-    def __init__(self, n_samples: int, runs: int, dim: int, threshold: float) -> None:
-        N, n = n_samples, dim
-        self.n, self.R, self.thr = n, runs, threshold
-        self.se_pos = np.zeros(N)
-        self.se_vel = np.zeros(N)
-        self.var_pos = np.zeros(N)
-        self.var_vel = np.zeros(N)
-        self.nees = np.zeros(N)
-        self.se_pos_axes = np.zeros((N, n))
-        self.var_pos_axes = np.zeros((N, n))
-        self.last_above = np.full(runs, -1)
-        self.final_pos_err = np.zeros(runs)
-        self.final_vel_err = np.zeros(runs)
-        self.final_pos_std = np.zeros(runs)
-        self.nonfinite = np.zeros(runs, dtype=bool)
-
-    def record(self, k: int, err: np.ndarray, cov: np.ndarray) -> None:
-        """Errors ``(p̂ - p, p̂' - p')`` (R, 2n) and covariances (R, 2n, 2n) at sample ``k``."""
-        n, R = self.n, self.R
-        ep, ev = err[:, :n], err[:, n:]
-        d2 = ep * ep
-        pos2 = d2.sum(axis=1)
-        dP = np.diagonal(cov, axis1=1, axis2=2)
-        dPp = dP[:, :n]
-        self.se_pos[k] = pos2.sum() / R
-        self.se_vel[k] = np.einsum("ri,ri->", ev, ev) / R
-        self.se_pos_axes[k] = d2.sum(axis=0) / R
-        self.var_pos_axes[k] = dPp.sum(axis=0) / R
-        self.var_pos[k] = self.var_pos_axes[k].sum()
-        self.var_vel[k] = dP[:, n:].sum() / R
-        try:
-            sol = np.linalg.solve(cov, err[:, :, None])[:, :, 0]
-            self.nees[k] = np.einsum("ri,ri->", err, sol) / R
-        except np.linalg.LinAlgError:
-            self.nees[k] = np.nan
-        self.nonfinite |= ~np.isfinite(pos2)
-        pos = np.sqrt(pos2)
-        self.last_above[~(pos <= self.thr)] = k
-        self.final_pos_err = pos
-        self.final_vel_err = np.sqrt((ev * ev).sum(axis=1))
-        self.final_pos_std = np.sqrt(dPp.sum(axis=1))
-
-    def finish(self, t: np.ndarray, bounds: tuple[float, float]) -> FilterStats:
-        """Freeze into :class:`FilterStats` (``t``: sample times, ``bounds``: NEES interval)."""
-        N = t.size
-        rmse_pos_t = np.sqrt(self.se_pos)
-        nees_t = self.nees
-        inside = (nees_t >= bounds[0]) & (nees_t <= bounds[1])
-        return FilterStats(
-            rmse_pos=float(np.mean(rmse_pos_t)),
-            final_pos_err=float(np.mean(self.final_pos_err)),
-            final_pos_std=float(np.mean(self.final_pos_std)),
-            nees_mean=float(np.mean(nees_t)),
-            convergence_time=convergence_time(t, rmse_pos_t, self.thr),
-            converged_fraction=float(np.mean(self.last_above < N - 1)),  # never above at the end
-            threshold_m=float(self.thr),
-            nees_bounds=bounds,
-            nees_inside_fraction=float(np.mean(inside)),
-            diverged_runs=int(self.nonfinite.sum()),
-            final_vel_err=float(np.mean(self.final_vel_err)),
-            rmse_pos_t=rmse_pos_t,
-            rmse_vel_t=np.sqrt(self.se_vel),
-            pos_std_t=np.sqrt(self.var_pos),
-            vel_std_t=np.sqrt(self.var_vel),
-            nees_t=nees_t,
-            rmse_pos_axes_t=np.sqrt(self.se_pos_axes),
-            pos_std_axes_t=np.sqrt(self.var_pos_axes),
-            final_pos_err_runs=self.final_pos_err.copy(),
-        )

@@ -1,23 +1,51 @@
 """Truth simulation: the vehicle along a trajectory, perturbed by process noise, and its readings.
 
 The truth of run ``r`` at sample ``k`` is ``x_k = x̄_k + δ_k`` where ``x̄`` is the trajectory's state
-(``p``, ``v = p' - v_f``, ``v_f``) and ``δ_{k+1} = F_k δ_k + w_k``, ``w_k ~ N(0, Q)`` (exact ZOH
-``F_k``): with no process noise the truth is the trajectory itself. Readings are the device
-quantities (range ``r`` [m], DVL [m/s], depth [m]) plus Gaussian noise, drawn only where the
-schedule says the sensor reports. Every run has its own random stream, spawned from one seed,
-so run ``r`` is the same whatever the number of runs; noise is drawn in chunks, not per step.
+(``p``, ``v = p' - v_f``, ``v_f``) and ``δ_{k+1} = F_k δ_k + w_k``, ``w_k = L z_k ~ N(0, Q)``
+(exact ZOH ``F_k``, ``L Lᵀ = Q``): with no process noise the truth is the trajectory itself.
+Readings are the device quantities (range ``r`` [m], DVL [m/s], depth [m]) plus Gaussian noise,
+drawn only where the schedule says the sensor reports.
+
+Random streams
+--------------
+Every draw of run ``r`` comes from a stream that depends only on ``(seed, r)`` and its purpose, so
+run ``r`` is the same whatever the number of runs, the batch it is computed in (sharding by runs)
+or the other sensors fitted; each is ``numpy.random.default_rng(SeedSequence(seed,
+spawn_key=key))`` with
+
+==========================  ===================================================================
+key                         draws, in order
+==========================  ===================================================================
+``(r, 0)``                  initial error: ``state_dim`` normals (``x̂0 - x0 = chol(P0) z``),
+                            then 2 normals for the KF's ``(p0ᵀν0, |ν0|²)`` (``init_error="sample"``)
+``(r, 1)``                  process noise: ``(N - 1, rank Q)`` normals, row ``k`` drives step ``k``
+``(r, 2, i)``               noise of sensor ``SENSORS[i]``: ``(reports, width)`` normals
+``(r, 3, i)``               dropout of sensor ``SENSORS[i]``: ``reports`` uniforms (if it drops)
+==========================  ===================================================================
+
+where ``reports`` counts the samples at which the sensor reports (in time order) and ``width`` is
+its number of outputs. The steps are drawn for all samples at once and summed by a compiled
+recursion; only the states at the epochs and records are kept.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from obsplan.estimation.schedule import Schedule
-from obsplan.estimation.sensors import true_readings
-from obsplan.model import VehicleModel
+from obsplan.model import SENSORS, VehicleModel
 from obsplan.trajectory import Trajectory
 
-CHUNK = 1024
+STREAM_INIT, STREAM_PROCESS, STREAM_NOISE, STREAM_DROPOUT = 0, 1, 2, 3
+
+
+def run_rng(seed: int, run: int, purpose: int, sensor: str | None = None) -> np.random.Generator:
+    """The generator of run ``run`` for one purpose (module docstring), from ``seed`` alone."""
+    key = (
+        (int(run), int(purpose))
+        if sensor is None
+        else (int(run), int(purpose), SENSORS.index(sensor))
+    )
+    return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=key))
 
 
 def nominal_states(traj: Trajectory, model: VehicleModel, current: np.ndarray) -> np.ndarray:
@@ -28,108 +56,115 @@ def nominal_states(traj: Trajectory, model: VehicleModel, current: np.ndarray) -
     return np.hstack(parts)
 
 
-def run_generators(seed: int, runs: int) -> list[np.random.Generator]:
-    """One independent generator per run, spawned from ``seed``."""
-    return [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(runs)]
+def noise_factor(Q: np.ndarray) -> np.ndarray:
+    """``L`` (m × rank) with ``L Lᵀ = Q`` for a PSD (possibly singular) ``Q``.
 
-
-def _factor(Q: np.ndarray) -> np.ndarray:
-    """``L`` with ``L Lᵀ = Q`` for a PSD (possibly singular) ``Q``."""
-    lam, V = np.linalg.eigh(0.5 * (Q + Q.T))
-    return V * np.sqrt(np.clip(lam, 0.0, None))
-
-
-class TruthSimulator:
-    """Batched truth and readings, advanced one sample at a time.
-
-    Parameters
-    ----------
-    traj, model
-        The path and the vehicle model (sensors, current, beacon).
-    current
-        True current ``v_f`` [m/s], shape (n,).
-    q
-        Per-step process-noise covariance (state_dim²) or ``None`` for no process noise.
-    noise
-        Standard deviation per sensor (range [m], DVL [m/s], depth [m]).
-    schedule
-        When each sensor reports.
-    gens
-        One generator per run.
-    dropout
-        Probability per sensor that a scheduled reading is missing (never the range at ``k = 0``).
+    A diagonal ``Q`` gives the columns ``sqrt(Q_ii) e_i`` of its non-zero entries in state order,
+    otherwise the scaled eigenvectors of the non-zero eigenvalues (ascending).
     """
+    Q = 0.5 * (Q + Q.T)
+    if np.count_nonzero(Q - np.diag(np.diag(Q))) == 0:
+        idx = np.flatnonzero(np.diag(Q) > 0)
+        L = np.zeros((Q.shape[0], idx.size))
+        L[idx, np.arange(idx.size)] = np.sqrt(np.diag(Q)[idx])
+        return L
+    lam, V = np.linalg.eigh(Q)
+    keep = lam > 1e-14 * max(float(lam.max()), 0.0)
+    return V[:, keep] * np.sqrt(lam[keep])
 
-    def __init__(
-        self,
-        traj: Trajectory,
-        model: VehicleModel,
-        current: np.ndarray,
-        q: np.ndarray | None,
-        noise: dict[str, float],
-        schedule: Schedule,
-        gens: list[np.random.Generator],
-        dropout: dict[str, float] | None = None,
-    ) -> None:
-        self.traj, self.model, self.schedule, self.gens = traj, model, schedule, gens
-        self.noise = noise
-        self.dropout = dropout or {}
-        self.nominal = nominal_states(traj, model, current)
-        self.R, self.m = len(gens), model.state_dim
-        self.L = None if q is None or not np.any(q) else _factor(q)
-        self.delta = np.zeros((self.R, self.m))
-        self._widths = {s: (model.dim if s.startswith("dvl") else 1) for s in model.sensors}
-        self._nmeas = sum(self._widths.values())
-        self._chunk_start = -1
-        self._F: dict[float, np.ndarray] = {}
-        self._w: np.ndarray | None = None
-        self._e: np.ndarray | None = None
-        self._u: np.ndarray | None = None
 
-    def _draw(self, k: int) -> None:
-        size = min(CHUNK, self.traj.n_samples - k)
-        ns = len(self.model.sensors)
-        w, e, u = [], [], []
-        for g in self.gens:
-            w.append(g.standard_normal((size, self.m)) if self.L is not None else None)
-            e.append(g.standard_normal((size, self._nmeas)))
-            u.append(g.random((size, ns)) if self.dropout else None)
-        self._w = np.stack(w, axis=1) if self.L is not None else None
-        self._e = np.stack(e, axis=1)
-        self._u = np.stack(u, axis=1) if self.dropout else None
-        self._chunk_start = k
+def truth_deviation(
+    traj: Trajectory, model: VehicleModel, L: np.ndarray, z: np.ndarray, points: np.ndarray
+) -> np.ndarray:
+    """``δ`` at the samples ``points`` (sorted), shape (P, state_dim), from the normals ``z``.
 
-    def state(self, k: int) -> np.ndarray:
-        """True states at sample ``k``, shape (R, state_dim) (call with k = 0, 1, 2, ...)."""
-        return self.nominal[k] + self.delta
-
-    def readings(self, k: int) -> dict[str, np.ndarray]:
-        """Noisy readings of the sensors that report at sample ``k`` (NaN where dropped)."""
-        if k == 0 or k - self._chunk_start >= CHUNK:
-            self._draw(k)
-        j = k - self._chunk_start
-        x = self.state(k)
-        clean = true_readings(self.model, x)
-        out: dict[str, np.ndarray] = {}
-        col = 0
-        for i, s in enumerate(self.model.sensors):
-            wdt = self._widths[s]
-            if self.schedule.mask[k, i]:
-                val = clean[s] + self.noise[s] * self._e[j, :, col : col + wdt]
-                p = self.dropout.get(s, 0.0)
-                if p > 0 and not (s == "range" and k == 0):
-                    val[self._u[j, :, i] < p] = np.nan
-                out[s] = val
-            col += wdt
+    ``z`` has shape ``(N - 1, L.shape[1])``; ``δ_0 = 0``.
+    """
+    out = np.zeros((points.size, model.state_dim))
+    if L.shape[1] == 0:
         return out
+    from obsplan.estimation import kernels
 
-    def advance(self, k: int) -> None:
-        """Move the perturbation from sample ``k`` to ``k + 1``."""
-        if self.L is None:
-            return
-        dt = float(self.traj.t[k + 1] - self.traj.t[k])
-        F = self._F.get(dt)
-        if F is None:
-            F = self._F.setdefault(dt, self.model.transition(dt)[0])
-        j = k - self._chunk_start
-        self.delta = self.delta @ F.T + self._w[j] @ self.L.T
+    kernels.truth_deviation(
+        np.ascontiguousarray(z),
+        np.ascontiguousarray(L),
+        traj.dt,
+        model.dim,
+        model.current,
+        points,
+        out,
+    )
+    return out
+
+
+def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
+    """Noise-free stacked readings at true states ``x`` (K, state_dim): (K, output_dim).
+
+    Columns in the model's output order: range ``r`` [m] (whatever the filter's range form),
+    DVL [m/s], depth [m].
+    """
+    n = model.dim
+    out = np.empty((x.shape[0], model.output_dim))
+    for s, sl in model.output_slices.items():
+        if s == "range":
+            rel = x[:, :n] - model.beacon_array
+            out[:, sl] = np.sqrt(np.einsum("ki,ki->k", rel, rel))[:, None]
+        elif s == "dvl-bottom":
+            out[:, sl] = x[:, n : 2 * n] + (x[:, 2 * n : 3 * n] if model.current else 0.0)
+        elif s == "dvl-water":
+            out[:, sl] = x[:, n : 2 * n]
+        elif s == "depth":
+            out[:, sl] = x[:, 2:3]
+    return out
+
+
+def true_readings(model: VehicleModel, x: np.ndarray) -> dict[str, np.ndarray]:
+    """Noise-free device readings at true states ``x`` (R, m), per sensor (R, width)."""
+    y = clean_readings(model, x)
+    return {s: y[:, sl].copy() for s, sl in model.output_slices.items()}
+
+
+def reading_draws(
+    model: VehicleModel, reports: np.ndarray, dropout: dict[str, float], seed: int, run: int
+) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """Run ``run``'s reading noise (normals) and dropout mask per sensor, from its streams.
+
+    ``reports`` (E, sensors) says which sensor reports at each epoch. The range at the first
+    epoch (sample 0, the KF's anchor) is never dropped.
+    """
+    out = []
+    for i, (s, sl) in enumerate(model.output_slices.items()):
+        rows = np.flatnonzero(reports[:, i])
+        e = run_rng(seed, run, STREAM_NOISE, s).standard_normal((rows.size, sl.stop - sl.start))
+        drop = None
+        p = dropout.get(s, 0.0)
+        if p > 0:
+            drop = run_rng(seed, run, STREAM_DROPOUT, s).random(rows.size) < p
+            if s == "range":
+                drop &= rows != 0
+        out.append((e, drop))
+    return out
+
+
+def noisy_readings(
+    model: VehicleModel,
+    x_epochs: np.ndarray,
+    reports: np.ndarray,
+    noise: dict[str, float],
+    draws: list[tuple[np.ndarray, np.ndarray | None]],
+) -> np.ndarray:
+    """Readings at the epochs: (E, output_dim), NaN where a sensor does not report (or drops).
+
+    ``x_epochs`` are the true states at the epochs (E, state_dim), ``draws`` from
+    :func:`reading_draws` (shared by every path on the same time grid).
+    """
+    y = np.full((x_epochs.shape[0], model.output_dim), np.nan)
+    clean = clean_readings(model, x_epochs)
+    for i, (s, sl) in enumerate(model.output_slices.items()):
+        rows = np.flatnonzero(reports[:, i])
+        e, drop = draws[i]
+        val = clean[rows, sl] + noise[s] * e
+        if drop is not None:
+            val[drop] = np.nan
+        y[rows, sl] = val
+    return y

@@ -3,7 +3,20 @@
 * ``lwo``: the observability rank condition (eq. 9, Theorem 3.4) at every sample, frozen input
   (:mod:`obsplan.observability.lwo`);
 * ``gramian``: rank and scaled metrics of the exact Gramian of the augmented LTV model
-  (eqs. 19-27; :mod:`obsplan.observability.gramian`).
+  (eqs. 19-27; :mod:`obsplan.observability.gramian`), and beside them its exact rank in rational
+  arithmetic (:mod:`obsplan.observability.structural`).
+
+Two first-full-rank times, two definitions (JSON keys of the ``gramian`` dict):
+
+* ``full_rank_from_t`` [s] (stable key): the *conditioning* time, the first sample whose
+  equilibrated Gramian has every eigenvalue above ``rank_tol`` (``RANK_TOL``, 1e-10): the time
+  the verdicts use. It moves with the tolerance.
+* ``full_rank_interval_exact`` (0-based interval ``[t_k, t_{k+1})``) and
+  ``full_rank_from_t_exact = t_{k+1}`` [s]: the first interval after which the held-input
+  Gramian is non-singular in exact arithmetic, typically 3-4 intervals after excitation starts;
+  ``rank_exact`` is the exact rank over the whole trajectory. Exact ranks are of the numbers as
+  stored: round-off can make them full where the conditioning rank is not (see ``structural.py``).
+  ``null`` where the Gramian is never exactly non-singular, or when ``exact=False``.
 
 The beacon only enters the LWO test: the augmented Gramian depends on the inputs alone. A sample
 on the beacon is not an error: with the half-squared range O is defined there and simply loses
@@ -20,7 +33,8 @@ from obsplan.errors import InputError
 from obsplan.model import RangeForm, make_model, parse_sensors
 from obsplan.observability.gramian import GramianReport, gramian_report
 from obsplan.observability.lwo import LWOReport, lwo_report
-from obsplan.observability.scaling import DEFAULT_SCALES, Scales
+from obsplan.observability.scaling import DEFAULT_SCALES, RANK_TOL, Scales
+from obsplan.observability.structural import ExactRankProfile, exact_rank_profile
 from obsplan.trajectory import Trajectory
 
 
@@ -40,6 +54,11 @@ class ObservabilityReport:
         Rank condition along the trajectory.
     gramian
         Augmented-Gramian verdict and metrics (in the report's fixed scales).
+    exact
+        Exact rank of the held-input Gramian interval by interval; None if not computed.
+    rank_tol
+        Tolerance of the conditioning rank test behind ``gramian.rank`` and
+        ``gramian.full_rank_from_t`` (eigenvalues of the equilibrated Gramian).
     """
 
     dim: int
@@ -47,15 +66,27 @@ class ObservabilityReport:
     current: bool
     lwo: LWOReport
     gramian: GramianReport
+    exact: ExactRankProfile | None = None
+    rank_tol: float = RANK_TOL
 
     def to_dict(self) -> dict:
-        """The keys of ``obsplan analyze --json`` (PRODUCT.md), JSON-serialisable."""
+        """The keys of ``obsplan analyze --json`` (PRODUCT.md), JSON-serialisable.
+
+        The ``gramian`` dict carries the stable keys plus ``rank_tol``, ``rank_exact``,
+        ``full_rank_interval_exact`` and ``full_rank_from_t_exact`` (module docstring).
+        """
+        g = self.gramian.to_dict()
+        g["rank_tol"] = float(self.rank_tol)
+        if self.exact is not None:
+            g.update(self.exact.to_dict())
+        else:
+            g.update(rank_exact=None, full_rank_interval_exact=None, full_rank_from_t_exact=None)
         return {
             "dim": int(self.dim),
             "sensors": list(self.sensors),
             "current": bool(self.current),
             "lwo": self.lwo.to_dict(),
-            "gramian": self.gramian.to_dict(),
+            "gramian": g,
         }
 
 
@@ -66,6 +97,7 @@ def analyze(
     beacon: Sequence[float] | None = None,
     scales: Scales = DEFAULT_SCALES,
     range_form: RangeForm = "half-squared",
+    exact: bool = True,
 ) -> ObservabilityReport:
     """Both observability verdicts of ``trajectory``.
 
@@ -84,6 +116,8 @@ def analyze(
         Fixed length/time scales of ``min_eig``, ``log_det``, ``condition``.
     range_form
         ``"half-squared"`` (the paper's ``½|p-b|²``) or ``"range"``.
+    exact
+        Also compute the exact rank profile of the held-input Gramian (``report.exact``).
 
     Raises
     ------
@@ -110,5 +144,7 @@ def analyze(
         sensors=model.sensors,
         current=model.current,
         lwo=lwo_report(trajectory, model),
-        gramian=gramian_report(trajectory, model, scales),
+        gramian=gramian_report(trajectory, model, scales, RANK_TOL),
+        exact=exact_rank_profile(trajectory, model) if exact else None,
+        rank_tol=RANK_TOL,
     )

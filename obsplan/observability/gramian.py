@@ -30,10 +30,13 @@ On an interval ``[t_k, t_k + h)`` with constant input, ``d(t_k + σ) = d_k + e_k
 
     G_k = ∫_0^h r rᵀ dσ = Σ_{i,j} R_i R_jᵀ h^{i+j+1} / (i+j+1)                  (eq. 25, exactly)
 
-which is built once as a CasADi function (:func:`interval_gramian_function`) and used both here,
-mapped over all intervals, and symbolically by the planner. Sums run on the nondimensionalised
-trajectory (see :mod:`obsplan.observability.scaling`), so entries stay O(1) over long horizons and
-the cumulative sum ``G(t_k, t_0) = Σ_{j<k} G_j`` is the exact Gramian at every sample.
+which is built once as a CasADi function (:func:`interval_gramian_function`) for the planner,
+and evaluated numerically here from the same row coefficients (``AugmentedModel._row_coeffs``)
+in numpy, vectorised over the intervals, as ``G_k = V_kᵀ V_k`` with ``V_k = Rᵀ D L1`` (``L1`` the
+Cholesky factor of the 4 × 4 Hilbert matrix, ``D = diag(h^{i+½})``). Sums run on the
+nondimensionalised trajectory (see :mod:`obsplan.observability.scaling`), so entries stay O(1)
+over long horizons and the cumulative sum ``G(t_k, t_0) = Σ_{j<k} G_j`` is the exact Gramian at
+every sample.
 
 Note on eq. 27's companion claim ``G(t, t0) = Σ G(t_{i+1}, t_i)``: the terms of a correct
 decomposition are the t0-referenced integrals above; the Gramians of windows re-anchored at
@@ -44,6 +47,7 @@ and do not sum to ``G(t, t0)``. The paper's conclusion survives (a full-rank win
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 
@@ -130,36 +134,85 @@ class AugmentedModel:
             rows.append(cz)
         return np.vstack(rows)
 
-    def _row_coeffs(self, d, e, u, tau0) -> list[list]:
-        """Cubic coefficients ``[R_0..R_3]`` of every row of ``C Φ`` on one interval (CasADi SX)."""
+    def _row_coeffs(self, d, e, u, tau0, xp: _Backend | None = None) -> list[list]:
+        """Cubic coefficients ``[R_0..R_3]`` of every row of ``C Φ`` on one interval.
+
+        ``xp`` says how to build rows: CasADi SX column vectors (default, for the planner) or
+        numpy rows batched over intervals (:func:`interval_gramians`); the formulas are these.
+        """
+        xp = _CASADI if xp is None else xp
         n, m = self.dim, self.state_dim
-        z = ca.SX.zeros(n)
+        z = xp.zeros(n)
         nv = 2 if self.current else 1  # how many velocity-like blocks see τ dᵀ
 
         def row(pos, vel, alpha, beta):
-            return ca.vertcat(pos, *([vel] * nv), alpha, beta)
+            return xp.cat([pos, *([vel] * nv), xp.scalar(alpha), xp.scalar(beta)])
 
         rows = [
             [
-                row(d, tau0 * d, tau0, 0.5 * tau0**2),
-                row(e, d + tau0 * e, 1.0, tau0),
-                row(0.5 * u, e + 0.5 * tau0 * u, 0.0, 0.5),
+                row(d, xp.times(tau0, d), tau0, 0.5 * tau0**2),
+                row(e, d + xp.times(tau0, e), 1.0, tau0),
+                row(0.5 * u, e + xp.times(0.5 * tau0, u), 0.0, 0.5),
                 row(z, 0.5 * u, 0.0, 0.0),
             ]
         ]
-        zero_row = ca.SX.zeros(m)
+        zero_row = xp.zeros(m)
         if any(s.startswith("dvl") for s in self.sensors):
             for i in range(n):
-                r0 = ca.SX.zeros(m)
-                r0[n + i] = 1.0
+                idx = [n + i]
                 if self.current and "dvl-bottom" in self.sensors:
-                    r0[2 * n + i] = 1.0
-                rows.append([r0, zero_row, zero_row, zero_row])
+                    idx.append(2 * n + i)
+                rows.append([xp.unit(m, idx), zero_row, zero_row, zero_row])
         if "depth" in self.sensors:
-            ez = ca.SX.zeros(n)
-            ez[n - 1] = 1.0
-            rows.append([row(ez, tau0 * ez, 0.0, 0.0), row(z, ez, 0.0, 0.0), zero_row, zero_row])
+            ez = xp.unit(n, [n - 1])
+            rows.append(
+                [row(ez, xp.times(tau0, ez), 0.0, 0.0), row(z, ez, 0.0, 0.0), zero_row, zero_row]
+            )
         return rows
+
+
+@dataclass(frozen=True)
+class _Backend:
+    """How :meth:`AugmentedModel._row_coeffs` builds rows: concatenation, zeros, unit rows."""
+
+    cat: Callable
+    zeros: Callable
+    unit: Callable
+    scalar: Callable
+    times: Callable
+
+
+def _sx_unit(k: int, idx: list[int]) -> ca.SX:
+    r = ca.SX.zeros(k)
+    for i in idx:
+        r[i] = 1.0
+    return r
+
+
+_CASADI = _Backend(
+    cat=lambda parts: ca.vertcat(*parts),
+    zeros=lambda k: ca.SX.zeros(k),
+    unit=_sx_unit,
+    scalar=lambda a: a,
+    times=lambda a, b: a * b,
+)
+
+
+def _numpy_backend(K: int) -> _Backend:
+    """Rows batched over ``K`` intervals: blocks of shape (K, k), scalars of shape (K,)."""
+
+    def unit(k: int, idx: list[int]) -> np.ndarray:
+        r = np.zeros((K, k))
+        r[:, idx] = 1.0
+        return r
+
+    return _Backend(
+        cat=lambda parts: np.concatenate(parts, axis=1),
+        zeros=lambda k: np.zeros((K, k)),
+        unit=unit,
+        scalar=lambda a: np.broadcast_to(np.asarray(a, float).reshape(-1, 1), (K, 1)),
+        times=lambda a, b: np.asarray(a)[..., None] * b if np.ndim(a) else a * b,
+    )
 
 
 def augmented_model(model: VehicleModel) -> AugmentedModel:
@@ -190,14 +243,13 @@ def interval_gramian_function(aug: AugmentedModel) -> ca.Function:
     return ca.Function("interval_gramian", [d, e, u, tau0, h], [G])
 
 
-def interval_gramians(
-    traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
-) -> np.ndarray:
-    """Exact per-interval contributions ``G_k``, shape ``(N-1, m, m)``, referred to ``z(t_0)``.
+#: Cholesky factor of the 4 × 4 Hilbert matrix ``1/(i+j+1)``: ``∫_0^h σ^{i+j} dσ = h^{i+j+1}/(i+j+1)
+#: = (D L1 L1ᵀ D)_ij`` with ``D = diag(h^{i+½})``.
+_HILBERT_L = np.linalg.cholesky(1.0 / (np.arange(4)[:, None] + np.arange(4)[None, :] + 1.0))
 
-    ``scales=None`` computes in the trajectory's own units (used by tests of unit invariance).
-    """
-    aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
+
+def _interval_factors(traj: Trajectory, aug: AugmentedModel, scales: Scales | None) -> np.ndarray:
+    """``V`` (K, 4·rows, m) with ``G_k = V_kᵀ V_k`` exactly (eq. 25 on interval k)."""
     if aug.dim != traj.dim:
         raise ValueError(f"model is {aug.dim}D but the trajectory is {traj.dim}D")
     tr = traj if scales is None else traj.scaled(scales.length_m, scales.time_s)
@@ -205,9 +257,28 @@ def interval_gramians(
     d = tr.displacement()[:-1]
     e = (tr.v - tr.v[0])[:-1]
     tau0 = (tr.t - tr.t[0])[:-1]
-    fn = interval_gramian_function(aug).map(K, "serial")
-    out = np.asarray(fn(d.T, e.T, tr.u[:-1].T, tau0[None, :], tr.dt[None, :]))
-    return out.reshape(m, K, m).transpose(1, 0, 2)
+    R = np.stack(
+        [np.stack(c, axis=1) for c in aug._row_coeffs(d, e, tr.u[:-1], tau0, _numpy_backend(K))],
+        axis=1,
+    )  # (K, rows, 4, m): coefficient of σ^i of every row
+    # G_k = Σ_rows Σ_ij R_i R_jᵀ h^{i+j+1}/(i+j+1) = Σ_rows (Rᵀ D L1)(Rᵀ D L1)ᵀ
+    M = (tr.dt[:, None] ** (np.arange(4) + 0.5))[:, :, None] * _HILBERT_L[None]  # (K, 4, 4)
+    VT = np.swapaxes(R, 2, 3) @ M[:, None]  # (K, rows, m, 4)
+    return np.swapaxes(VT, 2, 3).reshape(K, -1, m)
+
+
+def interval_gramians(
+    traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
+) -> np.ndarray:
+    """Exact per-interval contributions ``G_k``, shape ``(N-1, m, m)``, referred to ``z(t_0)``.
+
+    The closed form of :func:`interval_gramian_function` evaluated in numpy, vectorised over
+    the intervals. ``scales=None`` computes in the trajectory's own units (used by tests of
+    unit invariance).
+    """
+    aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
+    V = _interval_factors(traj, aug, scales)
+    return np.swapaxes(V, 1, 2) @ V
 
 
 def cumulative_gramians(
@@ -223,8 +294,13 @@ def cumulative_gramians(
 def gramian(
     traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
 ) -> np.ndarray:
-    """The exact observability Gramian ``G(t_N, t_0)`` (eq. 25), shape ``(m, m)``, in ``scales``."""
-    G = interval_gramians(traj, model, scales).sum(axis=0)
+    """The exact observability Gramian ``G(t_N, t_0)`` (eq. 25), shape ``(m, m)``, in ``scales``.
+
+    ``Σ_k V_kᵀ V_k`` as one matrix product of the stacked interval factors.
+    """
+    aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
+    V = _interval_factors(traj, aug, scales).reshape(-1, aug.state_dim)
+    G = V.T @ V
     return 0.5 * (G + G.T)
 
 

@@ -45,6 +45,19 @@ metres/seconds as in kilometres/hours (to round-off). The rank is then the numbe
 above ``LWO_RANK_TOL · σ_max`` per sample. Rows are *not* normalised one by one: near the beacon a
 row such as ``(p, 0)`` is round-off only, and normalising it would invent a direction.
 
+Held inputs: sampling is exact
+------------------------------
+With the input held constant, O at a later point of one hold interval is an invertible transform
+of O at its start: for the flow ``φ_τ`` of ``ẋ = f(x, u)`` (``u`` fixed) every output satisfies
+``L^k h(φ_τ(x)) = Σ_j τ^j/j! L^{k+j} h(x)`` (a finite sum: the Lie derivatives are polynomials
+that vanish from order ``K + 1`` on), hence ``O(φ_τ(x)) Dφ_τ = T(τ) O(x)`` with ``T`` block
+upper-triangular with unit diagonal and ``det Dφ_τ = 1``. So the rank of O is constant on each
+hold interval and ``d/dt det O = 0`` there (``tests/test_paper_record.py`` proves it with sympy):
+checking every sample of a held-input trajectory (a CSV) *is* the paper's "at all times" rule.
+For a smooth input (a path flown with ``u = p''``) it is not: O varies within a sampling interval
+and can lose rank between samples. :func:`lwo_path_report` checks analytic paths
+(``obsplan.generators.AnalyticPath``) between samples by root finding.
+
 The rank is always computed on the half-squared rows. For ``r > 0`` the plain-range rows of orders
 ``0..K`` span exactly the same space (triangular chain rule above), but they are badly conditioned:
 ``∇ r^(k)`` carries terms in ``1/r^(2k-1)`` that cancel, and measured on 6e4-sample lines their
@@ -57,9 +70,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cache
+from typing import Protocol
 
 import casadi as ca
 import numpy as np
+from scipy.optimize import brentq, minimize_scalar
 
 from obsplan.errors import InputError
 from obsplan.model import VehicleModel
@@ -225,16 +240,19 @@ def _dimensionless(traj: Trajectory, model: VehicleModel, input_derivatives: int
         v=traj.v * T / ell,
         u=traj.u * T**2 / ell,
     )
-    # the same model in the dimensionless frame: beacon at the origin, half-squared range (same
-    # row space as the plain range for r > 0, well conditioned; see module docstring)
-    nd_model = VehicleModel(
+    return lwo_matrices(tr, _nd_model(model), input_derivatives)
+
+
+def _nd_model(model: VehicleModel) -> VehicleModel:
+    """The same model in the dimensionless frame: beacon at the origin, half-squared range (same
+    row space as the plain range for r > 0, well conditioned; see module docstring)."""
+    return VehicleModel(
         dim=model.dim,
         sensors=model.sensors,
         current=model.current,
         beacon=None,
         range_form="half-squared",
     )
-    return lwo_matrices(tr, nd_model, input_derivatives)
 
 
 def ranks_of(O: np.ndarray, tol: float = LWO_RANK_TOL) -> np.ndarray:
@@ -336,3 +354,217 @@ def lwo_structural_max_rank(
     rows = fn.size1_out(0)
     O = out.reshape(rows, samples, model.state_dim).transpose(1, 0, 2)
     return int(ranks_of(O).max())
+
+
+# ------------------------------------------------------------------ smooth paths, between samples
+class SmoothPath(Protocol):
+    """A path with analytic pieces, e.g. :class:`obsplan.generators.AnalyticPath`."""
+
+    @property
+    def dim(self) -> int: ...
+
+    @property
+    def breakpoints(self) -> np.ndarray: ...
+
+    def evaluate(
+        self, t: np.ndarray | float, piece: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+
+@dataclass(frozen=True)
+class RankDrop:
+    """Where O (eq. 9, input frozen at the path's own acceleration) loses rank on a smooth path.
+
+    ``t_start == t_end`` for an isolated instant (a zero of ``det O``, located by root finding);
+    otherwise O is rank deficient on ``[t_start, t_end]`` [s] (e.g. a constant-speed leg).
+    ``rank``: the rank there; ``piece``: index of the path's piece.
+    """
+
+    t_start: float
+    t_end: float
+    rank: int
+    piece: int
+
+    @property
+    def isolated(self) -> bool:
+        return self.t_start == self.t_end
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True)
+class PathLWOReport:
+    """LWO along a smooth path at *every* instant, not only at samples.
+
+    Attributes
+    ----------
+    along_trajectory
+        O has full column rank at every instant of the path (no :class:`RankDrop`).
+    drops
+        Isolated instants and intervals where the rank drops, in time order.
+    state_dim
+        Number of states.
+    min_rank
+        Smallest rank found.
+    tol
+        Relative singular-value tolerance of the rank (as :data:`LWO_RANK_TOL`).
+    """
+
+    along_trajectory: bool
+    drops: tuple[RankDrop, ...]
+    state_dim: int
+    min_rank: int
+    tol: float
+
+    @property
+    def zeros(self) -> tuple[float, ...]:
+        """Times [s] of the isolated rank drops."""
+        return tuple(d.t_start for d in self.drops if d.isolated)
+
+    def to_dict(self) -> dict:
+        return {
+            "along_trajectory": bool(self.along_trajectory),
+            "drops": [d.to_dict() for d in self.drops],
+            "state_dim": int(self.state_dim),
+            "min_rank": int(self.min_rank),
+            "tol": float(self.tol),
+        }
+
+
+def lwo_path_report(
+    path: SmoothPath,
+    model: VehicleModel,
+    *,
+    points_per_piece: int = 256,
+    tol: float = LWO_RANK_TOL,
+) -> PathLWOReport:
+    """Rank of O along a smooth path, including between samples.
+
+    The input is the path's acceleration ``u(t) = p''(t)``, frozen at each instant (the paper's
+    matrices, e.g. eq. 37's ``det O = 6ω⁴ρ⁴``). On each analytic piece O is sampled at
+    ``points_per_piece`` times; every sign change of ``det O`` (square O) is located by Brent's
+    root finding, and every local minimum of ``σ_min/σ_max`` by bounded minimisation (touching
+    zeros, non-square O), to ≲1e-8 of the sample spacing. Runs of three or more rank-deficient
+    samples are reported as intervals (an analytic ``det O`` that vanishes on an interval vanishes
+    on the whole piece). Two zeros closer than the sample spacing can cancel in the sign test:
+    raise ``points_per_piece`` for paths with fast features.
+
+    Parameters
+    ----------
+    path
+        Smooth path with ``dim``, ``breakpoints`` [s] and ``evaluate(t, piece)`` returning
+        positions [m], velocities [m/s], accelerations [m/s²]; see :class:`SmoothPath`.
+    model
+        Vehicle model (sensors, current, beacon). Ranks use the half-squared range rows and the
+        dimensionless O of :func:`lwo_ranks` (scales of the path sampled on the check grid).
+    points_per_piece
+        Samples per piece, ``>= 3``.
+    tol
+        Relative singular-value tolerance.
+    """
+    if path.dim != model.dim:
+        raise InputError(
+            f"the model is {model.dim}D but the path is {path.dim}D; build the model with "
+            f"dim={path.dim}"
+        )
+    npts = int(points_per_piece)
+    if npts != points_per_piece or npts < 3:
+        raise InputError(f"points_per_piece must be an integer >= 3, got {points_per_piece!r}")
+    bp = np.asarray(path.breakpoints, float)
+    pieces = [i for i in range(len(bp) - 1) if bp[i + 1] > bp[i]]  # zero-length pieces: nothing
+    grids = [np.linspace(bp[i], bp[i + 1], npts) for i in pieces]
+    states = [path.evaluate(g, piece=i) for i, g in zip(pieces, grids, strict=True)]
+    # scales from the path itself (as lwo_ranks takes them from a trajectory)
+    keep = [slice(None)] + [slice(1, None)] * (len(grids) - 1)  # breakpoints once
+    sample = Trajectory(
+        t=np.concatenate([g[k] for g, k in zip(grids, keep, strict=True)]),
+        p=np.concatenate([s[0][k] for s, k in zip(states, keep, strict=True)]),
+        v=np.concatenate([s[1][k] for s, k in zip(states, keep, strict=True)]),
+        u=np.concatenate([s[2][k] for s, k in zip(states, keep, strict=True)]),
+    )
+    ell, T = characteristic_scales(sample, model)
+    fn = lwo_matrix_function(_nd_model(model))
+    nx = model.state_dim
+
+    def matrices(p: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        x = [(p - model.beacon_array) / ell, v * T / ell]
+        if model.current:
+            x.append(np.zeros_like(v))  # nominal v_f = 0: O depends on v + v_f only
+        X = np.hstack(x)
+        out = np.asarray(fn.map(len(X), "serial")(X.T, (a * T**2 / ell).T))
+        return out.reshape(fn.size1_out(0), len(X), nx).transpose(1, 0, 2)
+
+    def at(t: float, piece: int) -> np.ndarray:
+        return matrices(*path.evaluate(t, piece=piece))[0]
+
+    def ratio(O: np.ndarray) -> float:
+        s = np.linalg.svd(O, compute_uv=False)
+        # fewer rows than states (3D range only): structurally deficient, ratio 0
+        return float(s[nx - 1] / s[0]) if len(s) == nx and s[0] > 0 else 0.0
+
+    drops: list[RankDrop] = []
+    min_rank = nx
+    for i, g, (p, v, a) in zip(pieces, grids, states, strict=True):
+        O = matrices(p, v, a)
+        ranks = ranks_of(O, tol)
+        min_rank = min(min_rank, int(ranks.min()))
+        bad = ranks < nx
+        found: list[float] = []
+        # runs of deficient samples: intervals (3+) or isolated samples
+        edges = np.flatnonzero(np.diff(np.r_[0, bad.astype(int), 0]))
+        for lo, hi in zip(edges[::2], edges[1::2], strict=True):
+            if hi - lo >= 3:
+                drops.append(RankDrop(float(g[lo]), float(g[hi - 1]), int(ranks[lo:hi].min()), i))
+            else:
+                found += [float(x) for x in g[lo:hi]]
+        span = float(g[-1] - g[0])
+        if O.shape[1] == O.shape[2]:
+            det = np.linalg.det(O)
+            for j in np.flatnonzero((np.sign(det[:-1]) * np.sign(det[1:])) < 0):
+                if bad[j] or bad[j + 1]:
+                    continue
+                found.append(
+                    brentq(
+                        lambda t, i=i: float(np.linalg.det(at(t, i))),
+                        g[j],
+                        g[j + 1],
+                        xtol=1e-12 * max(span, 1e-300),
+                        rtol=4 * np.finfo(float).eps,
+                    )
+                )
+        r = np.array([ratio(m) for m in O])
+        for j in range(len(g)):
+            left, right = r[max(j - 1, 0)], r[min(j + 1, len(g) - 1)]
+            # a zero between samples shows as a sample at most half its larger neighbour (V or
+            # parabola); round-off wiggles of a flat ratio do not, and are not refined
+            if bad[j] or r[j] > min(left, right) or r[j] > 0.5 * max(left, right):
+                continue
+            lo_t, hi_t = g[max(j - 1, 0)], g[min(j + 1, len(g) - 1)]
+            res = minimize_scalar(
+                lambda s, i=i, lo_t=lo_t: ratio(at(lo_t + s, i)),
+                bounds=(0.0, hi_t - lo_t),
+                method="bounded",
+                options={"xatol": 1e-12 * max(span, 1e-300)},
+            )
+            if res.fun <= tol:
+                found.append(float(lo_t + res.x))
+        for t in sorted(found):
+            if any(
+                (d.piece == i and d.t_start <= t <= d.t_end)
+                or (d.isolated and abs(t - d.t_start) <= 1e-9 * span)
+                for d in drops
+            ):
+                continue  # inside a deficient run, or the same zero found twice
+            rk = int(ranks_of(at(t, i)[None], tol)[0])
+            rk = min(rk, nx - 1)  # a located zero: the limit of the rank is below full
+            min_rank = min(min_rank, rk)
+            drops.append(RankDrop(t, t, rk, i))
+    drops.sort(key=lambda d: d.t_start)
+    return PathLWOReport(
+        along_trajectory=not drops,
+        drops=tuple(drops),
+        state_dim=nx,
+        min_rank=min_rank,
+        tol=float(tol),
+    )

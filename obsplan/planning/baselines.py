@@ -19,21 +19,34 @@ of piecewise-constant inputs that respect the acceleration and speed limits:
   reaches the limits, translated to the start, continued straight if shorter than the horizon;
   only when its (scaled) start velocity equals the problem's.
 
-A baseline that cannot be built for a problem (e.g. a start velocity not tangent to the circle) is
-left out, with the reason in :func:`baseline_notes`.
+Every baseline must satisfy the problem's limits on the continuous path
+(:func:`~obsplan.planning.feasibility.check_limits`: area, depth, distance to the beacon, speed
+through the water). The lawn-mower tries its leg directions and, when a leg or turn would pass
+inside ``limits.min_range``, slightly slower cruise speeds (which shift its legs) until one fits.
+A baseline that cannot be built for a problem (e.g. a start velocity not tangent to the circle)
+is not silently dropped: :func:`unfitted_baselines` gives the reason, and reports show it.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
 from obsplan import generators
 from obsplan.errors import ConfigError, ProblemError
+from obsplan.planning.feasibility import check_limits, range_extremes
 from obsplan.planning.problem import Area, PlanningProblem
 from obsplan.trajectory import Trajectory
+
+#: Cruise-speed factors the lawn-mower tries (fastest first) when a leg passes too close to the
+#: beacon: each changes the leg spacing 2 v² / a and so where the legs lie.
+_SPEED_FACTORS = tuple(1.0 - 0.03 * i for i in range(11))
+#: The paper's lawn-mower is a baseline only if its time-scaled version fits in this many
+#: samples per planning sample (at tiny limits it would take ages to fly and to build).
+_PAPER_MAX_OVERSAMPLING = 50
 
 #: Velocity mismatch [m/s] below which two start velocities are "the same".
 _START_TOL = 1e-6
@@ -62,20 +75,75 @@ def _ray_to_box(p: np.ndarray, e: np.ndarray, area: Area) -> float:
 def _check_grid(traj: Trajectory, pb: PlanningProblem, name: str) -> Trajectory:
     t = pb.times
     if traj.n_samples != t.size or not np.allclose(traj.t, t, rtol=0, atol=1e-9 * t[-1]):
-        raise ConfigError(f"baseline {name}: not on the planning grid")  # pragma: no cover
+        raise BaselineUnfit(f"{name}: its samples do not fall on the planning grid")
     return Trajectory(t=t, p=traj.p, v=traj.v, u=traj.u)
 
 
+class BaselineUnfit(ProblemError):
+    """A baseline cannot be built for a problem (the message says why)."""
+
+
 def lawnmower_baseline(pb: PlanningProblem) -> Baseline:
-    """Lawn-mower at the limits over the coverage area (see module docstring)."""
-    a = float(np.min(pb.accel[:2]))  # |u| <= a keeps every axis within its bound
+    """Lawn-mower at the limits over the coverage area (see module docstring).
+
+    Raises
+    ------
+    BaselineUnfit
+        If no variant fits the limits (the message names the limit).
+    """
     area = pb.coverage_area()
     p0, v0 = pb.p0, pb.v0
     s0 = float(np.linalg.norm(v0[:2]))
     if s0 > 0:
-        heading = math.atan2(v0[1], v0[0])
+        headings = [math.atan2(v0[1], v0[0])]
     else:
-        heading = 0.0 if area.x[1] - p0[0] >= p0[0] - area.x[0] else math.pi
+        # the longest room first, then the other axis directions
+        first = 0.0 if area.x[1] - p0[0] >= p0[0] - area.x[0] else math.pi
+        headings = [first, math.pi - first, 0.5 * math.pi, -0.5 * math.pi]
+    last: str = ""
+    for factor in _SPEED_FACTORS:
+        for heading in headings:
+            try:
+                bl = _lawnmower(pb, area, heading, factor)
+            except BaselineUnfit as exc:
+                last = str(exc)
+                continue
+            if check_limits(bl.trajectory, pb).ok():
+                return bl
+            last = _violation_words(bl.trajectory, pb)
+    raise BaselineUnfit(f"lawn-mower: {last}")
+
+
+def _violation_words(traj: Trajectory, pb: PlanningProblem) -> str:
+    """Which limit a baseline path breaks, in words."""
+    chk = check_limits(traj, pb)
+    lim = pb.limits
+    parts = []
+    if chk.range > 0:
+        near, far = range_extremes(traj, pb.beacon)
+        if near < lim.min_range:
+            parts.append(
+                f"passes {near:.3g} m from the beacon (limits.min_range = {lim.min_range:g} m)"
+            )
+        if lim.max_range is not None and far > lim.max_range:
+            parts.append(
+                f"goes {far:.4g} m from the beacon (limits.max_range = {lim.max_range:g} m)"
+            )
+    if chk.box > 0:
+        parts.append(f"leaves the area or depth band by {chk.box:.3g} m")
+    if chk.speed > 0:
+        parts.append(f"exceeds limits.speed by {100 * chk.speed:.2g} %")
+    if chk.accel > 0:
+        parts.append(f"exceeds limits.accel by {100 * chk.accel:.2g} %")
+    if chk.water_speed > 0:
+        parts.append(f"drops below limits.min_speed = {lim.min_speed:g} m/s")
+    return "; ".join(parts) or "violates a limit"
+
+
+def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -> Baseline:
+    a = float(np.min(pb.accel[:2]))  # |u| <= a keeps every axis within its bound
+    p0, v0 = pb.p0, pb.v0
+    s0 = float(np.linalg.norm(v0[:2]))
     e = np.array([math.cos(heading), math.sin(heading)])
     left = np.array([-e[1], e[0]])
     room_left, room_right = _ray_to_box(p0, left, area), _ray_to_box(p0, -left, area)
@@ -83,13 +151,26 @@ def lawnmower_baseline(pb: PlanningProblem) -> Baseline:
     height = max(room_left, room_right)
     ahead = _ray_to_box(p0, e, area)
     # the fastest speed <= v_max whose turns (radius v^2/a, spacing 2 v^2/a) fit the area
-    # (90 % of the room, leaving space for the chord margin below)
-    speed = min(pb.limits.speed, math.sqrt(0.45 * a * height), math.sqrt(0.45 * a * ahead))
-    speed = max(speed * (1 - 1e-9), s0)
+    # (90 % of the room, leaving space for the chord margin below). On a coarse planning grid
+    # the turns are flown at a lower acceleration, so that each lasts at least 4 planning steps
+    # (turn time pi v / a_turn >= 4 h): the spacing is then 8 h v / pi.
+    h = pb.horizon.dt
+    room = min(height, ahead)
+    speed = min(pb.limits.speed, math.sqrt(0.45 * a * room), 0.9 * math.pi * room / (8.0 * h))
+    speed = max(speed * factor * (1 - 1e-9), s0)
+    if speed <= 0:
+        raise BaselineUnfit("no room to fly a leg from the start inside the area")
+    a = min(a, math.pi * speed / (4.0 * h))
     radius = speed**2 / a
     # chord inputs fly a turn up to radius (w h)^2 / 6 outside the arc (generators docstring):
     # keep that margin inside the area
     margin = 1.5 * radius * (speed / radius * pb.horizon.dt) ** 2 / 6.0
+    turn_time = math.pi * radius / speed
+    if h > 0.25 * turn_time * (1 + 1e-9):
+        raise BaselineUnfit(
+            f"the planning step horizon.duration / horizon.steps = {h:.3g} s is too coarse "
+            f"for its turns ({turn_time:.3g} s each at the start speed); use more horizon.steps"
+        )
     try:
         traj = generators.lawnmower_within_limits(
             p0[:2],
@@ -106,9 +187,9 @@ def lawnmower_baseline(pb: PlanningProblem) -> Baseline:
             initial_speed=s0,
         )
     except ConfigError as exc:
-        raise ProblemError(
-            f"limits.area: no lawn-mower baseline fits between the start and the area's edges "
-            f"({exc}); enlarge the area or move the start towards a corner"
+        where = "limits.area" if pb.limits.area is not None else "the default coverage area"
+        raise BaselineUnfit(
+            f"it does not fit between the start and the edges of {where} ({exc})"
         ) from None
     lay = generators.lawnmower_layout(ahead + radius - margin, height - margin, speed, a)
     desc = (
@@ -127,18 +208,29 @@ def _fly_velocity(pb: PlanningProblem, vel) -> Trajectory:
 
 
 def circle_baseline(pb: PlanningProblem) -> Baseline | None:
-    """Circle about the beacon through the start (see module docstring); None if impossible."""
+    """Circle about the beacon through the start (see module docstring); None if impossible
+    (:func:`circle_unfit_reason` says why)."""
+    try:
+        return _circle(pb)
+    except BaselineUnfit:
+        return None
+
+
+def _circle(pb: PlanningProblem) -> Baseline:
     b = np.asarray(pb.beacon, float)
     rel = (pb.p0 - b)[:2]
     rho = float(np.linalg.norm(rel))
     if rho < 1e-6:
-        return None
+        raise BaselineUnfit("circle: the start is above the beacon (no circle through it)")
     a = float(np.min(pb.accel[:2]))
     tangent = np.array([-rel[1], rel[0]]) / rho
     v0 = pb.v0[:2]
     s0 = float(np.dot(v0, tangent))
     if np.linalg.norm(v0 - s0 * tangent) > _START_TOL or (pb.dim == 3 and abs(pb.v0[2]) > 0):
-        return None
+        raise BaselineUnfit(
+            "circle: the start velocity is not tangent to the circle about the beacon through "
+            "the start"
+        )
     sign = 1.0 if s0 >= 0 else -1.0
     s0 = abs(s0)
     # at cruise the centripetal acceleration is 0.8 a; while speeding up at 0.6 a the total stays
@@ -159,6 +251,8 @@ def circle_baseline(pb: PlanningProblem) -> Baseline | None:
         return out
 
     traj = _fly_velocity(pb, vel)
+    if not check_limits(traj, pb).ok():
+        raise BaselineUnfit(f"circle: {_violation_words(traj, pb)}")
     desc = f"circle about the beacon, radius {rho:.3g} m, cruise {vc:.3g} m/s"
     return Baseline("circle", traj, desc)
 
@@ -214,46 +308,96 @@ def straight_baseline(pb: PlanningProblem) -> Baseline:
         s += acc[k] * h
     if s0 == 0 and not np.any(acc):
         acc[0] = min(a_line, 1e-3)
-    traj = generators.straight(pb.p0, e, s0, accel=acc, duration=T, dt=h)
+    traj = _check_grid(generators.straight(pb.p0, e, s0, accel=acc, duration=T, dt=h), pb, "x")
+    if not check_limits(traj, pb).ok():
+        raise BaselineUnfit(f"straight: {_violation_words(traj, pb)}")
     desc = f"straight line, cruise {v:.3g} m/s"
-    return Baseline("straight", _check_grid(traj, pb, "straight"), desc)
+    return Baseline("straight", traj, desc)
 
 
-def paper_lawnmower_baseline(pb: PlanningProblem) -> Baseline | None:
-    """The paper's lawn-mower time-scaled to the limits (see module docstring); None if n/a."""
+def paper_lawnmower_baseline(pb: PlanningProblem) -> Baseline:
+    """The paper's lawn-mower time-scaled to the limits (see module docstring).
+
+    Raises
+    ------
+    BaselineUnfit
+        When the start velocity does not match or the scaled path breaks a limit.
+    """
     h = pb.horizon.dt
+    coarse = generators.paper_lawnmower(pb.dim, dt=0.5)
+    s_est = max(
+        float(np.max(np.linalg.norm(coarse.v, axis=1))) / pb.limits.speed,
+        math.sqrt(float(np.max(np.abs(coarse.u[:-1]) / pb.accel))),
+    )
+    if s_est * coarse.t[-1] / h > _PAPER_MAX_OVERSAMPLING * pb.horizon.steps:
+        raise BaselineUnfit(
+            f"paper-lawnmower: at these limits the paper's pattern takes {s_est * coarse.t[-1]:.3g}"
+            f" s to fly, {s_est * coarse.t[-1] / pb.horizon.duration:.3g} times the horizon"
+        )
     s = 1.0
     # t -> s t divides speeds by s and accelerations by s^2; the chord inputs depend on the
     # sampling step h / s, so iterate to the fixed point (converges in a few steps)
-    for _ in range(8):
+    for _ in range(30):
         ref = generators.paper_lawnmower(pb.dim, dt=h / s)
         speed = float(np.max(np.linalg.norm(ref.v, axis=1)))
         accel = float(np.max(np.abs(ref.u[:-1]) / pb.accel))
-        s_new = max(speed / pb.limits.speed, math.sqrt(accel))
+        # a hair above the fixed point, so that round-off keeps the path inside the limits
+        s_new = max(speed / pb.limits.speed, math.sqrt(accel)) * (1 + 1e-9)
         if abs(s_new - s) <= 1e-12 * s:
             break
         s = s_new
     ref = generators.paper_lawnmower(pb.dim, dt=h / s)
     v_start = ref.v[0] / s
     if np.linalg.norm(v_start - pb.v0) > _START_TOL:
-        return None
+        raise BaselineUnfit(
+            f"paper-lawnmower: its start velocity {np.round(v_start, 4).tolist()} m/s (time-scaled)"
+            f" differs from start.velocity {list(pb.start_velocity)}"
+        )
     scaled = Trajectory(t=ref.t * s, p=ref.p - ref.p[0] + pb.p0, v=ref.v / s, u=ref.u / s**2)
     N = pb.horizon.steps
     if scaled.n_samples < N + 1:
         remaining = pb.horizon.duration - scaled.t[-1]
         if not np.isclose(scaled.t[-1] / h, round(scaled.t[-1] / h), atol=1e-6):
-            return None
+            raise BaselineUnfit("paper-lawnmower: its duration is not on the planning grid")
         scaled = generators.then_straight(scaled, duration=remaining, dt=h)
     scaled = scaled.window(0, N + 1)
     desc = f"paper lawn-mower (Fig. {3 if pb.dim == 2 else 6}) time-scaled by {s:.3g}"
-    return Baseline("paper-lawnmower", _check_grid(scaled, pb, "paper-lawnmower"), desc)
+    traj = _check_grid(scaled, pb, "paper-lawnmower")
+    if not check_limits(traj, pb).ok():
+        raise BaselineUnfit(f"paper-lawnmower: {_violation_words(traj, pb)}")
+    return Baseline("paper-lawnmower", traj, desc)
+
+
+#: Every baseline, in report order.
+BASELINES = ("lawnmower", "circle", "straight", "paper-lawnmower")
+
+
+@cache
+def _all(pb: PlanningProblem) -> tuple[dict[str, Baseline], dict[str, str]]:
+    fitted: dict[str, Baseline] = {}
+    unfit: dict[str, str] = {}
+    builders = {
+        "lawnmower": lawnmower_baseline,
+        "circle": _circle,
+        "straight": straight_baseline,
+        "paper-lawnmower": paper_lawnmower_baseline,
+    }
+    for name in BASELINES:
+        try:
+            fitted[name] = builders[name](pb)
+        except BaselineUnfit as exc:
+            unfit[name] = str(exc).split(": ", 1)[-1]
+    return fitted, unfit
 
 
 def baselines(pb: PlanningProblem) -> dict[str, Baseline]:
-    """Every baseline that can be built for ``pb``, by name (lawn-mower first)."""
-    out: dict[str, Baseline] = {"lawnmower": lawnmower_baseline(pb)}
-    for fn in (circle_baseline, straight_baseline, paper_lawnmower_baseline):
-        bl = fn(pb)
-        if bl is not None:
-            out[bl.name] = bl
-    return out
+    """Every baseline that fits ``pb``, by name (lawn-mower first).
+
+    See :func:`unfitted_baselines` for the others.
+    """
+    return dict(_all(pb)[0])
+
+
+def unfitted_baselines(pb: PlanningProblem) -> dict[str, str]:
+    """Baselines that cannot be built for ``pb``: name -> the reason, in words."""
+    return dict(_all(pb)[1])

@@ -35,6 +35,12 @@ class LimitCheck:
     box : float
         Largest excursion [m] of ``p(t)`` outside the depth band or operating area, using the
         exact quadratic between nodes.
+    range : float
+        Largest excursion [m] of ``|p(t) - b|`` below ``limits.min_range`` or above
+        ``limits.max_range`` (exact extremes of the quartic ``|p(t) - b|²`` between nodes).
+    water_speed : float
+        ``(v_min - min_t |p'(t) - v_f|) / v_min`` (relative; exact: the squared speed is a convex
+        quadratic between nodes); 0 without a minimum speed.
     start : float
         Distance [m] + speed mismatch [m/s] of the first sample from the problem's start.
     consistency_pos, consistency_vel : float
@@ -44,6 +50,8 @@ class LimitCheck:
     accel: float
     speed: float
     box: float
+    range: float
+    water_speed: float
     start: float
     consistency_pos: float
     consistency_vel: float
@@ -55,6 +63,8 @@ class LimitCheck:
             self.accel <= rtol
             and self.speed <= rtol
             and self.box <= btol
+            and self.range <= btol
+            and self.water_speed <= rtol
             and self.start <= 1e-6
             and self.consistency_pos <= CONSISTENCY_TOL
             and self.consistency_vel <= CONSISTENCY_TOL
@@ -79,6 +89,62 @@ def _axis_extremes(traj: Trajectory, axis: int) -> tuple[float, float]:
     return lo, hi
 
 
+def _interval_extremes(c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Min and max over ``s`` in ``[0, h_k]`` of ``|c0 + c1 s + c2 s²|²`` per interval.
+
+    ``c`` has shape ``(3, K, n)``. The derivative is the cubic ``2 (c0 + c1 s + c2 s²)·(c1 +
+    2 c2 s)``; its real roots inside the interval and the two ends are the candidates.
+    """
+    c0, c1, c2 = c
+    coef = np.stack(
+        [
+            2 * np.einsum("ki,ki->k", c2, c2),
+            3 * np.einsum("ki,ki->k", c1, c2),
+            np.einsum("ki,ki->k", c1, c1) + 2 * np.einsum("ki,ki->k", c0, c2),
+            np.einsum("ki,ki->k", c0, c1),
+        ],
+        axis=1,
+    )
+
+    def f(s):
+        q = c0 + c1 * s[:, None] + c2 * s[:, None] ** 2
+        return np.einsum("ki,ki->k", q, q)
+
+    lo = np.minimum(f(np.zeros_like(h)), f(h))
+    hi = np.maximum(f(np.zeros_like(h)), f(h))
+    for k in np.flatnonzero(np.any(coef != 0, axis=1)):
+        roots = np.roots(coef[k])
+        roots = roots[np.abs(roots.imag) <= 1e-12 * max(1.0, h[k])].real
+        roots = roots[(roots > 0) & (roots < h[k])]
+        if roots.size:
+            q = c0[k] + np.outer(roots, c1[k]) + np.outer(roots**2, c2[k])
+            vals = np.einsum("ri,ri->r", q, q)
+            lo[k] = min(lo[k], vals.min())
+            hi[k] = max(hi[k], vals.max())
+    return lo, hi
+
+
+def range_extremes(traj: Trajectory, beacon) -> tuple[float, float]:
+    """Exact ``(min, max)`` of ``|p(t) - b|`` [m] over the continuous path."""
+    rel = traj.p - np.asarray(beacon, float)
+    c = np.stack([rel[:-1], traj.v[:-1], 0.5 * traj.u[:-1]])
+    lo, hi = _interval_extremes(c, traj.dt)
+    return float(np.sqrt(max(lo.min(), 0.0))), float(np.sqrt(hi.max()))
+
+
+def min_water_speed(traj: Trajectory, current: np.ndarray) -> float:
+    """Exact ``min_t |p'(t) - v_f|`` [m/s] over the continuous path."""
+    w = traj.v[:-1] - np.asarray(current, float)
+    u = traj.u[:-1]
+    uu = np.einsum("ki,ki->k", u, u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(uu > 0, -np.einsum("ki,ki->k", w, u) / uu, 0.0)
+    s = np.clip(s, 0.0, traj.dt)
+    inner = w + u * s[:, None]
+    ends = np.linalg.norm(traj.v - np.asarray(current, float), axis=1)
+    return float(min(np.linalg.norm(inner, axis=1).min(), ends.min()))
+
+
 def check_limits(traj: Trajectory, pb: PlanningProblem) -> LimitCheck:
     """Check ``traj`` against the limits, start and dynamics of ``pb`` (see :class:`LimitCheck`)."""
     a = pb.accel
@@ -93,12 +159,24 @@ def check_limits(traj: Trajectory, pb: PlanningProblem) -> LimitCheck:
     for axis, (lo, hi) in boxes:
         mn, mx = _axis_extremes(traj, axis)
         box = max(box, lo - mn, mx - hi)
+    lim = pb.limits
+    rng = 0.0
+    if lim.min_range > 0 or lim.max_range is not None:
+        near, far = range_extremes(traj, pb.beacon)
+        rng = max(rng, lim.min_range - near)
+        if lim.max_range is not None:
+            rng = max(rng, far - lim.max_range)
+    water = 0.0
+    if lim.min_speed > 0:
+        water = (lim.min_speed - min_water_speed(traj, pb.current_array)) / lim.min_speed
     start = float(np.linalg.norm(traj.p[0] - pb.p0) + np.linalg.norm(traj.v[0] - pb.v0))
     pe, ve = traj.consistency_error()
     return LimitCheck(
         accel=max(acc, 0.0),
         speed=max(speed, 0.0),
         box=max(box, 0.0),
+        range=max(rng, 0.0),
+        water_speed=max(water, 0.0),
         start=start,
         consistency_pos=pe,
         consistency_vel=ve,

@@ -36,26 +36,55 @@ def _ax(ax):
 def plot_paths(
     paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None, names: tuple[str, ...] = ()
 ) -> Figure:
-    """Horizontal view (x, y) [m] of the paths (default: planned and lawn-mower), beacon, area."""
-    fig, ax = _ax(ax)
-    names = names or tuple(n for n in ("planned", "lawnmower") if n in paths)
+    """The paths (default: planned and lawn-mower) with the beacon, start and operating area.
+
+    Horizontal view [m]; in 3D (when ``ax`` is None) a second panel shows depth ``z`` over time
+    with the depth band. With a geodetic problem (``pb.origin``) the horizontal view is a map:
+    east to the right, north up.
+    """
+    names = names or tuple(n for n in ("planned", "lawnmower") if n in paths) or tuple(paths)
+    depth_panel = pb.dim == 3 and ax is None
+    if ax is None:
+        fig = plt.figure(figsize=(11, 4.8) if depth_panel else (6, 4.8))
+        ax = fig.add_subplot(1, 2, 1) if depth_panel else fig.add_subplot(111)
+    fig = ax.figure
+    geo = getattr(pb, "origin", None) is not None
+    ix, iy = (1, 0) if geo else (0, 1)  # a map: east (y) across, north (x) up
     for name in names:
         tr = paths[name]
-        st = _STYLE.get(name, {"lw": 1.0})
-        ax.plot(tr.p[:, 0], tr.p[:, 1], label=name, **st)
-    ax.plot(*pb.p0[:2], "ko", ms=5, label="start")
-    ax.plot(pb.beacon[0], pb.beacon[1], "r^", ms=9, label="beacon")
+        ax.plot(tr.p[:, ix], tr.p[:, iy], label=name, **_STYLE.get(name, {"lw": 1.0}))
+    ax.plot(pb.p0[ix], pb.p0[iy], "ko", ms=5, label="start")
+    ax.plot(pb.beacon[ix], pb.beacon[iy], "r^", ms=9, label="beacon")
     if pb.limits.area is not None:
         a = pb.limits.area
+        lo = (a.x[0], a.y[0]) if not geo else (a.y[0], a.x[0])
+        w, h = (a.width, a.height) if not geo else (a.height, a.width)
         ax.add_patch(
-            plt.Rectangle((a.x[0], a.y[0]), a.width, a.height, fill=False, ls="--", color="0.5")
+            plt.Rectangle(lo, w, h, fill=False, ls="--", color="0.5", label="operating area")
         )
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title(f"{pb.objective.kind}: planned path vs lawn-mower", fontsize=9)
+    ax.set_xlabel("y = east [m]" if geo else "x [m]")
+    ax.set_ylabel("x = north [m]" if geo else "y [m]")
+    ax.set_title(f"{pb.objective.kind}: planned path vs lawn-mower (horizontal)", fontsize=9)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
+    if depth_panel:
+        az = fig.add_subplot(1, 2, 2)
+        for name in names:
+            tr = paths[name]
+            az.plot(tr.t, tr.p[:, 2], label=name, **_STYLE.get(name, {"lw": 1.0}))
+        az.plot(0.0, pb.p0[2], "ko", ms=5, label="start")
+        az.axhline(pb.beacon[2], color="r", ls=":", lw=1, label="beacon depth")
+        if pb.limits.depth is not None:
+            for k, z in enumerate(pb.limits.depth):
+                az.axhline(z, color="0.5", ls="--", lw=1, label="depth band" if k == 0 else None)
+        az.invert_yaxis()  # z is depth (north-east-down): down is down
+        az.set_xlabel("t [s]")
+        az.set_ylabel("z = depth [m]")
+        az.set_title("depth over time", fontsize=9)
+        az.grid(True, alpha=0.3)
+        az.legend(fontsize=7)
+        fig.tight_layout()
     return fig
 
 
@@ -68,7 +97,11 @@ def plot_gramian_eigs(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=N
         ax.semilogy(tr.t[1:], np.maximum(lam, 1e-16), label=name, **_STYLE.get(name, {}))
     ax.set_xlabel("t [s]")
     ax.set_ylabel(r"$\lambda_{min}$ of scaled Gramian")
-    ax.set_title(f"scales L = {pb.scales.length_m:g} m, T = {pb.scales.time_s:g} s", fontsize=9)
+    ax.set_title(
+        r"smallest eigenvalue of the scaled augmented Gramian $G(t, t_0)$ (eq. 25)"
+        f"\nL = {pb.scales.length_m:g} m, T = {pb.scales.time_s:g} s",
+        fontsize=9,
+    )
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     return fig
@@ -79,7 +112,9 @@ def plot_filter_errors(
 ) -> Figure:
     """Position RMSE over the runs for the EKF (solid) and KF (dashed), each path."""
     fig, ax = _ax(ax)
-    names = names or tuple(n for n in ("planned", "lawnmower") if n in validation)
+    names = (
+        names or tuple(n for n in ("planned", "lawnmower") if n in validation) or tuple(validation)
+    )
     for name in names:
         r = validation[name].result
         st = _STYLE.get(name, {})

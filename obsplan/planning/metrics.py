@@ -3,10 +3,14 @@
 ``min_eig``, ``log_det``, ``condition``: of the exact augmented Gramian in the problem's fixed
 scales (:func:`obsplan.observability.gramian.gramian`,
 :func:`obsplan.observability.scaling.psd_metrics`).
-``kf_final_pos_std``: the planning KF's predicted final position standard deviation [m] (the
-Riccati recursion of :mod:`obsplan.planning.objectives`, evaluated numerically).
+``pcrb_final_pos_std``, ``pcrb_mean_pos_std``: the posterior Cramér–Rao bound on the position
+[m] at the end and averaged over the validation's filter samples (the ``pcrb-position``
+objective's two modes, the same recursion as the validation's bound).
+``kf_final_pos_std``, ``kf_mean_pos_std``: the augmented KF's predicted position std [m] (the
+``kf-position-std`` objective's two modes).
+``closest_approach_m`` / ``farthest_m``: exact extremes of ``|p(t) - b|`` on the continuous path.
 ``objective``: the value of the problem's own objective, in its own sign (larger is better for
-the Gramian and LWO objectives, smaller for ``kf-position-std``).
+the Gramian and LWO objectives, smaller for the covariance objectives).
 """
 
 from __future__ import annotations
@@ -15,16 +19,26 @@ import math
 from dataclasses import dataclass
 from functools import cache
 
-import casadi as ca
 import numpy as np
 
 from obsplan.model import VehicleModel
 from obsplan.observability.gramian import gramian
 from obsplan.observability.scaling import psd_metrics
-from obsplan.planning.feasibility import LimitCheck, check_limits
-from obsplan.planning.objectives import Grid, kf_position_std_expr
+from obsplan.planning.feasibility import LimitCheck, check_limits, range_extremes
+from obsplan.planning.objectives import (
+    CovarianceObjective,
+    Grid,
+    covariance_objective,
+    lwo_conditions,
+    lwo_softmin,
+    reference_path,
+    timed_value,
+)
 from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
+
+#: Objectives for which a smaller value is better.
+MINIMISED = ("pcrb-position", "kf-position-std")
 
 
 def _num(x: float | None) -> float | None:
@@ -38,7 +52,12 @@ class PathMetrics:
     min_eig: float
     log_det: float
     condition: float
+    pcrb_final_pos_std: float
+    pcrb_mean_pos_std: float
     kf_final_pos_std: float | None
+    kf_mean_pos_std: float | None
+    closest_approach_m: float
+    farthest_m: float
     objective: float
     limits: LimitCheck
 
@@ -52,7 +71,12 @@ class PathMetrics:
             "min_eig": _num(self.min_eig),
             "log_det": _num(self.log_det),
             "condition": _num(self.condition),
+            "pcrb_final_pos_std": _num(self.pcrb_final_pos_std),
+            "pcrb_mean_pos_std": _num(self.pcrb_mean_pos_std),
             "kf_final_pos_std": _num(self.kf_final_pos_std),
+            "kf_mean_pos_std": _num(self.kf_mean_pos_std),
+            "closest_approach_m": _num(self.closest_approach_m),
+            "farthest_m": _num(self.farthest_m),
             "objective": _num(self.objective),
             "within_limits": bool(self.within_limits),
             "limit_violation": self.limits.to_dict(),
@@ -60,20 +84,23 @@ class PathMetrics:
 
 
 @cache
-def _kf_function(pb: PlanningProblem) -> ca.Function:
+def _covariance(pb: PlanningProblem, kind: str) -> CovarianceObjective:
+    return covariance_objective(pb, kind)
+
+
+def covariance_stds(traj: Trajectory, pb: PlanningProblem, kind: str) -> tuple[float, float]:
+    """``(mission-average, final)`` position std [m] of the ``kind`` recursion along ``traj``.
+
+    ``kind`` is ``"pcrb-position"`` or ``"kf-position-std"``; ``traj`` must be on the problem's
+    planning grid (N + 1 samples).
+    """
     grid = Grid.from_problem(pb)
-    W = ca.MX.sym("W", 3 * grid.n, grid.N)
-    return ca.Function("kf_std", [W], [kf_position_std_expr(grid, pb, W)])
+    return _covariance(pb, kind).evaluate(grid, grid.from_trajectory(traj))
 
 
 def kf_final_pos_std(traj: Trajectory, pb: PlanningProblem) -> float:
-    """Predicted final position std ``sqrt(tr P_pp)`` [m] of the augmented KF along ``traj``.
-
-    ``traj`` must be on the problem's planning grid (N + 1 samples).
-    """
-    grid = Grid.from_problem(pb)
-    U, P, V = grid.from_trajectory(traj)
-    return float(_kf_function(pb)(np.vstack([U, P, V])))
+    """Predicted final position std ``sqrt(tr P_pp)`` [m] of the augmented KF along ``traj``."""
+    return covariance_stds(traj, pb, "kf-position-std")[1]
 
 
 def lwo_condition(traj: Trajectory, pb: PlanningProblem) -> float:
@@ -99,13 +126,24 @@ def objective_value(traj: Trajectory, pb: PlanningProblem) -> float:
     if kind == "gramian-log-det":
         return psd_metrics(gramian(traj, pb.model, pb.scales))[1]
     if kind == "lwo-condition":
-        return lwo_condition(traj, pb)
-    return kf_final_pos_std(traj, pb)
+        grid = Grid.from_problem(pb)
+        return lwo_softmin(lwo_conditions(grid, pb, grid.from_trajectory(traj)))
+    avg, final = covariance_stds(traj, pb, kind)
+    return timed_value(pb.objective_mode, avg, final, _reference_stds(pb, kind))
+
+
+@cache
+def _reference_stds(pb: PlanningProblem, kind: str) -> tuple[float, float]:
+    return covariance_stds(reference_path(pb), pb, kind)
 
 
 def better(a: float, b: float, pb: PlanningProblem) -> bool:
     """True when objective value ``a`` is strictly better than ``b`` for ``pb``."""
-    if pb.objective.kind == "kf-position-std":
+    if not math.isfinite(a):
+        return False
+    if not math.isfinite(b):
+        return True
+    if pb.objective.kind in MINIMISED:
         return a < b
     return a > b
 
@@ -113,12 +151,19 @@ def better(a: float, b: float, pb: PlanningProblem) -> bool:
 def path_metrics(traj: Trajectory, pb: PlanningProblem) -> PathMetrics:
     """All metrics of ``traj`` (on the planning grid) for problem ``pb``."""
     min_eig, log_det, cond = psd_metrics(gramian(traj, pb.model, pb.scales))
-    kf = kf_final_pos_std(traj, pb)
+    pcrb_mean, pcrb_final = covariance_stds(traj, pb, "pcrb-position")
+    kf_mean, kf_final = covariance_stds(traj, pb, "kf-position-std")
+    near, far = range_extremes(traj, pb.beacon)
     return PathMetrics(
         min_eig=min_eig,
         log_det=log_det,
         condition=cond,
-        kf_final_pos_std=kf,
+        pcrb_final_pos_std=pcrb_final,
+        pcrb_mean_pos_std=pcrb_mean,
+        kf_final_pos_std=kf_final,
+        kf_mean_pos_std=kf_mean,
+        closest_approach_m=near,
+        farthest_m=far,
         objective=objective_value(traj, pb),
         limits=check_limits(traj, pb),
     )

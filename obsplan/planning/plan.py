@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from obsplan.planning.baselines import Baseline, baselines
+from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.metrics import PathMetrics, path_metrics
-from obsplan.planning.problem import PlanningProblem, load_problem
+from obsplan.planning.problem import PlanningProblem, load_problem, problem_to_dict
 from obsplan.planning.solve import SolveResult, solve
+from obsplan.planning.verdict import Verdict, verdict
 from obsplan.trajectory import Trajectory
 from obsplan.validation import PathValidation, validate_paths
 
@@ -30,6 +31,8 @@ class PlanResult:
         Monte Carlo per path (empty when not run).
     wall_s : float
         Total time [s].
+    not_fitted : dict[str, str]
+        Baselines the problem cannot fit, with the reason.
     """
 
     problem: PlanningProblem
@@ -38,6 +41,12 @@ class PlanResult:
     metrics: dict[str, PathMetrics]
     validation: dict[str, PathValidation]
     wall_s: float
+    not_fitted: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def verdict(self) -> Verdict:
+        """The plan against every validated baseline (:mod:`obsplan.planning.verdict`)."""
+        return verdict(self.validation, self.not_fitted)
 
     @property
     def success(self) -> bool:
@@ -63,17 +72,21 @@ class PlanResult:
             "solver": self.solve.to_dict(),
             "metrics": {k: m.to_dict() for k, m in self.metrics.items()},
             "validation": {k: v.to_dict() for k, v in self.validation.items()},
+            "verdict": self.verdict.to_dict(),
             "problem": {
                 "name": pb.name,
                 "dim": pb.dim,
                 "sensors": list(pb.vehicle.sensors),
                 "current": pb.vehicle.current,
                 "objective": pb.objective.kind,
+                "objective_mode": pb.objective_mode,
                 "steps": pb.horizon.steps,
                 "duration_s": pb.horizon.duration,
                 "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
             },
             "baselines": {k: b.description for k, b in self.baselines.items()},
+            "baselines_not_fitted": dict(self.not_fitted),
+            "problem_file": problem_to_dict(pb),
             "wall_s": float(self.wall_s),
         }
 
@@ -85,6 +98,7 @@ def plan(
     runs: int | None = None,
     progress: bool = False,
     verbose: bool = False,
+    processes: int | None = None,
 ) -> PlanResult:
     """Solve a planning problem and compare the plan with the baselines.
 
@@ -97,9 +111,12 @@ def plan(
     runs
         Override ``validation.runs``.
     progress
-        Progress lines on stderr.
+        Progress bars (tqdm, on stderr) for the starts and the validation.
     verbose
         IPOPT output.
+    processes
+        Worker processes for the multi-start (None: one per core, at most one per start; 1: all
+        starts in this process, e.g. inside a Dask worker).
 
     Returns
     -------
@@ -107,18 +124,10 @@ def plan(
         ``success`` is False when no start converged (the best feasible iterate, if any, is still
         reported, flagged by ``solve.status``).
     """
-    import sys
-
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
-    if progress:
-        print(
-            f"obsplan plan: {pb.name or 'problem'}: {pb.objective.kind}, N = {pb.horizon.steps}, "
-            f"{pb.objective.starts} starts",
-            file=sys.stderr,
-        )
-    res = solve(pb, progress=progress, verbose=verbose)
     bls = baselines(pb)
+    res = solve(pb, baselines=bls, progress=progress, verbose=verbose, processes=processes)
     paths: dict[str, Trajectory] = {}
     if res.trajectory is not None:
         paths["planned"] = res.trajectory
@@ -126,10 +135,7 @@ def plan(
     metrics = {k: path_metrics(tr, pb) for k, tr in paths.items()}
     validation: dict[str, PathValidation] = {}
     if validate:
-        for name, tr in paths.items():
-            if progress:
-                print(f"  validating {name} ...", file=sys.stderr, flush=True)
-            validation.update(validate_paths({name: tr}, pb, runs=runs))
+        validation = validate_paths(paths, pb, runs=runs, progress=progress)
     return PlanResult(
         problem=pb,
         solve=res,
@@ -137,4 +143,5 @@ def plan(
         metrics=metrics,
         validation=validation,
         wall_s=time.perf_counter() - t0,
+        not_fitted=unfitted_baselines(pb),
     )

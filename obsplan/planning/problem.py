@@ -21,15 +21,32 @@ from typing import Any
 import numpy as np
 
 from obsplan.errors import ConfigError, ProblemError
+from obsplan.io.geodetic import GeodeticOrigin, resolve_problem_geodetic
 from obsplan.model import VehicleModel, parse_sensors
 from obsplan.observability.scaling import Scales
 
 OBJECTIVES: tuple[str, ...] = (
+    "pcrb-position",
     "gramian-min-eig",
     "gramian-log-det",
     "lwo-condition",
     "kf-position-std",
 )
+#: Objectives that follow an estimator's covariance along the path and so have a time mode.
+TIMED_OBJECTIVES: tuple[str, ...] = ("pcrb-position", "kf-position-std")
+#: ``objective.mode`` values; ``auto`` is ``final`` for kf-position-std (its historical meaning)
+#: and ``average-and-final`` for pcrb-position.
+MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final")
+#: Largest ``horizon.steps`` the planner accepts: the NLP grows linearly in N and IPOPT's time
+#: faster; N = 1000 solves in seconds to a minute (README benchmarks), 5000 is already hours.
+MAX_STEPS = 5000
+#: Longest horizon [s] and largest speed [m/s], acceleration [m/s²] and coordinate [m] accepted:
+#: far beyond any vehicle (a bound keeps absurd inputs from overflowing the checks' arithmetic).
+MAX_DURATION_S = 1e7
+MAX_MAGNITUDE = 1e7
+#: Budget of the validation Monte Carlo: runs x filter samples x state size (~8 bytes each per
+#: stored quantity); beyond it the simulation would need tens of GiB.
+MAX_MC_SIZE = 1e9
 #: Where ``obsplan plan`` looks when no problem file is given.
 PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
 DEFAULT_PROBLEM = PROBLEMS_DIR / "default.toml"
@@ -84,12 +101,47 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             'Range output of the filters: "half-squared" (y = |p-b|^2/2, eq. 3) or "range".',
         ),
     ),
+    "origin": (
+        FieldSpec(
+            "latitude",
+            "float",
+            _NONE,
+            "deg",
+            "WGS84 latitude of the origin of the local north-east-down frame (x north, y east, "
+            "z down = depth; obsplan.io.geodetic). Needed by beacon.geodetic / start.geodetic; "
+            "reports carry it and `obsplan export` writes geodetic waypoints with it.",
+        ),
+        FieldSpec("longitude", "float", _NONE, "deg", "WGS84 longitude of the origin."),
+        FieldSpec(
+            "altitude",
+            "float",
+            0.0,
+            "m",
+            "Ellipsoidal height of the depth-0 surface at the origin (depth = altitude - height).",
+        ),
+    ),
     "beacon": (
         FieldSpec("position", "vec", _NONE, "m", "Beacon position b (n values); default origin."),
+        FieldSpec(
+            "geodetic",
+            "vec",
+            _NONE,
+            "deg, deg[, m]",
+            "Instead of position: [latitude, longitude] (2D) or [latitude, longitude, depth] "
+            "(3D) about [origin].",
+        ),
     ),
     "start": (
         FieldSpec("position", "vec", _NONE, "m", "Start position p(0) (n values).", True),
         FieldSpec("velocity", "vec", _NONE, "m/s", "Start inertial velocity p'(0); default zeros."),
+        FieldSpec(
+            "geodetic",
+            "vec",
+            _NONE,
+            "deg, deg[, m]",
+            "Instead of position (then not required): [latitude, longitude] (2D) or "
+            "[latitude, longitude, depth] (3D) about [origin].",
+        ),
     ),
     "limits": (
         FieldSpec(
@@ -117,6 +169,31 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "3D only: [z_min, z_max] band for p_z on the whole continuous path; default none.",
         ),
         FieldSpec(
+            "min_range",
+            "float",
+            5.0,
+            "m",
+            "Minimum distance |p-b| to the beacon on the whole continuous path (mooring, "
+            "transducer blanking); 0 disables it. The start must respect it.",
+        ),
+        FieldSpec(
+            "max_range",
+            "float",
+            _NONE,
+            "m",
+            "Maximum distance |p-b| to the beacon (acoustic range) on the whole continuous "
+            "path; default none.",
+        ),
+        FieldSpec(
+            "min_speed",
+            "float",
+            0.0,
+            "m/s",
+            "Minimum speed through the water |p' - v_f| (v_f = vehicle.current_velocity) on the "
+            "whole continuous path, for vehicles that cannot hover; the start velocity must "
+            "respect it. 0 disables it.",
+        ),
+        FieldSpec(
             "area",
             "area",
             _NONE,
@@ -138,7 +215,23 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
         ),
     ),
     "objective": (
-        FieldSpec("kind", "str", "gramian-min-eig", "-", "One of " + ", ".join(OBJECTIVES) + "."),
+        FieldSpec(
+            "kind",
+            "str",
+            "pcrb-position",
+            "-",
+            "One of " + ", ".join(OBJECTIVES) + " (docs/problem-files.md has their formulations).",
+        ),
+        FieldSpec(
+            "mode",
+            "str",
+            "auto",
+            "-",
+            'For pcrb-position and kf-position-std: "final" (position std at the end), '
+            '"mission-average" (its time average over the mission) or "average-and-final" (the '
+            'sum of the two, each relative to its value on the lawn-mower); "auto" is '
+            "average-and-final for pcrb-position and final for kf-position-std.",
+        ),
         FieldSpec(
             "starts",
             "int",
@@ -147,8 +240,17 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "Number of initial guesses: lawn-mower, circle, then seeded random ones.",
         ),
         FieldSpec("seed", "int", 0, "-", "Seed of the random initial guesses."),
-        FieldSpec("max_iter", "int", 500, "-", "IPOPT iteration limit per start."),
-        FieldSpec("tol", "float", 1e-8, "-", "IPOPT convergence tolerance (tol)."),
+        FieldSpec("max_iter", "int", 1000, "-", "IPOPT iteration limit per start."),
+        FieldSpec(
+            "tol",
+            "float",
+            _NONE,
+            "-",
+            "IPOPT convergence tolerance (tol) of the NLP, whose objective is normalised to 1 on "
+            "the lawn-mower; default 1e-8, or 1e-4 for pcrb-position and kf-position-std (L-BFGS "
+            "converges slowly: at N = 1000, 1e-5 takes 5x the iterations for a 0.4 % better "
+            "bound).",
+        ),
     ),
     "scales": (
         FieldSpec(
@@ -223,12 +325,16 @@ class Area:
 
 @dataclass(frozen=True)
 class Limits:
-    """Limits: per-axis acceleration [m/s²], speed [m/s], optional depth band and area [m]."""
+    """Limits: per-axis acceleration [m/s²], speed [m/s], depth band and area [m], distance to the
+    beacon [m] and minimum speed through the water [m/s] (see :data:`SCHEMA`)."""
 
     accel: tuple[float, ...]
     speed: float
     depth: tuple[float, float] | None = None
     area: Area | None = None
+    min_range: float = 5.0
+    max_range: float | None = None
+    min_speed: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -248,11 +354,19 @@ class Horizon:
 class ObjectiveSpec:
     """Objective kind and multi-start settings."""
 
-    kind: str = "gramian-min-eig"
+    kind: str = "pcrb-position"
+    mode: str = "auto"
     starts: int = 4
     seed: int = 0
-    max_iter: int = 500
-    tol: float = 1e-8
+    max_iter: int = 1000
+    tol: float | None = None
+
+    @property
+    def solver_tol(self) -> float:
+        """``tol`` with the default of :data:`SCHEMA` resolved."""
+        if self.tol is not None:
+            return self.tol
+        return 1e-4 if self.kind in TIMED_OBJECTIVES else 1e-8
 
 
 @dataclass(frozen=True)
@@ -290,6 +404,8 @@ class PlanningProblem:
     scales: Scales = field(default_factory=Scales)
     validation: ValidationSpec = field(default_factory=ValidationSpec)
     name: str = ""
+    #: Origin of the local north-east-down frame when the problem was given geodetically.
+    origin: GeodeticOrigin | None = None
 
     def __post_init__(self) -> None:
         _check_problem(self)
@@ -329,6 +445,25 @@ class PlanningProblem:
     def times(self) -> np.ndarray:
         """Planning grid ``t_k = k dt``, shape (N + 1,) [s]."""
         return np.linspace(0.0, self.horizon.duration, self.horizon.steps + 1)
+
+    @property
+    def objective_mode(self) -> str:
+        """``objective.mode`` with ``auto`` resolved (see :data:`MODES`)."""
+        mode = self.objective.mode
+        if mode == "auto":
+            return "final" if self.objective.kind == "kf-position-std" else "average-and-final"
+        return mode
+
+    @property
+    def current_array(self) -> np.ndarray:
+        """The current ``v_f`` assumed by the limits and the validation, shape (n,) [m/s]."""
+        return np.asarray(self.vehicle.current_velocity, float)
+
+    @property
+    def filter_times(self) -> np.ndarray:
+        """The validation's filter grid ``k * validation.dt`` over the horizon, shape (M,) [s]."""
+        steps = int(round(self.horizon.duration / self.validation.dt))
+        return np.linspace(0.0, self.horizon.duration, steps + 1)
 
     def coverage_area(self) -> Area:
         """The area the lawn-mower baseline covers: ``limits.area`` or the documented default."""
@@ -480,6 +615,7 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
     ProblemError
         Naming the ``section.field`` at fault and what it should be.
     """
+    data, origin = resolve_problem_geodetic(data)  # [origin] + *.geodetic -> metric positions
     unknown = sorted(set(data) - set(SCHEMA))
     if unknown:
         raise _err(unknown[0], f"unknown section; sections are {', '.join(SCHEMA)}")
@@ -507,12 +643,63 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
         beacon=s["beacon"]["position"] or (0.0,) * dim,
         start_position=s["start"]["position"],
         start_velocity=s["start"]["velocity"] or (0.0,) * dim,
-        limits=Limits(accel=lim["accel"], speed=lim["speed"], depth=lim["depth"], area=lim["area"]),
+        limits=Limits(
+            accel=lim["accel"],
+            speed=lim["speed"],
+            depth=lim["depth"],
+            area=lim["area"],
+            min_range=lim["min_range"],
+            max_range=lim["max_range"],
+            min_speed=lim["min_speed"],
+        ),
         horizon=Horizon(**s["horizon"]),
         objective=ObjectiveSpec(**s["objective"]),
         scales=_scales(s["scales"]),
         validation=ValidationSpec(**s["validation"]),
+        origin=origin,
     )
+
+
+def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
+    """The canonical problem-file mapping of ``pb``: ``problem_from_dict(problem_to_dict(pb))``
+    rebuilds an equal problem. Every field of :data:`SCHEMA` is present (defaults resolved), so
+    the mapping identifies the problem (sweeps hash it)."""
+    veh, lim, hor, obj, val = pb.vehicle, pb.limits, pb.horizon, pb.objective, pb.validation
+    limits: dict[str, Any] = {
+        "accel": list(lim.accel),
+        "speed": lim.speed,
+        "min_range": lim.min_range,
+        "min_speed": lim.min_speed,
+    }
+    if lim.depth is not None:
+        limits["depth"] = list(lim.depth)
+    if lim.area is not None:
+        limits["area"] = {"x": list(lim.area.x), "y": list(lim.area.y)}
+    if lim.max_range is not None:
+        limits["max_range"] = lim.max_range
+    out: dict[str, Any] = {
+        "problem": {"name": pb.name},
+        "vehicle": {
+            "dim": veh.dim,
+            "sensors": list(veh.sensors),
+            "current": veh.current,
+            "current_velocity": list(veh.current_velocity),
+            "range_form": veh.range_form,
+        },
+        "beacon": {"position": list(pb.beacon)},
+        "start": {"position": list(pb.start_position), "velocity": list(pb.start_velocity)},
+        "limits": limits,
+        "horizon": {"duration": hor.duration, "steps": hor.steps},
+        "objective": {
+            f: getattr(obj, f) for f in obj.__dataclass_fields__ if getattr(obj, f) is not None
+        },
+        "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
+        "validation": {f: getattr(val, f) for f in val.__dataclass_fields__},
+    }
+    if pb.origin is not None:
+        o = pb.origin
+        out["origin"] = {"latitude": o.latitude, "longitude": o.longitude, "altitude": o.altitude}
+    return out
 
 
 def _scales(vals: dict[str, float]) -> Scales:
@@ -587,6 +774,17 @@ def _check_problem(pb: PlanningProblem) -> None:
         raise _err("limits.accel", f"every bound must be > 0 m/s^2, got {list(lim.accel)}")
     if not lim.speed > 0:
         raise _err("limits.speed", f"must be > 0 m/s, got {lim.speed}")
+    for where, vec in (
+        ("beacon.position", pb.beacon),
+        ("start.position", pb.start_position),
+        ("start.velocity", pb.start_velocity),
+        ("limits.accel", lim.accel),
+        ("limits.speed", (lim.speed,)),
+    ):
+        if any(abs(float(x)) > MAX_MAGNITUDE for x in vec):
+            raise _err(
+                where, f"{list(vec)} is beyond {MAX_MAGNITUDE:g} in SI units; check the units"
+            )
     speed0 = float(np.linalg.norm(pb.v0))
     if speed0 > lim.speed:
         raise _err(
@@ -616,17 +814,39 @@ def _check_problem(pb: PlanningProblem) -> None:
             )
     if not (math.isfinite(hor.duration) and hor.duration > 0):
         raise _err("horizon.duration", f"must be > 0 s, got {hor.duration}")
+    if hor.duration > MAX_DURATION_S:
+        raise _err(
+            "horizon.duration",
+            f"{hor.duration:g} s is beyond the planner's range ({MAX_DURATION_S:g} s, "
+            f"{MAX_DURATION_S / 86400:.3g} days); plan the mission in shorter pieces",
+        )
     if hor.steps < 2:
         raise _err("horizon.steps", f"must be at least 2, got {hor.steps}")
+    if hor.steps > MAX_STEPS:
+        raise _err(
+            "horizon.steps",
+            f"{hor.steps} exceeds the planner's limit of {MAX_STEPS} constant-acceleration "
+            f"intervals (the solve would take hours); use at most {MAX_STEPS} "
+            f"(a step of {hor.duration / MAX_STEPS:.3g} s or longer)",
+        )
+    _check_range_and_speed_limits(pb)
     if obj.kind not in OBJECTIVES:
         raise _err(
             "objective.kind", f"unknown objective {obj.kind!r}; choose from {', '.join(OBJECTIVES)}"
+        )
+    if obj.mode not in MODES:
+        raise _err("objective.mode", f"must be one of {', '.join(MODES)}, got {obj.mode!r}")
+    if obj.mode != "auto" and obj.kind not in TIMED_OBJECTIVES:
+        raise _err(
+            "objective.mode",
+            f"{obj.kind} has no time mode (only {', '.join(TIMED_OBJECTIVES)} do); remove "
+            'objective.mode or set it to "auto"',
         )
     if obj.starts < 1:
         raise _err("objective.starts", f"must be at least 1, got {obj.starts}")
     if obj.max_iter < 1:
         raise _err("objective.max_iter", f"must be at least 1, got {obj.max_iter}")
-    if not 0 < obj.tol < 1:
+    if obj.tol is not None and not 0 < obj.tol < 1:
         raise _err("objective.tol", f"must be in (0, 1), got {obj.tol}")
     if obj.seed < 0 or val.seed < 0:
         raise _err("objective.seed" if obj.seed < 0 else "validation.seed", "must be >= 0")
@@ -669,7 +889,92 @@ def _check_problem(pb: PlanningProblem) -> None:
             "validation.range_rate",
             f"gives fewer than 2 ranges over horizon.duration = {hor.duration:g} s",
         )
+    reach = 0.5 * min(lim.accel) * hor.duration**2
+    if reach < val.range_std:
+        raise _err(
+            "limits.accel",
+            f"at {min(lim.accel):g} m/s^2 the inputs move the vehicle at most {reach:.3g} m over "
+            f"the horizon (a T^2 / 2), less than the range noise validation.range_std = "
+            f"{val.range_std:g} m: no path can excite the observability; raise the limit or "
+            "lengthen horizon.duration",
+        )
+    samples = hor.duration / val.dt + 1
+    size = val.runs * samples * 3 * n
+    if size > MAX_MC_SIZE:
+        runs_max = int(MAX_MC_SIZE / (samples * 3 * n))
+        raise _err(
+            "validation.runs",
+            f"{val.runs} runs of {samples:.0f} filter steps are too large for the validation "
+            f"Monte Carlo (would need ~{size * 8 * 4 / 2**30:.0f} GiB); use at most {runs_max} "
+            "runs or a longer validation.dt",
+        )
     _check_objective_structure(pb)
+
+
+def _margins(pb: PlanningProblem) -> tuple[float, float]:
+    """Between-node margins of the range and speed limits (see ``planning/objectives.py``).
+
+    Returns ``(tau, a_norm)``: the planner enforces the limits at nodes and midpoints, each point
+    covering ``±tau = h/4`` of the path, where the distance to the beacon moves by at most
+    ``|v| tau + a_norm tau² / 2`` and the speed by at most ``a_norm tau``.
+    """
+    return pb.horizon.dt / 4.0, float(np.linalg.norm(pb.accel))
+
+
+def _check_range_and_speed_limits(pb: PlanningProblem) -> None:
+    lim = pb.limits
+    for name in ("min_range", "min_speed"):
+        x = getattr(lim, name)
+        if not (math.isfinite(x) and x >= 0):
+            raise _err(f"limits.{name}", f"must be >= 0 (0 disables it), got {x}")
+    r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon, float)))
+    tau, a = _margins(pb)
+    s0 = float(np.linalg.norm(pb.v0))
+    need = lim.min_range + s0 * tau + 0.5 * a * tau**2 if lim.min_range > 0 else 0.0
+    if r0 < lim.min_range:
+        raise _err(
+            "start.position",
+            f"the start is {r0:.4g} m from the beacon, inside limits.min_range = "
+            f"{lim.min_range:g} m; move the start away from the beacon or lower limits.min_range",
+        )
+    if r0 < need:
+        raise _err(
+            "horizon.steps",
+            f"the start is {r0:.4g} m from the beacon; between nodes the planner keeps "
+            f"limits.min_range = {lim.min_range:g} m with a margin |v0| h/4 + |a| h^2/32 = "
+            f"{need - lim.min_range:.3g} m at the planning step h = {pb.horizon.dt:.3g} s, which "
+            "the start does not have: use more horizon.steps (a shorter step), or move the "
+            "start away from the beacon",
+        )
+    if lim.max_range is not None:
+        if not (math.isfinite(lim.max_range) and lim.max_range > lim.min_range):
+            raise _err(
+                "limits.max_range",
+                f"must be a distance above limits.min_range = {lim.min_range:g} m, got "
+                f"{lim.max_range}",
+            )
+        reach = r0 + s0 * tau + 0.5 * a * tau**2
+        if reach > lim.max_range:
+            raise _err(
+                "start.position",
+                f"the start is {r0:.4g} m from the beacon, beyond (or too close to) "
+                f"limits.max_range = {lim.max_range:g} m; move the start or raise max_range",
+            )
+    if lim.min_speed > 0:
+        if lim.min_speed >= lim.speed:
+            raise _err(
+                "limits.min_speed",
+                f"{lim.min_speed:g} m/s must be below limits.speed = {lim.speed:g} m/s",
+            )
+        w0 = float(np.linalg.norm(pb.v0 - pb.current_array))
+        need_w = lim.min_speed + a * tau
+        if w0 < need_w:
+            raise _err(
+                "start.velocity",
+                f"the speed through the water at the start, |v0 - v_f| = {w0:.4g} m/s, is below "
+                f"limits.min_speed = {lim.min_speed:g} m/s plus the planner's between-node "
+                f"margin ({need_w:.4g} m/s in all); start the vehicle moving or lower min_speed",
+            )
 
 
 def _check_objective_structure(pb: PlanningProblem) -> None:

@@ -1,0 +1,146 @@
+"""``obsplan export PLAN.csv --waypoints WP.csv [--qgc MISSION.plan]``: flyable waypoints."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from obsplan.cli.common import OutputFile, read_trajectory
+from obsplan.errors import InputError
+
+DEFAULT_EVERY_S = 30.0
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register the ``export`` verb."""
+    p = subparsers.add_parser(
+        "export",
+        help="waypoints (metric or geodetic) and a QGroundControl mission from a plan",
+        description=(
+            "Turn a planned trajectory CSV into waypoints for an autopilot that flies straight "
+            "legs: a waypoint CSV (time, position, speed, and the exact tracking error of each "
+            "leg) and/or a QGroundControl .plan mission for MAVLink (ArduSub) vehicles. "
+            "Geodetic output needs the origin of the plan's north-east-down frame: --origin, or "
+            "the 'origin' of report.json beside PLAN.csv (written by `obsplan plan` for a "
+            "geodetic problem). See docs/export.md."
+        ),
+    )
+    p.add_argument("plan", metavar="PLAN.csv", help="trajectory CSV (e.g. DIR/plan.csv)")
+    p.add_argument("--waypoints", metavar="WP.csv", default=None, help="waypoint CSV to write")
+    p.add_argument("--qgc", metavar="MISSION.plan", default=None, help="QGroundControl plan")
+    space = p.add_mutually_exclusive_group()
+    space.add_argument(
+        "--every",
+        metavar="S",
+        type=float,
+        default=None,
+        help=f"a waypoint every S seconds of the plan (default {DEFAULT_EVERY_S:g})",
+    )
+    space.add_argument(
+        "--spacing", metavar="M", type=float, default=None, help="a waypoint every M metres"
+    )
+    p.add_argument(
+        "--geodetic",
+        action="store_true",
+        help="write latitude, longitude[, depth] in the waypoint CSV (needs an origin)",
+    )
+    p.add_argument("--origin", metavar="LAT,LON[,ALT]", default=None, help="origin of the frame")
+    p.add_argument(
+        "--depth",
+        metavar="M",
+        type=float,
+        default=0.0,
+        help="depth [m] of a 2D plan in the mission (default 0: at the surface)",
+    )
+    p.add_argument(
+        "--acceptance-radius",
+        metavar="M",
+        type=float,
+        default=1.0,
+        help="waypoint acceptance radius of the mission [m] (default 1)",
+    )
+    p.add_argument("--force", action="store_true", help="replace existing output files")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    return p
+
+
+def _origin(args: argparse.Namespace):
+    from obsplan.io.geodetic import GeodeticOrigin, parse_origin
+
+    if args.origin is not None:
+        return parse_origin(args.origin), "--origin"
+    report = Path(args.plan).with_name("report.json")
+    if report.is_file():
+        try:
+            o = json.loads(report.read_text(encoding="utf-8")).get("origin")
+        except (OSError, ValueError, AttributeError):
+            o = None
+        if isinstance(o, dict):
+            try:
+                return GeodeticOrigin(o["latitude"], o["longitude"], o.get("altitude", 0.0)), str(
+                    report
+                )
+            except (KeyError, TypeError, InputError):
+                raise InputError(f"{report}: its 'origin' is malformed; give --origin") from None
+    return None, None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``obsplan export``; 0 on success."""
+    from obsplan.io.waypoints import waypoints_from_trajectory, write_qgc_plan, write_waypoints_csv
+
+    if args.waypoints is None and args.qgc is None:
+        raise InputError("nothing to write: give --waypoints WP.csv and/or --qgc MISSION.plan")
+    outs = []
+    if args.waypoints is not None:
+        outs.append(OutputFile(args.waypoints, args.force, "--waypoints", inputs=[args.plan]))
+    if args.qgc is not None:
+        outs.append(OutputFile(args.qgc, args.force, "--qgc", inputs=[args.plan]))
+    if len(outs) == 2 and outs[0].path.resolve() == outs[1].path.resolve():
+        raise InputError("--waypoints and --qgc name the same file; give two names")
+    origin, origin_from = _origin(args)
+    if (args.geodetic or args.qgc) and origin is None:
+        raise InputError(
+            ("--qgc" if args.qgc else "--geodetic")
+            + " needs geodetic coordinates: give --origin LAT,LON[,ALT] (the origin of the "
+            "plan's north-east-down frame), or export a plan whose report.json has an origin"
+        )
+    traj = read_trajectory(args.plan, "export")
+    every = args.every if (args.every is not None or args.spacing is not None) else DEFAULT_EVERY_S
+    wp = waypoints_from_trajectory(traj, every=every, spacing=args.spacing, origin=origin)
+    written = []
+    if args.waypoints is not None:
+        with outs[0].writing() as tmp:
+            write_waypoints_csv(wp, tmp, geodetic=args.geodetic)
+        written.append(str(outs[0].path))
+    if args.qgc is not None:
+        with outs[-1].writing() as tmp:
+            write_qgc_plan(wp, tmp, depth_2d=args.depth, acceptance_radius=args.acceptance_radius)
+        written.append(str(outs[-1].path))
+    summary = {
+        "waypoints": len(wp),
+        "every_s": args.every if args.spacing is None else None,
+        "spacing_m": args.spacing,
+        "max_cross_track_m": wp.max_cross_track,
+        "max_schedule_error_m": wp.max_schedule_error,
+        "origin": origin.to_dict() if origin is not None else None,
+        "written": written,
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        step = f"every {every:g} s" if args.spacing is None else f"every {args.spacing:g} m"
+        print(
+            f"{args.plan}: {len(wp)} waypoints ({step}); straight-line following leaves the "
+            f"planned path by at most {wp.max_cross_track:.3g} m (cross-track) and "
+            f"{wp.max_schedule_error:.3g} m from the planned position at the same time "
+            "(exact, from the piecewise-quadratic plan)"
+        )
+        if origin_from is not None:
+            print(f"origin {origin.latitude:.8g}, {origin.longitude:.8g} (from {origin_from})")
+        print("wrote " + ", ".join(written))
+    if origin_from is not None and origin_from != "--origin" and not args.json:
+        print(f"obsplan export: using the origin of {origin_from}", file=sys.stderr)
+    return 0

@@ -1,0 +1,149 @@
+"""``obsplan sweep SWEEP.toml --out DIR [--workers N | --scheduler ADDRESS]``: a parameter study
+on Dask; ``obsplan sweep --report DIR`` redraws its figures from the table."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from obsplan.errors import InputError
+
+# obsplan.sweeps (pandas, Dask) is imported when the verb runs: every `obsplan` command imports
+# this module to build its parser
+if TYPE_CHECKING:
+    from obsplan.sweeps.run import SweepStart
+
+#: Failed tasks listed at the end (the rest are in the table's ``error`` column).
+SHOW_FAILED = 5
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
+    """Register the ``sweep`` verb."""
+    p = subparsers.add_parser(
+        "sweep",
+        help="run a parameter study (many problems) on Dask, resumable",
+        description=(
+            "Expand a sweep file (a base problem and axes of problem-file fields; see "
+            "docs/sweep-files.md) into tasks, validate them all, run them on Dask workers and "
+            "write DIR/results.parquet, DIR/results.csv (one row per task), DIR/tasks/<id>/ "
+            "(report.json, plan.csv) and DIR/figures/. Re-running the same command resumes: "
+            "finished tasks are skipped."
+        ),
+    )
+    p.add_argument("sweep_file", nargs="?", metavar="SWEEP.toml", help="the sweep file")
+    p.add_argument("--out", metavar="DIR", help="output folder (created, or resumed)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="worker processes of a local Dask cluster (default: one per core)",
+    )
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="use an existing Dask cluster, e.g. tcp://10.0.0.5:8786",
+    )
+    p.add_argument(
+        "--report",
+        metavar="DIR",
+        help="only redraw DIR/figures/ from DIR/results.parquet (no SWEEP.toml)",
+    )
+    p.add_argument(
+        "--retry-failed", action="store_true", help="run again the tasks recorded as failed"
+    )
+    p.add_argument("--no-figures", action="store_true", help="do not draw DIR/figures/")
+    p.add_argument(
+        "--force", action="store_true", help="write into a non-empty DIR that holds no sweep"
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def _announce(info: SweepStart, quiet: bool) -> None:
+    head = (
+        f"sweep {info.name}: {info.tasks} tasks"
+        + (f" ({info.unique} distinct problems)" if info.unique != info.tasks else "")
+        + f", {info.finished} already done, {info.to_run} to run"
+    )
+    if info.scheduler is not None:
+        n = len(info.worker_threads)
+        head += f" on {info.scheduler} ({n} worker{'s' if n != 1 else ''})"
+    print(head, flush=True)
+    if info.dashboard and not quiet:
+        print(f"dashboard: {info.dashboard}", flush=True)
+    if any(t > 1 for t in info.worker_threads):
+        print(
+            "obsplan sweep: warning: some workers have several threads; tasks run one at a "
+            "time per worker process (IPOPT must not run in threads): start workers with "
+            "`dask worker ADDRESS --nthreads 1 --nworkers N`",
+            file=sys.stderr,
+        )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the verb; 0 when every task finished, 1 if any failed, 130 on Ctrl-C."""
+    from obsplan.sweeps.figures import redraw_figures
+    from obsplan.sweeps.run import sweep
+    from obsplan.sweeps.store import FIGURES, RESULTS_CSV, RESULTS_PARQUET
+
+    if args.report is not None:
+        if args.sweep_file is not None or args.out is not None:
+            raise InputError(
+                "--report DIR redraws the figures of a finished sweep; give it alone "
+                "(no SWEEP.toml, no --out)"
+            )
+        written = redraw_figures(args.report)
+        print(f"wrote {len(written)} figures to {Path(args.report) / FIGURES}")
+        return 0
+    if args.sweep_file is None:
+        raise InputError("give a SWEEP.toml (or --report DIR to redraw a sweep's figures)")
+    if args.out is None:
+        raise InputError("give --out DIR, the folder for the results (re-use it to resume)")
+    out = Path(args.out)
+    # Dask logs a lost connection or a dead worker as tracebacks; the sweep reports both itself
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    try:
+        df = sweep(
+            args.sweep_file,
+            out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            retry_failed=args.retry_failed,
+            progress=not args.quiet,
+            figures=not args.no_figures,
+            force=args.force,
+            on_start=lambda info: _announce(info, args.quiet),
+        )
+    except KeyboardInterrupt:
+        print(
+            f"obsplan sweep: finished tasks are kept in {out}; run the same command again to "
+            "resume",
+            file=sys.stderr,
+        )
+        raise
+    counts = df["status"].value_counts()
+    done, failed = int(counts.get("done", 0)), int(counts.get("failed", 0))
+    figs = sorted((out / FIGURES).glob("*.png")) if not args.no_figures else []
+    print(f"{done} done, {failed} failed of {len(df)} tasks")
+    print(
+        f"wrote {out / RESULTS_PARQUET}, {out / RESULTS_CSV}, {out / 'tasks'}/"
+        + (f", {len(figs)} figures in {out / FIGURES}" if figs else "")
+    )
+    if failed:
+        bad = df[df["status"] == "failed"]
+        for _, r in bad.head(SHOW_FAILED).iterrows():
+            print(f"  task {r['task']} ({r['task_id']}): {r['error']}", file=sys.stderr)
+        more = (
+            f" ({failed - SHOW_FAILED} more in {out / RESULTS_CSV})" if failed > SHOW_FAILED else ""
+        )
+        print(
+            f"obsplan sweep: failed: {failed} tasks failed{more}; fix the cause and re-run with "
+            "--retry-failed",
+            file=sys.stderr,
+        )
+        return 1
+    return 0

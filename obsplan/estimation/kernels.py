@@ -1,0 +1,771 @@
+"""Compiled kernels (numba) of the truth, the filters and the per-run statistics.
+
+One call filters a batch of runs (``simulate.BATCH``) from the first epoch to the last, so a
+Monte Carlo is a short Python loop over batches (Ctrl-C is honoured between them). State arrays
+carry the batch's members on their last axis (``X`` (m, B), ``P`` (m, m, B)), so the innermost
+loops run over contiguous members and vectorise; the members are runs, or for the Gaussian sum
+the components of the runs. The equations are those of :mod:`obsplan.estimation.kalman`,
+:mod:`~obsplan.estimation.ekf` and :mod:`~obsplan.estimation.kf`, written out in loops:
+
+* prediction over a segment: ``x⁺ = F x + g``, ``P⁺ = F P Fᵀ + Q`` with ``F = I + N`` and ``N``
+  strictly upper triangular, given as rows ``(row, col, mult, power)``: ``N[row, col] = mult ·
+  T^power``;
+* update: one scalar Joseph update per output row with a sparse measurement row
+  (``P - (k wᵀ + w kᵀ)``, ``w = b - s k/2``, ``b = P h``, ``s = hᵀ b + r``), exactly symmetric;
+  a member without that reading gets a zero gain and is left exactly as it was;
+* statistics on the navigation state ``(p, p')`` at the records (per run: the mixture of its
+  members), written to a per-run buffer that is added to the sums of the run's group (flagged
+  by the divergence monitor or not).
+
+Small helpers take few array arguments (work buffers are packed into one array per purpose):
+in numba each array argument of an inlined call costs ~10 ns of reference counting, more than a
+4-state update. Compiled on first use and cached on disk (``cache=True``); this module is
+imported lazily, so ``import obsplan`` does not load numba.
+
+Packed layouts
+--------------
+* segment / record tables (rows), float: ``T, S0, S1, S2, τ_a, dp (n), dv (n)``
+  (:data:`TAB_T` ...), then for records the true ``(p, p')`` (2n);
+* ``ws`` (5, ·, B): ``b, k, w, val`` (per state, per member), then per member the scalars
+  ``ν, r, ok, s, gain, Σ NIS, count, Σ log-likelihood`` and the transition's coefficients;
+* ``nw`` (4 + 6n, 2n): rows ``mean, e, y, off`` then ``C`` (2n rows), ``L`` (2n), ``q_nav`` (2n);
+* linear output rows ``lin`` (outputs, 5): ``nnz, idx0, idx1, var, off``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from obsplan.estimation.stats import (  # the buffer's columns and the per-run info
+    COL_AXES,
+    COL_NEES,
+    COL_SE_VEL,
+    COL_VAR_VEL,
+    INFO_FINAL_POS,
+    INFO_FINAL_STD,
+    INFO_FINAL_VEL,
+    INFO_FLAG_TIME,
+    INFO_FLAGGED,
+    INFO_LAST_ABOVE,
+    INFO_NIS,
+    INFO_NONFINITE,
+)
+
+jit = nb.njit(cache=True, nogil=True)
+inline = nb.njit(cache=True, nogil=True, inline="always")
+
+TAB_T, TAB_S0, TAB_S1, TAB_S2, TAB_TAU, TAB_G = 0, 1, 2, 3, 4, 5
+WS_B, WS_K, WS_W, WS_VAL, WS_SC = 0, 1, 2, 3, 4
+SC_NU, SC_R, SC_OK, SC_S, SC_G, SC_NIS, SC_CNT, SC_LL, SC_COEF = 0, 1, 2, 3, 4, 5, 6, 7, 8
+NW_MEAN, NW_E, NW_Y, NW_OFF, NW_C = 0, 1, 2, 3, 4
+
+
+# ----------------------------------------------------------------------------- truth
+@jit
+def truth_deviation(z, L, h, n, cur, points, out):
+    """``δ_{k+1} = (I + h_k A) δ_k + L z_k`` over all steps; ``out[i] = δ`` at ``points[i]``."""
+    m, r = L.shape
+    d = np.zeros(m)
+    P = points.shape[0]
+    pi = 0
+    while pi < P and points[pi] == 0:
+        pi += 1  # δ_0 = 0 (out is zero-initialised)
+    for k in range(z.shape[0]):
+        hk = h[k]
+        for i in range(n):
+            vel = d[n + i]
+            if cur:
+                vel += d[2 * n + i]
+            d[i] += hk * vel
+        for i in range(m):
+            acc = 0.0
+            for j in range(r):
+                acc += L[i, j] * z[k, j]
+            d[i] += acc
+        while pi < P and points[pi] == k + 1:
+            for i in range(m):
+                out[pi, i] = d[i]
+            pi += 1
+
+
+# ----------------------------------------------------------------------------- Kalman steps
+# Batched over the members of a batch (runs, or the components of the runs' Gaussian sums),
+# the last axis of every state array, so the innermost loops run over contiguous members.
+
+
+@inline
+def noise_terms(Q, qt, S0, S1, S2, mq):
+    """``Q = S0 q0 + S1 q1 + S2 q2`` on the first ``mq`` states, for every member."""
+    B = Q.shape[2]
+    for i in range(mq):
+        for j in range(mq):
+            v = S0 * qt[0, i, j] + S1 * qt[1, i, j] + S2 * qt[2, i, j]
+            for b in range(B):
+                Q[i, j, b] = v
+
+
+@inline
+def predict(X, P, tab, e, n, tr, Q, ws):
+    """``x ← (I + N) x + g``, ``P ← (I + N) P (I + N)ᵀ + Q`` in place, every member.
+
+    ``N`` is strictly upper triangular with its entries sorted by row, so the row operations
+    ``P[r] += c P[s]`` (then the same on columns) read rows not yet modified: no temporaries.
+    The upper triangle is mirrored, so ``P`` stays exactly symmetric. ``g`` is the segment's
+    ``dp`` on the first ``n`` states and ``dv`` on the next ``n``.
+    """
+    m, B = X.shape
+    T = tab[e, TAB_T]
+    K = tr.shape[0]
+    for t in range(K):
+        c = tr[t, 2]
+        for _ in range(int(tr[t, 3])):  # not T ** p: numba's float ** int is 40x slower here
+            c *= T
+        ws[WS_SC, SC_COEF + t, 0] = c
+        r, s = int(tr[t, 0]), int(tr[t, 1])
+        for b in range(B):
+            X[r, b] += c * X[s, b]
+    for i in range(n):
+        gp, gv = tab[e, TAB_G + i], tab[e, TAB_G + n + i]
+        for b in range(B):
+            X[i, b] += gp
+            X[n + i, b] += gv
+    for t in range(K):
+        c, r, s = ws[WS_SC, SC_COEF + t, 0], int(tr[t, 0]), int(tr[t, 1])
+        for j in range(m):
+            for b in range(B):
+                P[r, j, b] += c * P[s, j, b]  # F P
+    for t in range(K):
+        c, r, s = ws[WS_SC, SC_COEF + t, 0], int(tr[t, 0]), int(tr[t, 1])
+        for i in range(m):
+            for b in range(B):
+                P[i, r, b] += c * P[i, s, b]  # (F P) Fᵀ
+    for i in range(m):
+        for j in range(i, m):
+            for b in range(B):
+                v = P[i, j, b] + Q[i, j, b]
+                P[i, j, b] = v
+                P[j, i, b] = v
+
+
+@inline
+def update_rows(X, P, iw, ws, nnz):
+    """Scalar Joseph update of every member with the sparse row ``h[iw[:nnz]] = ws[WS_VAL]``.
+
+    Per member: innovation, variance and validity (0/1) in ``ws[WS_SC, SC_NU/SC_R/SC_OK]``; an
+    invalid member gets a zero gain (exactly unchanged). Adds the NIS, count and
+    log-likelihood of the innovation to ``ws[WS_SC, SC_NIS/SC_CNT/SC_LL]``.
+    """
+    m, B = X.shape
+    for i in range(m):
+        for b in range(B):
+            ws[WS_B, i, b] = 0.0
+        for t in range(nnz):
+            j = iw[t]
+            for b in range(B):
+                ws[WS_B, i, b] += P[i, j, b] * ws[WS_VAL, t, b]
+    for b in range(B):
+        ws[WS_SC, SC_S, b] = ws[WS_SC, SC_R, b]
+    for t in range(nnz):
+        j = iw[t]
+        for b in range(B):
+            ws[WS_SC, SC_S, b] += ws[WS_VAL, t, b] * ws[WS_B, j, b]
+    for b in range(B):
+        s, nu, ok = ws[WS_SC, SC_S, b], ws[WS_SC, SC_NU, b], ws[WS_SC, SC_OK, b]
+        ws[WS_SC, SC_NIS, b] += ok * nu * nu / s
+        ws[WS_SC, SC_CNT, b] += ok
+        ws[WS_SC, SC_LL, b] -= ok * 0.5 * (nu * nu / s + math.log(s))
+        ws[WS_SC, SC_G, b] = ok / s
+    for i in range(m):
+        for b in range(B):
+            k = ws[WS_B, i, b] * ws[WS_SC, SC_G, b]
+            ws[WS_K, i, b] = k
+            X[i, b] += k * ws[WS_SC, SC_NU, b]
+            ws[WS_W, i, b] = ws[WS_B, i, b] - 0.5 * ws[WS_SC, SC_S, b] * k  # w = b - s k / 2
+    for i in range(m):
+        for j in range(i, m):
+            for b in range(B):
+                v = P[i, j, b] - (ws[WS_K, i, b] * ws[WS_W, j, b] + ws[WS_W, i, b] * ws[WS_K, j, b])
+                P[i, j, b] = v
+                P[j, i, b] = v
+
+
+@inline
+def linear_updates(X, P, Y, e, lin, iw, ws, G):
+    """Updates with the linear output rows ``1..`` (DVL, depth); member b reads run ``b // G``."""
+    B = X.shape[1]
+    for o in range(1, Y.shape[1]):
+        nnz = int(lin[o, 0])
+        for t in range(nnz):
+            iw[t] = int(lin[o, 1 + t])
+        any_ok = False
+        for b in range(B):
+            yo = Y[e, o, b // G]
+            ok = math.isfinite(yo)
+            any_ok = any_ok or ok
+            pred = lin[o, 4]
+            for t in range(nnz):
+                ws[WS_VAL, t, b] = 1.0
+                pred += X[iw[t], b]
+            ws[WS_SC, SC_NU, b] = yo - pred if ok else 0.0
+            ws[WS_SC, SC_R, b] = lin[o, 3]
+            ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
+        if any_ok:
+            update_rows(X, P, iw, ws, nnz)
+
+
+# ----------------------------------------------------------------------------- statistics
+@inline
+def nees(nw, n2):
+    """``eᵀ C⁻¹ e`` by Cholesky (NaN if ``C`` is not positive definite); ``e``, ``C`` in ``nw``."""
+    C, L = NW_C, NW_C + n2
+    for j in range(n2):
+        s = nw[C + j, j]
+        for k in range(j):
+            s -= nw[L + j, k] * nw[L + j, k]
+        if not s > 0.0:
+            return np.nan
+        nw[L + j, j] = math.sqrt(s)
+        for i in range(j + 1, n2):
+            s = nw[C + i, j]
+            for k in range(j):
+                s -= nw[L + i, k] * nw[L + j, k]
+            nw[L + i, j] = s / nw[L + j, j]
+    acc = 0.0
+    for i in range(n2):
+        s = nw[NW_E, i]
+        for k in range(i):
+            s -= nw[L + i, k] * nw[NW_Y, k]
+        y = s / nw[L + i, i]
+        nw[NW_Y, i] = y
+        acc += y * y
+    return acc
+
+
+@inline
+def record_epoch(x, P, e, ri, n, cur, rec_base, rec, buf, ex, nw, keep_ex):
+    """Record every sample based at epoch ``e`` (the epoch itself and the samples after it).
+
+    The navigation estimate ``(p + off, v [+ v_f])`` and its covariance are predicted from the
+    epoch over the record's segment, ``(p, ν)⁺ = (p + T ν + dp, ν + dv)``, ``C⁺ = (I + T A) C
+    (I + T A)ᵀ + Q(S)`` with ``A = [[0, I], [0, 0]]`` and the composed noise of ``q_nav``; then
+    errors against the truth (``rec`` after the table columns), variances and NEES go to
+    ``buf[ri]``.
+    """
+    n2 = 2 * n
+    C, Qz = NW_C, NW_C + 2 * n2
+    G = TAB_G + n2  # the truth's columns in ``rec``
+    Nr = rec_base.shape[0]
+    while ri < Nr and rec_base[ri] == e:
+        for i in range(n):
+            nw[NW_MEAN, i] = x[i] + nw[NW_OFF, i]
+            nw[NW_MEAN, n + i] = x[n + i] + (x[2 * n + i] if cur else 0.0)
+        for a in range(n2):
+            for c in range(n2):
+                acc = P[a, c]
+                if cur:
+                    if a >= n:
+                        acc += P[a + n, c]
+                    if c >= n:
+                        acc += P[a, c + n]
+                    if a >= n and c >= n:
+                        acc += P[a + n, c + n]
+                nw[C + a, c] = acc
+        S0, S1, S2, T = rec[ri, TAB_S0], rec[ri, TAB_S1], rec[ri, TAB_S2], rec[ri, TAB_T]
+        if S0 > 0.0:
+            for i in range(n):
+                nw[NW_MEAN, i] += T * nw[NW_MEAN, n + i] + rec[ri, TAB_G + i]
+                nw[NW_MEAN, n + i] += rec[ri, TAB_G + n + i]
+            # entry (a, c) reads only its own block entries: in place is safe
+            for a in range(n):
+                for c in range(n):
+                    pp = nw[C + a, c] + T * (nw[C + a, n + c] + nw[C + n + a, c])
+                    pp += T * T * nw[C + n + a, n + c] + S0 * nw[Qz + a, c]
+                    pp += S1 * (nw[Qz + a, n + c] + nw[Qz + n + a, c]) + S2 * nw[Qz + n + a, n + c]
+                    pv = nw[C + a, n + c] + T * nw[C + n + a, n + c]
+                    pv += S0 * nw[Qz + a, n + c] + S1 * nw[Qz + n + a, n + c]
+                    vp = nw[C + n + a, c] + T * nw[C + n + a, n + c]
+                    vp += S0 * nw[Qz + n + a, c] + S1 * nw[Qz + n + a, n + c]
+                    nw[C + a, c] = pp
+                    nw[C + a, n + c] = pv
+                    nw[C + n + a, c] = vp
+            for a in range(n):
+                for c in range(n):
+                    nw[C + n + a, n + c] += S0 * nw[Qz + n + a, n + c]
+        sv = 0.0
+        vv = 0.0
+        for i in range(n2):
+            nw[NW_E, i] = nw[NW_MEAN, i] - rec[ri, G + i]
+        for i in range(n):
+            ep = nw[NW_E, i]
+            ev = nw[NW_E, n + i]
+            sv += ev * ev
+            vv += nw[C + n + i, n + i]
+            buf[ri, COL_AXES + i] = ep * ep
+            buf[ri, COL_AXES + n + i] = nw[C + i, i]
+        buf[ri, COL_SE_VEL] = sv
+        buf[ri, COL_VAR_VEL] = vv
+        buf[ri, COL_NEES] = nees(nw, n2)
+        if keep_ex:
+            for i in range(n2):
+                ex[0, ri, i] = nw[NW_MEAN, i]
+                ex[1, ri, i] = math.sqrt(max(nw[C + i, i], 0.0))
+        ri += 1
+    return ri
+
+
+@jit
+def finish_run(buf, t_rec, thr, bound, window, nis_sum, nis_cnt, sums, info):
+    """Per-run verdicts from the record buffer, then add the buffer to its group's sums.
+
+    The divergence monitor flags the run when its NEES averaged over the records of the final
+    ``window`` seconds is above ``bound`` (it ends inconsistent: a transient it recovers from is
+    not a divergence), or when its error is non-finite; the flag time is the last time its NEES
+    rose above ``bound`` (NaN if never). ``sums[1]`` collects flagged runs, ``sums[0]`` the others.
+    """
+    Nr, ncol = buf.shape
+    n = (ncol - COL_AXES) // 2
+    last_above = -1
+    nonfinite = False
+    flagged = False
+    flag_time = np.nan
+    first_bad = np.nan
+    start = -1
+    for j in range(Nr):
+        pos2 = 0.0
+        for i in range(n):
+            pos2 += buf[j, COL_AXES + i]
+        if not math.sqrt(pos2) <= thr:
+            last_above = j
+        if not math.isfinite(pos2) and not nonfinite:
+            nonfinite = True
+            first_bad = t_rec[j]
+        if not buf[j, COL_NEES] <= bound:
+            if start < 0:
+                start = j
+        else:
+            start = -1
+    tail = 0.0
+    k = 0
+    for j in range(Nr - 1, -1, -1):
+        if t_rec[Nr - 1] - t_rec[j] > window and k > 0:
+            break
+        tail += buf[j, COL_NEES]
+        k += 1
+    if not tail / k <= bound:
+        flagged = True
+        if start >= 0:
+            flag_time = t_rec[start]
+    if nonfinite and not (flagged and flag_time <= first_bad):
+        flagged = True
+        flag_time = first_bad
+    g = 1 if flagged else 0
+    for j in range(Nr):
+        for c in range(ncol):
+            sums[g, j, c] += buf[j, c]
+    last = Nr - 1
+    pos2 = 0.0
+    var2 = 0.0
+    for i in range(n):
+        pos2 += buf[last, COL_AXES + i]
+        var2 += buf[last, COL_AXES + n + i]
+    info[INFO_FINAL_POS] = math.sqrt(pos2)
+    info[INFO_FINAL_VEL] = math.sqrt(buf[last, COL_SE_VEL])
+    info[INFO_FINAL_STD] = math.sqrt(var2)
+    info[INFO_LAST_ABOVE] = last_above
+    info[INFO_NONFINITE] = 1.0 if nonfinite else 0.0
+    info[INFO_FLAGGED] = 1.0 if flagged else 0.0
+    info[INFO_FLAG_TIME] = flag_time
+    info[INFO_NIS] = nis_sum / nis_cnt if nis_cnt > 0 else np.nan
+
+
+@jit
+def workspaces(m, B, n, nw_off, qz):
+    """``ws`` (batched), ``iw``, ``nw`` (per run, for the records) of a filter of ``m`` states."""
+    ws = np.zeros((WS_SC + 1, max(m, SC_COEF + 2 * m), B))
+    iw = np.zeros(m, dtype=np.int64)
+    nw = np.zeros((NW_C + 6 * n, 2 * n))
+    for i in range(n):
+        nw[NW_OFF, i] = nw_off[i]
+    for a in range(2 * n):
+        for c in range(2 * n):
+            nw[NW_C + 4 * n + a, c] = qz[a, c]
+    return ws, iw, nw
+
+
+@inline
+def record_batch(X, P, lw, G, e, ri, n, cur, rec_base, rec, buf, ex, ex_run, nw, xm, Pm):
+    """Record every sample based at epoch ``e`` for every run of the batch (its members'
+    mixture: weights ``exp(lw)`` over its ``G`` members; one member: the member itself)."""
+    m, B = X.shape
+    out = ri
+    for g in range(B // G):
+        b0 = g * G
+        top = lw[b0]
+        for c in range(1, G):
+            top = max(top, lw[b0 + c])
+        tot = 0.0
+        for c in range(G):
+            tot += math.exp(lw[b0 + c] - top)
+        for i in range(m):
+            acc = 0.0
+            for c in range(G):
+                acc += math.exp(lw[b0 + c] - top) * X[i, b0 + c]
+            xm[i] = acc / tot
+        for i in range(m):
+            for j in range(i, m):
+                acc = 0.0
+                for c in range(G):
+                    b = b0 + c
+                    acc += math.exp(lw[b] - top) * (
+                        P[i, j, b] + (X[i, b] - xm[i]) * (X[j, b] - xm[j])
+                    )
+                Pm[i, j] = acc / tot
+                Pm[j, i] = acc / tot
+        out = record_epoch(xm, Pm, e, ri, n, cur, rec_base, rec[g], buf[g], ex, nw, g == ex_run)
+    return out
+
+
+# ----------------------------------------------------------------------------- EKF
+@inline
+def ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
+    """The range row of every member, linearised at its prior; returns whether any reports."""
+    B = X.shape[1]
+    any_ok = False
+    for i in range(n):
+        iw[i] = i
+    for b in range(B):
+        rm = Y[e, 0, b // G]
+        ok = math.isfinite(rm)
+        rho2 = 0.0
+        for i in range(n):
+            h = X[i, b] - beacon[i]
+            ws[WS_VAL, i, b] = h
+            rho2 += h * h
+        if half_sq:
+            nu = 0.5 * rm * rm - 0.5 * var_r - 0.5 * rho2
+            r = rm * rm * var_r + 0.5 * var_r * var_r
+        else:
+            rho = math.sqrt(rho2)
+            ok = ok and rho > 0.0  # at the beacon the range has no gradient: no information
+            for i in range(n):
+                ws[WS_VAL, i, b] = ws[WS_VAL, i, b] / rho if ok else 0.0
+            nu = rm - rho
+            r = var_r
+        ws[WS_SC, SC_NU, b] = nu if ok else 0.0
+        ws[WS_SC, SC_R, b] = r if ok else 1.0
+        ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
+        any_ok = any_ok or ok
+    return any_ok
+
+
+@jit
+def ekf_batch(
+    X0,
+    P0,
+    lw0,
+    G,
+    tab,
+    qt,
+    tr,
+    Y,
+    n,
+    cur,
+    beacon,
+    half_sq,
+    sig_r,
+    lin,
+    rec_base,
+    rec,
+    qz,
+    t_rec,
+    thr,
+    bound,
+    window,
+    sums,
+    info,
+    ex_run,
+    ex,
+):
+    """EKF runs over the epochs, batched (see :mod:`obsplan.estimation.ekf`).
+
+    ``X0`` (m, B), ``P0`` (m, m, B): the members; run ``g`` of the batch owns members
+    ``g G .. g G + G - 1`` (``G = 1``: the EKF; ``G > 1``: the components of a Gaussian sum,
+    :mod:`obsplan.estimation.gsf`, whose log weights ``lw0`` grow by their innovations'
+    log-likelihoods and whose mixture is recorded). ``Y`` (E, outputs, runs), ``rec`` (runs, Nr,
+    cols), ``info`` (runs, N_INFO); ``ex`` receives run ``ex_run``'s history.
+    """
+    m, B = X0.shape
+    R = B // G
+    E = tab.shape[0]
+    X = X0.copy()
+    P = P0.copy()
+    lw = lw0.copy()
+    Q = np.zeros((m, m, B))
+    ws, iw, nw = workspaces(m, B, n, np.zeros(n), qz)
+    w = np.ones(B)
+    xm = np.empty(m)
+    Pm = np.empty((m, m))
+    buf = np.zeros((R, rec_base.shape[0], COL_AXES + 2 * n))
+    run_nis = np.zeros(R)
+    run_cnt = np.zeros(R)
+    var_r = sig_r * sig_r
+    ri = 0
+    n_rec = rec_base.shape[0]
+    n_lin = Y.shape[1] > 1
+    Sp = (-1.0, -1.0, -1.0)
+    for e in range(E):
+        if e > 0:
+            S = (tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2])
+            if S != Sp:  # equal segments repeat on uniform grids
+                Sp = S
+                noise_terms(Q, qt, S[0], S[1], S[2], m)
+            predict(X, P, tab, e, n, tr, Q, ws)
+        for b in range(B):
+            ws[WS_SC, SC_NIS, b] = 0.0
+            ws[WS_SC, SC_CNT, b] = 0.0
+            ws[WS_SC, SC_LL, b] = 0.0
+        if ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
+            update_rows(X, P, iw, ws, n)
+        if n_lin:
+            linear_updates(X, P, Y, e, lin, iw, ws, G)
+        if G == 1:
+            for b in range(B):
+                run_nis[b] += ws[WS_SC, SC_NIS, b]
+                run_cnt[b] += ws[WS_SC, SC_CNT, b]
+        else:  # the mixture's NIS with the prior weights; then the posterior weights
+            for g in range(R):
+                b0 = g * G
+                top = lw[b0]
+                for c in range(1, G):
+                    top = max(top, lw[b0 + c])
+                tot = 0.0
+                for c in range(G):
+                    w[b0 + c] = math.exp(lw[b0 + c] - top)
+                    tot += w[b0 + c]
+                for c in range(G):
+                    run_nis[g] += w[b0 + c] / tot * ws[WS_SC, SC_NIS, b0 + c]
+                    lw[b0 + c] += ws[WS_SC, SC_LL, b0 + c] - top
+                run_cnt[g] += ws[WS_SC, SC_CNT, b0]
+        if ri < n_rec and rec_base[ri] == e:
+            ri = record_batch(
+                X, P, lw, G, e, ri, n, cur, rec_base, rec, buf, ex, ex_run, nw, xm, Pm
+            )
+    for g in range(R):
+        finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g])
+
+
+# ----------------------------------------------------------------------------- augmented KF
+@inline
+def kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple):
+    """Cross (x, chain) and chain blocks of the composed process noise of the augmented KF.
+
+    ``Σ_j Φ(τ_j) Γ(σ_j) q Γ(σ_j)ᵀ Φ(τ_j)ᵀ`` by the segment's Gauss rule (``rule[e]``: nodes,
+    weights), with the chain rows ``Γ_c = [E(σ), J(τ_a + σ)]`` of :mod:`obsplan.estimation.kf`
+    (``E`` only when ``couple``; its gains ``c0 + σ c1`` and ``c1`` per member in rows 0, 1 of
+    ``kw``). ``Γ_c`` and ``q Γ_cᵀ`` live in rows 2–4 and 5–7 of ``kw``. Without noise on
+    ``(p0·ν0, |ν0|²)`` (the default) their columns are skipped.
+    """
+    mw = qk.shape[0]
+    has_ab = False
+    for i in range(mw):
+        for j in range(mx, mw):
+            if qk[i, j] != 0.0:
+                has_ab = True
+    if not has_ab:
+        mw = mx
+    B = Q.shape[2]
+    kc = mx  # first chain state (κ)
+    T = tab[e, TAB_T]
+    tau_a = tab[e, TAB_TAU]
+    for i in range(mx + 3):
+        for c in range(3):
+            for b in range(B):
+                Q[kc + c, i, b] = 0.0
+                Q[i, kc + c, b] = 0.0
+    for q in range(rule.shape[2]):
+        om = rule[e, 1, q]
+        if om == 0.0:
+            continue
+        sg = rule[e, 0, q]
+        tau = T - sg
+        ta = tau_a + sg
+        for i in range(3):
+            for j in range(mw):
+                for b in range(B):
+                    kw[2 + i, j, b] = 0.0
+        if couple:
+            for i in range(n):
+                for b in range(B):
+                    cp = kw[0, i, b] + sg * kw[1, i, b]
+                    cv = kw[1, i, b]
+                    kw[2, i, b] = cp  # κ: c_p · w_p
+                    kw[3, i, b] = cv  # φ: c_v · w_p + c_p · w_ν
+                    kw[3, n + i, b] = cp
+                    kw[4, n + i, b] = cv  # γ: c_v · w_ν
+                    if cur:
+                        kw[3, 2 * n + i, b] = cp
+                        kw[4, 2 * n + i, b] = cv
+        if has_ab:  # the configured noise of (p0·ν0, |ν0|²) in the chain coordinates: J(τ_a + σ)
+            for b in range(B):
+                kw[2, mx, b] = ta
+                kw[2, mx + 1, b] = 0.5 * ta * ta
+                kw[3, mx, b] = 1.0
+                kw[3, mx + 1, b] = ta
+                kw[4, mx + 1, b] = 0.5
+        if tau != 0.0:  # Γ ← Φ_c(τ) Γ (in place, row order matters)
+            for j in range(mw):
+                for b in range(B):
+                    kw[2, j, b] += tau * kw[3, j, b] + tau * tau * kw[4, j, b]
+                    kw[3, j, b] += 2.0 * tau * kw[4, j, b]
+        for c in range(3):
+            for i in range(mw):
+                if qdiag:
+                    qi = qk[i, i]
+                    for b in range(B):
+                        kw[5 + c, i, b] = qi * kw[2 + c, i, b]
+                else:
+                    for b in range(B):
+                        kw[5 + c, i, b] = 0.0
+                    for j in range(mw):
+                        qij = qk[i, j]
+                        for b in range(B):
+                            kw[5 + c, i, b] += qij * kw[2 + c, j, b]
+        for a in range(3):
+            for c in range(a, 3):
+                for j in range(mw):
+                    for b in range(B):
+                        Q[kc + a, kc + c, b] += om * kw[2 + a, j, b] * kw[5 + c, j, b]
+        for i in range(mx):
+            for c in range(3):
+                for b in range(B):
+                    val = kw[5 + c, i, b]
+                    if i < n:
+                        val += tau * kw[5 + c, n + i, b]
+                        if cur:
+                            val += tau * kw[5 + c, 2 * n + i, b]
+                    Q[i, kc + c, b] += om * val
+    for a in range(3):
+        for c in range(a):
+            for b in range(B):
+                Q[kc + a, kc + c, b] = Q[kc + c, kc + a, b]
+    for i in range(mx):
+        for c in range(3):
+            for b in range(B):
+                Q[kc + c, i, b] = Q[i, kc + c, b]
+
+
+@jit
+def kf_batch(
+    Z0,
+    P0,
+    tab,
+    rule,
+    ep_d,
+    qt,
+    qk,
+    qdiag,
+    couple,
+    tr,
+    Y,
+    n,
+    cur,
+    beacon,
+    sig_r,
+    y0,
+    var0,
+    inflate,
+    lin,
+    rec_base,
+    rec,
+    qz,
+    t_rec,
+    thr,
+    bound,
+    window,
+    sums,
+    info,
+    ex_run,
+    ex,
+):
+    """Augmented-KF runs over the epochs, batched over runs (see :mod:`obsplan.estimation.kf`).
+
+    ``Z0`` (m, R), ``P0`` (m, m, R), anchors ``y0``, ``var0`` (R,); ``ep_d`` (E, 2n) holds the
+    input displacement ``d`` and its rate ``ḋ`` at the epochs; other arrays as
+    :func:`ekf_batch`.
+    """
+    m, B = Z0.shape
+    mx = m - 3
+    kc = mx
+    E = tab.shape[0]
+    X = Z0.copy()
+    P = P0.copy()
+    Q = np.zeros((m, m, B))
+    ws, iw, nw = workspaces(m, B, n, beacon, qz)
+    kw = np.zeros((8, qk.shape[0], B))
+    lw = np.zeros(B)
+    xm = np.empty(m)
+    Pm = np.empty((m, m))
+    buf = np.zeros((B, rec_base.shape[0], COL_AXES + 2 * n))
+    run_nis = np.zeros(B)
+    run_cnt = np.zeros(B)
+    var_r = sig_r * sig_r
+    ri = 0
+    n_rec = rec_base.shape[0]
+    n_lin = Y.shape[1] > 1
+    Sp = (-1.0, -1.0, -1.0)
+    for e in range(E):
+        if e > 0:
+            for i in range(n):
+                dp, dv = ep_d[e - 1, i], ep_d[e - 1, n + i]
+                for b in range(B):
+                    nu_i = X[n + i, b] + (X[2 * n + i, b] if cur else 0.0)
+                    kw[0, i, b] = X[i, b] - dp  # c_p at the segment's start
+                    kw[1, i, b] = nu_i - dv  # c_v
+            S = (tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2])
+            if S != Sp:  # equal segments repeat on uniform grids
+                Sp = S
+                noise_terms(Q, qt, S[0], S[1], S[2], mx)
+            kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple)
+            predict(X, P, tab, e, n, tr, Q, ws)
+        for b in range(B):
+            ws[WS_SC, SC_NIS, b] = 0.0
+            ws[WS_SC, SC_CNT, b] = 0.0
+        if e > 0:  # epoch 0 is the anchor y0: ȳ_0 ≡ 0
+            # ȳ = y - y0 + ½|d|² = dᵀp + κ (+ noise): linear
+            d2 = 0.0
+            for i in range(n):
+                iw[i] = i
+                d2 += ep_d[e, i] * ep_d[e, i]
+            iw[n] = kc
+            any_ok = False
+            for b in range(B):
+                rm = Y[e, 0, b]
+                ok = math.isfinite(rm)
+                pred = X[kc, b]
+                for i in range(n):
+                    ws[WS_VAL, i, b] = ep_d[e, i]
+                    pred += ep_d[e, i] * X[i, b]
+                ws[WS_VAL, n, b] = 1.0
+                r = rm * rm * var_r + 0.5 * var_r * var_r + (var0[b] if inflate else 0.0)
+                ws[WS_SC, SC_NU, b] = (
+                    0.5 * rm * rm - 0.5 * var_r - y0[b] + 0.5 * d2 - pred if ok else 0.0
+                )
+                ws[WS_SC, SC_R, b] = r if ok else 1.0
+                ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
+                any_ok = any_ok or ok
+            if any_ok:
+                update_rows(X, P, iw, ws, n + 1)
+        if n_lin:
+            linear_updates(X, P, Y, e, lin, iw, ws, 1)
+        for b in range(B):
+            run_nis[b] += ws[WS_SC, SC_NIS, b]
+            run_cnt[b] += ws[WS_SC, SC_CNT, b]
+        if ri < n_rec and rec_base[ri] == e:
+            ri = record_batch(
+                X, P, lw, 1, e, ri, n, cur, rec_base, rec, buf, ex, ex_run, nw, xm, Pm
+            )
+    for g in range(B):
+        finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g])

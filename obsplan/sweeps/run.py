@@ -1,0 +1,467 @@
+"""Running a sweep on Dask: local cluster or an existing one, resume, retries, nothing lost.
+
+:func:`sweep` expands and validates every task first (a bad task is an error before anything
+runs or any file is written), skips the tasks whose report is already in ``DIR`` (keyed by task
+id, so a re-run of the same command, or of an extended sweep, resumes), and sends the others to
+Dask workers as plain data. Each result is written to ``DIR/tasks/<id>/`` the moment it arrives,
+and the table ``DIR/results.{parquet,csv}`` is rewritten every few seconds and on the way out,
+whatever the way out is (end, Ctrl-C, a lost scheduler): only the tasks in flight are lost.
+
+Workers: by default a :class:`distributed.LocalCluster` of one-thread worker processes (one per
+core) with the BLAS/OpenMP pools pinned to one thread (set in the nanny before the worker
+process starts, so it holds from the worker's first import; :func:`obsplan.sweeps.tasks.
+worker_threads` reads it back). A task whose worker dies is retried ``retries`` times (default
+once), then recorded as failed with the error. On a local cluster the scheduler itself re-runs
+nothing (``allowed-failures = 0``), so "retried once" means exactly one more attempt; an
+existing scheduler applies its own ``distributed.scheduler.allowed-failures`` first.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import logging
+import os
+import time
+import uuid
+import warnings
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from obsplan import __version__
+from obsplan.errors import InputError, ObsplanError
+from obsplan.sweeps.spec import SweepSpec, Task, as_spec, expand, unique_tasks
+from obsplan.sweeps.store import (
+    check_out,
+    read_report,
+    write_manifest,
+    write_task,
+)
+from obsplan.sweeps.table import build_table, write_table
+from obsplan.sweeps.tasks import THREAD_ENV, run_task
+
+#: Seconds between two rewrites of the results table while tasks arrive (at least; a table that
+#: takes long to write, thousands of rows, is rewritten at most 10 % of the time).
+FLUSH_S = 2.0
+#: Seconds to wait for a connection to an existing scheduler.
+CONNECT_TIMEOUT_S = 10.0
+#: Seconds the client waits for a lost scheduler to come back before giving up.
+LOST_SCHEDULER_S = 20.0
+#: Seconds a worker process gets to stop when the sweep is interrupted, before it is killed.
+KILL_TIMEOUT_S = 0.5
+
+
+class ClusterError(ObsplanError):
+    """The Dask scheduler was lost during a sweep (finished tasks are kept; re-run to resume)."""
+
+
+@dataclass(frozen=True)
+class SweepStart:
+    """What a sweep is about to do (passed to ``on_start``; the CLI prints it).
+
+    Attributes
+    ----------
+    name : str
+    tasks : int
+        Tasks (rows) of the sweep.
+    unique : int
+        Distinct problems among them.
+    finished : int
+        Already in ``DIR`` (skipped).
+    to_run : int
+    scheduler : str or None
+        Scheduler address (None when nothing runs).
+    dashboard : str or None
+        Dask dashboard address, when the scheduler serves one.
+    worker_threads : tuple[int, ...]
+        Threads of each worker (tasks run one at a time per worker process whatever this is).
+    """
+
+    name: str
+    tasks: int
+    unique: int
+    finished: int
+    to_run: int
+    scheduler: str | None = None
+    dashboard: str | None = None
+    worker_threads: tuple[int, ...] = ()
+
+
+def local_cluster(workers: int | None = None, **kwargs: Any):
+    """A :class:`distributed.LocalCluster` of ``workers`` one-thread worker processes (default:
+    one per core), BLAS/OpenMP pinned to one thread, no scheduler-side re-runs of a task whose
+    worker died, at most one task queued per worker."""
+    import dask
+    from distributed import LocalCluster
+
+    n = workers if workers is not None else (os.cpu_count() or 1)
+    if n < 1:
+        raise InputError(f"--workers must be at least 1, got {n}")
+    environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    environ.update(THREAD_ENV)
+    # Dask's default MALLOC_TRIM_THRESHOLD_=65536 returns memory to the OS eagerly; it also
+    # freezes glibc's mmap threshold at 128 kB, and IPOPT/CasADi in a worker thread then ran
+    # 20-50 % slower than in a plain process (benchmarks/bench_sweep.py): keep glibc's defaults
+    environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+    config = {
+        "distributed.nanny.pre-spawn-environ": environ,
+        "distributed.scheduler.allowed-failures": 0,
+        # one task per one-thread worker: a worker that dies takes no queued bystander with it
+        "distributed.scheduler.worker-saturation": 1.0,
+    }
+    kwargs.setdefault("dashboard_address", ":8787")
+    # a worker death is reported by the sweep itself (the task's error), not by log lines
+    kwargs.setdefault("silence_logs", logging.CRITICAL)
+    kwargs.setdefault("preload", ["obsplan.sweeps.tasks"])  # its dask_setup: workers ignore Ctrl-C
+    with dask.config.set(config), warnings.catch_warnings():
+        # port 8787 taken (another cluster): Dask serves the dashboard on a free port instead,
+        # and the sweep reports the address it got
+        warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+        return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **kwargs)
+
+
+@contextlib.contextmanager
+def dask_client(
+    workers: int | None = None, scheduler: str | None = None, client: Any = None
+) -> Iterator[Any]:
+    """The client a sweep runs on: ``client`` as given (left open), a client of the scheduler
+    at ``scheduler``, or a new :func:`local_cluster` of ``workers`` (both closed on exit).
+
+    Raises
+    ------
+    InputError
+        If both ``workers`` and ``scheduler`` are given, or the scheduler cannot be reached.
+    """
+    if client is not None:
+        yield client
+        return
+    from distributed import Client
+
+    if scheduler is not None:
+        if workers is not None:
+            raise InputError(
+                "--workers and --scheduler exclude each other: an existing cluster has its "
+                "own workers"
+            )
+        try:
+            c = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError) as exc:
+            raise InputError(
+                f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc}); check "
+                "the address (tcp://HOST:8786) or start one with `dask scheduler`"
+            ) from None
+        try:
+            yield c
+        finally:
+            with contextlib.suppress(Exception):
+                c.close(timeout=5)
+        return
+    cluster = local_cluster(workers)
+    c = Client(cluster)
+    interrupted = False
+    try:
+        yield c
+    except BaseException:
+        interrupted = True
+        raise
+    finally:
+        with contextlib.suppress(Exception):
+            c.close(timeout=5)
+        if interrupted:
+            # a worker busy in IPOPT would get 4 s to finish its task: stop at once instead
+            with contextlib.suppress(Exception):
+                cluster.sync(_stop_workers, cluster, KILL_TIMEOUT_S)
+        with contextlib.suppress(Exception):
+            cluster.close(timeout=10)
+
+
+async def _stop_workers(cluster: Any, timeout: float) -> None:
+    nannies = list(cluster.workers.values())
+    await asyncio.gather(*(n.close(timeout=timeout) for n in nannies), return_exceptions=True)
+
+
+def _finished(report: Mapping[str, Any] | None, retry_failed: bool) -> bool:
+    if report is None:
+        return False
+    status = report.get("sweep", {}).get("status")
+    return status == "done" or (status == "failed" and not retry_failed)
+
+
+def sweep(
+    spec: SweepSpec | str | Path | Mapping[str, Any],
+    out: str | Path,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    client: Any = None,
+    retries: int = 1,
+    retry_failed: bool = False,
+    progress: bool = True,
+    figures: bool = True,
+    force: bool = False,
+    on_start: Callable[[SweepStart], None] | None = None,
+    runner: Callable[[Task], dict[str, Any]] | None = None,
+) -> pd.DataFrame:
+    """Run a parameter study on Dask and return its results table.
+
+    Parameters
+    ----------
+    spec
+        A sweep file path, a parsed sweep mapping or a :class:`SweepSpec`.
+    out
+        Output folder (``DIR``): created, or resumed if it holds this or another sweep.
+    workers
+        Worker processes of a new local cluster (default: one per core).
+    scheduler
+        Address of an existing Dask scheduler (``tcp://host:8786``) instead.
+    client
+        An existing :class:`distributed.Client` instead (left open).
+    retries
+        Further attempts of a task whose worker process died.
+    retry_failed
+        Run again the tasks stored as failed (default: they count as finished).
+    progress
+        tqdm progress bar (tasks done, failed, ETA) on stderr.
+    figures
+        Draw ``DIR/figures/`` when every task has finished.
+    force
+        Write into a non-empty ``DIR`` that holds no sweep or another sweep.
+    on_start
+        Called once with a :class:`SweepStart` before the first task is sent.
+    runner
+        Advanced: replaces :func:`obsplan.sweeps.tasks.run_task` (same signature; must be
+        importable or picklable by value on the workers). Results are still keyed by problem,
+        mode and version only.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per task (:mod:`obsplan.sweeps.table`), also in ``DIR/results.parquet`` and
+        ``DIR/results.csv``.
+
+    Raises
+    ------
+    SweepFileError
+        Bad sweep file or an invalid task (before anything runs).
+    InputError
+        Bad options or output folder.
+    ClusterError
+        The scheduler was lost (finished tasks are kept).
+    KeyboardInterrupt
+        After writing everything that had finished.
+    """
+    spec = as_spec(spec)
+    tasks = expand(spec)
+    if retries < 0:
+        raise InputError(f"retries must be >= 0, got {retries}")
+    if workers is not None and scheduler is not None:
+        raise InputError("--workers and --scheduler exclude each other")
+    out = check_out(out, force, spec.name)  # nothing is written before the cluster is up
+    unique = unique_tasks(tasks)
+    stored: dict[str, dict[str, Any] | None] = {t.id: read_report(out, t.id) for t in unique}
+    todo = [t for t in unique if not _finished(stored[t.id], retry_failed)]
+    manifest = {
+        "obsplan": __version__,
+        "sweep": spec.to_dict(),
+        "tasks": [{"id": t.id, "task": t.index + 1, "axes": t.axes} for t in tasks],
+    }
+    started = False
+    info = SweepStart(
+        name=spec.name,
+        tasks=len(tasks),
+        unique=len(unique),
+        finished=len(unique) - len(todo),
+        to_run=len(todo),
+    )
+
+    def flush() -> None:
+        write_table(build_table(tasks, stored), out)
+
+    try:
+        if todo:
+            with dask_client(workers, scheduler, client) as c:
+                write_manifest(out, manifest)
+                started = True
+                threads = c.nthreads()
+                info = dataclasses.replace(
+                    info,
+                    scheduler=c.scheduler.address,
+                    dashboard=_dashboard(c),
+                    worker_threads=tuple(threads.values()),
+                )
+                if on_start is not None:
+                    on_start(info)
+                _run(c, todo, out, stored, spec, runner or run_task, retries, progress, flush)
+        else:
+            write_manifest(out, manifest)
+            started = True
+            if on_start is not None:
+                on_start(info)
+    finally:
+        df = build_table(tasks, stored)
+        if started:
+            write_table(df, out)
+    if figures and not (df["status"] == "pending").any():
+        from obsplan.sweeps.figures import figures_from_manifest
+
+        figures_from_manifest(df, out, spec.to_dict())
+    return df
+
+
+def _dashboard(client: Any) -> str | None:
+    try:
+        services = client.scheduler_info().get("services", {})
+    except Exception:  # noqa: BLE001 - informational only
+        return None
+    return client.dashboard_link if "dashboard" in services else None
+
+
+def _run(
+    client: Any,
+    todo: list[Task],
+    out: Path,
+    stored: dict[str, dict[str, Any] | None],
+    spec: SweepSpec,
+    runner: Callable[[Task], dict[str, Any]],
+    retries: int,
+    progress: bool,
+    flush: Callable[[], None],
+) -> None:
+    """Feed the tasks to the cluster, at most one per worker thread at a time, and store each
+    outcome as it arrives.
+
+    Tasks are not all submitted at once: Dask assigns a small batch of independent tasks to
+    workers eagerly, and a worker that dies takes every task assigned to it down (each would then
+    be charged an attempt). Keeping one task per worker thread in flight means a crash costs only
+    the task that caused it, an interruption loses at most one task per worker, and workers that
+    join later (an adaptive or SLURM cluster) are used as they arrive.
+    """
+    from collections import deque
+
+    from distributed import wait
+    from distributed.client import FuturesCancelledError
+    from distributed.scheduler import KilledWorker
+    from tqdm.auto import tqdm
+
+    attempts: dict[str, int] = {}
+    running: dict[Any, Task] = {}
+    queue = deque(todo)
+
+    def submit(task: Task) -> None:
+        attempts[task.id] = attempts.get(task.id, 0) + 1
+        key = f"obsplan-{task.id}-{attempts[task.id]}-{uuid.uuid4().hex[:8]}"
+        running[client.submit(runner, task, key=key, pure=False, retries=0)] = task
+
+    def refill() -> None:
+        try:
+            slots = max(1, sum(client.nthreads().values()))
+        except Exception:  # noqa: BLE001 - scheduler unreachable: handled by the status check
+            return
+        while queue and len(running) < slots:
+            submit(queue.popleft())
+
+    failed = 0
+    bar = tqdm(total=len(todo), desc=spec.name, unit="task", disable=not progress, leave=True)
+    last_flush = time.monotonic()
+    flush_every = FLUSH_S
+    lost_since: float | None = None
+    try:
+        refill()
+        while running or queue:
+            try:
+                done = wait(list(running), timeout=0.5, return_when="FIRST_COMPLETED").done
+            except TimeoutError:
+                done = set()
+            except FuturesCancelledError:  # the client lost its scheduler
+                raise ClusterError(
+                    f"lost the connection to the Dask scheduler with {len(running)} tasks in "
+                    f"flight; {bar.n} finished tasks are kept in {out}: run the same command "
+                    "again to resume"
+                ) from None
+            if client.status != "running":
+                lost_since = lost_since or time.monotonic()
+                if client.status in ("closing", "closed") or (
+                    time.monotonic() - lost_since > LOST_SCHEDULER_S
+                ):
+                    raise ClusterError(
+                        f"lost the Dask scheduler with {len(running)} tasks in flight; "
+                        f"{bar.n} finished tasks are kept in {out}: run the same command again "
+                        "to resume"
+                    )
+                continue
+            lost_since = None
+            for fut in done:
+                task = running.pop(fut)
+                if fut.status == "finished":
+                    outcome = fut.result()
+                elif fut.status == "cancelled":
+                    raise ClusterError(
+                        f"the scheduler dropped task {task.id} (was it restarted?); finished "
+                        f"tasks are kept in {out}: run the same command again to resume"
+                    )
+                else:
+                    exc = fut.exception()
+                    if isinstance(exc, KilledWorker) and attempts[task.id] <= retries:
+                        queue.appendleft(task)
+                        continue
+                    outcome = _failure(exc, attempts[task.id])
+                stored[task.id] = _store(out, task, outcome, attempts[task.id])
+                failed += outcome["status"] != "done"
+                bar.set_postfix(failed=failed, refresh=False)
+                bar.update(1)
+            refill()
+            if time.monotonic() - last_flush > flush_every:
+                t0 = time.monotonic()
+                flush()
+                last_flush = time.monotonic()
+                flush_every = max(FLUSH_S, 10.0 * (last_flush - t0))
+    finally:
+        bar.close()
+        if running:
+            with contextlib.suppress(Exception):
+                client.cancel(list(running), force=True)
+
+
+def _failure(exc: BaseException | None, attempt: int) -> dict[str, Any]:
+    """The outcome of a task that did not return: its worker died, or the runner raised."""
+    from distributed.scheduler import KilledWorker
+
+    what = (
+        "the worker process died while running the task"
+        if isinstance(exc, KilledWorker)
+        else "the task raised"
+    )
+    return {
+        "status": "failed",
+        "error": f"{what} (attempt {attempt}): {type(exc).__name__}: {exc}".splitlines()[0][:500],
+        "traceback": None,
+        "report": None,
+        "plan_csv": None,
+        "wall_s": None,
+        "worker": None,
+    }
+
+
+def _store(out: Path, task: Task, outcome: Mapping[str, Any], attempts: int) -> dict[str, Any]:
+    """Write the task's files; returns the stored report (what the table is built from)."""
+    meta = {
+        "task_id": task.id,
+        "mode": task.mode,
+        "status": outcome["status"],
+        "error": outcome["error"],
+        "traceback": outcome.get("traceback"),
+        "attempts": attempts,
+        "wall_s": outcome.get("wall_s"),
+        "worker": outcome.get("worker"),
+        "obsplan": __version__,
+        "axes": task.axes,
+        "problem": task.problem,
+    }
+    report = {"sweep": meta, **(outcome.get("report") or {})}
+    write_task(out, task.id, report, outcome.get("plan_csv"))
+    return report

@@ -1,0 +1,127 @@
+"""The output folder of a sweep: what is written where, atomically, so that nothing is lost.
+
+Layout of ``DIR``::
+
+    sweep.json              the sweep (axes, mode, base) and its task ids, in order
+    results.parquet         one row per task (obsplan.sweeps.table)
+    results.csv             the same table as CSV
+    tasks/<task-id>/        report.json (always, last) and plan.csv (plan mode, if a path exists)
+    figures/                the study figures (obsplan.sweeps.figures)
+
+Every file is written to a temporary name in its folder and renamed over the target
+(:func:`obsplan.io.atomic.atomic_file`), so an interrupted write leaves the old file or none,
+never half of one. A task's ``report.json`` is written after its ``plan.csv``: a task is
+finished exactly when its report exists, which is what a re-run checks to resume.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from obsplan.errors import InputError
+from obsplan.io.atomic import atomic_file
+
+MANIFEST = "sweep.json"
+TASKS = "tasks"
+REPORT = "report.json"
+PLAN = "plan.csv"
+RESULTS_PARQUET = "results.parquet"
+RESULTS_CSV = "results.csv"
+FIGURES = "figures"
+
+
+def atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``
+    (:func:`obsplan.io.atomic.atomic_file`); creates the parent folder."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_file(path) as tmp:
+        write(tmp)
+    return path
+
+
+def atomic_write_text(path: Path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically (UTF-8)."""
+    return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def check_out(out: str | Path, force: bool, name: str) -> Path:
+    """Check that the sweep called ``name`` may write into ``out`` (nothing is written).
+
+    A folder that holds a sweep of that name (``sweep.json``) is resumed, even if its axes
+    changed (tasks are keyed by their problem, so the finished ones are reused); an empty or new
+    folder is used; a folder holding another sweep, or any other non-empty folder (the user's
+    files), is refused unless ``force``.
+
+    Raises
+    ------
+    InputError
+        If ``out`` is a file, or a non-empty folder that is not this sweep's, without ``force``.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} is a file; give a folder")
+    if out.is_dir() and any(out.iterdir()) and not force:
+        if not (out / MANIFEST).is_file():
+            raise InputError(
+                f"--out {out} is not empty and holds no sweep ({MANIFEST}); choose another "
+                "folder, or pass --force to write the sweep into it"
+            )
+        other = read_manifest(out).get("sweep", {}).get("name")
+        if other != name:
+            raise InputError(
+                f"--out {out} holds the results of sweep {other!r}, not {name!r}; choose another "
+                "folder, or pass --force to add this sweep's tasks to it (its table and figures "
+                "are then replaced)"
+            )
+    return out
+
+
+def task_dir(out: Path, task_id: str) -> Path:
+    return out / TASKS / task_id
+
+
+def read_report(out: Path, task_id: str) -> dict[str, Any] | None:
+    """The stored report of a finished task, or None (not run, or unreadable: run again)."""
+    path = task_dir(out, task_id) / REPORT
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def write_task(out: Path, task_id: str, report: dict[str, Any], plan_csv: str | None) -> Path:
+    """Write ``plan.csv`` (if any), then ``report.json``, atomically; returns the task folder."""
+    folder = task_dir(out, task_id)
+    folder.mkdir(parents=True, exist_ok=True)
+    if plan_csv is not None:
+        atomic_write_text(folder / PLAN, plan_csv)
+    atomic_write_text(folder / REPORT, json.dumps(report, indent=2, allow_nan=False) + "\n")
+    return folder
+
+
+def write_manifest(out: Path, manifest: dict[str, Any]) -> Path:
+    """``DIR/sweep.json`` (creates ``DIR``): from then on ``DIR`` is this sweep's folder."""
+    return atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+
+
+def read_manifest(out: Path) -> dict[str, Any]:
+    """``DIR/sweep.json``.
+
+    Raises
+    ------
+    InputError
+        If ``out`` holds no sweep.
+    """
+    path = Path(out) / MANIFEST
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(
+            f"{out} holds no sweep ({MANIFEST} not found); give the --out folder of a sweep"
+        ) from None
+    except ValueError as exc:
+        raise InputError(f"{path}: not valid JSON ({exc})") from None
