@@ -21,9 +21,11 @@ reported. Printed:
 * per-task overhead = (workers x sweep wall - sum of the tasks' own compute times) / tasks: what
   a task costs beyond its computation (scheduling, transfer, files, cluster start-up shared out,
   and idle workers at the end of the sweep);
-* CPU seconds per task, serial and in the workers (user + system, from getrusage): unlike wall
-  times, these hardly change when other jobs load the machine, so their ratio is the intrinsic
-  cost of running in a worker. The load average is printed with the table.
+* a control: the same tasks split over ``--workers`` plain Python processes started together
+  (no Dask): the speed-up the machine allows at the time (on a machine shared with other jobs it
+  is far below the core count), and the sweep's speed-up relative to it;
+* CPU seconds per task, serial, in the workers and in the client (user + system, from
+  getrusage). The load average is printed with the table.
 """
 
 from __future__ import annotations
@@ -61,16 +63,25 @@ def study(steps: int | None = None, runs: int | None = None) -> dict:
     }
 
 
-def serial_in_fresh_process(steps: int | None, runs: int | None) -> dict:
+def serial_in_fresh_process(steps: int | None, runs: int | None, parts: int = 1) -> dict:
     """Wall and CPU time [s] of the 16 tasks run one after the other in a new Python process
-    (timed inside it, after its imports): cold caches, exactly as each worker starts."""
-    out = subprocess.run(
-        [sys.executable, __file__, "--serial-child", *_size_args(steps, runs)],
-        check=True,
-        capture_output=True,
-        text=True,
-    ).stdout
-    return json.loads(out.strip().splitlines()[-1])
+    (timed inside it, after its imports): cold caches, exactly as each worker starts.
+
+    With ``parts = k``, k such processes run at the same time, each on every k-th task (no Dask):
+    the speed-up the machine allows right now (wall: the slowest part's; CPU: summed).
+    """
+    procs = [
+        subprocess.Popen(
+            [sys.executable, __file__, "--serial-child", f"--part={i}/{parts}"]
+            + _size_args(steps, runs),
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        for i in range(parts)
+    ]
+    outs = [json.loads(p.communicate()[0].strip().splitlines()[-1]) for p in procs]
+    assert all(p.returncode == 0 for p in procs)
+    return {"wall": max(o["wall"] for o in outs), "cpu": sum(o["cpu"] for o in outs)}
 
 
 def _size_args(steps: int | None, runs: int | None) -> list[str]:
@@ -87,8 +98,9 @@ def _cpu_s() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def serial_child(steps: int | None, runs: int | None) -> None:
-    tasks = expand(sweep_from_dict(study(steps, runs), base_dir=ROOT / "problems"))
+def serial_child(steps: int | None, runs: int | None, part: str) -> None:
+    i, k = (int(x) for x in part.split("/"))
+    tasks = expand(sweep_from_dict(study(steps, runs), base_dir=ROOT / "problems"))[i::k]
     t0, c0 = time.perf_counter(), _cpu_s()
     outcomes = [run_task(t) for t in tasks]
     wall, cpu = time.perf_counter() - t0, _cpu_s() - c0
@@ -137,10 +149,11 @@ def main() -> None:
         "--repeat", type=int, default=1, help="run both k times, alternating; report the best"
     )
     ap.add_argument("--serial-child", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--part", default="0/1", help=argparse.SUPPRESS)
     args = ap.parse_args()
     steps, runs = (20, 3) if args.quick else (args.steps, args.runs)
     if args.serial_child:
-        serial_child(steps, runs)
+        serial_child(steps, runs, args.part)
         return
     spec = sweep_from_dict(study(steps, runs), base_dir=ROOT / "problems")
     tasks = expand(spec)
@@ -148,12 +161,15 @@ def main() -> None:
 
     load0 = os.getloadavg()[0]
     serial: dict | None = None
+    plain: dict | None = None
     par: dict | None = None
     for _ in range(args.repeat):
         s = serial_in_fresh_process(steps, runs)
         serial = s if serial is None or s["wall"] < serial["wall"] else serial
         p = sweep_on_local_cluster(spec, args.workers)
         par = p if par is None or p["total"] < par["total"] else par
+        c = serial_in_fresh_process(steps, runs, parts=args.workers)
+        plain = c if plain is None or c["wall"] < plain["wall"] else plain
     load1 = os.getloadavg()[0]
 
     n, w = len(tasks), args.workers
@@ -170,6 +186,7 @@ def main() -> None:
         ("serial, one process", serial["wall"]),
         (f"sweep, LocalCluster {w} workers", par["total"]),
         ("  of which the sweep (cluster up)", par["wall"]),
+        (f"control: {w} plain processes, no Dask", plain["wall"]),
     ]
     for name, wall in rows:
         print(f"{name:<40} {wall:9.1f} {wall / n:13.2f} {serial['wall'] / wall:9.2f}")
@@ -181,7 +198,11 @@ def main() -> None:
     )
     print(
         f"CPU per task: serial {serial['cpu'] / n:.2f} s, workers {par['worker_cpu'] / n:.2f} s, "
-        f"client {par['client_cpu'] / n:.3f} s"
+        f"client {par['client_cpu'] / n:.3f} s, {w} plain processes {plain['cpu'] / n:.2f} s"
+    )
+    print(
+        f"sweep speed-up / control speed-up       {plain['wall'] / par['total']:7.2f}"
+        "  (1.0: Dask costs nothing beyond what the machine allows now)"
     )
 
 

@@ -14,6 +14,12 @@ def interrupt_after(cmd: list[str], marker: bytes, delay: float, timeout: float 
     """Run ``cmd``; once ``marker`` appears on its stderr wait ``delay`` s and send SIGINT.
 
     Returns (exit code, stderr text)."""
+    code, err, _ = interrupt_after_timed(cmd, marker, delay, timeout)
+    return code, err
+
+
+def interrupt_after_timed(cmd: list[str], marker: bytes, delay: float, timeout: float = 120.0):
+    """:func:`interrupt_after`, also returning the seconds from the SIGINT to the exit."""
     proc = subprocess.Popen(
         [sys.executable, "-c", "import sys; from obsplan.cli import main; sys.exit(main())", *cmd],
         stdout=subprocess.DEVNULL,
@@ -36,9 +42,11 @@ def interrupt_after(cmd: list[str], marker: bytes, delay: float, timeout: float 
         assert seen.wait(timeout), b"".join(chunks).decode(errors="replace")
         time.sleep(delay)
         proc.send_signal(signal.SIGINT)
+        t_sig = time.perf_counter()
         code = proc.wait(timeout=timeout)
+        after = time.perf_counter() - t_sig
     finally:
         if proc.poll() is None:  # pragma: no cover - only when the test fails
             proc.kill()
     time.sleep(0.1)
-    return code, b"".join(chunks).decode(errors="replace")
+    return code, b"".join(chunks).decode(errors="replace"), after

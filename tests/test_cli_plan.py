@@ -226,8 +226,10 @@ def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing
         out.mkdir()
         (out / "plan.csv").write_text("old plan")
         extra = ["--force"]
-    # the default problem at full size (N = 200, 4 starts): the solve takes seconds
-    code, err = interrupt_after(["plan", "--out", str(out), *extra], b"starts", 1.0)
+    # the default problem at N = 1000 (a coarse pass, then 4 fine starts): tens of seconds
+    code, err = interrupt_after(
+        ["plan", "--out", str(out), "--steps", "1000", *extra], b"starts", 1.0
+    )
     assert code == 130, err
     assert "Traceback" not in err
     if existing:

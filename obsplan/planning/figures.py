@@ -110,7 +110,8 @@ def plot_gramian_eigs(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=N
 def plot_filter_errors(
     validation: Mapping[str, PathValidation], ax=None, names: tuple[str, ...] = ()
 ) -> Figure:
-    """Position RMSE over the runs for the EKF (solid) and KF (dashed), each path."""
+    """Position RMSE over the runs for the EKF (solid) and KF (dashed), and the posterior CRB
+    on the position std (dotted), of each path."""
     fig, ax = _ax(ax)
     names = (
         names or tuple(n for n in ("planned", "lawnmower") if n in validation) or tuple(validation)
@@ -122,8 +123,9 @@ def plot_filter_errors(
             ax.semilogy(r.t, r.ekf.rmse_pos_t, ls="-", label=f"{name} EKF", **st)
         if r.kf is not None:
             ax.semilogy(r.t, r.kf.rmse_pos_t, ls="--", label=f"{name} KF", **st)
+        ax.semilogy(r.t, r.crlb_pos_std_t, ls=":", label=f"{name} bound (PCRB)", **st)
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("position RMSE [m]")
+    ax.set_ylabel("position RMSE / bound [m]")
     some = next(iter(validation.values())).result if validation else None
     if some is not None:
         ax.set_title(f"{some.runs} Monte Carlo runs, seed {some.seed}", fontsize=9)

@@ -507,7 +507,13 @@ def solve(
     coarse = coarse_problem(pb) if guesses is None else None
     if coarse is not None:
         # each start first solved on the coarse grid (module constant COARSE_STEPS)
-        cres = solve(coarse, processes=processes, expand=expand, ipopt_options=ipopt_options)
+        cres = solve(
+            coarse,
+            processes=processes,
+            expand=expand,
+            ipopt_options=ipopt_options,
+            progress=progress,
+        )
         guesses = []
         for label, g in initial_guesses(pb):
             path = cres.start_paths.get(label)
@@ -535,7 +541,8 @@ def solve(
     if progress is True:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(guesses), desc="starts", unit="start", leave=False)
+        desc = f"starts (N = {pb.horizon.steps})"
+        bar = tqdm(total=len(guesses), desc=desc, unit="start", leave=False)
 
         def callback(i, label, outcome):
             bar.set_postfix_str(f"{label}: {outcome.status}")

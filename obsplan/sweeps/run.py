@@ -4,8 +4,8 @@
 runs or any file is written), skips the tasks whose report is already in ``DIR`` (keyed by task
 id, so a re-run of the same command, or of an extended sweep, resumes), and sends the others to
 Dask workers as plain data. Each result is written to ``DIR/tasks/<id>/`` the moment it arrives,
-and the table ``DIR/results.{parquet,csv}`` is rewritten every few seconds and on the way out,
-whatever the way out is (end, Ctrl-C, a lost scheduler): only the tasks in flight are lost.
+and the table ``DIR/results.{parquet,csv}`` is rewritten every ten seconds or so and on the way
+out, whatever the way out is (end, Ctrl-C, a lost scheduler): only the tasks in flight are lost.
 
 Workers: by default a :class:`distributed.LocalCluster` of one-thread worker processes (one per
 core) with the BLAS/OpenMP pools pinned to one thread (set in the nanny before the worker
@@ -46,8 +46,11 @@ from obsplan.sweeps.table import build_table, write_table
 from obsplan.sweeps.tasks import THREAD_ENV, run_task
 
 #: Seconds between two rewrites of the results table while tasks arrive (at least; a table that
-#: takes long to write, thousands of rows, is rewritten at most 10 % of the time).
-FLUSH_S = 2.0
+#: takes long to write, thousands of rows, is rewritten at most 10 % of the time). The table is a
+#: view of the task reports, each written when its task ends, so nothing is lost in between; it
+#: is also written on the way out. Rewriting it often took CPU from the workers on a small
+#: machine (measured in benchmarks/bench_sweep.py: "client" CPU per task).
+FLUSH_S = 10.0
 #: Seconds to wait for a connection to an existing scheduler.
 CONNECT_TIMEOUT_S = 10.0
 #: Seconds the client waits for a lost scheduler to come back before giving up.
@@ -111,7 +114,8 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
     config = {
         "distributed.nanny.pre-spawn-environ": environ,
         "distributed.scheduler.allowed-failures": 0,
-        # one task per one-thread worker: a worker that dies takes no queued bystander with it
+        # no task queued behind the running one on a worker (with the client's feed of one
+        # task per worker thread, _run): a worker that dies takes no bystander with it
         "distributed.scheduler.worker-saturation": 1.0,
     }
     kwargs.setdefault("dashboard_address", ":8787")
@@ -358,6 +362,8 @@ def _run(
         running[client.submit(runner, task, key=key, pure=False, retries=0)] = task
 
     def refill() -> None:
+        if not queue:
+            return
         try:
             slots = max(1, sum(client.nthreads().values()))
         except Exception:  # noqa: BLE001 - scheduler unreachable: handled by the status check
@@ -369,6 +375,7 @@ def _run(
     bar = tqdm(total=len(todo), desc=spec.name, unit="task", disable=not progress, leave=True)
     last_flush = time.monotonic()
     flush_every = FLUSH_S
+    dirty = False
     lost_since: float | None = None
     try:
         refill()
@@ -415,9 +422,11 @@ def _run(
                 bar.set_postfix(failed=failed, refresh=False)
                 bar.update(1)
             refill()
-            if time.monotonic() - last_flush > flush_every:
+            dirty = dirty or bool(done)
+            if dirty and time.monotonic() - last_flush > flush_every:
                 t0 = time.monotonic()
                 flush()
+                dirty = False
                 last_flush = time.monotonic()
                 flush_every = max(FLUSH_S, 10.0 * (last_flush - t0))
     finally:
