@@ -10,7 +10,7 @@ planned path's ratio to the lawn-mower and to the best *fitted* baseline (the lo
 metric among the lawn-mower, circle, straight line and the paper's lawn-mower) of the EKF and KF
 position RMSE, the EKF final error and the final posterior CRB, the closest approach to the
 beacon, whether the plan beats every baseline on the headline metrics, and the baselines that
-could not be fitted. Medians of the ratios to the lawn-mower are over the suite (``problems/suite``).
+could not be fitted. Medians of the ratios to the lawn-mower are over ``problems/suite``.
 """
 
 from __future__ import annotations

@@ -89,8 +89,12 @@ def test_metrics_are_computed_the_same_way_for_every_path():
     pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=60))
     for name, b in baselines(pb).items():
         m = path_metrics(b.trajectory, pb)
-        expect = psd_metrics(gramian(b.trajectory, pb.model, pb.scales))
+        G = gramian(b.trajectory, pb.model, pb.scales)
+        # round-off in a rank-deficient Gramian is not information: the rank test decides
+        full = numerical_rank(G) == G.shape[0]
+        expect = psd_metrics(G) if full else (0.0, float("-inf"), float("inf"))
         assert (m.min_eig, m.log_det, m.condition) == expect, name
+        assert full != (name == "straight")  # Table 1: a straight line is never observable
         assert m.objective == objective_value(b.trajectory, pb)
         mean, final = covariance_stds(b.trajectory, pb, "pcrb-position")
         assert (m.pcrb_mean_pos_std, m.pcrb_final_pos_std) == (mean, final)

@@ -23,7 +23,7 @@ import numpy as np
 
 from obsplan.model import VehicleModel
 from obsplan.observability.gramian import gramian
-from obsplan.observability.scaling import psd_metrics
+from obsplan.observability.scaling import numerical_rank, psd_metrics
 from obsplan.planning.feasibility import LimitCheck, check_limits, range_extremes
 from obsplan.planning.objectives import (
     CovarianceObjective,
@@ -118,13 +118,23 @@ def lwo_condition(traj: Trajectory, pb: PlanningProblem) -> float:
     return float(np.min(ev[:, 0] / (np.trace(M, axis1=1, axis2=2) / M.shape[-1])))
 
 
+def gramian_metrics(traj: Trajectory, pb: PlanningProblem) -> tuple[float, float, float]:
+    """``(min_eig, log_det, condition)`` of the scaled Gramian; ``(0, -inf, inf)`` when the
+    unit-invariant rank test finds it rank deficient (round-off must not read as information:
+    a 3D lawn-mower at constant depth has a 1e-17 "lambda_min" at N = 1000)."""
+    G = gramian(traj, pb.model, pb.scales)
+    if numerical_rank(G) < G.shape[0]:
+        return 0.0, float("-inf"), float("inf")
+    return psd_metrics(G)
+
+
 def objective_value(traj: Trajectory, pb: PlanningProblem) -> float:
     """The problem's objective evaluated (numerically, without lifting variables) on ``traj``."""
     kind = pb.objective.kind
     if kind == "gramian-min-eig":
-        return psd_metrics(gramian(traj, pb.model, pb.scales))[0]
+        return gramian_metrics(traj, pb)[0]
     if kind == "gramian-log-det":
-        return psd_metrics(gramian(traj, pb.model, pb.scales))[1]
+        return gramian_metrics(traj, pb)[1]
     if kind == "lwo-condition":
         grid = Grid.from_problem(pb)
         return lwo_softmin(lwo_conditions(grid, pb, grid.from_trajectory(traj)))
@@ -150,7 +160,7 @@ def better(a: float, b: float, pb: PlanningProblem) -> bool:
 
 def path_metrics(traj: Trajectory, pb: PlanningProblem) -> PathMetrics:
     """All metrics of ``traj`` (on the planning grid) for problem ``pb``."""
-    min_eig, log_det, cond = psd_metrics(gramian(traj, pb.model, pb.scales))
+    min_eig, log_det, cond = gramian_metrics(traj, pb)
     pcrb_mean, pcrb_final = covariance_stds(traj, pb, "pcrb-position")
     kf_mean, kf_final = covariance_stds(traj, pb, "kf-position-std")
     near, far = range_extremes(traj, pb.beacon)
