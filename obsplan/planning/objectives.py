@@ -274,7 +274,6 @@ class CovarianceObjective:
         Report mask per epoch (the KF skips the range at the anchor sample).
     scale : float
         Multiplies the recursion's std to metres.
-    kind : str
     """
 
     model: RecursionModel
@@ -282,8 +281,7 @@ class CovarianceObjective:
     P0: np.ndarray
     mask: np.ndarray
     scale: float
-    kind: str
-    rows: Callable  # (grid, W) -> (h (m, J), rho (1, J))
+    rows: Callable  # (grid, W) -> (h, rho): range rows and variances at the epochs
 
     def evaluate(self, grid: Grid, W):
         """``(mission-average std, final std)`` [m] as CasADi expressions or numbers."""
@@ -358,9 +356,7 @@ def pcrb_objective(pb: PlanningProblem) -> CovarianceObjective:
         rel = _apply(Mp, cp, w, n)
         return range_information(rel, sigma)
 
-    return CovarianceObjective(
-        rec, epochs, cov["p0_ekf"], epochs.mask, 1.0, pb.objective.kind, rows
-    )
+    return CovarianceObjective(rec, epochs, cov["p0_ekf"], epochs.mask, 1.0, rows)
 
 
 def kf_objective(pb: PlanningProblem) -> CovarianceObjective:
@@ -489,7 +485,7 @@ def kf_objective(pb: PlanningProblem) -> CovarianceObjective:
             rho = ca.sum1(rel**2) * sig_s**2 + 0.5 * sig_s**4 + extra
         return hh, rho
 
-    return CovarianceObjective(rec, epochs, S @ P0 @ S, mask, L, pb.objective.kind, rows)
+    return CovarianceObjective(rec, epochs, S @ P0 @ S, mask, L, rows)
 
 
 def covariance_objective(pb: PlanningProblem, kind: str | None = None) -> CovarianceObjective:
@@ -580,7 +576,6 @@ class Formulation:
     ubx: np.ndarray
     lbg: np.ndarray
     ubg: np.ndarray
-    n_extra: int
     extra_init: Callable[[np.ndarray], np.ndarray]  # W -> initial lifting variables
     to_objective: Callable[[float], float]  # solver's f -> the objective in the user's units
     hessian: str  # "exact" or "limited-memory"
@@ -806,7 +801,6 @@ def build_formulation(pb: PlanningProblem) -> Formulation:
         ubx=ubx,
         lbg=np.concatenate(lbg),
         ubg=np.concatenate(ubg),
-        n_extra=int(extra.shape[0]),
         extra_init=extra_init_np,
         to_objective=to_objective,
         hessian=hessian,
