@@ -188,7 +188,9 @@ def random_guess(pb: PlanningProblem, seed: int | Sequence[int]) -> Trajectory:
 def initial_guesses(pb: PlanningProblem) -> list[tuple[str, Trajectory]]:
     """``objective.starts`` guesses: lawn-mower and circle (if they fit), then seeded random."""
     fitted = all_baselines(pb)
-    out = [(name, fitted[name].trajectory) for name in ("lawnmower", "circle") if name in fitted]
+    out: list[tuple[str, Trajectory]] = [
+        (name, fitted[name].trajectory) for name in ("lawnmower", "circle") if name in fitted
+    ]
     i = 0
     while len(out) < pb.objective.starts:
         out.append((f"random-{i}", random_guess(pb, (pb.objective.seed, i))))
@@ -552,18 +554,18 @@ def solve(
     build_s = time.perf_counter() - t_start
 
     bar = None
+    callback: Callable[[int, str, StartOutcome], None] | None = progress or None  # type: ignore[assignment]
     if progress is True:
         from tqdm import tqdm
 
         desc = f"starts (N = {pb.horizon.steps})"
         bar = tqdm(total=len(guesses), desc=desc, unit="start", leave=False)
 
-        def callback(i, label, outcome):
+        def tick(i: int, label: str, outcome: StartOutcome) -> None:
             bar.set_postfix_str(f"{label}: {outcome.status}")
             bar.update(1)
 
-    else:
-        callback = progress or None
+        callback = tick
 
     nproc = default_processes(len(guesses)) if processes is None else max(1, int(processes))
     nproc = min(nproc, len(guesses))
