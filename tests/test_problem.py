@@ -176,6 +176,29 @@ def test_gramian_objective_refused_with_bottom_lock_and_current():
     assert problem_from_dict(d).vehicle.current
 
 
+def test_structural_check_runs_in_the_loader_and_in_solve_not_on_construction(monkeypatch):
+    from dataclasses import replace
+
+    from obsplan.planning import checks, solve
+
+    d = _with("vehicle.dim", 3)
+    d["start"] = {"position": [-80.0, 60.0, 10.0]}
+    pb = problem_from_dict(d)  # range-only 3D with the default pcrb-position: possible
+    calls: list[str] = []
+    real = checks._structure_error.__wrapped__
+
+    def counted(kind, model):
+        calls.append(kind)
+        return real(kind, model)
+
+    monkeypatch.setattr(checks, "_structure_error", counted)
+    impossible = replace(pb, objective=replace(pb.objective, kind="lwo-condition"))
+    assert calls == []  # construction: the cheap checks only, no CasADi rank run
+    with pytest.raises(ProblemError, match=r"objective\.kind: lwo-condition is impossible"):
+        solve(impossible)  # refused before any solver work
+    assert calls == ["lwo-condition"]
+
+
 def test_file_errors_name_the_file(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(

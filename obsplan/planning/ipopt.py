@@ -15,6 +15,7 @@ from __future__ import annotations
 import signal
 import threading
 from contextlib import contextmanager
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -89,7 +90,7 @@ def make_projection(pb: PlanningProblem, form: Formulation) -> ca.Function:
     Wbar = ca.MX.sym("Wbar", 3 * n, grid.N)
     g = [c.g for c in path_constraints(grid, pb, W)]
     f = 0.5 * ca.sumsqr(W[:n, :] - Wbar[:n, :])
-    nlp = {"x": ca.vec(W), "p": ca.vec(Wbar), "f": f, "g": ca.vertcat(*g)}
+    nlp: dict[str, Any] = {"x": ca.vec(W), "p": ca.vec(Wbar), "f": f, "g": ca.vertcat(*g)}
     ipopt = {
         "linear_solver": "mumps",
         "print_level": 0,

@@ -9,6 +9,8 @@ validation's own.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from obsplan.estimation.config import EstimationConfig, paper_covariances
@@ -26,7 +28,7 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     current ``vehicle.current_velocity``. Used by the validation and by the planning objectives.
     """
     model, val, n = pb.model, pb.validation, pb.dim
-    cov = paper_covariances(model, val.dt)
+    cov: dict[str, Any] = paper_covariances(model, val.dt)
     for key in ("p0_ekf", "p0_kf"):
         d = np.diag(cov[key]).copy()
         d[:n] = val.init_pos_error**2
