@@ -521,7 +521,8 @@ def lwo_path_report(
         span = float(g[-1] - g[0])
         if O.shape[1] == O.shape[2]:
             det = np.linalg.det(O)
-            for j in np.flatnonzero((np.sign(det[:-1]) * np.sign(det[1:])) < 0):
+            for jz in np.flatnonzero((np.sign(det[:-1]) * np.sign(det[1:])) < 0):
+                j = int(jz)
                 if bad[j] or bad[j + 1]:
                     continue
                 found.append(
@@ -535,7 +536,7 @@ def lwo_path_report(
                 )
         r = np.array([ratio(m) for m in O])
         for j in range(len(g)):
-            left, right = r[max(j - 1, 0)], r[min(j + 1, len(g) - 1)]
+            left, right = float(r[max(j - 1, 0)]), float(r[min(j + 1, len(g) - 1)])
             # a zero between samples shows as a sample at most half its larger neighbour (V or
             # parabola); round-off wiggles of a flat ratio do not, and are not refined
             if bad[j] or r[j] > min(left, right) or r[j] > 0.5 * max(left, right):

@@ -69,6 +69,7 @@ vector against integer kernel vectors of the current span (measured in
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from math import gcd
@@ -284,7 +285,7 @@ def _coefficients(aug: AugmentedModel, ex: _Exact, k0: int, k1: int) -> list[lis
 
 
 # ------------------------------------------------------------------ exact linear algebra
-def _rref(M: list[list[Fraction]]) -> tuple[list[list[Fraction]], list[int]]:
+def _rref(M: Sequence[Sequence[Fraction | int]]) -> tuple[list[list[Fraction]], list[int]]:
     """Reduced row echelon form over ℚ and the pivot columns."""
     R = [list(map(Fraction, row)) for row in M]
     rows, cols = len(R), (len(R[0]) if R else 0)
@@ -317,13 +318,13 @@ def exact_rank(M: np.ndarray | list) -> int:
 def _primitive(v: list[Fraction]) -> list[int]:
     """The integer multiple of ``v`` with coprime entries (small when the relation is simple)."""
     den = 1
-    for x in v:
-        den = den * x.denominator // gcd(den, x.denominator)
-    ints = [int(x * den) for x in v]
+    for q in v:
+        den = den * q.denominator // gcd(den, q.denominator)
+    ints = [int(q * den) for q in v]
     g = 0
-    for x in ints:
-        g = gcd(g, x)
-    return [x // g for x in ints] if g else ints
+    for k in ints:
+        g = gcd(g, k)
+    return [k // g for k in ints] if g else ints
 
 
 def _kernel(basis: list[list[int]], m: int) -> np.ndarray:
