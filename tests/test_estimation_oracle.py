@@ -1,12 +1,16 @@
 """The epoch-based Monte Carlo reproduces a plain per-step recursion (same seeds) to 1e-9.
 
 The oracle below is written from the equations, step by step, with nothing from the library's
-filters: per-step truth ``δ_{k+1} = F δ_k + L z_k``, readings where the schedule says so, the EKF
+filters: per-step truth ``δ_{k+1} = F δ_k + L_k z_k``, readings where the schedule says so, the EKF
 with a joint update linearised at the prior and a prediction at every sample, and the augmented
 KF in the paper's coordinates ``(p, v[, v_f], α, β, [β_a], e, f, g)`` with the output row of
 eq. 21 plus the process-noise coupling (``kf.py``), its per-step noise gain evaluated at the
 per-step prediction. The library composes predictions between epochs and runs the KF in chain
-coordinates; both are exact reformulations, so the two agree to round-off. A second oracle is
+coordinates; both are exact reformulations, so the two agree to round-off. With the physical
+process noise (an intensity) the oracle adds per step its own closed-form ``Q(h)`` and truth
+factor, and for the KF the integral over the step of the coupled noise (4-point Gauss–Legendre,
+exact for its degree-6 integrand) with the continuous-time gains; the library integrates over the
+whole gap between epochs at once. A second oracle is
 filterpy (``ExtendedKalmanFilter`` / ``KalmanFilter``, Joseph updates) doing the same per-step
 recursion with its own ``h``, Jacobian and matrices.
 
@@ -52,6 +56,13 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy"):
     dt = float(np.median(traj.dt))
     cov = cfg.covariances(dt)
     q, qk, P0e, P0k = cov["q_ekf"], cov["q_kf"], cov["p0_ekf"], cov["p0_kf"]
+    continuous = not cfg.per_step_noise
+    if continuous:  # the intensities of the physical noise, from the configuration's scalars
+        qa = (3.1622776601683794e-4 if cfg.accel_noise is None else cfg.accel_noise) ** 2
+        qf = cfg.current_noise**2
+        q = np.diag([0.0] * n + [qa] * n + ([qf] * n if model.current else []))
+        qk = np.zeros((mx + 2, mx + 2))
+        qk[:mx, :mx] = q
     sched = make_schedule(traj, model.sensors, cfg.rates_hz)
     rec = np.zeros(N, bool)
     rec[::record_every] = True
@@ -72,6 +83,30 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy"):
     assert np.count_nonzero(q - np.diag(qd)) == 0  # the test configurations use a diagonal q
     L = np.zeros((mx, int(np.sum(qd > 0))))
     L[np.flatnonzero(qd > 0), np.arange(L.shape[1])] = np.sqrt(qd[qd > 0])
+    if continuous:
+        L = np.zeros((mx, 2 * int(np.sum(qd > 0))))
+
+    def step_noise(h):
+        """Per-step truth factor and EKF covariance of a step h."""
+        if not continuous:
+            return L, q
+        Lk = np.zeros_like(L)
+        col = 0
+        for j in np.flatnonzero(qd > 0):  # two normals per white source, in state order
+            i = j % n
+            Lk[i, col] = np.sqrt(qd[j] * h**3 / 3.0)
+            Lk[j, col] = np.sqrt(qd[j] * h) * np.sqrt(3.0) / 2.0
+            Lk[j, col + 1] = np.sqrt(qd[j] * h) / 2.0
+            col += 2
+        Qk = np.zeros((mx, mx))
+        for j in np.flatnonzero(qd > 0):
+            i = j % n
+            Qk[i, i] += qd[j] * h**3 / 3.0
+            Qk[i, j] += qd[j] * h**2 / 2.0
+            Qk[j, i] += qd[j] * h**2 / 2.0
+            Qk[j, j] += qd[j] * h
+        return Lk, Qk
+
     sig = dict(cfg.noise)
     sr = sig["range"]
     aug = cfg.y0_mode == "augment"
@@ -94,7 +129,8 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy"):
             X[k] = nominal[k] + delta
             if k < N - 1:
                 F, _ = model.transition(traj.t[k + 1] - traj.t[k])
-                delta = F @ delta + (L @ z[k] if z.shape[1] else 0.0)
+                Lk = step_noise(traj.t[k + 1] - traj.t[k])[0]
+                delta = F @ delta + (Lk @ z[k] if z.shape[1] else 0.0)
         # readings
         Y = {}
         for j, s in enumerate(model.sensors):
@@ -232,11 +268,12 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy"):
                 covs.append(Tn @ PP @ Tn.T)
             if k < N - 1:
                 F, G = model.transition(traj.t[k + 1] - traj.t[k])
+                Qe = step_noise(traj.t[k + 1] - traj.t[k])[1]
                 if fp:
-                    fp.F, fp.B = F, G
+                    fp.F, fp.B, fp.Q = F, G, Qe
                     fp.predict(u=traj.u[k])
                 else:
-                    x, P = F @ x + G @ traj.u[k], F @ P @ F.T + q
+                    x, P = F @ x + G @ traj.u[k], F @ P @ F.T + Qe
         res["ekf"] = (np.array(ests), np.array(covs))
 
         # KF in the paper's coordinates plus (β_a), e, f, g
@@ -306,6 +343,34 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy"):
                         Gam[idx["f"], 2 * n : 3 * n] = cp
                         Gam[idx["g"], 2 * n : 3 * n] = cv
                 Qk = Gam @ qk @ Gam.T
+                if continuous:  # ∫_0^h Φ(h - s) Γ(s) W Γ(s)ᵀ Φ(h - s)ᵀ ds, gains at time s
+                    Qk = np.zeros((m, m))
+                    gx, gw = np.polynomial.legendre.leggauss(4)
+                    for xs, ws in zip(gx, gw, strict=True):
+                        sg = 0.5 * h * (xs + 1.0)
+                        lag = h - sg
+                        Fl = np.eye(m)
+                        Fl[:n, n : 2 * n] += lag * np.eye(n)
+                        if model.current:
+                            Fl[:n, 2 * n : 3 * n] += lag * np.eye(n)
+                        Fl[idx["e"], idx["f"]], Fl[idx["e"], idx["g"]] = lag, lag**2
+                        Fl[idx["f"], idx["g"]] = 2 * lag
+                        cps = (
+                            zc[:n]
+                            - d[k]
+                            + sg
+                            * (zc[n : 2 * n] + (zc[2 * n : 3 * n] if model.current else 0) - dd[k])
+                        )
+                        cvs = zc[n : 2 * n] + (zc[2 * n : 3 * n] if model.current else 0) - dd[k]
+                        Gs = np.zeros((m, mz))
+                        Gs[:mz, :mz] = np.eye(mz)
+                        if cfg.kf_coupling:  # ḟ = 2g + (p - d)·w_ν,  ġ = (ν - ḋ)·w_ν
+                            for cols in [range(n, 2 * n)] + (
+                                [range(2 * n, 3 * n)] if model.current else []
+                            ):
+                                Gs[idx["f"], list(cols)] = cps
+                                Gs[idx["g"], list(cols)] = cvs
+                        Qk += 0.5 * h * ws * (Fl @ Gs @ qk @ Gs.T @ Fl.T)
                 if fk:
                     fk.F, fk.Q = F, Qk
                     fk.B = np.zeros((m, n))
@@ -447,3 +512,32 @@ def test_kf_with_noise_on_the_extras_and_a_full_q():
     qk[4, 4] = qk[5, 5] = 1e-8
     qk[0, 2] = qk[2, 0] = 0.5 * np.sqrt(qk[0, 0] * qk[2, 2])  # p_x, v_x correlated
     check(circle(), replace(cfg, q_kf=qk), record_every=5)
+
+
+# ----------------------------------------------------------------------------- physical noise
+@pytest.mark.parametrize("case", list(CASES))
+def test_physical_noise_equals_per_step_recursion(case):
+    """The continuous white acceleration (and with a current its random walk) integrated over
+    whole gaps equals the oracle's per-step exact discretisation; a noise 10x the default so
+    that the coupling of the KF matters."""
+    dim, sensors, current, form, rates = CASES[case]
+    model = make_model(
+        dim, sensors, current=current, beacon=[2.0, -1.0, -4.0][:dim], range_form=form
+    )
+    cfg = EstimationConfig(
+        model=model, rates_hz=rates, accel_noise=3e-3, current_noise=1e-3 if current else 0.0
+    )
+    check(circle(dim=dim), cfg)
+
+
+def test_physical_noise_on_irregular_steps_and_long_gaps():
+    """Non-uniform steps (the truth's factor scales with each step) and 10 s gaps on a 20 Hz
+    grid (the KF's coupled noise integrated by the Gauss–Legendre rule of the whole gap)."""
+    rng_ = np.random.default_rng(5)
+    t = np.concatenate([[0.0], np.cumsum(rng_.uniform(0.05, 0.2, 300))])
+    u = np.column_stack([0.05 * np.sin(0.2 * t), 0.05 * np.cos(0.15 * t)])
+    traj = Trajectory.from_inputs(t, [40.0, -10.0], [0.3, 1.0], u)
+    cfg = EstimationConfig(model=make_model(2, "range"), rates_hz={"range": 0.7}, accel_noise=2e-3)
+    check(traj, cfg, record_every=5)
+    cfg = EstimationConfig(model=make_model(2, "range"), rates_hz={"range": 0.1}, accel_noise=3e-3)
+    check(gen.circle(40.0, 1.2, 120.0, 0.05), cfg, runs=2, record_every=37)

@@ -65,16 +65,26 @@ NW_MEAN, NW_E, NW_Y, NW_OFF, NW_C = 0, 1, 2, 3, 4
 
 # ----------------------------------------------------------------------------- truth
 @jit
-def truth_deviation(z, L, h, n, cur, points, out):
-    """``δ_{k+1} = (I + h_k A) δ_k + L z_k`` over all steps; ``out[i] = δ`` at ``points[i]``."""
+def truth_deviation(z, L, h, expo, n, cur, points, out):
+    """``δ_{k+1} = (I + h_k A) δ_k + diag(h_k^expo) L z_k`` over all steps; ``out[i] = δ`` at
+    ``points[i]`` (``expo = 0``: a per-step ``L``)."""
     m, r = L.shape
     d = np.zeros(m)
+    sc = np.ones(m)
+    scaled = False
+    for i in range(m):
+        scaled = scaled or expo[i] != 0.0
+    h_prev = -1.0
     P = points.shape[0]
     pi = 0
     while pi < P and points[pi] == 0:
         pi += 1  # δ_0 = 0 (out is zero-initialised)
     for k in range(z.shape[0]):
         hk = h[k]
+        if scaled and hk != h_prev:  # uniform grids: one power per run
+            h_prev = hk
+            for i in range(m):
+                sc[i] = hk ** expo[i]
         for i in range(n):
             vel = d[n + i]
             if cur:
@@ -84,7 +94,7 @@ def truth_deviation(z, L, h, n, cur, points, out):
             acc = 0.0
             for j in range(r):
                 acc += L[i, j] * z[k, j]
-            d[i] += acc
+            d[i] += sc[i] * acc
         while pi < P and points[pi] == k + 1:
             for i in range(m):
                 out[pi, i] = d[i]

@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from obsplan.errors import ConfigError
-from obsplan.estimation.config import EstimationConfig
+from obsplan.estimation.config import EstimationConfig, ProcessNoise
 from obsplan.estimation.crlb import CRLBResult, posterior_crlb
 from obsplan.estimation.ekf import ExtendedKalmanFilter
 from obsplan.estimation.epochs import RunContext, epoch_plan, input_displacement, record_samples
@@ -42,12 +42,12 @@ from obsplan.estimation.stats import (
 from obsplan.estimation.truth import (
     STREAM_INIT,
     STREAM_PROCESS,
-    noise_factor,
     noisy_readings,
     nominal_states,
     reading_draws,
     run_rng,
     truth_deviation,
+    truth_factor,
 )
 from obsplan.trajectory import Trajectory
 
@@ -64,17 +64,18 @@ DEFAULT_FILTERS: tuple[str, ...] = ("ekf", "kf")
 BATCH = 32
 
 
-def make_filter(name: str, config: EstimationConfig, cov: dict[str, np.ndarray]):
-    """The estimator ``name`` of :data:`FILTERS` for ``config`` (covariances in ``cov``)."""
+def make_filter(name: str, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise):
+    """The estimator ``name`` of :data:`FILTERS` for ``config`` (priors in ``cov``, process
+    noise ``pn``: per-step covariances or intensities, as the epoch plan it runs on)."""
     noise = dict(config.noise)
     if name == "ekf":
-        return ExtendedKalmanFilter(config.model, cov["q_ekf"], cov["p0_ekf"], noise)
+        return ExtendedKalmanFilter(config.model, pn.q_ekf, cov["p0_ekf"], noise)
     if name == "kf":
         return AugmentedKalmanFilter(
-            config.model, cov["q_kf"], cov["p0_kf"], noise, config.y0_mode, config.kf_coupling
+            config.model, pn.q_kf, cov["p0_kf"], noise, config.y0_mode, config.kf_coupling
         )
     if name == "gsf":
-        return GaussianSumFilter(config.model, cov["q_ekf"], cov["p0_ekf"], noise)
+        return GaussianSumFilter(config.model, pn.q_ekf, cov["p0_ekf"], noise)
     raise ConfigError(f"unknown filter {name!r}; choose from {', '.join(FILTERS)}")
 
 
@@ -212,10 +213,14 @@ class _Path:
             raise ConfigError(f"the model is {model.dim}D but the trajectory is {traj.dim}D")
         n = model.dim
         self.traj = traj
-        self.cov = config.covariances(1.0 / sample_rate(traj))
+        dt = 1.0 / sample_rate(traj)
+        self.cov = config.covariances(dt)
+        self.noise = pn = config.process_noise_model(dt)
         self.schedule = make_schedule(traj, model.sensors, config.rates_hz)
         self.records = record_samples(traj.n_samples, record_every)
-        self.plan = plan = epoch_plan(traj, self.schedule, self.records, rules="kf" in names)
+        self.plan = plan = epoch_plan(
+            traj, self.schedule, self.records, rules="kf" in names, continuous=pn.continuous
+        )
         self.t_rec = traj.t[self.records]
         d, dd = input_displacement(traj)
         window = (
@@ -231,7 +236,7 @@ class _Path:
             nees_bound=chi2_quantile(MONITOR_LEVEL, 2 * n),
             window_s=window,
         )
-        self.filters = {name: make_filter(name, config, self.cov) for name in names}
+        self.filters = {name: make_filter(name, config, self.cov, pn) for name in names}
         self.nominal = nominal_states(traj, model, config.current_array)[plan.points]
         Nr = self.records.size
         self.sums = {name: np.zeros((2, Nr, 3 + 2 * n)) for name in names}
@@ -239,7 +244,9 @@ class _Path:
         self.hist: dict = {}
         self.range_rows = np.flatnonzero(plan.reports[:, 0])
         mx = model.state_dim
-        self.L = noise_factor(self.cov["q_ekf"]) if config.process_noise else np.zeros((mx, 0))
+        self.L, self.expo = truth_factor(pn.continuous, pn.q_ekf, n, model.current)
+        if not config.process_noise:
+            self.L = np.zeros((mx, 0))
         self.L0 = np.linalg.cholesky(self.cov["p0_ekf"])
         self.extra_std = np.sqrt(np.diag(self.cov["p0_kf"])[-2:])
         # paths on the same time grid have the same schedule, records and truth deviation
@@ -338,7 +345,7 @@ def monte_carlo_paths(
                     z = run_rng(seed, i, STREAM_PROCESS).standard_normal(
                         (first.traj.n_samples - 1, L.shape[1])
                     )
-                    delta = truth_deviation(first.traj, model, L, z, plan.points)
+                    delta = truth_deviation(first.traj, model, L, z, plan.points, first.expo)
                 rd = reading_draws(model, plan.reports, dropout, seed, i)
                 draws.append((err0, extra_err, delta, rd))
             for job in group:
