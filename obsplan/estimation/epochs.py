@@ -287,6 +287,9 @@ class RunContext:
         The monitor's bound on one run's NEES (99.9 % quantile of ``χ²(2n)``).
     window_s : float
         The final stretch [s] over which the monitor averages a run's NEES.
+    rec_w : (Nr,), optional
+        Weight 1 for the records of the subset whose RMSE is reported per run (e.g. samples on
+        survey lines), 0 elsewhere; default none (that RMSE is NaN).
     """
 
     plan: EpochPlan
@@ -295,6 +298,18 @@ class RunContext:
     threshold_m: float
     nees_bound: float
     window_s: float
+    rec_w: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.rec_w is None:
+            object.__setattr__(self, "rec_w", np.zeros(self.t_rec.size))
+
+    def corrections(self, ce: np.ndarray | None, cr: np.ndarray | None):
+        """The kernels' input-correction arrays (empty: open loop)."""
+        if ce is None:
+            z = np.zeros((0, self.d_epochs.shape[1], 1))
+            return z, z
+        return np.ascontiguousarray(ce), np.ascontiguousarray(cr)
 
     @property
     def no_example(self) -> np.ndarray:

@@ -125,22 +125,53 @@ def truth_deviation(
     ``z`` has shape ``(N - 1, L.shape[1])``; ``δ_0 = 0``; the factor of step ``k`` is
     ``diag(h_k^expo) L`` (``expo`` zero by default: the per-step setting).
     """
-    out = np.zeros((points.size, model.state_dim))
-    if L.shape[1] == 0:
-        return out
-    from obsplan.estimation import kernels
+    return open_loop_truth(traj, model, L, z, points, expo)[0]
 
+
+def open_loop_truth(
+    traj: Trajectory,
+    model: VehicleModel,
+    L: np.ndarray,
+    z: np.ndarray,
+    points: np.ndarray,
+    expo: np.ndarray | None = None,
+    navs: np.ndarray | None = None,
+    box: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`truth_deviation` and the metrics of the true paths ``nav + δ`` of paths on the
+    same grid.
+
+    ``navs`` (J, N, 2n) are the paths' nominal ``(p, p')`` (none by default), ``box`` (3, 2)
+    the area and depth bounds (``TruthLimits.box``). Returns ``δ`` at ``points`` and the
+    metrics (J, N_TM) of :func:`obsplan.estimation.kernels.truth_metrics`.
+    """
+    from obsplan.estimation import kernels
+    from obsplan.estimation.stats import N_TM, TM_CLOSEST
+
+    n, m = model.dim, model.state_dim
+    out = np.zeros((points.size, m))
+    navs = np.zeros((0, traj.n_samples, 2 * n)) if navs is None else np.asarray(navs, float)
+    tm = np.zeros((navs.shape[0], N_TM))
+    tm[:, TM_CLOSEST] = np.inf
+    if L.shape[1] == 0 and navs.shape[0] == 0:
+        return out, tm
+    if L.shape[1] == 0:
+        z = np.zeros((traj.n_samples - 1, 0))
     kernels.truth_deviation(
         np.ascontiguousarray(z),
         np.ascontiguousarray(L),
         traj.dt,
-        np.zeros(model.state_dim) if expo is None else np.asarray(expo, float),
-        model.dim,
+        np.zeros(m) if expo is None else np.asarray(expo, float),
+        n,
         model.current,
         points,
         out,
+        np.ascontiguousarray(navs),
+        model.beacon_array,
+        np.tile([-np.inf, np.inf], (3, 1)) if box is None else np.asarray(box, float),
+        tm,
     )
-    return out
+    return out, tm
 
 
 def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
@@ -204,12 +235,23 @@ def noisy_readings(
     ``x_epochs`` are the true states at the epochs (E, state_dim), ``draws`` from
     :func:`reading_draws` (shared by every path on the same time grid).
     """
-    y = np.full((x_epochs.shape[0], model.output_dim), np.nan)
-    clean = clean_readings(model, x_epochs)
+    return clean_readings(model, x_epochs) + reading_noise(model, reports, noise, draws)
+
+
+def reading_noise(
+    model: VehicleModel,
+    reports: np.ndarray,
+    noise: dict[str, float],
+    draws: list[tuple[np.ndarray, np.ndarray | None]],
+) -> np.ndarray:
+    """The noise of the readings at the epochs, (E, output_dim): ``σ`` times the drawn normals
+    where a sensor reports, NaN where it does not (or drops). A reading is the clean value at
+    the true state plus this (in closed loop computed inside the simulation loop)."""
+    y = np.full((reports.shape[0], model.output_dim), np.nan)
     for i, (s, sl) in enumerate(model.output_slices.items()):
         rows = np.flatnonzero(reports[:, i])
         e, drop = draws[i]
-        val = clean[rows, sl] + noise[s] * e
+        val = noise[s] * e
         if drop is not None:
             val[drop] = np.nan
         y[rows, sl] = val
