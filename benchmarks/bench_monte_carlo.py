@@ -227,7 +227,7 @@ def acceptance_cases(quick: bool):
 # ----------------------------------------------------------------------------- 3. validation
 def validation_case() -> tuple[float, float, int]:
     from obsplan.planning import load_problem, plan
-    from obsplan.validation import validate_paths
+    from obsplan.planning.validation import validate_paths
 
     pb = load_problem()
     res = plan(pb, validate=False)
@@ -277,7 +277,8 @@ def _timed(fn, *args) -> float:
 # ----------------------------------------------------------------------------- 5. quality
 def quality(quick: bool) -> list[str]:
     from obsplan.planning import load_problem
-    from obsplan.validation import resample
+    from obsplan.planning.validation_setup import estimation_config
+    from obsplan.trajectory import resample
 
     rows = []
     runs = 20 if quick else 50
@@ -287,7 +288,7 @@ def quality(quick: bool) -> list[str]:
     )
     circle = gen.circle(51.0, 2.6, 600.0, 0.1, center=(0.0, 2.0))
     for label, traj, cfg in (
-        ("range3d.toml plan, dt 0.1 s", plan3, pb.estimation_config()),
+        ("range3d.toml plan, dt 0.1 s", plan3, estimation_config(pb)),
         ("2D circle 600 s, dt 0.1 s", circle, EstimationConfig.paper(make_model(2), 0.1)),
     ):
         for coupling in (True, False):

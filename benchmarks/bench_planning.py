@@ -13,7 +13,7 @@ is the model construction plus that coarse pass, "solve" the fine IPOPT run. SLS
 acceleration, speed and area limits but not ``limits.min_range`` (its "feasible" column is the
 full check, which the minimum range can fail). SLSQP optimises the
 inputs only (states by exact integration), with the objective evaluated by the same numpy/CasADi
-metric code (:func:`obsplan.planning.metrics.objective_value`) and finite-difference gradients,
+metric code (:func:`obsplan.planning.evaluate.objective_value`) and finite-difference gradients,
 the speed limit (analytic Jacobian) and the tightened area box (linear) as constraints.
 """
 
@@ -33,9 +33,10 @@ sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem, solve  # noqa: E402
 from obsplan.planning.baselines import lawnmower_baseline  # noqa: E402
+from obsplan.planning.evaluate import objective_value  # noqa: E402
 from obsplan.planning.feasibility import check_limits  # noqa: E402
-from obsplan.planning.metrics import MINIMISED, objective_value  # noqa: E402
 from obsplan.planning.problem import Horizon, PlanningProblem  # noqa: E402
+from obsplan.planning.schema import MINIMISED  # noqa: E402
 from obsplan.trajectory import Trajectory  # noqa: E402
 
 PROBLEMS = {

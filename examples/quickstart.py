@@ -16,9 +16,9 @@ import sys
 
 from obsplan import analyze
 from obsplan.estimation import monte_carlo
-from obsplan.planning import load_problem, plan
+from obsplan.planning import estimation_config, load_problem, plan
 from obsplan.planning.problem import Horizon, ObjectiveSpec
-from obsplan.validation import resample
+from obsplan.trajectory import resample
 
 
 def main(quick: bool = False) -> None:
@@ -47,7 +47,7 @@ def main(quick: bool = False) -> None:
     # 4. simulate: EKF and augmented KF, Monte Carlo with the problem's sensors and noises
     sim = monte_carlo(
         resample(path, problem.validation.dt),
-        problem.estimation_config(),
+        estimation_config(problem),
         runs=3 if quick else 10,
         seed=0,
     )

@@ -6,13 +6,12 @@ The public API in one place (see README.md): build or read a :class:`Trajectory`
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
-
-from obsplan.estimation import EstimationConfig, MonteCarloResult, monte_carlo  # noqa: E402
-from obsplan.model import VehicleModel, make_model  # noqa: E402
-from obsplan.observability.analyze import ObservabilityReport, analyze  # noqa: E402
-from obsplan.planning import PlanningProblem, PlanResult, load_problem, plan  # noqa: E402
-from obsplan.trajectory import Trajectory, read_csv, write_csv  # noqa: E402
+from obsplan.estimation import EstimationConfig, MonteCarloResult, monte_carlo
+from obsplan.model import VehicleModel, make_model
+from obsplan.observability.analyze import ObservabilityReport, analyze
+from obsplan.planning import PlanningProblem, PlanResult, load_problem, plan
+from obsplan.trajectory import Trajectory, read_csv, write_csv
+from obsplan.version import __version__
 
 
 def __getattr__(name: str):

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from obsplan.errors import TrajectoryFormatError
+from obsplan.csvtable import CsvTable, read_table, write_table
+from obsplan.errors import InputError, TrajectoryFormatError
 
 _AXES = "xyz"
 #: Default tolerance of the consistency check: positions within 1 mm, velocities within 1 mm/s.
@@ -280,8 +281,6 @@ def write_csv(traj: Trajectory, path: str | Path, overwrite: bool = True) -> Pat
     times exactly. The file is
     written to a temporary name and renamed, so an interruption never leaves half a file.
     """
-    from obsplan.io.csvtable import write_table
-
     path = Path(path)
     if path.exists() and not overwrite:
         raise FileExistsError(f"{path} exists; pass overwrite=True to replace it")
@@ -301,8 +300,6 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
         Naming the row (the line number in the file, header is row 1 when it is the first line)
         or column at fault, a column that appears twice, or a missing header row.
     """
-    from obsplan.io.csvtable import read_table
-
     return trajectory_from_table(read_table(path, _EXAMPLE_HEADER), check=check)
 
 
@@ -318,8 +315,8 @@ def trajectory_dim(columns: tuple[str, ...], path: object) -> int:
     return 3 if all(has_z) else 2
 
 
-def trajectory_from_table(table, check: bool = True) -> Trajectory:
-    """A :class:`Trajectory` from a :class:`~obsplan.io.csvtable.CsvTable` (like read_csv)."""
+def trajectory_from_table(table: CsvTable, check: bool = True) -> Trajectory:
+    """A :class:`Trajectory` from a :class:`~obsplan.csvtable.CsvTable` (like read_csv)."""
     path = table.path
     dim = trajectory_dim(table.columns, path)
     cols = csv_columns(dim)
@@ -348,3 +345,27 @@ def trajectory_from_table(table, check: bool = True) -> Trajectory:
     if check:
         traj.check_consistency(source=str(path))
     return traj
+
+
+def resample(traj: Trajectory, dt: float, name: str = "validation.dt") -> Trajectory:
+    """The same path sampled every ``dt`` [s] (exact for piecewise-constant inputs).
+
+    Each interval of ``traj`` must be an integer multiple of ``dt``; ``name`` is how the error
+    message calls ``dt`` (the problem field or the command-line option).
+
+    Raises
+    ------
+    InputError
+        If an interval is not a multiple of ``dt``.
+    """
+    steps = traj.dt / dt
+    k = np.rint(steps).astype(int)
+    if np.any(np.abs(steps - k) > 1e-6 * np.maximum(steps, 1.0)) or np.any(k < 1):
+        raise InputError(
+            f"{name} = {dt:g} s must divide every interval of the path "
+            f"(intervals from {traj.dt.min():g} to {traj.dt.max():g} s)"
+        )
+    u = np.repeat(traj.u[:-1], k, axis=0)
+    t = traj.t[0] + np.concatenate([[0.0], np.cumsum(np.repeat(traj.dt / k, k))])
+    t[-1] = traj.t[-1]
+    return Trajectory.from_inputs(t, traj.p[0], traj.v[0], u)

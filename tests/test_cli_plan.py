@@ -243,7 +243,7 @@ def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing
 def test_3d_path_figure_has_a_depth_view_and_the_area_in_the_legend():
     from obsplan import generators as gen
     from obsplan.planning.figures import plot_gramian_eigs, plot_paths
-    from obsplan.planning.problem import load_problem
+    from obsplan.planning.parse import load_problem
 
     pb = load_problem(PROBLEMS / "range3d.toml")
     path = gen.circle_z(

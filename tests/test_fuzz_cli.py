@@ -200,7 +200,7 @@ def test_fuzz_main_argv(argv):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr("obsplan.cli.plan.plan", _stop)
         mp.setattr("obsplan.cli.simulate.monte_carlo", _stop)
-        mp.setattr("obsplan.validation.validate_paths", _stop)
+        mp.setattr("obsplan.planning.validation.validate_paths", _stop)
         out, err = io.StringIO(), io.StringIO()
         try:
             with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):

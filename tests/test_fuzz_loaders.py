@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 
 from obsplan.errors import InputError
 from obsplan.io.tracks import Track, TrackFit, load_trajectory, read_track_csv
-from obsplan.planning.problem import PlanningProblem, load_problem, problem_from_dict
+from obsplan.planning.parse import load_problem, problem_from_dict
+from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory, read_csv
 
 EXAMPLES = 500

@@ -13,14 +13,9 @@ pytest.importorskip("pymap3d")
 
 from obsplan.cli import main  # noqa: E402
 from obsplan.errors import InputError, ProblemError  # noqa: E402
-from obsplan.io.geodetic import (  # noqa: E402
-    GeodeticOrigin,
-    geodetic_to_local,
-    local_to_geodetic,
-    parse_origin,
-    resolve_problem_geodetic,
-)
-from obsplan.planning.problem import problem_from_dict  # noqa: E402
+from obsplan.geodesy import GeodeticOrigin, geodetic_to_local, local_to_geodetic  # noqa: E402
+from obsplan.io.geodetic import parse_origin  # noqa: E402
+from obsplan.planning.parse import problem_from_dict, resolve_problem_geodetic  # noqa: E402
 from obsplan.trajectory import read_csv  # noqa: E402
 
 ORIGIN = GeodeticOrigin(43.7, 10.3)  # off Livorno

@@ -127,14 +127,13 @@ def test_kf_is_consistent_on_the_range3d_plan():
     [5.08, 7.00], 98 % of the samples inside; with the paper's output model 6.98 (48 %)."""
     from pathlib import Path
 
-    from obsplan.planning import load_problem
-    from obsplan.trajectory import read_csv
-    from obsplan.validation import resample
+    from obsplan.planning import estimation_config, load_problem
+    from obsplan.trajectory import read_csv, resample
 
     root = Path(__file__).resolve().parent
     pb = load_problem(str(root.parent / "problems" / "range3d.toml"))
     traj = resample(read_csv(root / "data" / "range3d-plan.csv", check=False), pb.validation.dt)
-    res = monte_carlo(traj, pb.estimation_config(), runs=50, seed=0, filters=("kf",))
+    res = monte_carlo(traj, estimation_config(pb), runs=50, seed=0, filters=("kf",))
     lo, hi = res.kf.nees_bounds
     assert lo <= res.kf.nees_mean <= hi
     assert res.kf.nees_inside_fraction > 0.85  # 0.95 expected for a consistent filter

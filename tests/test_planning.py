@@ -18,26 +18,20 @@ from obsplan.estimation.crlb import posterior_crlb
 from obsplan.observability.gramian import gramian
 from obsplan.planning import load_problem, solve
 from obsplan.planning.baselines import baselines, lawnmower_baseline
+from obsplan.planning.estimator_objectives import covariance_stds
+from obsplan.planning.evaluate import better, kf_final_pos_std, objective_value
 from obsplan.planning.feasibility import LIMIT_RTOL, check_limits
-from obsplan.planning.metrics import (
-    better,
-    covariance_stds,
-    kf_final_pos_std,
-    lwo_condition,
-    objective_value,
-)
-from obsplan.planning.objectives import (
-    LWO_BETA,
-    Grid,
-    build_formulation,
-    lwo_conditions,
-    lwo_softmin,
-    reference_path,
-)
-from obsplan.planning.problem import Horizon, Limits, problem_from_dict
-from obsplan.planning.solve import _project, initial_guesses, make_projection, random_guess
-from obsplan.trajectory import Trajectory
-from obsplan.validation import resample, validate_paths
+from obsplan.planning.formulation import build_formulation
+from obsplan.planning.grid import Grid
+from obsplan.planning.guesses import initial_guesses, random_guess, reference_path
+from obsplan.planning.ipopt import make_projection
+from obsplan.planning.ipopt import project as _project
+from obsplan.planning.lwo_objective import LWO_BETA, lwo_condition, lwo_conditions, lwo_softmin
+from obsplan.planning.parse import problem_from_dict
+from obsplan.planning.problem import Horizon, Limits
+from obsplan.planning.validation import validate_paths
+from obsplan.planning.validation_setup import estimation_config
+from obsplan.trajectory import Trajectory, resample
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -100,7 +94,7 @@ def test_pcrb_objective_is_the_validation_bound(pcrb_result):
     res = pcrb_result
     pb = res.problem
     fine = resample(res.trajectory, pb.validation.dt)
-    crlb = posterior_crlb(fine, pb.estimation_config())
+    crlb = posterior_crlb(fine, estimation_config(pb))
     avg, final = covariance_stds(res.trajectory, pb, "pcrb-position")
     assert avg == pytest.approx(crlb.mean_pos_std, rel=1e-9)
     assert final == pytest.approx(crlb.final_pos_std, rel=1e-9)

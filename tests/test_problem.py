@@ -9,14 +9,14 @@ from pathlib import Path
 import pytest
 
 from obsplan.errors import ProblemError
-from obsplan.planning.problem import (
+from obsplan.planning.parse import (
     DEFAULT_PROBLEM,
     PROBLEMS_DIR,
-    SCHEMA,
     load_problem,
     problem_from_dict,
     problem_to_dict,
 )
+from obsplan.planning.schema import SCHEMA
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "problem-files.md"
 
@@ -176,6 +176,29 @@ def test_gramian_objective_refused_with_bottom_lock_and_current():
     assert problem_from_dict(d).vehicle.current
 
 
+def test_structural_check_runs_in_the_loader_and_in_solve_not_on_construction(monkeypatch):
+    from dataclasses import replace
+
+    from obsplan.planning import checks, solve
+
+    d = _with("vehicle.dim", 3)
+    d["start"] = {"position": [-80.0, 60.0, 10.0]}
+    pb = problem_from_dict(d)  # range-only 3D with the default pcrb-position: possible
+    calls: list[str] = []
+    real = checks._structure_error.__wrapped__
+
+    def counted(kind, model):
+        calls.append(kind)
+        return real(kind, model)
+
+    monkeypatch.setattr(checks, "_structure_error", counted)
+    impossible = replace(pb, objective=replace(pb.objective, kind="lwo-condition"))
+    assert calls == []  # construction: the cheap checks only, no CasADi rank run
+    with pytest.raises(ProblemError, match=r"objective\.kind: lwo-condition is impossible"):
+        solve(impossible)  # refused before any solver work
+    assert calls == ["lwo-condition"]
+
+
 def test_file_errors_name_the_file(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(
@@ -204,11 +227,23 @@ def test_docs_document_every_field_with_unit_and_default():
 
 
 def test_docs_tables_are_generated_from_the_schema():
-    from obsplan.planning.problem import schema_markdown
+    from obsplan.planning.schema import schema_markdown
 
     assert schema_markdown() in DOCS.read_text()
     readme = (DOCS.parents[1] / "README.md").read_text()
     assert schema_markdown().replace("### `", "#### `") in readme
+
+
+def test_docs_field_tables_are_exactly_the_schema_regenerated():
+    # stronger than inclusion: a field removed from SCHEMA must not linger in a document
+    from obsplan.planning.schema import update_field_tables
+
+    for doc in (DOCS, DOCS.parents[1] / "README.md"):
+        text = doc.read_text()
+        assert update_field_tables(text) == text, f"{doc.name}: run update_field_tables"
+    stale = DOCS.read_text().replace("| `runs` |", "| `old_runs` |", 1)
+    assert "old_runs" not in update_field_tables(stale)
+    assert update_field_tables(stale) == DOCS.read_text()
 
 
 def test_rates_of_sensors_not_fitted_do_not_veto_the_filter_step():

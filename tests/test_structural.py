@@ -21,12 +21,15 @@ from obsplan.observability.analyze import analyze
 from obsplan.observability.gramian import gramian, gramian_report
 from obsplan.observability.scaling import RANK_TOL, Scales
 from obsplan.observability.structural import (
+    STRUCTURE_RTOL,
     ExactRankProfile,
     exact_gramian,
     exact_min_eigenvalue,
     exact_rank,
     exact_rank_profile,
+    structural_inputs,
 )
+from obsplan.paper import scenario
 from obsplan.trajectory import Trajectory, write_csv
 
 DT = 0.1  # exact ranks are per interval; 0.1 s keeps the conditioning times cheap
@@ -111,17 +114,90 @@ def test_exact_deficiencies_are_structural():
         assert dvl == {2: 4, 3: 4, 4: 5}[rank]
 
 
-def test_round_off_makes_exact_rank_full_where_conditioning_is_not():
-    """The documented difference of the two definitions: inputs a·(0.8, -0.6) rounded to doubles
-    are not exactly parallel, so the exact rank is full; the conditioning rank is 4 (a line)."""
+def test_round_off_does_not_read_as_excitation():
+    """Inputs a·(0.8, -0.6) rounded to doubles are not exactly parallel: as stored they are
+    exactly full rank 6, while the path's structure (a line) is rank 4, as its conditioning."""
     line = gen.straight(
         (-80.0, 60.0), (0.8, -0.6), 0.5, accel=gen.sine_profile(0.02, 0.01, 20.0), duration=60.0
     )
     model = make_model(2, "range")
-    assert exact_rank_profile(line, model).rank == 6
-    assert gramian_report(line, model).rank == 4
     u = line.u[:-1]
     assert np.any(u[:, 0] * 0.6 + u[:, 1] * 0.8 != 0)  # not exactly parallel to (0.8, -0.6)
+    assert exact_rank_profile(line, model, structure_rtol=0).rank == 6  # the stored numbers
+    assert exact_rank_profile(line, model).rank == 4  # the structure
+    assert gramian_report(line, model).rank == 4
+
+
+def _hidden_line_3d() -> Trajectory:
+    e = np.array([0.48, -0.36, 0.8]) / np.linalg.norm([0.48, -0.36, 0.8])
+    return gen.straight(
+        (-80.0, 60.0, 5.0), e, 0.5, accel=gen.sine_profile(0.02, 0.01, 20.0), duration=60.0, dt=0.25
+    )
+
+
+def test_hidden_straight_3d_line_is_rank_6_of_8_in_every_exact_key(tmp_path, capsys):
+    line = _hidden_line_3d()
+    u = line.u[:-1]
+    e = u[0] / np.linalg.norm(u[0])
+    off = np.linalg.norm(u - np.outer(u @ e, e), axis=1) / np.linalg.norm(u, axis=1)
+    assert 0 < off.max() < 1e-14  # parallel to round-off only, as in the field report
+    csv = write_csv(line, tmp_path / "line3d.csv")
+    assert main(["analyze", str(csv), "--json", "--sensors", "range,dvl"]) == 0
+    g = json.loads(capsys.readouterr().out)["gramian"]
+    assert (g["rank_exact"], g["dim"]) == (6, 8)  # range + DVL on a line: 4 + n - 1
+    assert g["full_rank_interval_exact"] is None and g["full_rank_from_t_exact"] is None
+    assert g["rank"] == 6 and g["full_rank"] is False
+    model = make_model(3, "range,dvl")
+    assert exact_rank_profile(line, model, structure_rtol=0).rank == 8  # as stored: round-off
+
+
+def test_a_round_off_cross_track_input_does_not_move_the_exact_time():
+    """A leg along x whose last interval carries u_y = -1.2e-15, then a turn: the structure
+    becomes full rank in the turn, not at the end of the leg."""
+    h = 0.5
+    leg = np.tile([0.02, 0.0], (120, 1))
+    leg[60:, 0] = -0.01  # accelerate then brake along x: rank 3 on the leg (2D range)
+    leg[-1, 1] = -1.22e-15
+    turn = np.column_stack([np.zeros(20), np.full(20, 0.03)])
+    u = np.vstack([leg, turn])
+    t = np.arange(u.shape[0] + 1) * h
+    tr = Trajectory.from_inputs(t, (-80.0, 60.0), (0.2, 0.0), u)
+    model = make_model(2, "range")
+    raw = exact_rank_profile(tr, model, structure_rtol=0)
+    prof = exact_rank_profile(tr, model)
+    assert raw.full_rank_interval == 119  # the round-off interval, as stored
+    assert prof.full_rank_interval is not None and prof.full_rank_interval >= 120  # in the turn
+    assert prof.ranks(120)[-1] == 4  # the leg's structure: a line with a varying input
+
+
+def test_paper_lawnmower_first_leg_is_a_constant_acceleration():
+    """Its chord inputs vary by ~1e-14 around 0.0125 m/s²: as stored they read as a 4th
+    direction at interval 2; the structure is rank 3 until the turn (docs, exact record)."""
+    tr = scenario("2d-lawnmower", True)
+    model = make_model(2, "range")
+    assert exact_rank_profile(tr, model, structure_rtol=0).increases[:2] == ((0, 3), (2, 4))
+    prof = exact_rank_profile(tr, model)
+    assert prof.increases == ((0, 3), (1600, 5), (1601, 6))
+    assert tr.u[1599, 1] == 0 and tr.u[1600, 1] != 0  # 1600 is the turn's first interval
+
+
+def test_structural_inputs_stay_within_the_tolerance_and_keep_generic_paths():
+    rng = np.random.default_rng(3)
+    u = rng.normal(0, 0.05, (200, 3))
+    u[50:80] = np.outer(rng.uniform(-0.05, 0.05, 30), [0.6, 0.0, -0.8])  # a parallel run
+    u[90:100] = 0.0
+    u[120, 2] += 1e-17  # round-off on a generic input: no class changes
+    U, s = structural_inputs(u)
+    snapped = np.array([float(Fraction(int(x), 1 << s)) for x in U.ravel()]).reshape(u.shape)
+    umax = np.linalg.norm(u, axis=1).max()
+    # each input moves by at most the tolerance (direction and magnitude), relative to max |u|
+    assert np.max(np.linalg.norm(snapped - u, axis=1)) <= 3 * STRUCTURE_RTOL * umax
+    assert np.all(snapped[90:100] == 0)
+    d = snapped[50:80] / np.linalg.norm(snapped[50:80], axis=1, keepdims=True)
+    assert np.all(np.abs(np.abs(d @ d[0]) - 1) < 1e-15) and np.all(d[:, 1] == 0)
+    tr = random_traj(4, dim=3, n=30)
+    model = make_model(3, "range,depth")
+    assert exact_rank_profile(tr, model) == exact_rank_profile(tr, model, structure_rtol=0)
 
 
 def test_exact_interval_does_not_depend_on_units():

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from obsplan.cli import main
-from obsplan.planning.problem import problem_from_dict
+from obsplan.planning.parse import problem_from_dict
 from obsplan.sweeps import SweepFileError, expand, load_sweep, sweep, sweep_from_dict
 from obsplan.sweeps.spec import apply_axes, combinations, parse_path, unique_tasks
 from obsplan.sweeps.table import build_table, comparable, flatten

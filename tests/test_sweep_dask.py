@@ -373,15 +373,16 @@ def test_external_scheduler_lost_then_resumed(reference, tmp_path):
 # ------------------------------------------------------------------------------ Monte Carlo
 def test_sharded_monte_carlo_equals_the_unsharded_run(client):
     from obsplan.estimation import simulate
-    from obsplan.planning.problem import problem_from_dict
+    from obsplan.planning.parse import problem_from_dict
+    from obsplan.planning.validation_setup import estimation_config
     from obsplan.sweeps import sharded_monte_carlo
-    from obsplan.validation import resample
+    from obsplan.trajectory import resample
 
     pb = problem_from_dict(BASE)
     from obsplan.planning import baselines
 
     traj = resample(baselines(pb)["lawnmower"].trajectory, pb.validation.dt)
-    config = pb.estimation_config()
+    config = estimation_config(pb)
     whole = simulate.monte_carlo(traj, config, runs=5, seed=11)
     merged = sharded_monte_carlo(traj, config, runs=5, seed=11, shards=3, client=client)
     assert merged.runs == 5 and merged.seed == 11

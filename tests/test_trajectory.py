@@ -204,7 +204,7 @@ def test_write_csv_is_atomic(tmp_path, monkeypatch):
                 raise KeyboardInterrupt
             self.w.writerow(row)
 
-    monkeypatch.setattr("obsplan.io.csvtable.csv.writer", Boom)
+    monkeypatch.setattr("obsplan.csvtable.csv.writer", Boom)
     with pytest.raises(KeyboardInterrupt):
         write_csv(random_traj(2), path)
     assert path.read_bytes() == before

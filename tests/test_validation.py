@@ -11,9 +11,11 @@ import pytest
 from obsplan.errors import InputError
 from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
-from obsplan.planning.metrics import kf_final_pos_std
+from obsplan.planning.evaluate import kf_final_pos_std
 from obsplan.planning.problem import Horizon, ValidationSpec
-from obsplan.validation import resample, validate_paths
+from obsplan.planning.validation import validate_paths
+from obsplan.planning.validation_setup import estimation_config
+from obsplan.trajectory import resample
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +64,7 @@ def test_planning_kf_predicts_the_validation_kf(short_problem):
 
 def test_estimation_config_follows_the_problem(short_problem):
     pb = replace(short_problem, validation=ValidationSpec(range_std=0.3, init_pos_error=2.0))
-    cfg = pb.estimation_config()
+    cfg = estimation_config(pb)
     assert cfg.noise["range"] == 0.3
     assert cfg.rates_hz["range"] == 1.0
     cov = cfg.covariances(0.1)
@@ -77,7 +79,7 @@ def test_one_pass_equals_separate_monte_carlos(short_problem):
     bls = baselines(short_problem)
     paths = {k: bls[k].trajectory for k in ("lawnmower", "circle")}
     val = validate_paths(paths, short_problem, filters=("ekf", "kf", "gsf"))
-    cfg = short_problem.estimation_config()
+    cfg = estimation_config(short_problem)
     for name, tr in paths.items():
         alone = monte_carlo(
             resample(tr, short_problem.validation.dt),

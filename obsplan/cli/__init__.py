@@ -12,9 +12,9 @@ import os
 import sys
 from collections.abc import Sequence
 
-from obsplan import __version__
 from obsplan.cli.common import join_negative_values
 from obsplan.errors import InputError, ObsplanError
+from obsplan.version import __version__
 
 VERBS = ("plan", "analyze", "simulate", "paper", "sweep", "import", "export")
 #: Module of each verb whose name is not a valid module name.

@@ -36,8 +36,8 @@ import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+from obsplan.atomic import atomic_file, remove_tree, replace_dir, staging_dir
 from obsplan.errors import InputError
-from obsplan.io.atomic import atomic_file, remove_tree, replace_dir, staging_dir
 from obsplan.trajectory import InconsistentTrajectoryWarning, Trajectory
 
 

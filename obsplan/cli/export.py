@@ -67,7 +67,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 
 def _origin(args: argparse.Namespace):
-    from obsplan.io.geodetic import GeodeticOrigin, parse_origin
+    from obsplan.geodesy import GeodeticOrigin
+    from obsplan.io.geodetic import parse_origin
 
     if args.origin is not None:
         return parse_origin(args.origin), "--origin"

@@ -17,8 +17,9 @@ from obsplan.planning.figures import (
     plot_paths,
     save_figure,
 )
+from obsplan.planning.parse import DEFAULT_PROBLEM, load_problem
 from obsplan.planning.plan import PlanResult, plan
-from obsplan.planning.problem import DEFAULT_PROBLEM, Horizon, PlanningProblem, load_problem
+from obsplan.planning.problem import Horizon, PlanningProblem
 from obsplan.trajectory import write_csv
 
 DEFAULT_OUT = "obsplan-plan"

@@ -180,7 +180,7 @@ def check_filter_grid(traj, dt: float | None, runs: int) -> None:
     The limits: :data:`MAX_FILTER_SAMPLES` samples per run and the validation budget
     ``runs x samples x 3n <= MAX_MC_SIZE`` of :mod:`obsplan.planning.problem`.
     """
-    from obsplan.planning.problem import MAX_MC_SIZE
+    from obsplan.planning.schema import MAX_MC_SIZE
 
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         raise InputError(f"--dt {dt:g}: the filter step must be a positive number of seconds")
@@ -208,7 +208,7 @@ def check_filter_grid(traj, dt: float | None, runs: int) -> None:
 def _problem_mode(args: argparse.Namespace, traj):
     from dataclasses import replace
 
-    from obsplan.planning.problem import load_problem
+    from obsplan.planning.parse import load_problem
 
     given = [o for o in PROBLEM_REPLACES if getattr(args, o, None) is not None]
     if given:
@@ -245,17 +245,17 @@ def run(args: argparse.Namespace) -> int:
     )
     with out or contextlib.nullcontext():
         if pb is not None:
-            from obsplan.validation import validate_paths
+            from obsplan.planning.validation import validate_paths
 
             val = validate_paths({"trajectory": traj}, pb, runs=runs, progress=_progress(args))
             res = val["trajectory"].result
-            from obsplan.validation import resample
+            from obsplan.trajectory import resample
 
             fine = resample(traj, pb.validation.dt)
         else:
             fine = traj
             if args.dt is not None:
-                from obsplan.validation import resample
+                from obsplan.trajectory import resample
 
                 fine = resample(traj, args.dt, name="--dt")
             beacon, _ = resolve_beacon(args, traj.dim)
@@ -317,7 +317,7 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
     cfg = res.config
     if pb is not None:
         from obsplan.planning.figures import plot_filter_errors
-        from obsplan.validation import PathValidation
+        from obsplan.planning.validation import PathValidation
 
         # the figure `obsplan plan` writes as filters.png, for this one path
         fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)})

@@ -34,7 +34,7 @@ extras :func:`read_track_rosbag` (``rosbags``: ``nav_msgs/Odometry`` or
 ``geometry_msgs/PoseStamped``, ROS 1 ``.bag`` or ROS 2 folders) and :func:`read_track_mavlink`
 (``pymavlink``: ``LOCAL_POSITION_NED`` or ``GLOBAL_POSITION_INT`` from a ``.tlog``).
 Frames: positions are in the package's local frame, north-east-down (``z`` is depth, as in the
-problem files' ``limits.depth``); see :mod:`obsplan.io.geodetic`.
+problem files' ``limits.depth``); see :mod:`obsplan.geodesy`.
 """
 
 from __future__ import annotations
@@ -46,8 +46,10 @@ from typing import Any
 
 import numpy as np
 
+from obsplan.csvtable import CsvTable, read_table
 from obsplan.errors import InputError, TrajectoryFormatError
-from obsplan.trajectory import Trajectory, check_samples
+from obsplan.geodesy import GeodeticOrigin, geodetic_to_local
+from obsplan.trajectory import Trajectory, check_samples, csv_columns, trajectory_from_table
 
 #: Fewest samples a fit accepts (three fix the quadratic of one hold; one more leaves a residual).
 MIN_SAMPLES = 4
@@ -237,8 +239,8 @@ def _track_columns(columns: tuple[str, ...], path: object) -> tuple[list[str], l
     return pos, (vel if all(present) else None)
 
 
-def track_from_table(table) -> Track:
-    """A :class:`Track` from a :class:`~obsplan.io.csvtable.CsvTable` with ``t,px,py[,pz]``."""
+def track_from_table(table: CsvTable) -> Track:
+    """A :class:`Track` from a :class:`~obsplan.csvtable.CsvTable` with ``t,px,py[,pz]``."""
     path = table.path
     pos, vel = _track_columns(table.columns, path)
     data = table.numbers(["t", *pos, *(vel or [])])
@@ -262,8 +264,6 @@ def read_track_csv(path: str | Path) -> Track:
     Separators: comma, semicolon or tab; extra columns are ignored. A full trajectory CSV (with
     ``ux..``) is also a track (its inputs are ignored).
     """
-    from obsplan.io.csvtable import read_table
-
     return track_from_table(read_table(path, "t,px,py[,pz]"))
 
 
@@ -369,7 +369,7 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
         −relative_alt, as ArduSub reports it; vx, vy, vz [cm/s]); default: the first present,
         in that order.
     origin
-        :class:`~obsplan.io.geodetic.GeodeticOrigin` of the local frame for
+        :class:`~obsplan.geodesy.GeodeticOrigin` of the local frame for
         ``GLOBAL_POSITION_INT``; default: the first fix, at the surface.
 
     Times are ``time_boot_ms`` [s]; repeated messages with the same time are dropped (a
@@ -427,8 +427,6 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
         )
     a = a[keep]
     if name == "GLOBAL_POSITION_INT":
-        from obsplan.io.geodetic import GeodeticOrigin, geodetic_to_local
-
         if origin is None:
             origin = GeodeticOrigin(latitude=float(a[0, 1]), longitude=float(a[0, 2]))
         p = geodetic_to_local(a[:, 1], a[:, 2], a[:, 3], origin, dim=3)
@@ -759,9 +757,6 @@ def load_trajectory(
     one with ``t,px,py[,pz]`` and no ``u`` is a track, fitted by :func:`fit_track` with
     ``fit_options``. Returns the trajectory and the fit (None for a trajectory CSV).
     """
-    from obsplan.io.csvtable import read_table
-    from obsplan.trajectory import csv_columns, trajectory_from_table
-
     table = read_table(path, "t,px,py,vx,vy,ux,uy (or a track: t,px,py)")
     if any(c in table.columns for c in ("ux", "uy", "uz")):
         return trajectory_from_table(table, check=check), None

@@ -18,7 +18,7 @@ where the projection leaves the segment), not by sampling.
 
 ``speed`` of a waypoint is the constant speed that flies its outgoing leg on schedule (leg length
 / leg duration; the last waypoint repeats the last leg's). Geodetic output needs an origin
-(:mod:`obsplan.io.geodetic`); a straight leg in the local frame and the one an autopilot draws
+(:mod:`obsplan.geodesy`); a straight leg in the local frame and the one an autopilot draws
 between two latitude/longitude points differ by far less than a millimetre over legs of a few
 hundred metres.
 """
@@ -33,9 +33,10 @@ from typing import Any
 
 import numpy as np
 
+from obsplan.atomic import atomic_file
+from obsplan.csvtable import read_table, write_table
 from obsplan.errors import InputError, TrajectoryFormatError
-from obsplan.io.atomic import atomic_file
-from obsplan.io.csvtable import write_table
+from obsplan.geodesy import local_to_geodetic
 from obsplan.trajectory import Trajectory, grid_times
 
 #: MAVLink MAV_CMD_NAV_WAYPOINT, MAV_CMD_DO_CHANGE_SPEED.
@@ -272,8 +273,6 @@ def waypoint_columns(dim: int, geodetic: bool) -> list[str]:
 def waypoint_rows(wp: Waypoints, geodetic: bool) -> tuple[list[str], np.ndarray]:
     """Header and numeric rows of the waypoint CSV (geodetic rows need ``wp.origin``)."""
     if geodetic:
-        from obsplan.io.geodetic import local_to_geodetic
-
         if wp.origin is None:
             raise InputError(
                 "geodetic waypoints need an origin: give --origin LAT,LON[,ALT] or plan a "
@@ -298,8 +297,6 @@ def write_waypoints_csv(wp: Waypoints, path: str | Path, geodetic: bool = False)
 
 def read_waypoints_csv(path: str | Path) -> dict[str, np.ndarray]:
     """Read a waypoint CSV back: ``{column: values}`` for every column of the header."""
-    from obsplan.io.csvtable import read_table
-
     table = read_table(path, ",".join(waypoint_columns(2, False)))
     geodetic = "latitude" in table.columns
     dim = 3 if ("depth" if geodetic else "z") in table.columns else 2
@@ -310,8 +307,6 @@ def read_waypoints_csv(path: str | Path) -> dict[str, np.ndarray]:
 
 def write_geodetic_samples(traj: Trajectory, origin: Any, path: str | Path) -> Path:
     """The plan's samples as ``t,latitude,longitude[,depth],speed`` (atomic)."""
-    from obsplan.io.geodetic import local_to_geodetic
-
     lat, lon, depth = local_to_geodetic(traj.p, origin)
     cols = ["t", "latitude", "longitude", "depth"][: 1 + traj.dim] + ["speed"]
     rows = np.column_stack(
@@ -336,8 +331,6 @@ def qgc_plan(
     differs by more than ``speed_change`` from the previous one. ``depth_2d`` [m] is the depth
     of a 2D plan. The planned home is the origin.
     """
-    from obsplan.io.geodetic import local_to_geodetic
-
     if wp.origin is None:
         raise InputError(
             "a QGroundControl mission needs geodetic waypoints: give --origin LAT,LON[,ALT] or "

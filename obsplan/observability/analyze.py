@@ -14,8 +14,10 @@ Two first-full-rank times, two definitions (JSON keys of the ``gramian`` dict):
 * ``full_rank_interval_exact`` (0-based interval ``[t_k, t_{k+1})``) and
   ``full_rank_from_t_exact = t_{k+1}`` [s]: the first interval after which the held-input
   Gramian is non-singular in exact arithmetic, typically 3-4 intervals after excitation starts;
-  ``rank_exact`` is the exact rank over the whole trajectory. Exact ranks are of the numbers as
-  stored: round-off can make them full where the conditioning rank is not (see ``structural.py``).
+  ``rank_exact`` is the exact rank over the whole trajectory. Exact ranks are of the path's
+  *structure*: inputs that are zero, parallel or in a subspace to ``STRUCTURE_RTOL`` (1e-9
+  relative) are made exactly so first, so round-off cannot read as excitation (a straight 3D line
+  with range and DVL is rank 6 of 8 in every exact key; see ``structural.py``).
   ``null`` where the Gramian is never exactly non-singular, or when ``exact=False``.
 
 The beacon only enters the LWO test: the augmented Gramian depends on the inputs alone. A sample

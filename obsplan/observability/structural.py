@@ -32,13 +32,34 @@ range + depth), 6, 8, 10, 11 (3D current, water-profiling DVL). This is the *str
 attained for generic inputs; a lower exact rank means an exact relation between the inputs
 (``u_y ≡ 0``, all ``u`` parallel, bottom-lock DVL with current, ...).
 
+*Structure, not round-off.* An exact rank of the doubles as stored would answer a question
+about round-off: a "straight" line along (0.8, -0.6) stores inputs that are parallel only to
+1e-16, and a leg's last interval may carry ``u_y = -1.2e-15``; exact arithmetic on those numbers
+counts the round-off as excitation (full rank 8 of 8 on a straight 3D line whose true rank is 6).
+So the exact rank is that of the path's *structure*: before any exact arithmetic the held inputs
+are classified with the stated relative tolerance :data:`STRUCTURE_RTOL` and replaced by exact
+representatives of their class (:func:`structural_inputs`):
+
+* *zero input*: ``|u_k| <= rtol · max_k |u_k|`` becomes exactly 0;
+* *the input subspace*: when the inputs span fewer than ``n`` directions to ``rtol`` (a planar
+  path in 3D, every input parallel to one line), each input is written exactly in an orthonormal
+  basis of that subspace (basis vectors whose components below ``rtol`` are exact zeros, so an
+  axis-aligned subspace stays exactly axis-aligned);
+* *parallel inputs*: inputs whose directions agree to ``rtol`` (up to sign) share one exact
+  direction, and magnitudes that agree to ``rtol · max |u|`` share one exact value (a constant
+  acceleration stays exactly constant).
+
+Every representative is a product of doubles, hence a dyadic rational: the exact arithmetic
+below is unchanged. The tolerance is far above the round-off of stored or integrated inputs
+(~1e-16 relative per number, ~1e-13 after a CSV round trip of integrated samples) and far below
+any excitation that moves a vehicle: a 1e-9 relative component of a 0.05 m/s² input moves it
+by 3e-4 m in an hour. ``structure_rtol=0`` gives the exact rank of the numbers as stored.
+
 *Conditioning time* ``full_rank_from_t``: the first sample whose equilibrated Gramian has every
-eigenvalue above ``RANK_TOL``. On a consistent trajectory it is never earlier than the exact time
-(a tolerance far above round-off cannot see a direction that exact arithmetic does not), and it
-is the one the verdicts use: an exact rank is a property of the numbers, and numbers rounded to
-doubles can be exactly independent by round-off alone (a "straight" line along (0.8, -0.6)
-stores inputs that are not exactly parallel, so its exact rank is full while every excitation
-beyond the line is 1e-16 of the motion). Both are reported by ``obsplan analyze --json``.
+eigenvalue above ``RANK_TOL``. It is never earlier than the exact time, and it is the one the
+verdicts use: the exact rank says whether the path's structure can make the Gramian
+non-singular, the conditioning time when the excitation stands out of the noise floor. Both are
+reported by ``obsplan analyze --json``.
 
 Cost: integer (big-int) arithmetic on numpy object arrays, one pass over the intervals with an
 early exit at full rank; a rank-deficient trajectory is certified by checking every coefficient
@@ -53,6 +74,9 @@ from fractions import Fraction
 from math import gcd
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from obsplan.model import VehicleModel
 from obsplan.observability.gramian import AugmentedModel, augmented_model
@@ -61,6 +85,8 @@ from obsplan.trajectory import Trajectory
 
 #: Intervals whose coefficient vectors are built at once (doubling from the first block).
 _FIRST_BLOCK, _MAX_BLOCK = 16, 4096
+#: Relative tolerance of the input classes (module docstring, *Structure, not round-off*).
+STRUCTURE_RTOL = 1e-9
 
 
 # ------------------------------------------------------------------ exact data
@@ -80,6 +106,102 @@ def _zeros(shape: tuple[int, ...]) -> np.ndarray:
     return out
 
 
+def _snap(x: np.ndarray, rtol: float) -> np.ndarray:
+    """``x`` with the entries below ``rtol`` times its largest entry set to exactly 0."""
+    x = np.array(x, float)
+    x[np.abs(x) <= rtol * max(float(np.max(np.abs(x), initial=0.0)), 1e-300)] = 0.0
+    return x
+
+
+def _subspace(d: np.ndarray, rtol: float) -> np.ndarray:
+    """Orthonormal basis ``(n, r)`` of the smallest subspace holding every unit row of ``d`` to
+    ``rtol`` (its components below ``rtol`` exact zeros); the identity when ``r = n``."""
+    n = d.shape[1]
+    _, _, Vt = np.linalg.svd(d, full_matrices=False)
+    for r in range(1, n):
+        V = Vt[:r].T
+        if np.max(np.linalg.norm(d - (d @ V) @ V.T, axis=1)) <= rtol:
+            return np.column_stack([_snap(V[:, j], rtol) for j in range(r)])
+    return np.eye(n)
+
+
+def _directions(c: np.ndarray, rtol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cluster the rows of ``c`` (K, r), none zero, by direction up to sign.
+
+    Returns ``(reps, label)``: unit representatives (J, r), components below ``rtol`` exact zeros,
+    and the cluster of each row. Directions within ``rtol`` (Euclidean, either sign) of each other
+    are linked and each connected group shares the direction of its first member (a k-d tree
+    finds the links, so a generic path of 10⁵ distinct inputs costs milliseconds).
+    """
+    w = c / np.linalg.norm(c, axis=1, keepdims=True)
+    uniq, first, inverse = np.unique(w, axis=0, return_index=True, return_inverse=True)
+    J = len(uniq)
+    pairs = cKDTree(np.vstack([uniq, -uniq])).query_pairs(rtol, output_type="ndarray") % J
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(J, J))
+    _, comp = connected_components(graph, directed=False)
+    # the representative of a group: its member that comes first along the path
+    lead = np.full(comp.max() + 1, -1)
+    for j in np.argsort(first, kind="stable"):
+        if lead[comp[j]] < 0:
+            lead[comp[j]] = j
+    reps = uniq[lead]  # unit rows: their components below rtol are exact zeros
+    reps[np.abs(reps) <= rtol] = 0.0
+    return reps, comp[inverse.ravel()]
+
+
+def _magnitudes(a: np.ndarray, label: np.ndarray, atol: float) -> np.ndarray:
+    """``a`` with the values of one label that chain within ``atol`` of each other replaced by
+    the smallest of their chain."""
+    order = np.lexsort((a, label))
+    s, lab = a[order], label[order]
+    start = np.concatenate([[True], (np.diff(s) > atol) | (np.diff(lab) != 0)])
+    group_first = s[np.flatnonzero(start)][np.cumsum(start) - 1]
+    out = np.empty_like(a)
+    out[order] = group_first
+    return out
+
+
+def structural_inputs(u: np.ndarray, rtol: float = STRUCTURE_RTOL) -> tuple[np.ndarray, int]:
+    """The held inputs as exact representatives of their structure (module docstring).
+
+    Parameters
+    ----------
+    u
+        Inputs, shape (K, n) [m/s²] (any unit: the classes are relative).
+    rtol
+        Relative tolerance of the classes; 0 keeps the numbers as stored.
+
+    Returns
+    -------
+    (U, s)
+        Integers ``U`` (object array, shape (K, n)) with ``u_structural = U / 2**s``.
+    """
+    u = np.asarray(u, float)
+    norms = np.linalg.norm(u, axis=1) if u.size else np.zeros(len(u))
+    umax = float(norms.max(initial=0.0))
+    if rtol <= 0 or umax == 0.0:
+        return _dyadic(u)
+    active = norms > rtol * umax
+    B = _subspace(u[active] / norms[active, None], rtol)
+    c = u[active] @ np.linalg.pinv(B).T  # coordinates in the subspace (floats)
+    reps, label = _directions(c, rtol)
+    a = np.einsum("kr,kr->k", c, reps[label])  # signed magnitudes along the representatives
+    if np.max(np.linalg.norm(c - a[:, None] * reps[label], axis=1) / norms[active]) > 4 * rtol:
+        # a chain of links drifted beyond the tolerance (inputs turning by < rtol per interval
+        # over a wide angle): such inputs are not parallel, keep them as stored
+        return _dyadic(u)
+    a = _magnitudes(a, label, rtol * umax)
+    Ri, sR = _dyadic(reps)
+    Ai, sA = _dyadic(a)
+    if B.shape[1] < B.shape[0]:  # exact: products and sums of integers
+        Bi, sB = _dyadic(B)
+        Ri, sR = np.dot(Ri, Bi.T), sR + sB
+    U = _zeros(u.shape)
+    U[active] = Ai[:, None] * Ri[label]
+    return U, sR + sA
+
+
 @dataclass(frozen=True)
 class _Exact:
     """Times, inputs and the integration quantities of a held-input trajectory, as integers.
@@ -97,9 +219,10 @@ class _Exact:
     B: int
 
     @classmethod
-    def of(cls, traj: Trajectory) -> _Exact:
+    def of(cls, traj: Trajectory, rtol: float = 0.0) -> _Exact:
+        """Exact data of ``traj``; ``rtol > 0`` replaces the inputs by their structure."""
         T, A = _dyadic(traj.t)
-        U, B = _dyadic(traj.u[:-1])  # the last row drives nothing (CSV convention)
+        U, B = structural_inputs(traj.u[:-1], rtol)  # the last row drives nothing (CSV convention)
         H = T[1:] - T[:-1]
         UH = U * H[:, None]
         E = _zeros(U.shape)
@@ -269,16 +392,24 @@ class ExactRankProfile:
         }
 
 
-def exact_rank_profile(traj: Trajectory, model: VehicleModel | AugmentedModel) -> ExactRankProfile:
-    """Exact rank of the held-input augmented Gramian after every interval of ``traj``.
+def exact_rank_profile(
+    traj: Trajectory,
+    model: VehicleModel | AugmentedModel,
+    structure_rtol: float = STRUCTURE_RTOL,
+) -> ExactRankProfile:
+    """Exact rank of the held-input augmented Gramian of the path's structure, interval by
+    interval.
 
     Parameters
     ----------
     traj
         Trajectory; only its times ``t`` [s] and inputs ``u`` [m/s²] (held on each interval)
-        enter, as the exact rationals the floats are.
+        enter.
     model
         Vehicle model (sensors, current) or its augmented model.
+    structure_rtol
+        Relative tolerance of the input classes (:func:`structural_inputs`); 0 computes the
+        exact rank of the inputs as stored (round-off included).
 
     Returns
     -------
@@ -289,7 +420,7 @@ def exact_rank_profile(traj: Trajectory, model: VehicleModel | AugmentedModel) -
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     if aug.dim != traj.dim:
         raise ValueError(f"model is {aug.dim}D but the trajectory is {traj.dim}D")
-    ex, m = _Exact.of(traj), aug.state_dim
+    ex, m = _Exact.of(traj, structure_rtol), aug.state_dim
     K = len(ex.H)
     basis: list[list[int]] = []
     W = _kernel(basis, m)

@@ -14,8 +14,8 @@ from matplotlib.figure import Figure
 
 from obsplan.observability.gramian import cumulative_gramians
 from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.validation import PathValidation
 from obsplan.trajectory import Trajectory
-from obsplan.validation import PathValidation
 
 _STYLE = {
     "planned": {"color": "tab:green", "lw": 2.0},

@@ -7,12 +7,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
-from obsplan.planning.metrics import PathMetrics, path_metrics
-from obsplan.planning.problem import PlanningProblem, load_problem, problem_to_dict
+from obsplan.planning.evaluate import PathMetrics, path_metrics
+from obsplan.planning.parse import load_problem, problem_to_dict
+from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult, solve
+from obsplan.planning.validation import PathValidation, validate_paths
 from obsplan.planning.verdict import Verdict, verdict
 from obsplan.trajectory import Trajectory
-from obsplan.validation import PathValidation, validate_paths
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.validation import PathValidation
+from obsplan.planning.validation import PathValidation
 
 #: ``(key, words)`` of every compared metric, in report order.
 METRICS: tuple[tuple[str, str], ...] = (

@@ -33,7 +33,6 @@ from typing import Any
 
 import pandas as pd
 
-from obsplan import __version__
 from obsplan.errors import InputError, ObsplanError
 from obsplan.sweeps.spec import SweepSpec, Task, as_spec, expand, unique_tasks
 from obsplan.sweeps.store import (
@@ -44,6 +43,7 @@ from obsplan.sweeps.store import (
 )
 from obsplan.sweeps.table import build_table, write_table
 from obsplan.sweeps.tasks import THREAD_ENV, run_task
+from obsplan.version import __version__
 
 #: Seconds between two rewrites of the results table while tasks arrive (at least; a table that
 #: takes long to write, thousands of rows, is rewritten at most 10 % of the time). The table is a

@@ -32,9 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from obsplan import __version__
 from obsplan.errors import InputError, ProblemError
-from obsplan.planning.problem import SCHEMA, problem_from_dict, problem_to_dict
+from obsplan.planning.parse import problem_from_dict, problem_to_dict
+from obsplan.planning.schema import SCHEMA
+from obsplan.version import __version__
 
 #: What each task computes: ``plan`` (plan + validation against the baselines) or ``baselines``
 #: (only the metrics and Monte Carlo validation of the baselines; no solver, cheap).

@@ -9,7 +9,7 @@ Layout of ``DIR``::
     figures/                the study figures (obsplan.sweeps.figures)
 
 Every file is written to a temporary name in its folder and renamed over the target
-(:func:`obsplan.io.atomic.atomic_file`), so an interrupted write leaves the old file or none,
+(:func:`obsplan.atomic.atomic_file`), so an interrupted write leaves the old file or none,
 never half of one. A task's ``report.json`` is written after its ``plan.csv``: a task is
 finished exactly when its report exists, which is what a re-run checks to resume.
 """
@@ -21,8 +21,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from obsplan.atomic import atomic_file
 from obsplan.errors import InputError
-from obsplan.io.atomic import atomic_file
 
 MANIFEST = "sweep.json"
 TASKS = "tasks"
@@ -35,7 +35,7 @@ FIGURES = "figures"
 
 def atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``
-    (:func:`obsplan.io.atomic.atomic_file`); creates the parent folder."""
+    (:func:`obsplan.atomic.atomic_file`); creates the parent folder."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_file(path) as tmp:

@@ -70,15 +70,14 @@ def run_task(task: Task) -> dict[str, Any]:
 
 
 def _compute(task: Task) -> tuple[dict[str, Any], str | None]:
-    import obsplan
-    from obsplan.planning import baselines, path_metrics
-    from obsplan.planning.problem import problem_from_dict
+    from obsplan.planning import baselines, path_metrics, plan
+    from obsplan.planning.parse import problem_from_dict
+    from obsplan.planning.validation import validate_paths
     from obsplan.trajectory import write_csv
-    from obsplan.validation import validate_paths
 
     pb = problem_from_dict(task.problem)
     if task.mode == "plan":
-        result = obsplan.plan(pb, processes=1, progress=False)
+        result = plan(pb, processes=1, progress=False)
         report = result.to_dict()
         csv_text = None
         if result.trajectory is not None:

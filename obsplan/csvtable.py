@@ -1,4 +1,4 @@
-"""The one CSV table reader behind the trajectory CSV and the logged-track CSV.
+"""The one CSV table reader (and writer) behind the trajectory CSV and the logged-track CSV.
 
 It finds the separator (comma, semicolon or tab, from the header line), insists on a header row
 (a first line of numbers gets a hint naming the header to add), keeps each row's line number in
@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from obsplan.atomic import atomic_file
 from obsplan.errors import TrajectoryFormatError
 
 #: Separators recognised in the header line, in order of preference.
@@ -178,8 +179,6 @@ def read_table(path: str | Path, example_header: str) -> CsvTable:
 
 def write_table(path: str | Path, header: Sequence[str], rows: np.ndarray) -> Path:
     """Write a header and numeric rows as a CSV, floats as ``repr`` (exact), atomically."""
-    from obsplan.io.atomic import atomic_file
-
     path = Path(path)
     with atomic_file(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)

@@ -1,12 +1,13 @@
 """Validation of a plan against its baselines: EKF and KF Monte Carlo under identical conditions.
 
-Every path is resampled to the filter step ``validation.dt`` (exact: the inputs are piecewise
-constant on the planning grid, which the filter grid refines) and run through
-:func:`obsplan.estimation.simulate.monte_carlo_paths` in one pass with the same configuration
-(rates, noises, priors, process noise), the same number of runs and the same seed, so the truths'
-noise streams are identical across paths (and drawn once). Reported per path and filter: position
-RMSE (time average), final error and standard deviation, NEES, convergence time, the runs the
-divergence monitor flagged; and the posterior Cramér–Rao bound.
+Every path is resampled to the filter step ``validation.dt`` (:func:`obsplan.trajectory.resample`,
+exact: the inputs are piecewise constant on the planning grid, which the filter grid refines)
+and run through :func:`obsplan.estimation.simulate.monte_carlo_paths` in one pass with the same
+configuration (rates, noises, priors, process noise:
+:func:`~obsplan.planning.validation_setup.estimation_config`), the same number of runs and the
+same seed, so the truths' noise streams are identical across paths (and drawn once). Reported per
+path and filter: position RMSE (time average), final error and standard deviation, NEES,
+convergence time, the runs the divergence monitor flagged; and the posterior Cramér–Rao bound.
 """
 
 from __future__ import annotations
@@ -16,34 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.errors import InputError
 from obsplan.estimation.simulate import DEFAULT_FILTERS, MonteCarloResult, monte_carlo_paths
 from obsplan.planning.problem import PlanningProblem
-from obsplan.trajectory import Trajectory
-
-
-def resample(traj: Trajectory, dt: float, name: str = "validation.dt") -> Trajectory:
-    """The same path sampled every ``dt`` [s] (exact for piecewise-constant inputs).
-
-    Each interval of ``traj`` must be an integer multiple of ``dt``; ``name`` is how the error
-    message calls ``dt`` (the problem field or the command-line option).
-
-    Raises
-    ------
-    InputError
-        If an interval is not a multiple of ``dt``.
-    """
-    steps = traj.dt / dt
-    k = np.rint(steps).astype(int)
-    if np.any(np.abs(steps - k) > 1e-6 * np.maximum(steps, 1.0)) or np.any(k < 1):
-        raise InputError(
-            f"{name} = {dt:g} s must divide every interval of the path "
-            f"(intervals from {traj.dt.min():g} to {traj.dt.max():g} s)"
-        )
-    u = np.repeat(traj.u[:-1], k, axis=0)
-    t = traj.t[0] + np.concatenate([[0.0], np.cumsum(np.repeat(traj.dt / k, k))])
-    t[-1] = traj.t[-1]
-    return Trajectory.from_inputs(t, traj.p[0], traj.v[0], u)
+from obsplan.planning.validation_setup import estimation_config
+from obsplan.trajectory import Trajectory, resample
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,7 +73,7 @@ def validate_paths(
         Estimators to run (names of :data:`obsplan.estimation.simulate.FILTERS`).
     """
     val = pb.validation
-    config = pb.estimation_config()
+    config = estimation_config(pb)
     n_runs = val.runs if runs is None else int(runs)
     if not paths:
         return {}

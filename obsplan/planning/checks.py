@@ -1,0 +1,376 @@
+"""Checks of a planning problem: the cheap ones run on construction, the structural ones before
+any solver work.
+
+:func:`check_values` is what ``PlanningProblem.__post_init__`` runs: types and ranges that the
+parser cannot see, and infeasible combinations (a start faster than the speed limit, a zero
+acceleration bound, fewer than 2 steps, a depth band or operating area that does not contain the
+start, a start too close to the beacon for the planner's between-node margin).
+:func:`check_structure` refuses objectives that the sensors make impossible for every input; it
+costs a CasADi rank computation (cached per objective kind and vehicle), so the loader
+(:mod:`obsplan.planning.parse`) and :func:`~obsplan.planning.solve.solve` run it, construction
+does not. Every error is a :class:`~obsplan.errors.ProblemError` naming ``section.field`` and the
+fix.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from obsplan.errors import ConfigError
+from obsplan.model import VehicleModel, parse_sensors
+from obsplan.observability.gramian import augmented_model, gramian, rank_scales
+from obsplan.observability.lwo import lwo_structural_max_rank
+from obsplan.observability.scaling import numerical_rank
+from obsplan.planning.schema import (
+    MAX_DURATION_S,
+    MAX_MAGNITUDE,
+    MAX_MC_SIZE,
+    MAX_STEPS,
+    MODES,
+    OBJECTIVE_KINDS,
+    OBJECTIVES,
+    TIMED_OBJECTIVES,
+    field_error,
+)
+from obsplan.trajectory import Trajectory
+
+if TYPE_CHECKING:  # annotations only: problem.py runs check_values from __post_init__
+    from obsplan.planning.problem import PlanningProblem
+
+
+def check_values(pb: PlanningProblem) -> None:
+    """The cheap checks of a problem (no solver work), in the order the loader reports them.
+
+    Raises
+    ------
+    ProblemError
+        Naming the ``section.field`` at fault and the fix.
+    """
+    _check_vehicle(pb)
+    _check_motion(pb)
+    _check_horizon(pb)
+    _check_range_and_speed_limits(pb)
+    _check_objective(pb)
+    _check_validation(pb)
+    _check_budget(pb)
+
+
+def _check_vehicle(pb: PlanningProblem) -> None:
+    veh, lim = pb.vehicle, pb.limits
+    n = veh.dim
+    if n not in (2, 3):
+        raise field_error("vehicle.dim", f"must be 2 or 3, got {n!r}")
+    if veh.range_form not in ("half-squared", "range"):
+        raise field_error(
+            "vehicle.range_form", f'must be "half-squared" or "range", got {veh.range_form!r}'
+        )
+    try:
+        sensors = parse_sensors(veh.sensors)
+        VehicleModel(dim=n, sensors=sensors, current=veh.current)
+    except ConfigError as exc:
+        raise field_error("vehicle.sensors", str(exc)) from None
+    for where, vec in (
+        ("vehicle.current_velocity", veh.current_velocity),
+        ("beacon.position", pb.beacon),
+        ("start.position", pb.start_position),
+        ("start.velocity", pb.start_velocity),
+        ("limits.accel", lim.accel),
+    ):
+        if len(vec) != n or not all(math.isfinite(float(x)) for x in vec):
+            raise field_error(
+                where, f"expected {n} finite numbers (vehicle.dim = {n}), got {vec!r}"
+            )
+    if any(x != 0.0 for x in veh.current_velocity) and not veh.current:
+        raise field_error(
+            "vehicle.current_velocity",
+            "is non-zero but vehicle.current = false; set current = true to model it",
+        )
+
+
+def _check_motion(pb: PlanningProblem) -> None:
+    lim, n = pb.limits, pb.dim
+    if any(not a > 0 for a in lim.accel):
+        raise field_error("limits.accel", f"every bound must be > 0 m/s^2, got {list(lim.accel)}")
+    if not lim.speed > 0:
+        raise field_error("limits.speed", f"must be > 0 m/s, got {lim.speed}")
+    for where, vec in (
+        ("beacon.position", pb.beacon),
+        ("start.position", pb.start_position),
+        ("start.velocity", pb.start_velocity),
+        ("limits.accel", lim.accel),
+        ("limits.speed", (lim.speed,)),
+    ):
+        if any(abs(float(x)) > MAX_MAGNITUDE for x in vec):
+            raise field_error(
+                where, f"{list(vec)} is beyond {MAX_MAGNITUDE:g} in SI units; check the units"
+            )
+    speed0 = float(np.linalg.norm(pb.v0))
+    if speed0 > lim.speed:
+        raise field_error(
+            "start.velocity",
+            f"start speed {speed0:.4g} m/s exceeds limits.speed = {lim.speed:g} m/s; "
+            "lower the start velocity or raise the limit",
+        )
+    if lim.depth is not None:
+        if n != 3:
+            raise field_error("limits.depth", "a depth band needs vehicle.dim = 3")
+        lo, hi = lim.depth
+        z0 = pb.start_position[2]
+        if not lo <= z0 <= hi:
+            raise field_error(
+                "limits.depth",
+                f"band [{lo:g}, {hi:g}] m does not contain the start depth "
+                f"start.position[2] = {z0:g} m",
+            )
+    if lim.area is not None:
+        a = lim.area
+        x0, y0 = pb.start_position[0], pb.start_position[1]
+        if not (a.x[0] <= x0 <= a.x[1] and a.y[0] <= y0 <= a.y[1]):
+            raise field_error(
+                "limits.area",
+                f"x = [{a.x[0]:g}, {a.x[1]:g}], y = [{a.y[0]:g}, {a.y[1]:g}] m does not contain "
+                f"the start ({x0:g}, {y0:g}) m",
+            )
+
+
+def _check_horizon(pb: PlanningProblem) -> None:
+    hor = pb.horizon
+    if not (math.isfinite(hor.duration) and hor.duration > 0):
+        raise field_error("horizon.duration", f"must be > 0 s, got {hor.duration}")
+    if hor.duration > MAX_DURATION_S:
+        raise field_error(
+            "horizon.duration",
+            f"{hor.duration:g} s is beyond the planner's range ({MAX_DURATION_S:g} s, "
+            f"{MAX_DURATION_S / 86400:.3g} days); plan the mission in shorter pieces",
+        )
+    if hor.steps < 2:
+        raise field_error("horizon.steps", f"must be at least 2, got {hor.steps}")
+    if hor.steps > MAX_STEPS:
+        raise field_error(
+            "horizon.steps",
+            f"{hor.steps} exceeds the planner's limit of {MAX_STEPS} constant-acceleration "
+            f"intervals (the solve would take hours); use at most {MAX_STEPS} "
+            f"(a step of {hor.duration / MAX_STEPS:.3g} s or longer)",
+        )
+
+
+def _check_objective(pb: PlanningProblem) -> None:
+    obj, val = pb.objective, pb.validation
+    if obj.kind not in OBJECTIVES:
+        raise field_error(
+            "objective.kind", f"unknown objective {obj.kind!r}; choose from {', '.join(OBJECTIVES)}"
+        )
+    if obj.mode not in MODES:
+        raise field_error("objective.mode", f"must be one of {', '.join(MODES)}, got {obj.mode!r}")
+    if obj.mode != "auto" and obj.kind not in TIMED_OBJECTIVES:
+        raise field_error(
+            "objective.mode",
+            f"{obj.kind} has no time mode (only {', '.join(TIMED_OBJECTIVES)} do); remove "
+            'objective.mode or set it to "auto"',
+        )
+    if obj.starts < 1:
+        raise field_error("objective.starts", f"must be at least 1, got {obj.starts}")
+    if obj.max_iter < 1:
+        raise field_error("objective.max_iter", f"must be at least 1, got {obj.max_iter}")
+    if obj.tol is not None and not 0 < obj.tol < 1:
+        raise field_error("objective.tol", f"must be in (0, 1), got {obj.tol}")
+    if obj.seed < 0 or val.seed < 0:
+        raise field_error("objective.seed" if obj.seed < 0 else "validation.seed", "must be >= 0")
+
+
+def _check_validation(pb: PlanningProblem) -> None:
+    hor, val = pb.horizon, pb.validation
+    if val.runs < 1:
+        raise field_error("validation.runs", f"must be at least 1, got {val.runs}")
+    for name in (
+        "dt",
+        "range_rate",
+        "range_std",
+        "dvl_rate",
+        "dvl_std",
+        "depth_rate",
+        "depth_std",
+        "init_pos_error",
+        "init_vel_error",
+    ):
+        x = getattr(val, name)
+        if not (math.isfinite(x) and x > 0):
+            raise field_error(f"validation.{name}", f"must be > 0, got {x}")
+    ratio = hor.dt / val.dt
+    if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
+        raise field_error(
+            "validation.dt",
+            f"the filter step {val.dt:g} s must divide the planning step "
+            f"horizon.duration / horizon.steps = {hor.dt:g} s",
+        )
+    fitted = {"range_rate": True}
+    fitted["dvl_rate"] = any(s.startswith("dvl") for s in pb.model.sensors)
+    fitted["depth_rate"] = "depth" in pb.model.sensors
+    for name in ("range_rate", "dvl_rate", "depth_rate"):
+        # a sensor that is not fitted keeps its default rate and must not veto the filter step
+        if fitted[name] and getattr(val, name) > 1.0 / val.dt * (1 + 1e-9):
+            raise field_error(
+                f"validation.{name}",
+                f"{getattr(val, name):g} Hz is faster than the filter step "
+                f"validation.dt = {val.dt:g} s allows",
+            )
+    if hor.duration * val.range_rate < 2:
+        raise field_error(
+            "validation.range_rate",
+            f"gives fewer than 2 ranges over horizon.duration = {hor.duration:g} s",
+        )
+
+
+def _check_budget(pb: PlanningProblem) -> None:
+    lim, hor, val, n = pb.limits, pb.horizon, pb.validation, pb.dim
+    reach = 0.5 * min(lim.accel) * hor.duration**2
+    if reach < val.range_std:
+        raise field_error(
+            "limits.accel",
+            f"at {min(lim.accel):g} m/s^2 the inputs move the vehicle at most {reach:.3g} m over "
+            f"the horizon (a T^2 / 2), less than the range noise validation.range_std = "
+            f"{val.range_std:g} m: no path can excite the observability; raise the limit or "
+            "lengthen horizon.duration",
+        )
+    samples = hor.duration / val.dt + 1
+    size = val.runs * samples * 3 * n
+    if size > MAX_MC_SIZE:
+        runs_max = int(MAX_MC_SIZE / (samples * 3 * n))
+        raise field_error(
+            "validation.runs",
+            f"{val.runs} runs of {samples:.0f} filter steps are too large for the validation "
+            f"Monte Carlo (would need ~{size * 8 * 4 / 2**30:.0f} GiB); use at most {runs_max} "
+            "runs or a longer validation.dt",
+        )
+
+
+def _margins(pb: PlanningProblem) -> tuple[float, float]:
+    """Between-node margins of the range and speed limits (see :mod:`obsplan.planning.formulation`).
+
+    Returns ``(tau, a_norm)``: the planner enforces the limits at nodes and midpoints, each point
+    covering ``±tau = h/4`` of the path, where the distance to the beacon moves by at most
+    ``|v| tau + a_norm tau² / 2`` and the speed by at most ``a_norm tau``.
+    """
+    return pb.horizon.dt / 4.0, float(np.linalg.norm(pb.accel))
+
+
+def _check_range_and_speed_limits(pb: PlanningProblem) -> None:
+    lim = pb.limits
+    for name in ("min_range", "min_speed"):
+        x = getattr(lim, name)
+        if not (math.isfinite(x) and x >= 0):
+            raise field_error(f"limits.{name}", f"must be >= 0 (0 disables it), got {x}")
+    r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon, float)))
+    tau, a = _margins(pb)
+    s0 = float(np.linalg.norm(pb.v0))
+    need = lim.min_range + s0 * tau + 0.5 * a * tau**2 if lim.min_range > 0 else 0.0
+    if r0 < lim.min_range:
+        raise field_error(
+            "start.position",
+            f"the start is {r0:.4g} m from the beacon, inside limits.min_range = "
+            f"{lim.min_range:g} m; move the start away from the beacon or lower limits.min_range",
+        )
+    if r0 < need:
+        raise field_error(
+            "horizon.steps",
+            f"the start is {r0:.4g} m from the beacon; between nodes the planner keeps "
+            f"limits.min_range = {lim.min_range:g} m with a margin |v0| h/4 + |a| h^2/32 = "
+            f"{need - lim.min_range:.3g} m at the planning step h = {pb.horizon.dt:.3g} s, which "
+            "the start does not have: use more horizon.steps (a shorter step), or move the "
+            "start away from the beacon",
+        )
+    if lim.max_range is not None:
+        if not (math.isfinite(lim.max_range) and lim.max_range > lim.min_range):
+            raise field_error(
+                "limits.max_range",
+                f"must be a distance above limits.min_range = {lim.min_range:g} m, got "
+                f"{lim.max_range}",
+            )
+        reach = r0 + s0 * tau + 0.5 * a * tau**2
+        if reach > lim.max_range:
+            raise field_error(
+                "start.position",
+                f"the start is {r0:.4g} m from the beacon, beyond (or too close to) "
+                f"limits.max_range = {lim.max_range:g} m; move the start or raise max_range",
+            )
+    if lim.min_speed > 0:
+        if lim.min_speed >= lim.speed:
+            raise field_error(
+                "limits.min_speed",
+                f"{lim.min_speed:g} m/s must be below limits.speed = {lim.speed:g} m/s",
+            )
+        w0 = float(np.linalg.norm(pb.v0 - pb.current_array))
+        need_w = lim.min_speed + a * tau
+        if w0 < need_w:
+            raise field_error(
+                "start.velocity",
+                f"the speed through the water at the start, |v0 - v_f| = {w0:.4g} m/s, is below "
+                f"limits.min_speed = {lim.min_speed:g} m/s plus the planner's between-node "
+                f"margin ({need_w:.4g} m/s in all); start the vehicle moving or lower min_speed",
+            )
+
+
+def check_structure(pb: PlanningProblem) -> None:
+    """Refuse an objective that the sensors make impossible for every input (before solving).
+
+    Raises
+    ------
+    ProblemError
+        On ``objective.kind`` when the structural rank its kind needs
+        (:attr:`~obsplan.planning.schema.ObjectiveKind.structure`) is out of reach.
+    """
+    veh = pb.vehicle
+    model = VehicleModel(dim=veh.dim, sensors=parse_sensors(veh.sensors), current=veh.current)
+    msg = _structure_error(pb.objective.kind, model)
+    if msg is not None:
+        raise field_error("objective.kind", msg)
+
+
+@cache
+def _structure_error(kind: str, model: VehicleModel) -> str | None:
+    need = OBJECTIVE_KINDS[kind].structure
+    if need == "lwo":
+        r = lwo_structural_max_rank(model)
+        if r < model.state_dim:
+            return (
+                f"{kind} is impossible with sensors {','.join(model.sensors)} in "
+                f"{model.dim}D: the LWO matrix has rank at most {r} < {model.state_dim} for every "
+                "state and input (e.g. 3D range-only, eq. 38); add a DVL or depth sensor, or use "
+                "a gramian-* objective"
+            )
+    elif need == "gramian":
+        r, m = gramian_generic_rank(model)
+        if r < m:
+            return (
+                f"{kind} is impossible with sensors {','.join(model.sensors)}"
+                f"{' and an unknown current' if model.current else ''}: the augmented Gramian has "
+                f"rank {r} < {m} for every input (section 4.3); use kf-position-std or change "
+                "the sensors"
+            )
+    return None
+
+
+@cache
+def gramian_generic_rank(model: VehicleModel) -> tuple[int, int]:
+    """Rank of the augmented Gramian for a generic (seeded random) input, and its size.
+
+    The Gramian's rank is the same for almost every input, so one random, richly exciting input
+    gives the structural rank: a deficit here is a deficit for every input (e.g. an unknown
+    current with bottom-lock DVL, section 4.3).
+
+    Returns
+    -------
+    (rank, state_dim) of the augmented model.
+    """
+    rng = np.random.default_rng(12345)
+    n = model.dim
+    t = np.linspace(0.0, 100.0, 41)
+    traj = Trajectory.from_inputs(
+        t, rng.normal(size=n) * 10, rng.normal(size=n), rng.normal(size=(40, n))
+    )
+    aug = augmented_model(model)
+    return int(numerical_rank(gramian(traj, aug, rank_scales(traj)))), aug.state_dim

@@ -1,0 +1,365 @@
+"""Problem files to :class:`~obsplan.planning.problem.PlanningProblem` and back.
+
+:func:`load_problem` reads a TOML file, :func:`problem_from_dict` a parsed mapping (the sweeps
+build problems this way), :func:`problem_to_dict` writes the canonical mapping. Fields are read
+by :data:`~obsplan.planning.schema.SCHEMA` (types, units, defaults: an unknown key is an error);
+``beacon.geodetic`` / ``start.geodetic`` become metric positions about ``[origin]``
+(:func:`resolve_problem_geodetic`, with the conversions of :mod:`obsplan.geodesy`). The loader runs
+every check, the structural ones included, so a problem it returns can be solved.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from obsplan.errors import ConfigError, InputError, ProblemError
+from obsplan.geodesy import GeodeticOrigin, check_lat_lon, geodetic_to_local
+from obsplan.model import parse_sensors
+from obsplan.observability.scaling import Scales
+from obsplan.planning.checks import check_structure
+from obsplan.planning.problem import (
+    Area,
+    Horizon,
+    Limits,
+    ObjectiveSpec,
+    PlanningProblem,
+    ValidationSpec,
+    VehicleSpec,
+)
+from obsplan.planning.schema import SCHEMA, FieldSpec, field_error
+
+#: Where ``obsplan plan`` looks when no problem file is given.
+PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
+DEFAULT_PROBLEM = PROBLEMS_DIR / "default.toml"
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
+def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
+    where = f"{section}.{spec.name}"
+    k = spec.kind
+    if k == "int":
+        if not isinstance(raw, int) or isinstance(raw, bool):
+            raise field_error(where, f"expected an integer, got {raw!r}")
+        return int(raw)
+    if k == "float":
+        if not _is_number(raw) or not math.isfinite(raw):
+            raise field_error(where, f"expected a finite number [{spec.unit}], got {raw!r}")
+        return float(raw)
+    if k == "bool":
+        if not isinstance(raw, bool):
+            raise field_error(where, f"expected true or false, got {raw!r}")
+        return raw
+    if k == "str":
+        if not isinstance(raw, str):
+            raise field_error(where, f"expected a string, got {raw!r}")
+        return raw
+    if k == "str-list":
+        if isinstance(raw, str):
+            raw = [s for s in raw.split(",")]
+        if not isinstance(raw, list) or not all(isinstance(s, str) for s in raw):
+            raise field_error(where, f'expected a list of names such as ["range"], got {raw!r}')
+        return raw
+    if k in ("vec", "vec-or-float"):
+        if k == "vec-or-float" and _is_number(raw):
+            raw = [raw] * dim
+        if (
+            not isinstance(raw, list)
+            or len(raw) != dim
+            or not all(_is_number(x) and math.isfinite(x) for x in raw)
+        ):
+            raise field_error(
+                where,
+                f"expected {dim} finite numbers [{spec.unit}] (vehicle.dim = {dim}), got {raw!r}",
+            )
+        return tuple(float(x) for x in raw)
+    if k == "range":
+        if (
+            not isinstance(raw, list)
+            or len(raw) != 2
+            or not all(_is_number(x) and math.isfinite(x) for x in raw)
+        ):
+            raise field_error(where, f"expected [min, max] in {spec.unit}, got {raw!r}")
+        lo, hi = float(raw[0]), float(raw[1])
+        if not lo < hi:
+            raise field_error(where, f"min must be below max, got [{lo:g}, {hi:g}]")
+        return (lo, hi)
+    if k == "area":
+        if not isinstance(raw, dict):
+            raise field_error(
+                where, f"expected a table {{x = [min, max], y = [min, max]}}, got {raw!r}"
+            )
+        unknown = sorted(set(raw) - {"x", "y"})
+        if unknown:
+            raise field_error(f"{where}.{unknown[0]}", "unknown key; an area has only x and y")
+        axes = {}
+        for ax in ("x", "y"):
+            if ax not in raw:
+                raise field_error(f"{where}.{ax}", "missing; give [min, max] in m")
+            axes[ax] = _parse_value(where, FieldSpec(ax, "range", None, "m", ""), raw[ax], dim)
+        return Area(x=axes["x"], y=axes["y"])
+    raise AssertionError(k)  # pragma: no cover
+
+
+def _section_values(data: Mapping[str, Any], section: str, dim: int) -> dict[str, Any]:
+    raw = data.get(section, {})
+    if not isinstance(raw, dict):
+        raise field_error(section, f"expected a table [{section}], got {raw!r}")
+    specs = {s.name: s for s in SCHEMA[section]}
+    unknown = sorted(set(raw) - set(specs))
+    if unknown:
+        raise field_error(
+            f"{section}.{unknown[0]}",
+            f"unknown key (a typo?); [{section}] accepts {', '.join(specs)}",
+        )
+    out: dict[str, Any] = {}
+    for name, spec in specs.items():
+        if name in raw:
+            out[name] = _parse_value(section, spec, raw[name], dim)
+        elif spec.required:
+            raise field_error(f"{section}.{name}", f"missing; {spec.doc} [{spec.unit}]")
+        else:
+            out[name] = spec.default
+    return out
+
+
+def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProblem:
+    """Build and validate a problem from the parsed TOML mapping (every check, the structural
+    ones of :func:`~obsplan.planning.checks.check_structure` included).
+
+    Raises
+    ------
+    ProblemError
+        Naming the ``section.field`` at fault and what it should be.
+    """
+    data, origin = resolve_problem_geodetic(data)  # [origin] + *.geodetic -> metric positions
+    unknown = sorted(set(data) - set(SCHEMA))
+    if unknown:
+        raise field_error(unknown[0], f"unknown section; sections are {', '.join(SCHEMA)}")
+    dim_raw = data.get("vehicle", {}).get("dim", 2) if isinstance(data.get("vehicle"), dict) else 2
+    if dim_raw not in (2, 3) or isinstance(dim_raw, bool):
+        raise field_error("vehicle.dim", f"must be 2 or 3, got {dim_raw!r}")
+    dim = int(dim_raw)
+    s = {sec: _section_values(data, sec, dim) for sec in SCHEMA}
+    veh = s["vehicle"]
+    try:
+        sensors = parse_sensors(veh["sensors"])
+    except ConfigError as exc:
+        raise field_error("vehicle.sensors", str(exc)) from None
+    vehicle = VehicleSpec(
+        dim=dim,
+        sensors=sensors,
+        current=veh["current"],
+        current_velocity=veh["current_velocity"] or (0.0,) * dim,
+        range_form=veh["range_form"],
+    )
+    lim = s["limits"]
+    pb = PlanningProblem(
+        name=s["problem"]["name"] or name,
+        vehicle=vehicle,
+        beacon=s["beacon"]["position"] or (0.0,) * dim,
+        start_position=s["start"]["position"],
+        start_velocity=s["start"]["velocity"] or (0.0,) * dim,
+        limits=Limits(
+            accel=lim["accel"],
+            speed=lim["speed"],
+            depth=lim["depth"],
+            area=lim["area"],
+            min_range=lim["min_range"],
+            max_range=lim["max_range"],
+            min_speed=lim["min_speed"],
+        ),
+        horizon=Horizon(**s["horizon"]),
+        objective=ObjectiveSpec(**s["objective"]),
+        scales=_scales(s["scales"]),
+        validation=ValidationSpec(**s["validation"]),
+        origin=origin,
+    )
+    check_structure(pb)
+    return pb
+
+
+def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
+    """The canonical problem-file mapping of ``pb``: ``problem_from_dict(problem_to_dict(pb))``
+    rebuilds an equal problem. Every field of :data:`SCHEMA` is present (defaults resolved), so
+    the mapping identifies the problem (sweeps hash it)."""
+    veh, lim, hor, obj, val = pb.vehicle, pb.limits, pb.horizon, pb.objective, pb.validation
+    limits: dict[str, Any] = {
+        "accel": list(lim.accel),
+        "speed": lim.speed,
+        "min_range": lim.min_range,
+        "min_speed": lim.min_speed,
+    }
+    if lim.depth is not None:
+        limits["depth"] = list(lim.depth)
+    if lim.area is not None:
+        limits["area"] = {"x": list(lim.area.x), "y": list(lim.area.y)}
+    if lim.max_range is not None:
+        limits["max_range"] = lim.max_range
+    out: dict[str, Any] = {
+        "problem": {"name": pb.name},
+        "vehicle": {
+            "dim": veh.dim,
+            "sensors": list(veh.sensors),
+            "current": veh.current,
+            "current_velocity": list(veh.current_velocity),
+            "range_form": veh.range_form,
+        },
+        "beacon": {"position": list(pb.beacon)},
+        "start": {"position": list(pb.start_position), "velocity": list(pb.start_velocity)},
+        "limits": limits,
+        "horizon": {"duration": hor.duration, "steps": hor.steps},
+        "objective": {
+            f: getattr(obj, f) for f in obj.__dataclass_fields__ if getattr(obj, f) is not None
+        },
+        "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
+        "validation": {f: getattr(val, f) for f in val.__dataclass_fields__},
+    }
+    if pb.origin is not None:
+        o = pb.origin
+        out["origin"] = {"latitude": o.latitude, "longitude": o.longitude, "altitude": o.altitude}
+    return out
+
+
+def _scales(vals: dict[str, float]) -> Scales:
+    try:
+        return Scales(**vals)
+    except ConfigError as exc:
+        raise ProblemError(str(exc)) from None
+
+
+def load_problem(path: str | Path | None = None) -> PlanningProblem:
+    """Load and validate a problem file (TOML); ``None`` loads ``problems/default.toml``.
+
+    Raises
+    ------
+    ProblemError
+        If the file is missing, is not TOML, or any field is unknown, mistyped or infeasible.
+    """
+    if path is None:
+        # problems/ sits beside the package in a clone (editable install); a copied-out
+        # install finds it in the working directory instead
+        candidates = (DEFAULT_PROBLEM, Path.cwd() / "problems" / "default.toml")
+        path = next((c for c in candidates if c.is_file()), None)
+        if path is None:
+            raise ProblemError(
+                f"the default problem {DEFAULT_PROBLEM} is not installed; run from a clone of "
+                "the repository (pip install -e .) or pass a PROBLEM.toml"
+            )
+    path = Path(path)
+    if not path.is_file():
+        raise ProblemError(f"problem file not found: {path}")
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProblemError(f"{path}: not valid TOML: {exc}") from None
+    try:
+        return problem_from_dict(data, name=path.stem)
+    except ProblemError as exc:
+        raise ProblemError(f"{path}: {exc}") from None
+
+
+# ------------------------------------------------------------------------------ checks
+
+
+# ---------------------------------------------------------------------- geodetic problem fields
+def origin_of(data: Mapping[str, Any]) -> GeodeticOrigin | None:
+    """The ``[origin]`` section of a problem mapping as a :class:`GeodeticOrigin` (or None)."""
+    raw = data.get("origin")
+    if raw is None:
+        return None
+    if not isinstance(raw, Mapping):
+        raise ProblemError(f"origin: expected a table [origin], got {raw!r}")
+    unknown = sorted(set(raw) - {"latitude", "longitude", "altitude"})
+    if unknown:
+        raise ProblemError(
+            f"origin.{unknown[0]}: unknown key (a typo?); [origin] accepts latitude, longitude, "
+            "altitude"
+        )
+    for key in ("latitude", "longitude"):
+        if key not in raw:
+            raise ProblemError(f"origin.{key}: missing; WGS84 decimal degrees [deg]")
+    alt = raw.get("altitude", 0.0)
+    if not isinstance(alt, int | float) or isinstance(alt, bool) or not math.isfinite(alt):
+        raise ProblemError(f"origin.altitude: expected a finite number [m], got {alt!r}")
+    try:
+        return GeodeticOrigin(raw["latitude"], raw["longitude"], float(alt))
+    except InputError as exc:
+        raise ProblemError(str(exc)) from None
+
+
+def resolve_problem_geodetic(
+    data: Mapping[str, Any],
+) -> tuple[Mapping[str, Any], GeodeticOrigin | None]:
+    """Turn ``beacon.geodetic`` / ``start.geodetic`` into ``position`` about ``[origin]``.
+
+    Returns the mapping with the geodetic fields replaced by metric ones and the ``[origin]``
+    section removed, and the origin (None without one). A mapping with neither is returned
+    unchanged (no pymap3d needed). Malformed sections that are not about geodetic fields are left
+    for the problem parser to report.
+
+    Raises
+    ------
+    ProblemError
+        A geodetic field without ``[origin]``, both ``position`` and ``geodetic`` in a section,
+        a value of the wrong length or outside the latitude/longitude ranges.
+    """
+    if not isinstance(data, Mapping):
+        return data, None
+    sections = [
+        s for s in ("beacon", "start") if isinstance(data.get(s), Mapping) and "geodetic" in data[s]
+    ]
+    if "origin" not in data and not sections:
+        return data, None
+    origin = origin_of(data)
+    out = {k: v for k, v in data.items() if k != "origin"}
+    if not sections:
+        return out, origin
+    veh = data.get("vehicle", {})
+    dim = veh.get("dim", 2) if isinstance(veh, Mapping) else 2
+    if dim not in (2, 3) or isinstance(dim, bool):
+        return out, origin  # the problem parser names vehicle.dim
+    for sec in sections:
+        where = f"{sec}.geodetic"
+        if origin is None:
+            raise ProblemError(
+                f"{where}: needs an [origin] section (latitude, longitude [deg], altitude [m]) "
+                "for the local north-east-down frame"
+            )
+        if "position" in data[sec]:
+            raise ProblemError(
+                f"{where}: give either {sec}.position [m] or {sec}.geodetic, not both"
+            )
+        raw = data[sec]["geodetic"]
+        form = "[latitude, longitude]" if dim == 2 else "[latitude, longitude, depth]"
+        ok = (
+            isinstance(raw, list)
+            and len(raw) == dim
+            and all(
+                isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+                for x in raw
+            )
+        )
+        if not ok:
+            raise ProblemError(
+                f"{where}: expected {form} in deg, deg"
+                + (", m" if dim == 3 else "")
+                + f" (vehicle.dim = {dim}), got {raw!r}"
+            )
+        try:
+            check_lat_lon(raw[0], raw[1], where)
+        except InputError as exc:
+            raise ProblemError(str(exc)) from None
+        depth = float(raw[2]) if dim == 3 else 0.0
+        p = geodetic_to_local(float(raw[0]), float(raw[1]), depth, origin, dim)
+        section = {k: v for k, v in data[sec].items() if k != "geodetic"}
+        section["position"] = [float(x) for x in p]
+        out[sec] = section
+    return out, origin

@@ -1,0 +1,387 @@
+"""The problem file, declared: every field with its type, unit, default and meaning, and every
+objective kind with its properties.
+
+:data:`SCHEMA` is the one table of the problem file's fields: the loader
+(:mod:`obsplan.planning.parse`), its error messages and the field tables of
+``docs/problem-files.md`` and ``README.md`` (:func:`schema_markdown`, :func:`update_field_tables`)
+all come from it, so they cannot drift apart (``tests/test_problem.py`` checks the documents).
+:data:`OBJECTIVE_KINDS` declares each ``objective.kind``: whether it is maximised or minimised,
+whether it has a time mode, its default solver tolerance and the structural rank it needs; the
+implementations are registered by kind in :mod:`obsplan.planning.objectives`.
+
+A new section or field is one more entry here (then regenerate the documents with
+:func:`update_field_tables`), a frozen dataclass field in :mod:`obsplan.planning.problem`, and its
+conversion in :mod:`obsplan.planning.parse`.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from obsplan.errors import ProblemError
+
+#: Largest ``horizon.steps`` the planner accepts: the NLP grows linearly in N and IPOPT's time
+#: faster; N = 1000 solves in seconds to a minute (README benchmarks), 5000 is already hours.
+MAX_STEPS = 5000
+#: Longest horizon [s] and largest speed [m/s], acceleration [m/s²] and coordinate [m] accepted:
+#: far beyond any vehicle (a bound keeps absurd inputs from overflowing the checks' arithmetic).
+MAX_DURATION_S = 1e7
+MAX_MAGNITUDE = 1e7
+#: Budget of the validation Monte Carlo: runs x filter samples x state size (~8 bytes each per
+#: stored quantity); beyond it the simulation would need tens of GiB.
+MAX_MC_SIZE = 1e9
+
+
+@dataclass(frozen=True)
+class ObjectiveKind:
+    """One ``objective.kind``: its declared properties (the implementation is registered by
+    ``name`` in :data:`obsplan.planning.objectives.REGISTRY`).
+
+    Attributes
+    ----------
+    name : str
+    sense : {"max", "min"}
+        Whether a larger (Gramian, LWO) or a smaller (covariance) value is better.
+    timed : bool
+        Has a time mode (``objective.mode``: final, mission-average, average-and-final).
+    auto_mode : str
+        What ``objective.mode = "auto"`` resolves to (reports carry it for every kind).
+    default_tol : float
+        IPOPT ``tol`` when ``objective.tol`` is not given.
+    structure : {"lwo", "gramian", None}
+        The structural rank the kind needs (checked before solving by
+        :mod:`obsplan.planning.checks`): of the LWO matrix, of the augmented Gramian, or none.
+    """
+
+    name: str
+    sense: Literal["max", "min"]
+    timed: bool
+    auto_mode: str
+    default_tol: float
+    structure: Literal["lwo", "gramian"] | None
+
+
+#: Every objective kind, in the order the documents list them (the first is the default).
+OBJECTIVE_KINDS: dict[str, ObjectiveKind] = {
+    k.name: k
+    for k in (
+        # L-BFGS (the covariance objectives) converges slowly: at N = 1000, tol 1e-5 takes 5x the
+        # iterations of 1e-4 for a 0.4 % better bound
+        ObjectiveKind("pcrb-position", "min", True, "average-and-final", 1e-4, None),
+        ObjectiveKind("gramian-min-eig", "max", False, "average-and-final", 1e-8, "gramian"),
+        ObjectiveKind("gramian-log-det", "max", False, "average-and-final", 1e-8, "gramian"),
+        ObjectiveKind("lwo-condition", "max", False, "average-and-final", 1e-8, "lwo"),
+        ObjectiveKind("kf-position-std", "min", True, "final", 1e-4, None),
+    )
+}
+OBJECTIVES: tuple[str, ...] = tuple(OBJECTIVE_KINDS)
+#: Objectives that follow an estimator's covariance along the path and so have a time mode.
+TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
+#: Objectives for which a smaller value is better.
+MINIMISED: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.sense == "min")
+#: ``objective.mode`` values; ``auto`` is ``final`` for kf-position-std (its historical meaning)
+#: and ``average-and-final`` for pcrb-position (:attr:`ObjectiveKind.auto_mode`).
+MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final")
+
+
+def field_error(where: str, msg: str) -> ProblemError:
+    """The error of one field: ``ProblemError("section.field: msg")`` (every problem error names
+    its field first, so that the user sees what to fix)."""
+    return ProblemError(f"{where}: {msg}")
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    """One documented field of the problem file."""
+
+    name: str
+    kind: str  # "int", "float", "bool", "str", "str-list", "vec", "vec-or-float", "range", "area"
+    default: Any
+    unit: str
+    doc: str
+    required: bool = False
+
+
+_NONE = None
+SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
+    "problem": (
+        FieldSpec("name", "str", "", "-", "Free-text name shown in reports (default: file stem)."),
+    ),
+    "vehicle": (
+        FieldSpec("dim", "int", 2, "-", "Spatial dimension n: 2 or 3."),
+        FieldSpec(
+            "sensors",
+            "str-list",
+            ["range"],
+            "-",
+            'Sensor names: "range" (required), "dvl-bottom" (alias "dvl"), "dvl-water", "depth".',
+        ),
+        FieldSpec(
+            "current",
+            "bool",
+            False,
+            "-",
+            "Estimate an unknown constant ocean current v_f (state (p, v, v_f), eqs. 28-30).",
+        ),
+        FieldSpec(
+            "current_velocity",
+            "vec",
+            _NONE,
+            "m/s",
+            "True current v_f of the validation's truth simulation; default zeros; non-zero "
+            "only with current = true.",
+        ),
+        FieldSpec(
+            "range_form",
+            "str",
+            "half-squared",
+            "-",
+            'Range output of the filters: "half-squared" (y = |p-b|^2/2, eq. 3) or "range".',
+        ),
+    ),
+    "origin": (
+        FieldSpec(
+            "latitude",
+            "float",
+            _NONE,
+            "deg",
+            "WGS84 latitude of the origin of the local north-east-down frame (x north, y east, "
+            "z down = depth; obsplan.geodesy). Needed by beacon.geodetic / start.geodetic; "
+            "reports carry it and `obsplan export` writes geodetic waypoints with it.",
+        ),
+        FieldSpec("longitude", "float", _NONE, "deg", "WGS84 longitude of the origin."),
+        FieldSpec(
+            "altitude",
+            "float",
+            0.0,
+            "m",
+            "Ellipsoidal height of the depth-0 surface at the origin (depth = altitude - height).",
+        ),
+    ),
+    "beacon": (
+        FieldSpec("position", "vec", _NONE, "m", "Beacon position b (n values); default origin."),
+        FieldSpec(
+            "geodetic",
+            "vec",
+            _NONE,
+            "deg, deg[, m]",
+            "Instead of position: [latitude, longitude] (2D) or [latitude, longitude, depth] "
+            "(3D) about [origin].",
+        ),
+    ),
+    "start": (
+        FieldSpec("position", "vec", _NONE, "m", "Start position p(0) (n values).", True),
+        FieldSpec("velocity", "vec", _NONE, "m/s", "Start inertial velocity p'(0); default zeros."),
+        FieldSpec(
+            "geodetic",
+            "vec",
+            _NONE,
+            "deg, deg[, m]",
+            "Instead of position (then not required): [latitude, longitude] (2D) or "
+            "[latitude, longitude, depth] (3D) about [origin].",
+        ),
+    ),
+    "limits": (
+        FieldSpec(
+            "accel",
+            "vec-or-float",
+            _NONE,
+            "m/s^2",
+            "Per-axis acceleration bound |u_i| <= a_i: one number for all axes or n values.",
+            True,
+        ),
+        FieldSpec(
+            "speed",
+            "float",
+            _NONE,
+            "m/s",
+            "Speed bound |p'| <= v_max (speed over ground; with a current choose it so that "
+            "the speed through water stays feasible).",
+            True,
+        ),
+        FieldSpec(
+            "depth",
+            "range",
+            _NONE,
+            "m",
+            "3D only: [z_min, z_max] band for p_z on the whole continuous path; default none.",
+        ),
+        FieldSpec(
+            "min_range",
+            "float",
+            5.0,
+            "m",
+            "Minimum distance |p-b| to the beacon on the whole continuous path (mooring, "
+            "transducer blanking); 0 disables it. The start must respect it.",
+        ),
+        FieldSpec(
+            "max_range",
+            "float",
+            _NONE,
+            "m",
+            "Maximum distance |p-b| to the beacon (acoustic range) on the whole continuous "
+            "path; default none.",
+        ),
+        FieldSpec(
+            "min_speed",
+            "float",
+            0.0,
+            "m/s",
+            "Minimum speed through the water |p' - v_f| (v_f = vehicle.current_velocity) on the "
+            "whole continuous path, for vehicles that cannot hover; the start velocity must "
+            "respect it. 0 disables it.",
+        ),
+        FieldSpec(
+            "area",
+            "area",
+            _NONE,
+            "m",
+            "Operating area {x = [min, max], y = [min, max]} on the whole continuous path; "
+            "the lawn-mower baseline covers it. Default none (the lawn-mower then covers a square "
+            "of side speed*duration/4 centred on the start).",
+        ),
+    ),
+    "horizon": (
+        FieldSpec("duration", "float", _NONE, "s", "Planning horizon T_f.", True),
+        FieldSpec(
+            "steps",
+            "int",
+            _NONE,
+            "-",
+            "Number N of constant-acceleration intervals (N + 1 nodes), N >= 2.",
+            True,
+        ),
+    ),
+    "objective": (
+        FieldSpec(
+            "kind",
+            "str",
+            "pcrb-position",
+            "-",
+            "One of " + ", ".join(OBJECTIVES) + " (docs/problem-files.md has their formulations).",
+        ),
+        FieldSpec(
+            "mode",
+            "str",
+            "auto",
+            "-",
+            'For pcrb-position and kf-position-std: "final" (position std at the end), '
+            '"mission-average" (its time average over the mission) or "average-and-final" (the '
+            'sum of the two, each relative to its value on the lawn-mower); "auto" is '
+            "average-and-final for pcrb-position and final for kf-position-std.",
+        ),
+        FieldSpec(
+            "starts",
+            "int",
+            4,
+            "-",
+            "Number of initial guesses: lawn-mower, circle, then seeded random ones.",
+        ),
+        FieldSpec("seed", "int", 0, "-", "Seed of the random initial guesses."),
+        FieldSpec("max_iter", "int", 1000, "-", "IPOPT iteration limit per start."),
+        FieldSpec(
+            "tol",
+            "float",
+            _NONE,
+            "-",
+            "IPOPT convergence tolerance (tol) of the NLP, whose objective is normalised to 1 on "
+            "the lawn-mower; default 1e-8, or 1e-4 for pcrb-position and kf-position-std (L-BFGS "
+            "converges slowly: at N = 1000, 1e-5 takes 5x the iterations for a 0.4 % better "
+            "bound).",
+        ),
+    ),
+    "scales": (
+        FieldSpec(
+            "length_m",
+            "float",
+            100.0,
+            "m",
+            "Length scale L of the Gramian metrics and objectives (obsplan.observability.scaling).",
+        ),
+        FieldSpec("time_s", "float", 100.0, "s", "Time scale T of the Gramian metrics."),
+    ),
+    "validation": (
+        FieldSpec("runs", "int", 50, "-", "Monte Carlo runs per trajectory (EKF and KF)."),
+        FieldSpec("seed", "int", 0, "-", "Seed of the Monte Carlo runs (same for every path)."),
+        FieldSpec(
+            "dt", "float", 0.1, "s", "Filter prediction step; must divide the planning step."
+        ),
+        FieldSpec("range_rate", "float", 1.0, "Hz", "Range measurement rate."),
+        FieldSpec("range_std", "float", 0.1, "m", "Range noise standard deviation (on |p-b|)."),
+        FieldSpec("dvl_rate", "float", 10.0, "Hz", "DVL rate (if a DVL is fitted)."),
+        FieldSpec("dvl_std", "float", 1e-3, "m/s", "DVL noise standard deviation per axis."),
+        FieldSpec("depth_rate", "float", 1.0, "Hz", "Depth gauge rate (if fitted)."),
+        FieldSpec("depth_std", "float", 0.1, "m", "Depth noise standard deviation."),
+        FieldSpec(
+            "init_pos_error",
+            "float",
+            1.0,
+            "m",
+            "Initial position error standard deviation per axis (filters' prior and draws).",
+        ),
+        FieldSpec(
+            "init_vel_error",
+            "float",
+            0.1,
+            "m/s",
+            "Initial velocity error standard deviation per axis.",
+        ),
+    ),
+}
+
+
+def schema_markdown() -> str:
+    """The field tables of ``docs/problem-files.md`` (one per section), from :data:`SCHEMA`."""
+    out: list[str] = []
+    for section, fields in SCHEMA.items():
+        out.append(f"### `[{section}]`\n")
+        out.append("| field | unit | default | meaning |")
+        out.append("|---|---|---|---|")
+        for f in fields:
+            if f.required:
+                default = "**required**"
+            elif f.default is None:
+                default = "see meaning"
+            else:
+                default = repr(f.default).replace("'", '"')
+                default = default.replace("True", "true").replace("False", "false")
+            doc = f.doc.replace("|", "\\|")
+            out.append(f"| `{f.name}` | {f.unit} | {default} | {doc} |")
+        out.append("")
+    return "\n".join(out)
+
+
+#: First line of the generated field tables in a document, per heading level.
+_TABLES_START = re.compile(r"^(#+) `\[problem\]`$", re.M)
+
+
+def update_field_tables(text: str) -> str:
+    """``text`` (a Markdown document) with its field tables regenerated from :data:`SCHEMA`.
+
+    The tables run from the heading of ``[problem]`` (any level: ``###`` in
+    ``docs/problem-files.md``, ``####`` in ``README.md``) to the end of the last section's table;
+    everything else is kept. Regenerate the documents after editing :data:`SCHEMA`::
+
+        from pathlib import Path
+        from obsplan.planning.schema import update_field_tables
+        for doc in (Path("docs/problem-files.md"), Path("README.md")):
+            doc.write_text(update_field_tables(doc.read_text()))
+
+    Raises
+    ------
+    ValueError
+        If the document has no ``[problem]`` field table.
+    """
+    m = _TABLES_START.search(text)
+    if m is None:
+        raise ValueError("no field tables (a heading `[problem]`) in the document")
+    level = m.group(1)
+    pos = text.index(f"{level} `[{list(SCHEMA)[-1]}]`", m.start())
+    pos = text.index("\n|", pos) + 1  # the last section's table ...
+    while text.startswith("|", pos):  # ... ends at its first line that is not a row
+        nl = text.find("\n", pos)
+        pos = len(text) if nl < 0 else nl + 1
+    generated = schema_markdown().replace("### `", f"{level} `")
+    return text[: m.start()] + generated + text[pos:]

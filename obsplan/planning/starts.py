@@ -1,0 +1,274 @@
+"""The starts of a multi-start solve: one IPOPT run per initial guess, serially or in processes.
+
+Each start is an independent call of the same solver, so a parallel run gives the results of a
+serial one. Starts run in worker processes (``fork``; the solver is built once in the parent and
+inherited); Ctrl-C stops every start at once and raises ``KeyboardInterrupt``. A start whose
+path violates a limit is first projected onto the limits (:func:`~obsplan.planning.ipopt
+.project`); its objective is recomputed numerically on the returned path
+(:func:`~obsplan.planning.evaluate.objective_value`), never read from lifting variables.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing as mp
+import os
+import signal
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+from tqdm import tqdm
+
+from obsplan.planning.evaluate import objective_value
+from obsplan.planning.feasibility import LimitCheck, check_limits
+from obsplan.planning.formulation import Formulation
+from obsplan.planning.ipopt import SUCCESS_STATUS, _call, make_projection, make_solver, project
+from obsplan.trajectory import Trajectory
+
+#: A progress callback: ``(index, label, outcome)`` after each start.
+Progress = Callable[[int, str, "StartOutcome"], None]
+
+
+_INF_CHECK = LimitCheck(*(math.inf,) * 8)
+
+
+def _num(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+@dataclass(frozen=True)
+class StartOutcome:
+    """One IPOPT run from one initial guess.
+
+    Attributes
+    ----------
+    label : str
+        ``"lawnmower"``, ``"circle"`` or ``"random-<i>"``.
+    success : bool
+        ``return_status == "Solve_Succeeded"``.
+    status : str
+        IPOPT's ``return_status`` (or ``"exception: ..."``).
+    iterations : int
+    wall_s : float
+        Solve time [s] (projection included).
+    objective : float or None
+        The objective recomputed numerically on the returned (projected) path.
+    lifted : float or None
+        The solver's own objective (e.g. the epigraph variable ``t``).
+    initial_objective : float or None
+        The objective of the initial guess.
+    limits : LimitCheck
+        Independent check of the returned path (after projection, if any).
+    projected : bool
+        Whether the path was projected onto the limits.
+    """
+
+    label: str
+    success: bool
+    status: str
+    iterations: int
+    wall_s: float
+    objective: float | None
+    lifted: float | None
+    initial_objective: float | None
+    limits: LimitCheck
+    projected: bool = False
+
+    @property
+    def feasible(self) -> bool:
+        return self.limits.ok()
+
+    def to_dict(self) -> dict:
+        return {
+            "label": self.label,
+            "success": bool(self.success),
+            "status": self.status,
+            "iterations": int(self.iterations),
+            "wall_s": float(self.wall_s),
+            "objective": _num(self.objective),
+            "lifted_objective": _num(self.lifted),
+            "initial_objective": _num(self.initial_objective),
+            "feasible": bool(self.feasible),
+            "projected": bool(self.projected),
+        }
+
+
+@dataclass
+class StartContext:
+    """What every start needs: the formulation, its solver and the (lazily built) projection."""
+
+    form: Formulation
+    solver: ca.Function
+    projection: Callable[[], ca.Function]
+
+
+def start_context(
+    form: Formulation,
+    *,
+    verbose: bool = False,
+    expand: bool = True,
+    ipopt_options: dict | None = None,
+    warm: bool = False,
+) -> StartContext:
+    """The solver of ``form`` (:func:`~obsplan.planning.ipopt.make_solver`) and a projection
+    built on first use (most starts end within the limits and never need it)."""
+    solver = make_solver(
+        form, verbose=verbose, expand=expand, ipopt_options=ipopt_options, warm=warm
+    )
+    cache: list[ca.Function] = []
+
+    def projection() -> ca.Function:
+        if not cache:
+            cache.append(make_projection(form.problem, form))
+        return cache[0]
+
+    return StartContext(form, solver, projection)
+
+
+def run_start(
+    ctx: StartContext, label: str, guess: Trajectory
+) -> tuple[StartOutcome, Trajectory | None]:
+    """IPOPT from one guess; its path (projected onto the limits if needed) or None."""
+    form = ctx.form
+    pb = form.problem
+    x0 = form.pack(guess)
+    init_obj = objective_value(guess, pb)
+    t0 = time.perf_counter()
+    sol, stats, err = _call(
+        ctx.solver,
+        x0=x0,
+        p=form.parameter_values,
+        lbx=form.lbx,
+        ubx=form.ubx,
+        lbg=form.lbg,
+        ubg=form.ubg,
+    )
+    status = err or str(stats.get("return_status", "unknown"))
+    iters = int(stats.get("iter_count", 0))
+    if sol is None or not np.all(np.isfinite(np.asarray(sol["x"]))):
+        wall = time.perf_counter() - t0
+        return StartOutcome(
+            label, False, status, iters, wall, None, None, _num(init_obj), _INF_CHECK
+        ), None
+    x = np.asarray(sol["x"]).reshape(-1)
+    traj, _ = form.unpack(x)
+    lifted = form.lifted_value(float(sol["f"]))
+    limits = check_limits(traj, pb)
+    projected = False
+    if not limits.ok():
+        proj, _ = project(form, ctx.projection(), traj)
+        projected = True
+        if proj is not None:
+            traj = proj
+            limits = check_limits(traj, pb)
+    wall = time.perf_counter() - t0
+    outcome = StartOutcome(
+        label=label,
+        success=status == SUCCESS_STATUS,
+        status=status,
+        iterations=iters,
+        wall_s=wall,
+        objective=objective_value(traj, pb),
+        lifted=lifted,
+        initial_objective=_num(init_obj),
+        limits=limits,
+        projected=projected,
+    )
+    return outcome, traj
+
+
+# ----------------------------------------------------------------------------- processes
+_WORKER: StartContext | None = None  # set in the parent before fork; read by the children
+
+
+def _worker_init() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops everyone on Ctrl-C
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+
+
+def _worker_start(args: tuple[str, Trajectory]) -> tuple[StartOutcome, Trajectory | None]:
+    assert _WORKER is not None
+    return run_start(_WORKER, *args)
+
+
+def default_processes(n_starts: int) -> int:
+    """Worker processes for ``n_starts`` starts: one per available core, at most one per start."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(cores, n_starts))
+
+
+def _run_parallel(ctx: StartContext, guesses, processes: int, progress: Callable | None):
+    global _WORKER
+    _WORKER = ctx
+    pool = mp.get_context("fork").Pool(processes, initializer=_worker_init)
+    try:
+        pending = [pool.apply_async(_worker_start, (g,)) for g in guesses]
+        out = []
+        for i, res in enumerate(pending):
+            while True:
+                try:
+                    item = res.get(timeout=0.2)  # short waits keep Ctrl-C responsive
+                    break
+                except mp.TimeoutError:
+                    continue
+            out.append(item)
+            if progress is not None:
+                progress(i, guesses[i][0], item[0])
+        pool.close()
+        return out
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
+        _WORKER = None
+
+
+def run_starts(
+    ctx: StartContext,
+    guesses: Sequence[tuple[str, Trajectory]],
+    *,
+    processes: int | None = None,
+    progress: bool | Progress = False,
+    verbose: bool = False,
+) -> list[tuple[StartOutcome, Trajectory | None]]:
+    """Every start, in the order of ``guesses``: ``(outcome, path or None)`` each.
+
+    ``processes``: default :func:`default_processes`; 1 (or ``verbose``, whose IPOPT output
+    would interleave) runs serially. ``progress``: a callback after each start, or True for a
+    tqdm bar (on stderr, closed at the end).
+    """
+    guesses = list(guesses)
+    bar = None
+    callback: Progress | None = progress or None  # type: ignore[assignment]
+    if progress is True:
+        desc = f"starts (N = {ctx.form.problem.horizon.steps})"
+        bar = tqdm(total=len(guesses), desc=desc, unit="start", leave=False)
+
+        def tick(i: int, label: str, outcome: StartOutcome) -> None:
+            bar.set_postfix_str(f"{label}: {outcome.status}")
+            bar.update(1)
+
+        callback = tick
+
+    nproc = default_processes(len(guesses)) if processes is None else max(1, int(processes))
+    nproc = min(nproc, len(guesses))
+    try:
+        if nproc > 1 and not verbose and "fork" in mp.get_all_start_methods():
+            return _run_parallel(ctx, guesses, nproc, callback)
+        results = []
+        for i, (label, guess) in enumerate(guesses):
+            results.append(run_start(ctx, label, guess))
+            if callback is not None:
+                callback(i, label, results[-1][0])
+        return results
+    finally:
+        if bar is not None:
+            bar.close()
