@@ -260,3 +260,59 @@ def test_snapshot_and_references(short):
         bad.advance(25.05)
     with pytest.raises(ConfigError, match="before the current time"):
         bad.advance(5.0)
+
+
+def chord_min_range(p: np.ndarray, b: np.ndarray) -> float:
+    """Closest distance of a polyline (K, n) to ``b``: numpy, segment by segment."""
+    a, c = p[:-1] - b, p[1:] - p[:-1]
+    s = np.clip(-np.sum(a * c, axis=1) / np.maximum(np.sum(c * c, axis=1), 1e-300), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + s[:, None] * c, axis=1)))
+
+
+@pytest.mark.parametrize("guidance", [None, GUIDANCE], ids=["open", "closed"])
+def test_every_truth_metric_against_run_0s_path(guidance):
+    """A 3D path through a box, a depth band and a range band it leaves: run 0's true path is
+    recorded at every sample (record_every=1), so each of its metrics is recomputed here in
+    numpy (closest range on the chords, farthest range, speed, area and depth excursions) and
+    must equal the kernel's to 1e-12 relative (round-off of sums of ~1000 terms)."""
+    traj = gen.circle_z(20.0, 1.0, 100.0, 0.1, z0=5.0, z_amp=3.0, z_period=50.0, center=(3.0, 0.0))
+    model = make_model(3, "range,dvl-bottom,depth", beacon=[0.0, 1.0, 0.0])
+    cfg = EstimationConfig(
+        model=model, rates_hz={"range": 1.0, "dvl-bottom": 2.0, "depth": 1.0}, accel_noise=3e-3
+    )
+    limits = TruthLimits(
+        accel=0.06,
+        speed=1.2,
+        area=((-14.0, 20.0), (-19.0, 30.0)),
+        depth=(2.5, 7.5),
+        min_range=18.0,
+        max_range=22.0,
+    )
+    res = monte_carlo(traj, cfg, runs=4, seed=2, guidance=guidance, limits=limits, record_every=1)
+    tr = res.truth
+    p, nu = res.example.truth[:, :3], res.example.truth[:, 3:]
+    assert res.t.size == traj.n_samples
+    b = model.beacon_array
+    rng = np.linalg.norm(p - b, axis=1)
+    want = {
+        "closest_range_runs": chord_min_range(p, b),
+        "farthest_range_runs": rng.max(),
+        "max_speed_runs": np.linalg.norm(nu, axis=1).max(),
+        "area_excursion_runs": max(
+            0.0, np.max([-14.0 - p[:, 0], p[:, 0] - 20.0, -19.0 - p[:, 1], p[:, 1] - 30.0])
+        ),
+        "depth_excursion_runs": max(0.0, np.max([2.5 - p[:, 2], p[:, 2] - 7.5])),
+    }
+    for name, value in want.items():
+        assert getattr(tr, name)[0] == pytest.approx(value, rel=1e-12, abs=1e-12), name
+    assert want["area_excursion_runs"] > 0.5 and want["depth_excursion_runs"] > 0.2  # exercised
+    v = tr.violations()
+    assert set(v) == {"accel", "speed", "area", "depth", "min_range", "max_range"}
+    assert v["area"][0] and v["depth"][0] and v["min_range"][0] and v["max_range"][0]
+    np.testing.assert_array_equal(v["max_range"], tr.farthest_range_runs > 22.0)
+    if guidance is None:  # the plan's inputs (0.05 m/s² centripetal, plus z) flown blind
+        ratio = np.max(np.abs(traj.u[:-1]) / 0.06)
+        np.testing.assert_array_equal(tr.accel_ratio_runs, ratio)
+    else:  # saturated at the guidance's 0.05 m/s², below the 0.06 limit: never broken
+        assert np.all(tr.accel_ratio_runs <= 0.05 / 0.06 * (1 + 1e-12))
+        assert not np.any(v["accel"])

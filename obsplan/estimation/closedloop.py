@@ -50,23 +50,25 @@ from obsplan.estimation.runs import (
     make_filter,
     start_of,
 )
-from obsplan.estimation.stats import COL_AXES, N_TM, TM_CLOSEST, TruthStats
+from obsplan.estimation.stats import COL_AXES, TruthStats, empty_metrics
 from obsplan.estimation.truth import STREAM_PROCESS, reading_noise, run_rng
 from obsplan.trajectory import Trajectory
 
 #: Samples advanced per kernel call: bounds the process-noise normals held at once.
 CHUNK = 4096
+#: Samples of each run buffered for its truth metrics (``span_metrics``) before they are added.
+METRIC_SPAN = 256
 #: Relative tolerance when matching a time or a reference's samples to the filter grid.
 GRID_RTOL = 1e-9
 
 NavPath = namedtuple(
     "NavPath",
     "h xplan nuplan uplan ep_of rec_of tab qt tr lin qz beacon n cur half_sq sig_r L expo "
-    "scaled box alim",
+    "scaled box has_box alim",
 )
 NavGains = namedtuple("NavGains", "kp kd amax vmax")
-NavState = namedtuple("NavState", "pos X P c d dl pprev Q Sp ws iw nw xm Pm lw w sc hp u nu pt pr")
-NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt tm ex ex_run")
+NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu")
+NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt tm xb ex ex_run")
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,6 +204,7 @@ class ClosedLoop:
             expo=np.asarray(s.expo, float),
             scaled=bool(np.any(s.expo != 0)),
             box=s.box,
+            has_box=bool(np.any(np.isfinite(s.box))),
             alim=lim.accel_bounds(model.dim),
         )
 
@@ -221,13 +224,12 @@ class ClosedLoop:
         P0 = np.repeat(np.asarray(s.cov["p0_ekf"], float)[:, :, None], R, axis=2)
         ws, iw, nw = kernels.workspaces(m, R, n, np.zeros(n), self.nav_filter.q_nav)
         st = NavState(
-            pos=np.zeros(3, dtype=np.int64),
+            pos=np.zeros(4, dtype=np.int64),
             X=np.ascontiguousarray(x0[:, None] + err0),
             P=np.ascontiguousarray(P0),
             c=np.zeros((2 * n, R)),
             d=np.ascontiguousarray(err0),
             dl=np.zeros((m, R)),
-            pprev=np.zeros((R, n)),
             Q=np.zeros((m, m, R)),
             Sp=-np.ones(3),
             ws=ws,
@@ -241,16 +243,12 @@ class ClosedLoop:
             hp=-np.ones(1),
             u=np.zeros(n),
             nu=np.zeros(n),
-            pt=np.zeros(n),
-            pr=np.zeros(n),
         )
         noise = dict(self.config.noise)
         Yn = np.stack(
             [reading_noise(model, s.plan.reports, noise, dr.readings) for dr in self._draws],
             axis=2,
         )
-        tm = np.zeros((R, N_TM))
-        tm[:, TM_CLOSEST] = np.inf
         ex_run = int(np.flatnonzero(self.run_ids == 0)[0]) if 0 in self.run_ids else -1
         io = NavIO(
             Yn=np.ascontiguousarray(Yn),
@@ -261,7 +259,8 @@ class ClosedLoop:
             buf=np.zeros((R, Nr, COL_AXES + 2 * n)),
             run_nis=np.zeros(R),
             run_cnt=np.zeros(R),
-            tm=tm,
+            tm=empty_metrics(R),
+            xb=np.zeros((R, METRIC_SPAN, 3 * n)),
             ex=np.zeros((2, Nr, 2 * n)) if ex_run >= 0 else s.ctx.no_example,
             ex_run=ex_run,
         )

@@ -66,6 +66,7 @@ from obsplan.estimation.stats import (  # the buffer's columns, the per-run info
     TM_CLOSEST,
     TM_DEPTH_OUT,
     TM_FARTHEST,
+    TM_PREV,
     TM_SAMPLES,
     TM_SPEED_MAX,
     TM_TRACK_LAST,
@@ -83,47 +84,71 @@ NW_MEAN, NW_E, NW_Y, NW_OFF, NW_CORR, NW_C = 0, 1, 2, 3, 4, 5
 
 # ----------------------------------------------------------------------------- truth
 @inline
-def truth_metrics(tm, p, nu, pprev, pref, beacon, box, first):
-    """Add one sample of a true path to its metrics ``tm`` (``stats.TM_*``): ``p``, ``nu`` the
-    true position and inertial velocity, ``pprev`` the previous sample's position (the closest
-    range is taken on the chord between them), ``pref`` the reference position, ``box`` (3, 2)
-    the area (rows x, y) and depth band (row z) bounds (±inf: none)."""
-    n = p.shape[0]
-    r2 = 0.0
-    dd = 0.0
-    ab = 0.0
-    tr2 = 0.0
-    v2 = 0.0
-    for i in range(n):
-        rel = p[i] - beacon[i]
-        r2 += rel * rel
-        if not first:
-            seg = p[i] - pprev[i]
-            dd += seg * seg
-            ab += (pprev[i] - beacon[i]) * seg
-        e = p[i] - pref[i]
-        tr2 += e * e
-        v2 += nu[i] * nu[i]
-    close = r2
-    if not first and dd > 0.0:
-        s = min(max(-ab / dd, 0.0), 1.0)  # closest point of the chord to the beacon
-        c2 = 0.0
+def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
+    """Add ``K`` consecutive samples of true path ``j`` to its metrics ``tm[j]`` (``stats.TM_*``).
+
+    ``xb`` (≥ K, 3n) rows: true position ``p``, true inertial velocity ``p'``, reference
+    position. Ranges, speed and tracking error are kept squared (their roots are taken once, by
+    :meth:`~obsplan.estimation.stats.TruthStats.from_metrics`); the closest range is refined to
+    the chord between consecutive samples, also across spans (``tm[j, TM_PREV:]`` holds the
+    last ``p - b``). ``box`` (3, 2): the area (rows x, y) and depth band (row z) bounds, checked
+    when ``has_box``. Accumulators are scalars: this runs at every sample of every run.
+    """
+    close, far = tm[j, TM_CLOSEST], tm[j, TM_FARTHEST]
+    ss, vmax = tm[j, TM_TRACK_SS], tm[j, TM_SPEED_MAX]
+    area, depth = tm[j, TM_AREA_OUT], tm[j, TM_DEPTH_OUT]
+    e2 = tm[j, TM_TRACK_LAST]
+    first = tm[j, TM_SAMPLES] == 0.0
+    for k in range(K):
+        r2 = 0.0
+        aa = 0.0
+        ab = 0.0
+        dd = 0.0
+        v2 = 0.0
+        e2 = 0.0
         for i in range(n):
-            q = pprev[i] + s * (p[i] - pprev[i]) - beacon[i]
-            c2 += q * q
-        close = min(close, c2)
-    tm[TM_CLOSEST] = min(tm[TM_CLOSEST], math.sqrt(close))
-    tm[TM_FARTHEST] = max(tm[TM_FARTHEST], math.sqrt(r2))
-    tm[TM_TRACK_SS] += tr2
-    tm[TM_TRACK_LAST] = math.sqrt(tr2)
-    tm[TM_SPEED_MAX] = max(tm[TM_SPEED_MAX], math.sqrt(v2))
-    out = 0.0
-    for i in range(min(n, 2)):
-        out = max(out, box[i, 0] - p[i], p[i] - box[i, 1])
-    tm[TM_AREA_OUT] = max(tm[TM_AREA_OUT], out)
-    if n == 3:
-        tm[TM_DEPTH_OUT] = max(tm[TM_DEPTH_OUT], box[2, 0] - p[2], p[2] - box[2, 1])
-    tm[TM_SAMPLES] += 1.0
+            rel = xb[k, i] - beacon[i]
+            a = xb[k - 1, i] - beacon[i] if k > 0 else tm[j, TM_PREV + i]
+            s = rel - a
+            r2 += rel * rel
+            aa += a * a
+            ab += a * s
+            dd += s * s
+            v2 += xb[k, n + i] * xb[k, n + i]
+            e = xb[k, i] - xb[k, 2 * n + i]
+            e2 += e * e
+        if ab < 0.0 and ab + dd > 0.0 and not (first and k == 0):  # closest point inside
+            close = min(close, max(aa - ab * ab / dd, 0.0))
+        close = min(close, r2)
+        far = max(far, r2)
+        vmax = max(vmax, v2)
+        ss += e2
+        if has_box:
+            for i in range(min(n, 2)):
+                area = max(area, box[i, 0] - xb[k, i], xb[k, i] - box[i, 1])
+            if n == 3:
+                depth = max(depth, box[2, 0] - xb[k, 2], xb[k, 2] - box[2, 1])
+    tm[j, TM_CLOSEST], tm[j, TM_FARTHEST] = close, far
+    tm[j, TM_TRACK_SS], tm[j, TM_SPEED_MAX] = ss, vmax
+    tm[j, TM_AREA_OUT], tm[j, TM_DEPTH_OUT] = area, depth
+    tm[j, TM_TRACK_LAST] = e2
+    tm[j, TM_SAMPLES] += K
+    if K > 0:
+        for i in range(n):
+            tm[j, TM_PREV + i] = xb[K - 1, i] - beacon[i]
+
+
+@inline
+def bounded(box):
+    """Whether any bound of ``box`` (3, 2) is finite."""
+    for i in range(3):
+        if box[i, 0] > -math.inf or box[i, 1] < math.inf:
+            return True
+    return False
+
+
+#: Samples per span of :func:`span_metrics` in the open loop (a buffer that stays in cache).
+SPAN = 1024
 
 
 @jit
@@ -131,14 +156,15 @@ def truth_deviation(z, L, h, expo, n, cur, points, out, noms, beacon, box, tm):
     """``δ_{k+1} = (I + h_k A) δ_k + diag(h_k^expo) L z_k`` over all steps; ``out[i] = δ`` at
     ``points[i]`` (``expo = 0``: a per-step ``L``). With paths ``noms`` (J, N, 2n) (their
     nominal ``(p, p')``), the true path ``nom + δ`` of each is added to the metrics ``tm[j]``
-    (:func:`truth_metrics`, reference the nominal itself) at every sample."""
+    (:func:`span_metrics`, reference the nominal itself) at every sample, span by span."""
     m, r = L.shape
     J = noms.shape[0]
+    N = z.shape[0] + 1
     d = np.zeros(m)
     sc = np.ones(m)
-    p = np.zeros((J, n))
-    nu = np.zeros(n)
-    pprev = np.zeros((J, n))
+    has_box = bounded(box)
+    dspan = np.zeros((SPAN, m))
+    xb = np.zeros((SPAN, 3 * n))
     scaled = False
     for i in range(m):
         scaled = scaled or expo[i] != 0.0
@@ -147,34 +173,41 @@ def truth_deviation(z, L, h, expo, n, cur, points, out, noms, beacon, box, tm):
     pi = 0
     while pi < P and points[pi] == 0:
         pi += 1  # δ_0 = 0 (out is zero-initialised)
-    for k in range(z.shape[0] + 1):
-        if k > 0:
-            hk = h[k - 1]
-            if scaled and hk != h_prev:  # uniform grids: one power per run
-                h_prev = hk
+    for k0 in range(0, N, SPAN):
+        K = min(SPAN, N - k0)
+        for kk in range(K):
+            k = k0 + kk
+            if k > 0:
+                hk = h[k - 1]
+                if scaled and hk != h_prev:  # uniform grids: one power per run
+                    h_prev = hk
+                    for i in range(m):
+                        sc[i] = hk ** expo[i]
+                for i in range(n):
+                    vel = d[n + i]
+                    if cur:
+                        vel += d[2 * n + i]
+                    d[i] += hk * vel
                 for i in range(m):
-                    sc[i] = hk ** expo[i]
-            for i in range(n):
-                vel = d[n + i]
-                if cur:
-                    vel += d[2 * n + i]
-                d[i] += hk * vel
+                    acc = 0.0
+                    for j in range(r):
+                        acc += L[i, j] * z[k - 1, j]
+                    d[i] += sc[i] * acc
+                while pi < P and points[pi] == k:
+                    for i in range(m):
+                        out[pi, i] = d[i]
+                    pi += 1
             for i in range(m):
-                acc = 0.0
-                for j in range(r):
-                    acc += L[i, j] * z[k - 1, j]
-                d[i] += sc[i] * acc
-            while pi < P and points[pi] == k:
-                for i in range(m):
-                    out[pi, i] = d[i]
-                pi += 1
+                dspan[kk, i] = d[i]
         for jp in range(J):
-            for i in range(n):
-                p[jp, i] = noms[jp, k, i] + d[i]
-                nu[i] = noms[jp, k, n + i] + d[n + i] + (d[2 * n + i] if cur else 0.0)
-            truth_metrics(tm[jp], p[jp], nu, pprev[jp], noms[jp, k, :n], beacon, box, k == 0)
-            for i in range(n):
-                pprev[jp, i] = p[jp, i]
+            for kk in range(K):
+                k = k0 + kk
+                for i in range(n):
+                    xb[kk, i] = noms[jp, k, i] + dspan[kk, i]
+                    nu = noms[jp, k, n + i] + dspan[kk, n + i]
+                    xb[kk, n + i] = nu + (dspan[kk, 2 * n + i] if cur else 0.0)
+                    xb[kk, 2 * n + i] = noms[jp, k, i]
+            span_metrics(tm, jp, xb, K, n, beacon, box, has_box)
 
 
 # ----------------------------------------------------------------------------- Kalman steps

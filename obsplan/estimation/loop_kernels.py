@@ -44,9 +44,9 @@ from obsplan.estimation.kernels import (
     noise_terms,
     predict,
     record_batch,
-    truth_metrics,
+    span_metrics,
 )
-from obsplan.estimation.stats import TM_ACCEL, TM_SAMPLES, TM_SAT
+from obsplan.estimation.stats import TM_ACCEL, TM_SAT
 
 #: Relative slack of the speed limit: a plan flown exactly at the bound is not "corrected" for
 #: the round-off of its own chord inputs.
@@ -145,19 +145,30 @@ def nav_record(pt, st, io, k, ri, e_last):
 
 @jit
 def nav_metrics(pt, st, io, ref, ka, has_ref, k):
-    """The true path's sample ``k`` in each run's metrics (reference: the plan or ``ref``)."""
+    """Buffer the true path's sample ``k`` of each run (reference: the plan or ``ref``) for its
+    metrics; a full buffer is added to them (:func:`flush_metrics`)."""
     n = pt.n
     B = st.X.shape[1]
+    j = st.pos[3]
+    xb = io.xb
     for b in range(B):
         for i in range(n):
-            st.pt[i] = pt.xplan[k, i] + st.c[i, b] + st.dl[i, b]
+            xb[b, j, i] = pt.xplan[k, i] + st.c[i, b] + st.dl[i, b]
             nu = pt.nuplan[k, i] + st.c[n + i, b] + st.dl[n + i, b]
-            st.nu[i] = nu + (st.dl[2 * n + i, b] if pt.cur else 0.0)
-            st.pr[i] = ref[k - ka, i, b] if has_ref else pt.xplan[k, i]
-        tm = io.tm[b]
-        truth_metrics(tm, st.pt, st.nu, st.pprev[b], st.pr, pt.beacon, pt.box, tm[TM_SAMPLES] == 0)
-        for i in range(n):
-            st.pprev[b, i] = st.pt[i]
+            xb[b, j, n + i] = nu + (st.dl[2 * n + i, b] if pt.cur else 0.0)
+            xb[b, j, 2 * n + i] = ref[k - ka, i, b] if has_ref else pt.xplan[k, i]
+    st.pos[3] = j + 1
+    if j + 1 == xb.shape[1]:
+        flush_metrics(pt, st, io)
+
+
+@jit
+def flush_metrics(pt, st, io):
+    """Add the buffered samples of every run to its truth metrics."""
+    K = st.pos[3]
+    for b in range(io.xb.shape[0]):
+        span_metrics(io.tm, b, io.xb[b], K, pt.n, pt.beacon, pt.box, pt.has_box)
+    st.pos[3] = 0
 
 
 @inline
@@ -259,6 +270,7 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
         k += 1
         phase = 0
     st.pos[0], st.pos[1], st.pos[2] = k, phase, e_last
+    flush_metrics(pt, st, io)
 
 
 def empty_reference(n: int, B: int) -> np.ndarray:

@@ -43,11 +43,14 @@ INFO_NONFINITE, INFO_FLAGGED, INFO_FLAG_TIME, INFO_NIS = 4, 5, 6, 7
 INFO_RMSE_POS, INFO_RMSE_LINES = 8, 9
 N_INFO = 10
 #: Per-run truth metrics of the kernels (see :class:`TruthStats`): closest and farthest range
-#: [m], Σ |p - p_ref|² over samples [m²], last |p - p_ref| [m], max |p'| [m/s], max distance
-#: outside the area box and the depth band [m], saturated steps, samples, max |u_i| / bound_i.
+#: squared [m²], Σ |p - p_ref|² over samples [m²], last |p - p_ref|² [m²], max |p'|² [m²/s²]
+#: (squares: one root per run at the end, not one per sample), max distance outside the area box
+#: and the depth band [m], saturated steps, samples, max |u_i| / bound_i.
 TM_CLOSEST, TM_FARTHEST, TM_TRACK_SS, TM_TRACK_LAST, TM_SPEED_MAX = 0, 1, 2, 3, 4
 TM_AREA_OUT, TM_DEPTH_OUT, TM_SAT, TM_SAMPLES, TM_ACCEL = 5, 6, 7, 8, 9
-N_TM = 10
+#: ``p - b`` of the last sample added (3 columns; the chord to the next span starts there).
+TM_PREV = 10
+N_TM = 13
 
 #: Quantile of one run's NEES above which the monitor counts a record as inconsistent.
 MONITOR_LEVEL = 0.999
@@ -76,6 +79,13 @@ def convergence_time(t: np.ndarray, err: np.ndarray, threshold: float) -> float 
         return float(t[0])
     last = int(above[-1])
     return None if last == t.size - 1 else float(t[last + 1])
+
+
+def empty_metrics(runs: int) -> np.ndarray:
+    """The kernels' truth metrics (runs, N_TM) before any sample."""
+    tm = np.zeros((runs, N_TM))
+    tm[:, TM_CLOSEST] = np.inf
+    return tm
 
 
 def _num(x: float) -> float | None:
@@ -392,11 +402,11 @@ class TruthStats:
         """From the kernels' per-run metrics ``tm`` (runs, N_TM)."""
         steps = np.maximum(tm[:, TM_SAMPLES] - 1.0, 1.0)
         return cls(
-            closest_range_runs=tm[:, TM_CLOSEST].copy(),
-            farthest_range_runs=tm[:, TM_FARTHEST].copy(),
+            closest_range_runs=np.sqrt(tm[:, TM_CLOSEST]),
+            farthest_range_runs=np.sqrt(tm[:, TM_FARTHEST]),
             tracking_rmse_runs=np.sqrt(tm[:, TM_TRACK_SS] / np.maximum(tm[:, TM_SAMPLES], 1.0)),
-            final_drift_runs=tm[:, TM_TRACK_LAST].copy(),
-            max_speed_runs=tm[:, TM_SPEED_MAX].copy(),
+            final_drift_runs=np.sqrt(tm[:, TM_TRACK_LAST]),
+            max_speed_runs=np.sqrt(tm[:, TM_SPEED_MAX]),
             area_excursion_runs=tm[:, TM_AREA_OUT].copy(),
             depth_excursion_runs=tm[:, TM_DEPTH_OUT].copy(),
             saturated_fraction_runs=tm[:, TM_SAT] / steps,

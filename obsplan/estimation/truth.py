@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from obsplan.estimation.stats import empty_metrics
 from obsplan.model import SENSORS, VehicleModel
 from obsplan.trajectory import Trajectory
 
@@ -143,16 +144,14 @@ def open_loop_truth(
 
     ``navs`` (J, N, 2n) are the paths' nominal ``(p, p')`` (none by default), ``box`` (3, 2)
     the area and depth bounds (``TruthLimits.box``). Returns ``δ`` at ``points`` and the
-    metrics (J, N_TM) of :func:`obsplan.estimation.kernels.truth_metrics`.
+    metrics (J, N_TM) of :func:`obsplan.estimation.kernels.span_metrics`.
     """
     from obsplan.estimation import kernels
-    from obsplan.estimation.stats import N_TM, TM_CLOSEST
 
     n, m = model.dim, model.state_dim
     out = np.zeros((points.size, m))
     navs = np.zeros((0, traj.n_samples, 2 * n)) if navs is None else np.asarray(navs, float)
-    tm = np.zeros((navs.shape[0], N_TM))
-    tm[:, TM_CLOSEST] = np.inf
+    tm = empty_metrics(navs.shape[0])
     if L.shape[1] == 0 and navs.shape[0] == 0:
         return out, tm
     if L.shape[1] == 0:
