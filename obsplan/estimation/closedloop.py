@@ -63,11 +63,11 @@ GRID_RTOL = 1e-9
 
 NavPath = namedtuple(
     "NavPath",
-    "h xplan nuplan uplan ep_of rec_of tab qt tr lin qz beacon n cur half_sq sig_r L expo "
+    "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon n cur half_sq sig_r L expo "
     "scaled box has_box alim",
 )
 NavGains = namedtuple("NavGains", "kp kd amax vmax")
-NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu")
+NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat")
 NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt tm xb ex ex_run")
 
 
@@ -182,6 +182,11 @@ class ClosedLoop:
         ep_of[s.plan.epochs] = np.arange(s.plan.n_epochs)
         rec_of = np.full(N, -1, dtype=np.int64)
         rec_of[s.records] = np.arange(s.records.size)
+        # the next sample with an epoch or a record after each sample (the last is a record)
+        events = np.flatnonzero((ep_of >= 0) | (rec_of >= 0))
+        nxt = events[
+            np.minimum(np.searchsorted(events, np.arange(N), side="right"), events.size - 1)
+        ]
         lim = self.limits or TruthLimits()
         return NavPath(
             h=np.ascontiguousarray(self.traj.dt),
@@ -190,6 +195,7 @@ class ClosedLoop:
             uplan=np.ascontiguousarray(self.traj.u),
             ep_of=ep_of,
             rec_of=rec_of,
+            nxt=nxt.astype(np.int64),
             tab=s.plan.seg_tab,
             qt=f.q_terms,
             tr=f.transition.packed(),
@@ -241,8 +247,9 @@ class ClosedLoop:
             w=np.ones(R),
             sc=np.ones(m),
             hp=-np.ones(1),
-            u=np.zeros(n),
-            nu=np.zeros(n),
+            u=np.zeros((n, R)),
+            nu=np.zeros((n, R)),
+            sat=np.zeros(R),
         )
         noise = dict(self.config.noise)
         Yn = np.stack(

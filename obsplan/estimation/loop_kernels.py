@@ -143,23 +143,18 @@ def nav_record(pt, st, io, k, ri, e_last):
     )
 
 
-@jit
-def nav_metrics(pt, st, io, ref, ka, has_ref, k):
-    """Buffer the true path's sample ``k`` of each run (reference: the plan or ``ref``) for its
-    metrics; a full buffer is added to them (:func:`flush_metrics`)."""
-    n = pt.n
-    B = st.X.shape[1]
-    j = st.pos[3]
-    xb = io.xb
-    for b in range(B):
-        for i in range(n):
-            xb[b, j, i] = pt.xplan[k, i] + st.c[i, b] + st.dl[i, b]
-            nu = pt.nuplan[k, i] + st.c[n + i, b] + st.dl[n + i, b]
-            xb[b, j, n + i] = nu + (st.dl[2 * n + i, b] if pt.cur else 0.0)
-            xb[b, j, 2 * n + i] = ref[k - ka, i, b] if has_ref else pt.xplan[k, i]
-    st.pos[3] = j + 1
-    if j + 1 == xb.shape[1]:
-        flush_metrics(pt, st, io)
+@inline
+def buffer_truth(xb, j, xplan, nuplan, c, dl, ref, kr, has_ref, k, n, cur):
+    """Row ``j`` of every run's metric buffer: the true ``(p, p')`` at sample ``k`` and the
+    reference position (the plan, or ``ref[kr]``)."""
+    B = c.shape[1]
+    for i in range(n):
+        xp, vp = xplan[k, i], nuplan[k, i]
+        for b in range(B):
+            xb[b, j, i] = xp + c[i, b] + dl[i, b]
+            nu = vp + c[n + i, b] + dl[n + i, b]
+            xb[b, j, n + i] = nu + (dl[2 * n + i, b] if cur else 0.0)
+            xb[b, j, 2 * n + i] = ref[kr, i, b] if has_ref else xp
 
 
 @jit
@@ -172,78 +167,101 @@ def flush_metrics(pt, st, io):
 
 
 @inline
-def guide(pt, gn, st, ref, ka, has_ref, k, b, hk):
-    """The command of run ``b`` at sample ``k`` into ``st.u`` (guidance.py); returns whether it
-    saturated. ``st.nu`` receives the estimated inertial velocity."""
-    n = pt.n
-    c, d = st.c, st.d
-    sat = False
+def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, hk, n, cur):
+    """The commands of every run at sample ``k`` into ``U`` (n, B) (guidance.py): ``gains`` are
+    ``(Kp, Kd, v_max)``; ``sat`` (B,) is 1 where a run's command saturated, ``V`` (n, B)
+    receives the estimated inertial velocities ``p̂'``."""
+    B = c.shape[1]
+    kp, kd, vmax = gains
+    for b in range(B):
+        sat[b] = 0.0
     for i in range(n):
-        ep = c[i, b] + d[i, b]
-        ev = c[n + i, b] + d[n + i, b] + (d[2 * n + i, b] if pt.cur else 0.0)
-        st.nu[i] = pt.nuplan[k, i] + ev
-        if has_ref:
-            kr = k - ka
-            dp = ref[kr, i, b] - pt.xplan[k, i] - ep
-            dv = ref[kr, n + i, b] - st.nu[i]
-            uff = ref[kr, 2 * n + i, b]
-        else:
-            dp, dv, uff = -ep, -ev, pt.uplan[k, i]
-        u = uff + gn.kp * dp + gn.kd * dv
-        a = gn.amax[i]
-        if u > a or u < -a:
-            u = a if u > 0 else -a
-            sat = True
-        st.u[i] = u
-    if gn.vmax < math.inf:
-        vp2 = 0.0
-        for i in range(n):
-            vp = st.nu[i] + hk * st.u[i]
-            vp2 += vp * vp
-        vmax = gn.vmax
-        if vp2 > (vmax * (1.0 + SPEED_SLACK)) ** 2:  # project v̂ + h u onto the speed ball
-            sat = True
-            f = vmax / math.sqrt(vp2)
+        a = amax[i]
+        xp, vp, up = xplan[k, i], nuplan[k, i], uplan[k, i]
+        for b in range(B):
+            ep = c[i, b] + d[i, b]
+            ev = c[n + i, b] + d[n + i, b] + (d[2 * n + i, b] if cur else 0.0)
+            V[i, b] = vp + ev
+            if has_ref:
+                u = ref[kr, 2 * n + i, b] + kp * (ref[kr, i, b] - xp - ep)
+                u += kd * (ref[kr, n + i, b] - V[i, b])
+            else:
+                u = up - kp * ep - kd * ev
+            if u > a or u < -a:
+                u = a if u > 0 else -a
+                sat[b] = 1.0
+            U[i, b] = u
+    if vmax < math.inf:
+        lim2 = vmax * (1.0 + SPEED_SLACK)
+        lim2 *= lim2
+        for b in range(B):
+            vp2 = 0.0
             for i in range(n):
-                u = ((f - 1.0) * st.nu[i] + f * hk * st.u[i]) / hk
-                a = gn.amax[i]
-                st.u[i] = min(max(u, -a), a)
-    return sat
+                v = V[i, b] + hk * U[i, b]
+                vp2 += v * v
+            if vp2 > lim2:  # project v̂ + h u onto the speed ball, then the box again
+                sat[b] = 1.0
+                f = vmax / math.sqrt(vp2)
+                for i in range(n):
+                    u = ((f - 1.0) * V[i, b] + f * hk * U[i, b]) / hk
+                    U[i, b] = min(max(u, -amax[i]), amax[i])
+
+
+@inline
+def propagate(c, d, dl, U, sat, tm, uplan, alim, k, hk, n, cur, L, sc, z, kz):
+    """``c``, ``d``, ``δ`` of every run from sample ``k`` to ``k + 1`` with the commands ``U``;
+    the saturation count and the largest ``|u_i| / accel_i`` go to the metrics ``tm``."""
+    B = c.shape[1]
+    m, r = L.shape
+    h2 = 0.5 * hk * hk
+    for b in range(B):
+        tm[b, TM_SAT] += sat[b]
+    for i in range(n):
+        up, inv_a = uplan[k, i], 1.0 / alim[i]
+        for b in range(B):
+            du = U[i, b] - up
+            tm[b, TM_ACCEL] = max(tm[b, TM_ACCEL], abs(U[i, b]) * inv_a)
+            c[i, b] += hk * c[n + i, b] + h2 * du
+            c[n + i, b] += hk * du
+            if cur:
+                d[i, b] += hk * (d[n + i, b] + d[2 * n + i, b])
+                dl[i, b] += hk * (dl[n + i, b] + dl[2 * n + i, b])
+            else:
+                d[i, b] += hk * d[n + i, b]
+                dl[i, b] += hk * dl[n + i, b]
+    for i in range(m):
+        s = sc[i]
+        for j in range(r):
+            lij = s * L[i, j]
+            if lij != 0.0:
+                for b in range(B):
+                    dl[i, b] += lij * z[kz, j, b]
 
 
 @jit
-def nav_step(pt, gn, st, io, z, ref, ka, has_ref, k):
-    """Guidance at sample ``k``, then ``c``, ``d``, ``δ`` of every run step to ``k + 1``."""
-    n = pt.n
-    m, B = st.X.shape
-    L = pt.L
-    r = L.shape[1]
-    hk = pt.h[k]
-    if pt.scaled and hk != st.hp[0]:  # uniform grids: one power per call
-        st.hp[0] = hk
-        for i in range(m):
-            st.sc[i] = hk ** pt.expo[i]
-    kz = k - ka
-    for b in range(B):
-        if guide(pt, gn, st, ref, ka, has_ref, k, b, hk):
-            io.tm[b, TM_SAT] += 1.0
-        ratio = 0.0
-        for i in range(n):
-            du = st.u[i] - pt.uplan[k, i]
-            ratio = max(ratio, abs(st.u[i]) / pt.alim[i])
-            st.c[i, b] += hk * st.c[n + i, b] + 0.5 * hk * hk * du
-            st.c[n + i, b] += hk * du
-            st.d[i, b] += hk * (st.d[n + i, b] + (st.d[2 * n + i, b] if pt.cur else 0.0))
-            st.dl[i, b] += hk * (st.dl[n + i, b] + (st.dl[2 * n + i, b] if pt.cur else 0.0))
-        io.tm[b, TM_ACCEL] = max(io.tm[b, TM_ACCEL], ratio)
-    if r > 0:
-        for i in range(m):
-            s = st.sc[i]
-            for j in range(r):
-                lij = s * L[i, j]
-                if lij != 0.0:
-                    for b in range(B):
-                        st.dl[i, b] += lij * z[kz, j, b]
+def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
+    """Steps ``k_from → k_to`` (no epoch or record strictly between them): guidance, then ``c``,
+    ``d``, ``δ`` step, then the new sample's truth is buffered. One call per gap between events,
+    the bundles unpacked once: per step only arrays are passed to the inlined parts."""
+    n, cur, h, expo = pt.n, pt.cur, pt.h, pt.expo
+    xplan, nuplan, uplan, amax, alim, L = pt.xplan, pt.nuplan, pt.uplan, gn.amax, pt.alim, pt.L
+    c, d, dl, U, V, sat, sc, pos = st.c, st.d, st.dl, st.u, st.nu, st.sat, st.sc, st.pos
+    tm, xb = io.tm, io.xb
+    gains = (gn.kp, gn.kd, gn.vmax)
+    m = L.shape[0]
+    for k in range(k_from, k_to):
+        hk = h[k]
+        if pt.scaled and hk != st.hp[0]:  # uniform grids: one power per run of steps
+            st.hp[0] = hk
+            for i in range(m):
+                sc[i] = hk ** expo[i]
+        kr = k - ka
+        guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, hk, n, cur)
+        propagate(c, d, dl, U, sat, tm, uplan, alim, k, hk, n, cur, L, sc, z, kr)
+        buffer_truth(xb, pos[3], xplan, nuplan, c, dl, ref, kr + 1, has_ref, k + 1, n, cur)
+        pos[3] += 1
+        if pos[3] == xb.shape[1]:
+            flush_metrics(pt, st, io)
 
 
 @jit
@@ -251,10 +269,16 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
     """Advance the batch from ``st.pos`` to sample ``k_end`` (its measurement included, its
     command not). ``z`` (K, r, B) are the process-noise normals of steps ``ka ..``, ``ref``
     (K + 1, 3n, B) the runs' references ``(p, p', u)`` from sample ``ka`` (``has_ref``; else the
-    plan)."""
+    plan). The truth of a sample is buffered for the metrics when the step to it is taken
+    (sample 0 here); the measurement does not change the truth, so the order is free."""
     k, phase, e_last = st.pos[0], st.pos[1], st.pos[2]
     while True:
         if phase == 0:
+            if k == 0:
+                buffer_truth(
+                    io.xb, 0, pt.xplan, pt.nuplan, st.c, st.dl, ref, 0, has_ref, 0, pt.n, pt.cur
+                )
+                st.pos[3] = 1
             e = pt.ep_of[k]
             if e >= 0:
                 nav_measure(pt, st, io, k, e)
@@ -262,12 +286,12 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
             ri = pt.rec_of[k]
             if ri >= 0:
                 nav_record(pt, st, io, k, ri, e_last)
-            nav_metrics(pt, st, io, ref, ka, has_ref, k)
             phase = 1
         if k >= k_end:
             break
-        nav_step(pt, gn, st, io, z, ref, ka, has_ref, k)
-        k += 1
+        k_next = min(k_end, pt.nxt[k])
+        nav_run(pt, gn, st, io, z, ref, ka, has_ref, k, k_next)
+        k = k_next
         phase = 0
     st.pos[0], st.pos[1], st.pos[2] = k, phase, e_last
     flush_metrics(pt, st, io)
