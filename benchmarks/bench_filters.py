@@ -118,9 +118,9 @@ def obsplan_filters(traj, cfg, cov, r, x0, runs) -> dict[str, float]:
     Y = np.ascontiguousarray(r[plan.epochs, None, :runs])
     out = {}
     for name in ("ekf", "kf", "gsf"):
-        f = make_filter(name, cfg, cov)
+        f = make_filter(name, cfg, cov, cfg.process_noise_model())
         sums = np.zeros((2, rec.size, 7))
-        info = np.zeros((runs, 8))
+        info = np.zeros((runs, 10))
         states = [f.start(x0[j], None, float(Y[0, 0, j])) for j in range(runs)]
         f.run(ctx, states[:1], Y[:, :, :1], truth[:1], sums, info[:1])  # compile / load
         t0 = time.perf_counter()

@@ -10,7 +10,9 @@ Prints Markdown tables (timings are of the machine it runs on; say under which l
    the bound alone, and a plain step-by-step recursion doing the same work (numpy, batched over
    runs: truth at every step, prediction at every step, the same updates, the same statistics;
    an independent prototype, not obsplan's code) with the ratio;
-3. the validation part of the default ``obsplan plan`` (its paths: the plan and the baselines)
+3. closed loop (guidance on the EKF estimate at every filter step, the passive KF on the applied
+   inputs) against open loop on the same cases, with the truth's final drift in both;
+3b. the validation part of the default ``obsplan plan`` (its paths: the plan and the baselines)
    in one pass, and as one ``validate_paths`` call per path;
 4. ``gramian()`` on 60,000 samples against a numpy 4-point Gauss–Legendre rule;
 5. consistency: the KF's NEES with and without the process-noise coupling (range3d plan, a
@@ -31,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from obsplan import generators as gen
-from obsplan.estimation import EstimationConfig, monte_carlo
+from obsplan.estimation import EstimationConfig, Guidance, monte_carlo
 from obsplan.estimation.crlb import posterior_crlb
 from obsplan.estimation.schedule import make_schedule
 from obsplan.model import make_model
@@ -45,7 +47,7 @@ def compile_cost() -> list[tuple[str, float]]:
     code = (
         "import time; t = time.perf_counter();"
         "from obsplan import generators as gen;"
-        "from obsplan.estimation import EstimationConfig, monte_carlo;"
+        "from obsplan.estimation import EstimationConfig, Guidance, monte_carlo;"
         "from obsplan.model import make_model;"
         "tr = gen.circle(30.0, 1.5, 20.0, 0.1);"
         "monte_carlo(tr, EstimationConfig.paper(make_model(2, 'range'), 0.1), runs=2,"
@@ -224,7 +226,28 @@ def acceptance_cases(quick: bool):
     ]
 
 
-# ----------------------------------------------------------------------------- 3. validation
+# ----------------------------------------------------------------------------- 3. closed loop
+#: Bounds above the acceptance circle's own acceleration (2.6²/51 = 0.13 m/s²) and speed.
+CLOSED_GUIDANCE = Guidance.from_limits(0.2, speed=3.0, error_scale_m=1.0)
+
+
+def closed_vs_open(quick: bool) -> list[tuple[str, float, float, float, float]]:
+    """Wall time of monte_carlo open and closed loop on the acceptance cases, and the RMS final
+    drift of the true path from the plan in each."""
+    out = []
+    for label, traj, cfg, runs, _ in acceptance_cases(quick):
+        monte_carlo(traj.window(0, 300), cfg, runs=2, guidance=CLOSED_GUIDANCE)  # compile/load
+        t0 = time.perf_counter()
+        o = monte_carlo(traj, cfg, runs=runs, seed=0)
+        t_open = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        c = monte_carlo(traj, cfg, runs=runs, seed=0, guidance=CLOSED_GUIDANCE)
+        t_closed = time.perf_counter() - t0
+        out.append((label, t_open, t_closed, o.truth.final_drift_rms_m, c.truth.final_drift_rms_m))
+    return out
+
+
+# ----------------------------------------------------------------------------- 3b. validation
 def validation_case() -> tuple[float, float, int]:
     from obsplan.planning import load_problem, plan
     from obsplan.planning.validation import validate_paths
@@ -347,6 +370,17 @@ def main() -> None:
         print(
             f"| {label}, {traj.n_samples - 1} steps | {wall:.2f} | {t_bound:.2f} | {target:g} "
             f"| {oracle:.1f} | {oracle / wall:.0f}x |"
+        )
+
+    print("\n### Closed loop against open loop (EKF + augmented KF + bound, same runs)\n")
+    print(
+        "| case | open loop [s] | closed loop [s] | ratio | final drift open [m] | "
+        "final drift closed [m] |\n|---|---:|---:|---:|---:|---:|"
+    )
+    for label, t_open, t_closed, d_open, d_closed in closed_vs_open(a.quick):
+        print(
+            f"| {label} | {t_open:.2f} | {t_closed:.2f} | {t_closed / t_open:.1f}x | "
+            f"{d_open:.2f} | {d_closed:.3f} |"
         )
 
     if not a.skip_plan:

@@ -13,6 +13,18 @@ import pytest
 from obsplan.estimation.riccati import RecursionModel, faulhaber, make_epochs, run_recursion
 
 
+def integrated(A, W, h):
+    """``∫_0^h F(u) W F(u)ᵀ du`` by a 3-point Gauss–Legendre rule: the integrand is a polynomial
+    of degree <= 4 in ``u`` (``A³ = 0``) and the rule is exact to degree 5."""
+    x, w = np.polynomial.legendre.leggauss(3)
+    acc = np.zeros_like(W)
+    for xi, wi in zip(x, w, strict=True):
+        u = 0.5 * h * (xi + 1.0)
+        F = np.eye(A.shape[0]) + A * u + 0.5 * A @ A * u**2
+        acc += 0.5 * h * wi * (F @ W @ F.T)
+    return acc
+
+
 def per_step(model: RecursionModel, t, mask, P0, H, rho):
     """Update at each sample where a sensor reports, then predict one step (the reference)."""
     A = model.A
@@ -33,7 +45,10 @@ def per_step(model: RecursionModel, t, mask, P0, H, rho):
             dt = t[k + 1] - t[k]
             F = np.eye(model.m) + A * dt + 0.5 * A @ A * dt**2
             tau = t[k + 1] - t[0]  # noise enters at the end of the step
-            P = F @ P @ F.T + model.q + tau * model.q1 + tau**2 * model.q2
+            if model.continuous:  # an intensity constant in time (q1 = q2 = 0 here)
+                P = F @ P @ F.T + integrated(A, model.q, dt)
+            else:
+                P = F @ P @ F.T + model.q + tau * model.q1 + tau**2 * model.q2
     return np.array(out).T
 
 
@@ -42,8 +57,12 @@ def random_spd(rng, m):
     return X @ X.T / m + np.eye(m)
 
 
-@pytest.mark.parametrize("chain", [False, True], ids=["pcrb-like", "kf-chain"])
-def test_epoch_recursion_equals_the_per_step_recursion(chain):
+@pytest.mark.parametrize(
+    "chain,continuous",
+    [(False, False), (True, False), (False, True), (True, True)],
+    ids=["pcrb-like", "kf-chain", "pcrb-continuous", "kf-chain-continuous"],
+)
+def test_epoch_recursion_equals_the_per_step_recursion(chain, continuous):
     rng = np.random.default_rng(3)
     n = 2
     if chain:  # p' = v, kappa' = phi, phi' = 2 gamma: A^2 != 0, A^3 = 0
@@ -53,6 +72,8 @@ def test_epoch_recursion_equals_the_per_step_recursion(chain):
         A[4, 5], A[5, 6] = 1.0, 2.0
         G = rng.standard_normal((m, m)) * 1e-2
         q0, q1, q2 = G @ G.T, 1e-3 * np.eye(m), 1e-5 * (G + G.T) @ (G + G.T).T
+        if continuous:  # the per-step reference integrates a time-invariant intensity
+            q1 = q2 = None
         support = (0, 1, 4)
     else:
         m = 2 * n
@@ -76,6 +97,7 @@ def test_epoch_recursion_equals_the_per_step_recursion(chain):
         range_sensor=0,
         n_sensors=2,
         range_support=support,
+        continuous=continuous,
     )
     # an irregular grid (two step lengths) with range every 7 samples and DVL every 3
     t = np.concatenate([np.arange(40) * 0.1, 4.0 + np.arange(1, 31) * 0.25])

@@ -1,5 +1,29 @@
 """Configuration of the filters and of the Monte Carlo: noises, rates, covariances, initial error.
 
+Process noise
+-------------
+By default process noise is **physical**: white acceleration noise of intensity ``accel_noise``
+[m/s²/√Hz] on each axis (PSD ``q = accel_noise²``), and with an unknown current an optional random
+walk of the current of intensity ``current_noise`` [m/s/√s] (default 0: the model's current is
+constant, eq. 29). Over any span ``h`` the covariance it adds is exact, per axis on ``(p, v)``
+
+    Q(h) = q [[h³/3, h²/2], [h²/2, h]]
+
+(and ``q_f [[h³/3, h²/2], [h²/2, h]]`` on ``(p, v_f)`` for the current, since ``p' = v + v_f``),
+the integral ``∫ e^{As} W e^{Aᵀs} ds`` of the intensity ``W = diag(0, q, q_f)`` with ``A² = 0``.
+So results do not depend on the filter step: the truth, the EKF, the augmented KF, the Gaussian
+sum, the posterior CRB and the planner's covariance recursion all integrate the same ``W``
+(:class:`ProcessNoise`). Nothing else is included: no white position noise (a vehicle's position
+is the integral of its velocity; the paper's ``1e-3 Ts`` on ``p`` is a discretisation artefact)
+and no noise on the KF's extras ``(α, β)`` (constants of the truth). The default
+:data:`DEFAULT_ACCEL_NOISE` ``= sqrt(1e-7) ≈ 3.2e-4 m/s²/√Hz`` gives at the default validation
+step 0.1 s the velocity variance per step ``q h = 1e-8 = (1e-3 · 0.1)² m²/s²`` of the paper's
+``Q`` at that step.
+
+The paper's per-step setting (below) is kept as a preset, :meth:`EstimationConfig.paper`: giving
+``q_ekf``/``q_kf`` selects it (their intensity then changes with the step: on one plan going from
+dt 0.1 s to 2 s raised the lawn-mower's final bound from 0.95 to 2.20 m).
+
 Paper defaults (section 7) for a model step ``Ts`` [s]:
 
 * range noise ``σ_r = 0.1 m`` (``R = (0.1 m)²``), DVL ``σ = 1e-3 m/s`` (``R_DVL = 1e-6 I``);
@@ -23,6 +47,7 @@ given as a diagonal (vector) or a full matrix in the state order of the filter
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -31,6 +56,7 @@ from typing import Literal
 import numpy as np
 
 from obsplan.errors import ConfigError
+from obsplan.estimation.kalman import integrated_noise
 from obsplan.model import SENSOR_ALIASES, SENSORS, VehicleModel
 from obsplan.observability.gramian import augmented_model
 
@@ -44,6 +70,9 @@ DEFAULT_CURRENT: tuple[float, float, float] = (0.1, -0.05, 0.0)
 CURRENT_PRIOR_STD = 0.1
 #: Position error [m] below which a filter counts as converged (see FilterStats).
 DEFAULT_CONVERGENCE_M = 0.5
+#: Default white-acceleration intensity [m/s²/√Hz]: at the default filter step 0.1 s its velocity
+#: variance per step ``q h`` is the paper's ``(1e-3 · 0.1)² = 1e-8 m²/s²`` (module docstring).
+DEFAULT_ACCEL_NOISE = math.sqrt(1e-7)
 
 Y0Mode = Literal["augment", "inflate"]
 
@@ -112,6 +141,46 @@ def paper_covariances(model: VehicleModel, dt: float) -> dict[str, np.ndarray]:
 
 
 @dataclass(frozen=True, eq=False)
+class ProcessNoise:
+    """The process noise of a configuration, in the form the truth, filters and bounds integrate.
+
+    Attributes
+    ----------
+    continuous : bool
+        True: ``q_ekf`` and ``q_kf`` are intensities ``W`` of white noise on the state's
+        derivative [m²/s³ on ``v``, ``v_f``] and the covariance added over a span ``h`` is
+        ``Q(h) = h W + h²/2 (A W + W Aᵀ) + h³/3 A W Aᵀ`` (exact, ``A² = 0``; module docstring).
+        False: they are covariances added at the end of every filter step (the paper's).
+    q_ekf : ndarray, shape (state_dim, state_dim)
+        On ``(p, v[, v_f])``.
+    q_kf : ndarray, shape (state_dim + 2, state_dim + 2)
+        On the paper's augmented state ``(p - b, v[, v_f], α, β)``.
+    dim : int
+        Spatial dimension ``n``.
+    current : bool
+        Whether the state has the current block ``v_f``.
+    """
+
+    continuous: bool
+    q_ekf: np.ndarray
+    q_kf: np.ndarray
+    dim: int
+    current: bool
+
+    def step_covariance(self, h: float) -> np.ndarray:
+        """Covariance added on ``(p, v[, v_f])`` over one filter step of ``h`` [s]."""
+        if not self.continuous:
+            return np.array(self.q_ekf, dtype=float)
+        return integrated_noise(self.q_ekf, self.dim, self.current, float(h))
+
+    def step_covariance_kf(self, h: float) -> np.ndarray:
+        """Covariance added on ``(p - b, v[, v_f], α, β)`` over one filter step of ``h`` [s]."""
+        if not self.continuous:
+            return np.array(self.q_kf, dtype=float)
+        return integrated_noise(self.q_kf, self.dim, self.current, float(h))
+
+
+@dataclass(frozen=True, eq=False)
 class EstimationConfig:
     """Filters and truth simulation for one vehicle model.
 
@@ -125,9 +194,21 @@ class EstimationConfig:
     noise
         Measurement standard deviation per sensor: range [m] (on the range, whatever the filter's
         output form), DVL [m/s], depth [m]. Missing sensors use :data:`DEFAULT_NOISE`.
-    q_ekf, q_kf, p0_ekf, p0_kf
-        Per-step process-noise and initial covariances (diagonal vector or matrix); ``None`` uses
-        :func:`paper_covariances` at the trajectory's median step.
+    accel_noise
+        Intensity of the white acceleration noise [m/s²/√Hz] of the truth and the filters
+        (module docstring); ``None``: :data:`DEFAULT_ACCEL_NOISE` ``= sqrt(1e-7)``, which at the
+        default filter step 0.1 s adds the paper's velocity variance ``(1e-3 · 0.1)²`` per step.
+        Cannot be combined with ``q_ekf``/``q_kf``.
+    current_noise
+        Intensity of a random walk of the current [m/s/√s] (models with a current only);
+        default 0, a constant current (eq. 29).
+    q_ekf, q_kf
+        The paper's setting instead of the physical noise: per-step process-noise covariances
+        (diagonal vector or matrix) added at every filter step, so their intensity depends on the
+        step (:meth:`paper` gives the paper's values). Giving either selects this mode; the other
+        one, if ``None``, is :func:`paper_covariances` at the trajectory's median step.
+    p0_ekf, p0_kf
+        Initial covariances (diagonal vector or matrix); ``None`` uses :func:`paper_covariances`.
     init_error
         ``"sample"`` to draw the initial estimation error of ``(p, v[, v_f])`` from
         ``N(0, p0_ekf)`` in each run, or a fixed offset ``x̂0 - x0`` of length ``state_dim``.
@@ -135,7 +216,8 @@ class EstimationConfig:
         True current ``v_f`` [m/s] of the truth when the model has a current (default
         :data:`DEFAULT_CURRENT`); must be ``None`` otherwise.
     process_noise
-        If true the truth is driven by process noise of covariance ``q_ekf``.
+        If true the truth is driven by the process noise the filters model (``accel_noise``, or
+        ``q_ekf`` per step in the paper's setting).
     y0_mode
         How the KF handles the noise of the anchor range ``y0`` in ``ȳ = y - y0 + ½|d|²``:
         ``"augment"`` (default) adds the constant ``β = y0,true - y0,meas`` to the KF state with
@@ -174,6 +256,8 @@ class EstimationConfig:
     dropout: Mapping[str, float] = field(default_factory=dict)
     kf_coupling: bool = True
     monitor_window_s: float | None = None
+    accel_noise: float | None = None
+    current_noise: float = 0.0
 
     def __reduce__(self):
         # the model may hold CasADi symbols (not picklable) and the mappings are read-only
@@ -194,6 +278,8 @@ class EstimationConfig:
                 "convergence_threshold_m",
                 "kf_coupling",
                 "monitor_window_s",
+                "accel_noise",
+                "current_noise",
             )
         }
         for f in ("rates_hz", "noise", "dropout"):
@@ -270,6 +356,7 @@ class EstimationConfig:
             object.__setattr__(self, "true_current", tuple(float(c) for c in vf_arr))
         elif self.true_current is not None:
             raise ConfigError("true_current is set but the model has no current (current=False)")
+        self._check_process_noise()
         if self.y0_mode not in ("augment", "inflate"):
             raise ConfigError(f"y0_mode must be 'augment' or 'inflate', got {self.y0_mode!r}")
         thr = float(self.convergence_threshold_m)
@@ -283,10 +370,66 @@ class EstimationConfig:
                     f"got {self.monitor_window_s!r}"
                 )
 
+    def _check_process_noise(self) -> None:
+        per_step = self.q_ekf is not None or self.q_kf is not None
+        if self.accel_noise is not None:
+            a = float(self.accel_noise)
+            if not (math.isfinite(a) and a >= 0):
+                raise ConfigError(
+                    f"accel_noise must be an intensity >= 0 in m/s²/√Hz, got {self.accel_noise!r}"
+                )
+            if per_step:
+                raise ConfigError(
+                    "accel_noise and q_ekf/q_kf are two settings of the same process noise: give "
+                    "the physical intensity accel_noise or the paper's per-step covariances, not "
+                    "both"
+                )
+            object.__setattr__(self, "accel_noise", a)
+        c = float(self.current_noise)
+        if not (math.isfinite(c) and c >= 0):
+            raise ConfigError(
+                f"current_noise must be an intensity >= 0 in m/s/√s, got {self.current_noise!r}"
+            )
+        if c > 0 and not self.model.current:
+            raise ConfigError("current_noise is set but the model has no current (current=False)")
+        if c > 0 and per_step:
+            raise ConfigError(
+                "current_noise needs the physical process noise: remove q_ekf/q_kf (the paper's "
+                "per-step setting has a constant current)"
+            )
+        object.__setattr__(self, "current_noise", c)
+
+    @property
+    def per_step_noise(self) -> bool:
+        """True in the paper's per-step setting (``q_ekf``/``q_kf`` given), False for the
+        physical intensity ``accel_noise``."""
+        return self.q_ekf is not None or self.q_kf is not None
+
+    def process_noise_model(self, dt: float | None = None) -> ProcessNoise:
+        """The :class:`ProcessNoise` every consumer integrates.
+
+        ``dt`` [s] is needed only in the per-step setting when one of ``q_ekf``/``q_kf`` is
+        ``None`` (it is then the paper's at step ``dt``).
+        """
+        model = self.model
+        n = model.dim
+        if self.per_step_noise:
+            if self.q_ekf is None or self.q_kf is None:
+                if dt is None:
+                    raise ConfigError("process_noise_model: the per-step setting needs a step dt")
+                cov = paper_covariances(model, dt)
+            qe = cov["q_ekf"] if self.q_ekf is None else self.q_ekf
+            qk = cov["q_kf"] if self.q_kf is None else self.q_kf
+            return ProcessNoise(False, np.array(qe), np.array(qk), n, model.current)
+        a = DEFAULT_ACCEL_NOISE if self.accel_noise is None else float(self.accel_noise)
+        w = [0.0] * n + [a * a] * n + ([self.current_noise**2] * n if model.current else [])
+        return ProcessNoise(True, np.diag(w), np.diag(w + [0.0, 0.0]), n, model.current)
+
     @classmethod
     def paper(cls, model: VehicleModel, dt: float, **overrides: object) -> EstimationConfig:
         """The paper's section-7 defaults for model step ``dt`` [s] (``Ts = 0.01`` s in the paper).
 
+        The paper's per-step process noise (module docstring), kept for its figures and tables;
         ``overrides`` are any other fields (e.g. ``init_error``, ``rates_hz``).
         """
         cov = paper_covariances(model, dt)
@@ -295,9 +438,18 @@ class EstimationConfig:
 
     # ------------------------------------------------------------------ resolution
     def covariances(self, dt: float) -> dict[str, np.ndarray]:
-        """``q_ekf, q_kf, p0_ekf, p0_kf`` with ``None`` replaced by the paper's for step ``dt``."""
+        """``q_ekf, q_kf, p0_ekf, p0_kf`` for filter step ``dt`` [s].
+
+        ``q_*`` are the covariances added per step of ``dt`` (with the physical noise its exact
+        ``Q(dt)``, a full matrix); ``None`` entries are the paper's for step ``dt``.
+        """
         cov = paper_covariances(self.model, dt)
-        return {k: (cov[k] if getattr(self, k) is None else getattr(self, k)) for k in cov}
+        out = {k: (cov[k] if getattr(self, k) is None else getattr(self, k)) for k in cov}
+        if not self.per_step_noise:
+            pn = self.process_noise_model()
+            out["q_ekf"] = pn.step_covariance(dt)
+            out["q_kf"] = pn.step_covariance_kf(dt)
+        return out
 
     @property
     def current_array(self) -> np.ndarray:
@@ -323,6 +475,13 @@ class EstimationConfig:
             "true_current": None if self.true_current is None else list(self.true_current),
             "kf_coupling": bool(self.kf_coupling),
             "monitor_window_s": self.monitor_window_s,
+            "process_noise_model": "per-step" if self.per_step_noise else "continuous",
+            "accel_noise": (
+                None
+                if self.per_step_noise
+                else (DEFAULT_ACCEL_NOISE if self.accel_noise is None else self.accel_noise)
+            ),
+            "current_noise": float(self.current_noise),
         }
 
 

@@ -75,11 +75,14 @@ def nav_rows(model: VehicleModel) -> np.ndarray:
     return T
 
 
-def pcrb_model(model: VehicleModel, q: np.ndarray, noise: dict[str, float]) -> RecursionModel:
+def pcrb_model(
+    model: VehicleModel, q: np.ndarray, noise: dict[str, float], continuous: bool = False
+) -> RecursionModel:
     """The :class:`~obsplan.estimation.riccati.RecursionModel` of the posterior CRB.
 
-    State ``(p, v[, v_f])`` of ``model``, per-step process noise ``q``, the model's constant DVL
-    and depth rows with the noise of ``noise`` (std per sensor); the range row is per epoch
+    State ``(p, v[, v_f])`` of ``model``, process noise ``q`` (per-step covariance, or the
+    intensity of the physical noise when ``continuous``), the model's constant DVL and depth rows
+    with the noise of ``noise`` (std per sensor); the range row is per epoch
     (:func:`range_information`).
     """
     n, m = model.dim, model.state_dim
@@ -99,7 +102,17 @@ def pcrb_model(model: VehicleModel, q: np.ndarray, noise: dict[str, float]) -> R
         range_sensor=model.sensors.index("range"),
         n_sensors=len(model.sensors),
         range_support=tuple(range(n)),
+        continuous=bool(continuous),
     )
+
+
+def pcrb_model_of(config: EstimationConfig, dt: float) -> RecursionModel:
+    """:func:`pcrb_model` of a configuration on a filter grid of step ``dt`` [s]: its process noise
+    (:meth:`~obsplan.estimation.config.EstimationConfig.process_noise_model`; none when
+    ``process_noise`` is off) and noises. The posterior CRB and the planner's objective use it."""
+    pn = config.process_noise_model(dt)
+    q = pn.q_ekf if config.process_noise else np.zeros_like(pn.q_ekf)
+    return pcrb_model(config.model, q, dict(config.noise), continuous=pn.continuous)
 
 
 def range_information(rel, sigma: float):
@@ -121,16 +134,16 @@ def posterior_crlb(
 ) -> CRLBResult:
     """Posterior CRB of ``(p, p')`` along ``traj`` with the sensors, rates and noises of ``config``.
 
-    The prior is ``config.p0_ekf`` (paper default if None); process noise ``q_ekf`` when
-    ``config.process_noise``.
+    The prior is ``config.p0_ekf`` (paper default if None); the configuration's process noise
+    when ``config.process_noise`` (:func:`pcrb_model_of`).
     """
     model = config.model
-    cov = config.covariances(1.0 / sample_rate(traj))
+    dt = 1.0 / sample_rate(traj)
+    cov = config.covariances(dt)
     if schedule is None:
         schedule = make_schedule(traj, model.sensors, config.rates_hz)
-    q = cov["q_ekf"] if config.process_noise else np.zeros_like(cov["q_ekf"])
     epochs = make_epochs(traj.t, schedule.mask)
-    rec = pcrb_model(model, q, dict(config.noise))
+    rec = pcrb_model_of(config, dt)
     xs = nominal_states(traj, model, config.current_array)
     n = model.dim
     rel = (xs[epochs.index, :n] - model.beacon_array).T

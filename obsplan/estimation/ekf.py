@@ -71,24 +71,42 @@ class ExtendedKalmanFilter:
         info: np.ndarray,
         ex_run: int = -1,
         example: np.ndarray | None = None,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """Filter a batch of runs over the epochs of ``ctx`` and add their statistics to ``sums``.
 
         ``states`` from :meth:`start` (one per run), ``Y`` (E, output_dim, R) the readings at
         the epochs (NaN: no report), ``truth_rec`` (R, Nr, 2n) the true ``(p, p')`` at the
-        records; ``info`` (R, 8) receives the runs' verdicts (``stats.INFO_*``) and ``example``
-        (2, Nr, 2n) the estimate and std of run ``ex_run`` of the batch.
+        records; ``info`` (R, N_INFO) receives the runs' verdicts (``stats.INFO_*``) and
+        ``example`` (2, Nr, 2n) the estimate and std of run ``ex_run`` of the batch.
+        ``corrections`` ``(ce (E, 2n, R), cr (Nr, 2n, R))``: each run's response to its input
+        corrections at the epochs and records (closed loop: the inputs it applied are the
+        plan's plus corrections); ``None``: the plan's inputs.
         """
         X0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
         P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
         self._batch(
-            ctx, X0, P0, np.zeros(len(states)), 1, Y, truth_rec, sums, info, ex_run, example
+            ctx,
+            X0,
+            P0,
+            np.zeros(len(states)),
+            1,
+            Y,
+            truth_rec,
+            sums,
+            info,
+            ex_run,
+            example,
+            corrections,
         )
 
-    def _batch(self, ctx, X0, P0, lw0, G, Y, truth_rec, sums, info, ex_run, example) -> None:
+    def _batch(
+        self, ctx, X0, P0, lw0, G, Y, truth_rec, sums, info, ex_run, example, corrections
+    ) -> None:
         from obsplan.estimation import kernels
 
         m, plan = self.model, ctx.plan
+        ce, cr = ctx.corrections(*(corrections or (None, None)))
         kernels.ekf_batch(
             X0,
             P0,
@@ -115,4 +133,7 @@ class ExtendedKalmanFilter:
             info,
             ex_run if example is not None else -1,
             ctx.no_example if example is None else example,
+            ce,
+            cr,
+            ctx.rec_w,
         )

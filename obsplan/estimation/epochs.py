@@ -10,13 +10,18 @@ taken). Between two epochs ``a < b`` the ``k = b - a`` steps of the per-step mod
     Q_ab = Σ_j (I + τ_j A) q (I + τ_j A)ᵀ = S0 q + S1 (A q + q Aᵀ) + S2 A q Aᵀ
 
 with ``S0 = k``, ``S1 = Σ τ_j``, ``S2 = Σ τ_j²`` (on a uniform grid ``S1 = h k(k-1)/2`` and
-``S2 = h² (k-1)k(2k-1)/6``). :class:`EpochPlan` holds these per segment, computed once per
-trajectory (independent of the runs), vectorised over all steps.
+``S2 = h² (k-1)k(2k-1)/6``). With the physical process noise (an intensity ``W``,
+:mod:`obsplan.estimation.config`) the same form holds with ``q = W`` and the continuous integral
+``S0 = T``, ``S1 = T²/2``, ``S2 = T³/3`` over the whole gap, whatever the steps inside it.
+:class:`EpochPlan` holds these per segment, computed once per trajectory (independent of the
+runs), vectorised over all steps.
 
 When the per-step noise gain depends on the step (the augmented KF's process-noise coupling,
 :mod:`obsplan.estimation.kf`), ``Q_ab = Σ_j M(σ_j) q M(σ_j)ᵀ`` with ``M`` a polynomial of degree
 ≤ 4 in ``σ_j = t_{j+1} - t_a``: the sum is computed exactly by a discrete Gauss rule of
 ``min(k, 5)`` nodes (exact to degree 9) for the measure ``Σ_j δ(σ - σ_j)``, also stored here.
+With the physical noise the sum is the integral ``∫_0^T M(σ) W M(σ)ᵀ dσ``, of degree ≤ 6 in
+``σ``: the 5-node Gauss–Legendre rule on ``[0, T]`` is exact.
 """
 
 from __future__ import annotations
@@ -112,11 +117,14 @@ class SegmentTable:
         return np.ascontiguousarray(np.stack([self.nodes, self.weights], axis=1))
 
 
-def segment_table(traj: Trajectory, a: np.ndarray, b: np.ndarray, rules: bool) -> SegmentTable:
+def segment_table(
+    traj: Trajectory, a: np.ndarray, b: np.ndarray, rules: bool, continuous: bool = False
+) -> SegmentTable:
     """:class:`SegmentTable` of the segments ``a_i → b_i`` (sample indices, ``a_i ≤ b_i``).
 
     Empty segments (``a = b``) are the identity. ``rules`` computes the Gauss rules (only the
-    augmented KF needs them).
+    augmented KF needs them); ``continuous`` the noise sums and rules of an intensity (module
+    docstring) instead of per-step noise.
     """
     a = np.asarray(a, dtype=np.int64)
     b = np.asarray(b, dtype=np.int64)
@@ -144,7 +152,13 @@ def segment_table(traj: Trajectory, a: np.ndarray, b: np.ndarray, rules: bool) -
         sums[nz, 2] = np.add.reduceat(tau * tau, starts)
         dv[nz] = np.add.reduceat(hu, starts, axis=0)
         dp[nz] = np.add.reduceat((0.5 * h[j] + tau)[:, None] * hu, starts, axis=0)
-        if rules:
+        if continuous:
+            sums[:, 0], sums[:, 1], sums[:, 2] = T, 0.5 * T**2, T**3 / 3.0
+            if rules:
+                x, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
+                nodes[nz] = 0.5 * T[nz, None] * (x + 1.0)
+                weights[nz] = 0.5 * T[nz, None] * w
+        elif rules:
             sigma = t[j + 1] - t[a[seg]]
             small = k[nz] <= GAUSS_NODES  # the points themselves: exact
             col = np.arange(seg.size) - np.repeat(starts, k[nz])
@@ -191,6 +205,8 @@ class EpochPlan:
         Index of each epoch / record in ``points``.
     seg_tab, seg_rule, rec_tab : ndarray
         ``segments`` and ``rec_segments`` in the kernels' packed layout.
+    continuous : bool
+        The noise sums are those of an intensity (physical noise), not of per-step noise.
     """
 
     epochs: np.ndarray
@@ -205,6 +221,7 @@ class EpochPlan:
     seg_tab: np.ndarray
     seg_rule: np.ndarray
     rec_tab: np.ndarray
+    continuous: bool = False
 
     @property
     def n_epochs(self) -> int:
@@ -212,17 +229,22 @@ class EpochPlan:
 
 
 def epoch_plan(
-    traj: Trajectory, schedule: Schedule, records: np.ndarray, rules: bool = True
+    traj: Trajectory,
+    schedule: Schedule,
+    records: np.ndarray,
+    rules: bool = True,
+    continuous: bool = False,
 ) -> EpochPlan:
-    """The :class:`EpochPlan` of ``schedule`` on ``traj`` with recorded samples ``records``."""
+    """The :class:`EpochPlan` of ``schedule`` on ``traj`` with recorded samples ``records``
+    (``continuous``: noise sums of an intensity, :func:`segment_table`)."""
     any_report = schedule.mask.any(axis=1)
     any_report[0] = True
     epochs = np.flatnonzero(any_report).astype(np.int64)
     records = np.asarray(records, dtype=np.int64)
     a = np.concatenate([[0], epochs[:-1]])
-    segs = segment_table(traj, a, epochs, rules)
+    segs = segment_table(traj, a, epochs, rules, continuous)
     rec_base = np.searchsorted(epochs, records, side="right") - 1
-    rec_segs = segment_table(traj, epochs[rec_base], records, False)
+    rec_segs = segment_table(traj, epochs[rec_base], records, False, continuous)
     points = np.union1d(epochs, records).astype(np.int64)
     return EpochPlan(
         epochs=epochs,
@@ -237,6 +259,7 @@ def epoch_plan(
         seg_tab=segs.packed(),
         seg_rule=segs.rule(),
         rec_tab=rec_segs.packed(),
+        continuous=bool(continuous),
     )
 
 
@@ -264,6 +287,9 @@ class RunContext:
         The monitor's bound on one run's NEES (99.9 % quantile of ``χ²(2n)``).
     window_s : float
         The final stretch [s] over which the monitor averages a run's NEES.
+    rec_w : (Nr,), optional
+        Weight 1 for the records of the subset whose RMSE is reported per run (e.g. samples on
+        survey lines), 0 elsewhere; default none (that RMSE is NaN).
     """
 
     plan: EpochPlan
@@ -272,6 +298,18 @@ class RunContext:
     threshold_m: float
     nees_bound: float
     window_s: float
+    rec_w: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.rec_w is None:
+            object.__setattr__(self, "rec_w", np.zeros(self.t_rec.size))
+
+    def corrections(self, ce: np.ndarray | None, cr: np.ndarray | None):
+        """The kernels' input-correction arrays (empty: open loop)."""
+        if ce is None:
+            z = np.zeros((0, self.d_epochs.shape[1], 1))
+            return z, z
+        return np.ascontiguousarray(ce), np.ascontiguousarray(cr)
 
     @property
     def no_example(self) -> np.ndarray:

@@ -118,6 +118,7 @@ class GaussianSumFilter:
         info: np.ndarray,
         ex_run: int = -1,
         example: np.ndarray | None = None,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`): the EKF's kernel on
         every run's components, which it mixes by their weights."""
@@ -127,5 +128,16 @@ class GaussianSumFilter:
         )
         lw0 = np.concatenate([st[2] for st in states])
         self.ekf._batch(
-            ctx, X0, P0, lw0, self.components, Y, truth_rec, sums, info, ex_run, example
+            ctx,
+            X0,
+            P0,
+            lw0,
+            self.components,
+            Y,
+            truth_rec,
+            sums,
+            info,
+            ex_run,
+            example,
+            corrections,
         )

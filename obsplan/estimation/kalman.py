@@ -157,3 +157,15 @@ def linear_rows(model: VehicleModel, noise: dict[str, float], depth_offset: floa
             var[sl.start] = noise[s] ** 2
             off[sl.start] = depth_offset
     return LinearRows(idx=idx, nnz=nnz, var=var, off=off)
+
+
+def integrated_noise(w: np.ndarray, n: int, current: bool, h: float) -> np.ndarray:
+    """``∫_0^h e^{As} W e^{Aᵀs} ds = h W + h²/2 (A W + W Aᵀ) + h³/3 A W Aᵀ`` (``A² = 0``).
+
+    The exact covariance that white noise of intensity ``W`` (m × m, on ``(p, v[, v_f], ...)``)
+    adds over ``h`` [s] to the kinematic states ``p' = v [+ v_f]``; further states (the KF's
+    ``α, β``) have no dynamics.
+    """
+    w = np.asarray(w, float)
+    A = kinematic_A(n, current, w.shape[0])
+    return h * w + 0.5 * h**2 * (A @ w + w @ A.T) + h**3 / 3.0 * (A @ w @ A.T)

@@ -19,7 +19,10 @@ the components of the runs. The equations are those of :mod:`obsplan.estimation.
 
 Small helpers take few array arguments (work buffers are packed into one array per purpose):
 in numba each array argument of an inlined call costs ~10 ns of reference counting, more than a
-4-state update. Compiled on first use and cached on disk (``cache=True``); this module is
+4-state update. The helpers called once per epoch or record for a whole batch (``predict``,
+``ekf_measure``, ``record_batch``) are compiled functions of their own, shared by the EKF, the
+KF and the closed loop (:mod:`obsplan.estimation.loop_kernels`) instead of inlined copies.
+Compiled on first use and cached on disk (``cache=True``); this module is
 imported lazily, so ``import obsplan`` does not load numba.
 
 Packed layouts
@@ -28,7 +31,12 @@ Packed layouts
   (:data:`TAB_T` ...), then for records the true ``(p, p')`` (2n);
 * ``ws`` (5, ·, B): ``b, k, w, val`` (per state, per member), then per member the scalars
   ``ν, r, ok, s, gain, Σ NIS, count, Σ log-likelihood`` and the transition's coefficients;
-* ``nw`` (4 + 6n, 2n): rows ``mean, e, y, off`` then ``C`` (2n rows), ``L`` (2n), ``q_nav`` (2n);
+* ``nw`` (5 + 6n, 2n): rows ``mean, e, y, off, corr`` then ``C`` (2n rows), ``L`` (2n),
+  ``q_nav`` (2n);
+* input corrections (closed loop, :mod:`obsplan.estimation.closedloop`): ``ce`` (E, 2n, R) and
+  ``cr`` (Nr, 2n, R), the response ``c = (p, v)`` of run ``r`` to its input corrections at the
+  epochs and records; a filter that predicts with the plan's inputs adds ``c_b - F c_a`` over a
+  segment (empty arrays: open loop, no correction);
 * linear output rows ``lin`` (outputs, 5): ``nnz, idx0, idx1, var, off``.
 """
 
@@ -39,7 +47,7 @@ import math
 import numba as nb
 import numpy as np
 
-from obsplan.estimation.stats import (  # the buffer's columns and the per-run info
+from obsplan.estimation.stats import (  # the buffer's columns, the per-run info and truth
     COL_AXES,
     COL_NEES,
     COL_SE_VEL,
@@ -52,6 +60,17 @@ from obsplan.estimation.stats import (  # the buffer's columns and the per-run i
     INFO_LAST_ABOVE,
     INFO_NIS,
     INFO_NONFINITE,
+    INFO_RMSE_LINES,
+    INFO_RMSE_POS,
+    TM_AREA_OUT,
+    TM_CLOSEST,
+    TM_DEPTH_OUT,
+    TM_FARTHEST,
+    TM_PREV,
+    TM_SAMPLES,
+    TM_SPEED_MAX,
+    TM_TRACK_LAST,
+    TM_TRACK_SS,
 )
 
 jit = nb.njit(cache=True, nogil=True)
@@ -60,35 +79,135 @@ inline = nb.njit(cache=True, nogil=True, inline="always")
 TAB_T, TAB_S0, TAB_S1, TAB_S2, TAB_TAU, TAB_G = 0, 1, 2, 3, 4, 5
 WS_B, WS_K, WS_W, WS_VAL, WS_SC = 0, 1, 2, 3, 4
 SC_NU, SC_R, SC_OK, SC_S, SC_G, SC_NIS, SC_CNT, SC_LL, SC_COEF = 0, 1, 2, 3, 4, 5, 6, 7, 8
-NW_MEAN, NW_E, NW_Y, NW_OFF, NW_C = 0, 1, 2, 3, 4
+NW_MEAN, NW_E, NW_Y, NW_OFF, NW_CORR, NW_C = 0, 1, 2, 3, 4, 5
 
 
 # ----------------------------------------------------------------------------- truth
+@inline
+def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
+    """Add ``K`` consecutive samples of true path ``j`` to its metrics ``tm[j]`` (``stats.TM_*``).
+
+    ``xb`` (≥ K, 3n) rows: true position ``p``, true inertial velocity ``p'``, reference
+    position. Ranges, speed and tracking error are kept squared (their roots are taken once, by
+    :meth:`~obsplan.estimation.stats.TruthStats.from_metrics`); the closest range is refined to
+    the chord between consecutive samples, also across spans (``tm[j, TM_PREV:]`` holds the
+    last ``p - b``). ``box`` (3, 2): the area (rows x, y) and depth band (row z) bounds, checked
+    when ``has_box``. Accumulators are scalars: this runs at every sample of every run.
+    """
+    close, far = tm[j, TM_CLOSEST], tm[j, TM_FARTHEST]
+    ss, vmax = tm[j, TM_TRACK_SS], tm[j, TM_SPEED_MAX]
+    area, depth = tm[j, TM_AREA_OUT], tm[j, TM_DEPTH_OUT]
+    e2 = tm[j, TM_TRACK_LAST]
+    first = tm[j, TM_SAMPLES] == 0.0
+    for k in range(K):
+        r2 = 0.0
+        aa = 0.0
+        ab = 0.0
+        dd = 0.0
+        v2 = 0.0
+        e2 = 0.0
+        for i in range(n):
+            rel = xb[k, i] - beacon[i]
+            a = xb[k - 1, i] - beacon[i] if k > 0 else tm[j, TM_PREV + i]
+            s = rel - a
+            r2 += rel * rel
+            aa += a * a
+            ab += a * s
+            dd += s * s
+            v2 += xb[k, n + i] * xb[k, n + i]
+            e = xb[k, i] - xb[k, 2 * n + i]
+            e2 += e * e
+        if ab < 0.0 and ab + dd > 0.0 and not (first and k == 0):  # closest point inside
+            close = min(close, max(aa - ab * ab / dd, 0.0))
+        close = min(close, r2)
+        far = max(far, r2)
+        vmax = max(vmax, v2)
+        ss += e2
+        if has_box:
+            for i in range(min(n, 2)):
+                area = max(area, box[i, 0] - xb[k, i], xb[k, i] - box[i, 1])
+            if n == 3:
+                depth = max(depth, box[2, 0] - xb[k, 2], xb[k, 2] - box[2, 1])
+    tm[j, TM_CLOSEST], tm[j, TM_FARTHEST] = close, far
+    tm[j, TM_TRACK_SS], tm[j, TM_SPEED_MAX] = ss, vmax
+    tm[j, TM_AREA_OUT], tm[j, TM_DEPTH_OUT] = area, depth
+    tm[j, TM_TRACK_LAST] = e2
+    tm[j, TM_SAMPLES] += K
+    if K > 0:
+        for i in range(n):
+            tm[j, TM_PREV + i] = xb[K - 1, i] - beacon[i]
+
+
+@inline
+def bounded(box):
+    """Whether any bound of ``box`` (3, 2) is finite."""
+    for i in range(3):
+        if box[i, 0] > -math.inf or box[i, 1] < math.inf:
+            return True
+    return False
+
+
+#: Samples per span of :func:`span_metrics` in the open loop (a buffer that stays in cache).
+SPAN = 1024
+
+
 @jit
-def truth_deviation(z, L, h, n, cur, points, out):
-    """``δ_{k+1} = (I + h_k A) δ_k + L z_k`` over all steps; ``out[i] = δ`` at ``points[i]``."""
+def truth_deviation(z, L, h, expo, n, cur, points, out, noms, beacon, box, tm):
+    """``δ_{k+1} = (I + h_k A) δ_k + diag(h_k^expo) L z_k`` over all steps; ``out[i] = δ`` at
+    ``points[i]`` (``expo = 0``: a per-step ``L``). With paths ``noms`` (J, N, 2n) (their
+    nominal ``(p, p')``), the true path ``nom + δ`` of each is added to the metrics ``tm[j]``
+    (:func:`span_metrics`, reference the nominal itself) at every sample, span by span."""
     m, r = L.shape
+    J = noms.shape[0]
+    N = z.shape[0] + 1
     d = np.zeros(m)
+    sc = np.ones(m)
+    has_box = bounded(box)
+    dspan = np.zeros((SPAN, m))
+    xb = np.zeros((SPAN, 3 * n))
+    scaled = False
+    for i in range(m):
+        scaled = scaled or expo[i] != 0.0
+    h_prev = -1.0
     P = points.shape[0]
     pi = 0
     while pi < P and points[pi] == 0:
         pi += 1  # δ_0 = 0 (out is zero-initialised)
-    for k in range(z.shape[0]):
-        hk = h[k]
-        for i in range(n):
-            vel = d[n + i]
-            if cur:
-                vel += d[2 * n + i]
-            d[i] += hk * vel
-        for i in range(m):
-            acc = 0.0
-            for j in range(r):
-                acc += L[i, j] * z[k, j]
-            d[i] += acc
-        while pi < P and points[pi] == k + 1:
+    for k0 in range(0, N, SPAN):
+        K = min(SPAN, N - k0)
+        for kk in range(K):
+            k = k0 + kk
+            if k > 0:
+                hk = h[k - 1]
+                if scaled and hk != h_prev:  # uniform grids: one power per run
+                    h_prev = hk
+                    for i in range(m):
+                        sc[i] = hk ** expo[i]
+                for i in range(n):
+                    vel = d[n + i]
+                    if cur:
+                        vel += d[2 * n + i]
+                    d[i] += hk * vel
+                for i in range(m):
+                    acc = 0.0
+                    for j in range(r):
+                        acc += L[i, j] * z[k - 1, j]
+                    d[i] += sc[i] * acc
+                while pi < P and points[pi] == k:
+                    for i in range(m):
+                        out[pi, i] = d[i]
+                    pi += 1
             for i in range(m):
-                out[pi, i] = d[i]
-            pi += 1
+                dspan[kk, i] = d[i]
+        for jp in range(J):
+            for kk in range(K):
+                k = k0 + kk
+                for i in range(n):
+                    xb[kk, i] = noms[jp, k, i] + dspan[kk, i]
+                    nu = noms[jp, k, n + i] + dspan[kk, n + i]
+                    xb[kk, n + i] = nu + (dspan[kk, 2 * n + i] if cur else 0.0)
+                    xb[kk, 2 * n + i] = noms[jp, k, i]
+            span_metrics(tm, jp, xb, K, n, beacon, box, has_box)
 
 
 # ----------------------------------------------------------------------------- Kalman steps
@@ -107,7 +226,7 @@ def noise_terms(Q, qt, S0, S1, S2, mq):
                 Q[i, j, b] = v
 
 
-@inline
+@jit
 def predict(X, P, tab, e, n, tr, Q, ws):
     """``x ← (I + N) x + g``, ``P ← (I + N) P (I + N)ᵀ + Q`` in place, every member.
 
@@ -148,6 +267,18 @@ def predict(X, P, tab, e, n, tr, Q, ws):
                 v = P[i, j, b] + Q[i, j, b]
                 P[i, j, b] = v
                 P[j, i, b] = v
+
+
+@inline
+def correct_inputs(X, ce, e, T, n, G):
+    """Add run ``b // G``'s response to its input corrections over segment ``e``:
+    ``c_e - F(T) c_{e-1}`` on ``(p, v)`` (the prediction used the plan's inputs)."""
+    B = X.shape[1]
+    for i in range(n):
+        for b in range(B):
+            g = b // G
+            X[i, b] += ce[e, i, g] - ce[e - 1, i, g] - T * ce[e - 1, n + i, g]
+            X[n + i, b] += ce[e, n + i, g] - ce[e - 1, n + i, g]
 
 
 @inline
@@ -245,80 +376,80 @@ def nees(nw, n2):
 
 
 @inline
-def record_epoch(x, P, e, ri, n, cur, rec_base, rec, buf, ex, nw, keep_ex):
-    """Record every sample based at epoch ``e`` (the epoch itself and the samples after it).
+def record_epoch(x, P, ri, n, cur, rec, buf, ex, nw, keep_ex):
+    """Record sample ``ri`` (based at the epoch where ``x``, ``P`` are the posterior).
 
     The navigation estimate ``(p + off, v [+ v_f])`` and its covariance are predicted from the
-    epoch over the record's segment, ``(p, ν)⁺ = (p + T ν + dp, ν + dv)``, ``C⁺ = (I + T A) C
-    (I + T A)ᵀ + Q(S)`` with ``A = [[0, I], [0, 0]]`` and the composed noise of ``q_nav``; then
-    errors against the truth (``rec`` after the table columns), variances and NEES go to
-    ``buf[ri]``.
+    epoch over the record's segment, ``(p, ν)⁺ = (p + T ν + dp, ν + dv) + corr``, ``C⁺ = (I + T
+    A) C (I + T A)ᵀ + Q(S)`` with ``A = [[0, I], [0, 0]]``, the composed noise of ``q_nav`` and
+    the run's input correction ``nw[NW_CORR]``; then errors against the truth (``rec`` after the
+    table columns), variances and NEES go to ``buf[ri]``.
     """
     n2 = 2 * n
     C, Qz = NW_C, NW_C + 2 * n2
     G = TAB_G + n2  # the truth's columns in ``rec``
-    Nr = rec_base.shape[0]
-    while ri < Nr and rec_base[ri] == e:
+    for i in range(n):
+        nw[NW_MEAN, i] = x[i] + nw[NW_OFF, i]
+        nw[NW_MEAN, n + i] = x[n + i] + (x[2 * n + i] if cur else 0.0)
+    for a in range(n2):
+        for c in range(n2):
+            acc = P[a, c]
+            if cur:
+                if a >= n:
+                    acc += P[a + n, c]
+                if c >= n:
+                    acc += P[a, c + n]
+                if a >= n and c >= n:
+                    acc += P[a + n, c + n]
+            nw[C + a, c] = acc
+    S0, S1, S2, T = rec[ri, TAB_S0], rec[ri, TAB_S1], rec[ri, TAB_S2], rec[ri, TAB_T]
+    if S0 > 0.0:
         for i in range(n):
-            nw[NW_MEAN, i] = x[i] + nw[NW_OFF, i]
-            nw[NW_MEAN, n + i] = x[n + i] + (x[2 * n + i] if cur else 0.0)
-        for a in range(n2):
-            for c in range(n2):
-                acc = P[a, c]
-                if cur:
-                    if a >= n:
-                        acc += P[a + n, c]
-                    if c >= n:
-                        acc += P[a, c + n]
-                    if a >= n and c >= n:
-                        acc += P[a + n, c + n]
-                nw[C + a, c] = acc
-        S0, S1, S2, T = rec[ri, TAB_S0], rec[ri, TAB_S1], rec[ri, TAB_S2], rec[ri, TAB_T]
-        if S0 > 0.0:
-            for i in range(n):
-                nw[NW_MEAN, i] += T * nw[NW_MEAN, n + i] + rec[ri, TAB_G + i]
-                nw[NW_MEAN, n + i] += rec[ri, TAB_G + n + i]
-            # entry (a, c) reads only its own block entries: in place is safe
-            for a in range(n):
-                for c in range(n):
-                    pp = nw[C + a, c] + T * (nw[C + a, n + c] + nw[C + n + a, c])
-                    pp += T * T * nw[C + n + a, n + c] + S0 * nw[Qz + a, c]
-                    pp += S1 * (nw[Qz + a, n + c] + nw[Qz + n + a, c]) + S2 * nw[Qz + n + a, n + c]
-                    pv = nw[C + a, n + c] + T * nw[C + n + a, n + c]
-                    pv += S0 * nw[Qz + a, n + c] + S1 * nw[Qz + n + a, n + c]
-                    vp = nw[C + n + a, c] + T * nw[C + n + a, n + c]
-                    vp += S0 * nw[Qz + n + a, c] + S1 * nw[Qz + n + a, n + c]
-                    nw[C + a, c] = pp
-                    nw[C + a, n + c] = pv
-                    nw[C + n + a, c] = vp
-            for a in range(n):
-                for c in range(n):
-                    nw[C + n + a, n + c] += S0 * nw[Qz + n + a, n + c]
-        sv = 0.0
-        vv = 0.0
+            nw[NW_MEAN, i] += T * nw[NW_MEAN, n + i] + rec[ri, TAB_G + i]
+            nw[NW_MEAN, n + i] += rec[ri, TAB_G + n + i]
+        # entry (a, c) reads only its own block entries: in place is safe
+        for a in range(n):
+            for c in range(n):
+                pp = nw[C + a, c] + T * (nw[C + a, n + c] + nw[C + n + a, c])
+                pp += T * T * nw[C + n + a, n + c] + S0 * nw[Qz + a, c]
+                pp += S1 * (nw[Qz + a, n + c] + nw[Qz + n + a, c]) + S2 * nw[Qz + n + a, n + c]
+                pv = nw[C + a, n + c] + T * nw[C + n + a, n + c]
+                pv += S0 * nw[Qz + a, n + c] + S1 * nw[Qz + n + a, n + c]
+                vp = nw[C + n + a, c] + T * nw[C + n + a, n + c]
+                vp += S0 * nw[Qz + n + a, c] + S1 * nw[Qz + n + a, n + c]
+                nw[C + a, c] = pp
+                nw[C + a, n + c] = pv
+                nw[C + n + a, c] = vp
+        for a in range(n):
+            for c in range(n):
+                nw[C + n + a, n + c] += S0 * nw[Qz + n + a, n + c]
+    sv = 0.0
+    vv = 0.0
+    for i in range(n2):
+        nw[NW_MEAN, i] += nw[NW_CORR, i]
+        nw[NW_E, i] = nw[NW_MEAN, i] - rec[ri, G + i]
+    for i in range(n):
+        ep = nw[NW_E, i]
+        ev = nw[NW_E, n + i]
+        sv += ev * ev
+        vv += nw[C + n + i, n + i]
+        buf[ri, COL_AXES + i] = ep * ep
+        buf[ri, COL_AXES + n + i] = nw[C + i, i]
+    buf[ri, COL_SE_VEL] = sv
+    buf[ri, COL_VAR_VEL] = vv
+    buf[ri, COL_NEES] = nees(nw, n2)
+    if keep_ex:
         for i in range(n2):
-            nw[NW_E, i] = nw[NW_MEAN, i] - rec[ri, G + i]
-        for i in range(n):
-            ep = nw[NW_E, i]
-            ev = nw[NW_E, n + i]
-            sv += ev * ev
-            vv += nw[C + n + i, n + i]
-            buf[ri, COL_AXES + i] = ep * ep
-            buf[ri, COL_AXES + n + i] = nw[C + i, i]
-        buf[ri, COL_SE_VEL] = sv
-        buf[ri, COL_VAR_VEL] = vv
-        buf[ri, COL_NEES] = nees(nw, n2)
-        if keep_ex:
-            for i in range(n2):
-                ex[0, ri, i] = nw[NW_MEAN, i]
-                ex[1, ri, i] = math.sqrt(max(nw[C + i, i], 0.0))
-        ri += 1
-    return ri
+            ex[0, ri, i] = nw[NW_MEAN, i]
+            ex[1, ri, i] = math.sqrt(max(nw[C + i, i], 0.0))
 
 
 @jit
-def finish_run(buf, t_rec, thr, bound, window, nis_sum, nis_cnt, sums, info):
+def finish_run(buf, t_rec, thr, bound, window, nis_sum, nis_cnt, sums, info, rec_w):
     """Per-run verdicts from the record buffer, then add the buffer to its group's sums.
+
+    Also the run's own position RMSE over the records and over the records of weight 1 in
+    ``rec_w`` (e.g. the samples flown on survey lines; NaN if none).
 
     The divergence monitor flags the run when its NEES averaged over the records of the final
     ``window`` seconds is above ``bound`` (it ends inconsistent: a transient it recovers from is
@@ -379,6 +510,18 @@ def finish_run(buf, t_rec, thr, bound, window, nis_sum, nis_cnt, sums, info):
     info[INFO_FLAGGED] = 1.0 if flagged else 0.0
     info[INFO_FLAG_TIME] = flag_time
     info[INFO_NIS] = nis_sum / nis_cnt if nis_cnt > 0 else np.nan
+    ss = 0.0
+    sw = 0.0
+    wn = 0.0
+    for j in range(Nr):
+        pos2 = 0.0
+        for i in range(n):
+            pos2 += buf[j, COL_AXES + i]
+        ss += pos2
+        sw += rec_w[j] * pos2
+        wn += rec_w[j]
+    info[INFO_RMSE_POS] = math.sqrt(ss / Nr)
+    info[INFO_RMSE_LINES] = math.sqrt(sw / wn) if wn > 0 else np.nan
 
 
 @jit
@@ -395,12 +538,13 @@ def workspaces(m, B, n, nw_off, qz):
     return ws, iw, nw
 
 
-@inline
-def record_batch(X, P, lw, G, e, ri, n, cur, rec_base, rec, buf, ex, ex_run, nw, xm, Pm):
-    """Record every sample based at epoch ``e`` for every run of the batch (its members'
-    mixture: weights ``exp(lw)`` over its ``G`` members; one member: the member itself)."""
+@jit
+def record_batch(X, P, lw, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr):
+    """Record sample ``ri`` (based at epoch ``e``) for every run of the batch (its members'
+    mixture: weights ``exp(lw)`` over its ``G`` members; one member: the member itself), with
+    each run's input correction ``cr[ri] - F ce[e]`` (none when ``ce`` is empty)."""
     m, B = X.shape
-    out = ri
+    corr = ce.shape[0] > 0
     for g in range(B // G):
         b0 = g * G
         top = lw[b0]
@@ -424,8 +568,15 @@ def record_batch(X, P, lw, G, e, ri, n, cur, rec_base, rec, buf, ex, ex_run, nw,
                     )
                 Pm[i, j] = acc / tot
                 Pm[j, i] = acc / tot
-        out = record_epoch(xm, Pm, e, ri, n, cur, rec_base, rec[g], buf[g], ex, nw, g == ex_run)
-    return out
+        T = rec[g, ri, TAB_T]
+        for i in range(n):
+            if corr:
+                nw[NW_CORR, i] = cr[ri, i, g] - ce[e, i, g] - T * ce[e, n + i, g]
+                nw[NW_CORR, n + i] = cr[ri, n + i, g] - ce[e, n + i, g]
+            else:
+                nw[NW_CORR, i] = 0.0
+                nw[NW_CORR, n + i] = 0.0
+        record_epoch(xm, Pm, ri, n, cur, rec[g], buf[g], ex, nw, g == ex_run)
 
 
 # ----------------------------------------------------------------------------- EKF
@@ -462,6 +613,41 @@ def ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
 
 
 @jit
+def ekf_measure(X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, var_r, lin, run_nis, run_cnt):
+    """The EKF's updates at epoch ``e`` (range row, then the linear rows) of every member, and
+    their NIS: per run, or for a Gaussian sum (``G > 1``) the mixture's with the prior weights,
+    whose log weights ``lw`` then grow by the innovations' log-likelihoods."""
+    B = X.shape[1]
+    R = B // G
+    for b in range(B):
+        ws[WS_SC, SC_NIS, b] = 0.0
+        ws[WS_SC, SC_CNT, b] = 0.0
+        ws[WS_SC, SC_LL, b] = 0.0
+    if ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
+        update_rows(X, P, iw, ws, n)
+    if Y.shape[1] > 1:
+        linear_updates(X, P, Y, e, lin, iw, ws, G)
+    if G == 1:
+        for b in range(B):
+            run_nis[b] += ws[WS_SC, SC_NIS, b]
+            run_cnt[b] += ws[WS_SC, SC_CNT, b]
+        return
+    for g in range(R):
+        b0 = g * G
+        top = lw[b0]
+        for c in range(1, G):
+            top = max(top, lw[b0 + c])
+        tot = 0.0
+        for c in range(G):
+            w[b0 + c] = math.exp(lw[b0 + c] - top)
+            tot += w[b0 + c]
+        for c in range(G):
+            run_nis[g] += w[b0 + c] / tot * ws[WS_SC, SC_NIS, b0 + c]
+            lw[b0 + c] += ws[WS_SC, SC_LL, b0 + c] - top
+        run_cnt[g] += ws[WS_SC, SC_CNT, b0]
+
+
+@jit
 def ekf_batch(
     X0,
     P0,
@@ -488,6 +674,9 @@ def ekf_batch(
     info,
     ex_run,
     ex,
+    ce,
+    cr,
+    rec_w,
 ):
     """EKF runs over the epochs, batched (see :mod:`obsplan.estimation.ekf`).
 
@@ -495,7 +684,9 @@ def ekf_batch(
     ``g G .. g G + G - 1`` (``G = 1``: the EKF; ``G > 1``: the components of a Gaussian sum,
     :mod:`obsplan.estimation.gsf`, whose log weights ``lw0`` grow by their innovations'
     log-likelihoods and whose mixture is recorded). ``Y`` (E, outputs, runs), ``rec`` (runs, Nr,
-    cols), ``info`` (runs, N_INFO); ``ex`` receives run ``ex_run``'s history.
+    cols), ``info`` (runs, N_INFO); ``ex`` receives run ``ex_run``'s history; ``ce``, ``cr`` the
+    runs' input corrections (closed loop; empty: none), ``rec_w`` (Nr,) the records' weights of
+    the subset RMSE.
     """
     m, B = X0.shape
     R = B // G
@@ -514,7 +705,7 @@ def ekf_batch(
     var_r = sig_r * sig_r
     ri = 0
     n_rec = rec_base.shape[0]
-    n_lin = Y.shape[1] > 1
+    corr = ce.shape[0] > 0
     Sp = (-1.0, -1.0, -1.0)
     for e in range(E):
         if e > 0:
@@ -523,38 +714,14 @@ def ekf_batch(
                 Sp = S
                 noise_terms(Q, qt, S[0], S[1], S[2], m)
             predict(X, P, tab, e, n, tr, Q, ws)
-        for b in range(B):
-            ws[WS_SC, SC_NIS, b] = 0.0
-            ws[WS_SC, SC_CNT, b] = 0.0
-            ws[WS_SC, SC_LL, b] = 0.0
-        if ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
-            update_rows(X, P, iw, ws, n)
-        if n_lin:
-            linear_updates(X, P, Y, e, lin, iw, ws, G)
-        if G == 1:
-            for b in range(B):
-                run_nis[b] += ws[WS_SC, SC_NIS, b]
-                run_cnt[b] += ws[WS_SC, SC_CNT, b]
-        else:  # the mixture's NIS with the prior weights; then the posterior weights
-            for g in range(R):
-                b0 = g * G
-                top = lw[b0]
-                for c in range(1, G):
-                    top = max(top, lw[b0 + c])
-                tot = 0.0
-                for c in range(G):
-                    w[b0 + c] = math.exp(lw[b0 + c] - top)
-                    tot += w[b0 + c]
-                for c in range(G):
-                    run_nis[g] += w[b0 + c] / tot * ws[WS_SC, SC_NIS, b0 + c]
-                    lw[b0 + c] += ws[WS_SC, SC_LL, b0 + c] - top
-                run_cnt[g] += ws[WS_SC, SC_CNT, b0]
-        if ri < n_rec and rec_base[ri] == e:
-            ri = record_batch(
-                X, P, lw, G, e, ri, n, cur, rec_base, rec, buf, ex, ex_run, nw, xm, Pm
-            )
+            if corr:
+                correct_inputs(X, ce, e, tab[e, TAB_T], n, G)
+        ekf_measure(X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, var_r, lin, run_nis, run_cnt)
+        while ri < n_rec and rec_base[ri] == e:
+            record_batch(X, P, lw, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
+            ri += 1
     for g in range(R):
-        finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g])
+        finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g], rec_w)
 
 
 # ----------------------------------------------------------------------------- augmented KF
@@ -689,11 +856,15 @@ def kf_batch(
     info,
     ex_run,
     ex,
+    ce,
+    cr,
+    rec_w,
 ):
     """Augmented-KF runs over the epochs, batched over runs (see :mod:`obsplan.estimation.kf`).
 
     ``Z0`` (m, R), ``P0`` (m, m, R), anchors ``y0``, ``var0`` (R,); ``ep_d`` (E, 2n) holds the
-    input displacement ``d`` and its rate ``ḋ`` at the epochs; other arrays as
+    input displacement ``d`` and its rate ``ḋ`` of the plan's inputs at the epochs (a run's
+    own is ``ep_d + ce``: the displacement of its input corrections is ``c``); other arrays as
     :func:`ekf_batch`.
     """
     m, B = Z0.shape
@@ -715,12 +886,16 @@ def kf_batch(
     ri = 0
     n_rec = rec_base.shape[0]
     n_lin = Y.shape[1] > 1
+    corr = ce.shape[0] > 0
     Sp = (-1.0, -1.0, -1.0)
     for e in range(E):
         if e > 0:
             for i in range(n):
-                dp, dv = ep_d[e - 1, i], ep_d[e - 1, n + i]
                 for b in range(B):
+                    dp, dv = ep_d[e - 1, i], ep_d[e - 1, n + i]
+                    if corr:
+                        dp += ce[e - 1, i, b]
+                        dv += ce[e - 1, n + i, b]
                     nu_i = X[n + i, b] + (X[2 * n + i, b] if cur else 0.0)
                     kw[0, i, b] = X[i, b] - dp  # c_p at the segment's start
                     kw[1, i, b] = nu_i - dv  # c_v
@@ -730,24 +905,27 @@ def kf_batch(
                 noise_terms(Q, qt, S[0], S[1], S[2], mx)
             kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple)
             predict(X, P, tab, e, n, tr, Q, ws)
+            if corr:
+                correct_inputs(X, ce, e, tab[e, TAB_T], n, 1)
         for b in range(B):
             ws[WS_SC, SC_NIS, b] = 0.0
             ws[WS_SC, SC_CNT, b] = 0.0
         if e > 0:  # epoch 0 is the anchor y0: ȳ_0 ≡ 0
             # ȳ = y - y0 + ½|d|² = dᵀp + κ (+ noise): linear
-            d2 = 0.0
             for i in range(n):
                 iw[i] = i
-                d2 += ep_d[e, i] * ep_d[e, i]
             iw[n] = kc
             any_ok = False
             for b in range(B):
                 rm = Y[e, 0, b]
                 ok = math.isfinite(rm)
                 pred = X[kc, b]
+                d2 = 0.0
                 for i in range(n):
-                    ws[WS_VAL, i, b] = ep_d[e, i]
-                    pred += ep_d[e, i] * X[i, b]
+                    di = ep_d[e, i] + (ce[e, i, b] if corr else 0.0)
+                    d2 += di * di
+                    ws[WS_VAL, i, b] = di
+                    pred += di * X[i, b]
                 ws[WS_VAL, n, b] = 1.0
                 r = rm * rm * var_r + 0.5 * var_r * var_r + (var0[b] if inflate else 0.0)
                 ws[WS_SC, SC_NU, b] = (
@@ -763,9 +941,8 @@ def kf_batch(
         for b in range(B):
             run_nis[b] += ws[WS_SC, SC_NIS, b]
             run_cnt[b] += ws[WS_SC, SC_CNT, b]
-        if ri < n_rec and rec_base[ri] == e:
-            ri = record_batch(
-                X, P, lw, 1, e, ri, n, cur, rec_base, rec, buf, ex, ex_run, nw, xm, Pm
-            )
+        while ri < n_rec and rec_base[ri] == e:
+            record_batch(X, P, lw, 1, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
+            ri += 1
     for g in range(B):
-        finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g])
+        finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g], rec_w)

@@ -173,12 +173,14 @@ class AugmentedKalmanFilter:
         info: np.ndarray,
         ex_run: int = -1,
         example: np.ndarray | None = None,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`; ``states`` from
         :meth:`start`)."""
         from obsplan.estimation import kernels
 
         m, plan = self.model, ctx.plan
+        ce, cr = ctx.corrections(*(corrections or (None, None)))
         Z0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
         P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
         y0 = np.array([st[2] for st in states])
@@ -214,4 +216,7 @@ class AugmentedKalmanFilter:
             info,
             ex_run if example is not None else -1,
             ctx.no_example if example is None else example,
+            ce,
+            cr,
+            ctx.rec_w,
         )

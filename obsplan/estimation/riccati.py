@@ -18,8 +18,11 @@ covariance along a path of the double integrator:
       Σ_{i<k} F(iΔ) q(c - iΔ) F(iΔ)ᵀ = Σ_{p,r} Δ^p S_{p+r}(k) M_p(Q_r),
       Q_0 = q0 + c q1 + c² q2,  Q_1 = -Δ (q1 + 2c q2),  Q_2 = Δ² q2,
 
-  with the Faulhaber sums ``S_n(k) = Σ_{i<k} iⁿ`` (:func:`faulhaber`). So the work is
-  proportional to the number of measurement epochs, not of filter steps;
+  with the Faulhaber sums ``S_n(k) = Σ_{i<k} iⁿ`` (:func:`faulhaber`). With the physical
+  process noise (``continuous``: ``q(τ)`` an intensity, :mod:`obsplan.estimation.config`) the sum
+  is the integral ``∫_0^t F(u) q(c - u) F(u)ᵀ du`` over the gap ``t = k Δ``: the same formula with
+  ``Δ^n S_n(k)`` replaced by ``t^{n+1}/(n+1)``, whatever the steps. So the work is proportional
+  to the number of measurement epochs, not of filter steps;
 * at an epoch, a sequential scalar update per reporting row: the path-dependent range row ``h``
   with variance ``ρ`` (given per epoch) and the constant rows of the DVL and depth gauge.
 
@@ -143,6 +146,9 @@ class RecursionModel:
         State indices where the range row can be non-zero (the step takes only those entries).
     q1, q2 : ndarray (m, m), optional
         Time-varying parts of the per-step noise, ``q(τ) = q + τ q1 + τ² q2`` (zero by default).
+    continuous : bool
+        ``q`` (and ``q1``, ``q2``) are intensities of white noise, integrated exactly over each
+        gap (the physical process noise), instead of covariances added per filter step.
     """
 
     A: np.ndarray
@@ -156,6 +162,7 @@ class RecursionModel:
     range_support: tuple[int, ...] = ()
     q1: np.ndarray | None = field(default=None, repr=False)
     q2: np.ndarray | None = field(default=None, repr=False)
+    continuous: bool = False
 
     def __post_init__(self) -> None:
         A = np.asarray(self.A, float)
@@ -185,6 +192,7 @@ class RecursionModel:
             self.range_support,
             self.A.shape,
             self.rows.shape,
+            bool(self.continuous),
         )
 
 
@@ -299,22 +307,29 @@ def _recursion_step_impl(model: RecursionModel, K: int) -> ca.Function:
     top_p = 2 if not A2.any() else 4
     top_r = 2 if qs[2].any() else (1 if qs[1].any() else 0)
 
-    def noise(i, j, kk, c):
-        """Entry (i, j) of Σ_{l<kk} F(lΔ) q(c - lΔ) F(lΔ)ᵀ (module docstring)."""
+    def moment_sums(kk):
+        """``I_j = Δ^j S_j(kk)`` per step, or ``∫_0^t u^j du = t^{j+1}/(j+1)`` (continuous)."""
+        if model.continuous:
+            t = kk * dt
+            return [t ** (j + 1) / (j + 1) for j in range(top_p + top_r + 1)]
         Sn = faulhaber(kk, top_p + top_r)
+        return [dt**j * Sn[j] for j in range(top_p + top_r + 1)]
+
+    def noise(i, j, kk, c):
+        """Entry (i, j) of Σ_{l<kk} F(lΔ) q(c - lΔ) F(lΔ)ᵀ (its integral if continuous)."""
+        In = moment_sums(kk)
         e = zero
         for p in range(top_p + 1):
-            dp = dt**p
             m0, m1, m2 = Mq[0][p][i, j], Mq[1][p][i, j], Mq[2][p][i, j]
             if m0 != 0 or m1 != 0 or m2 != 0:
                 # Q_0 = q0 + c q1 + c² q2
-                e = e + dp * Sn[p] * (m0 + c * m1 + c**2 * m2)
+                e = e + In[p] * (m0 + c * m1 + c**2 * m2)
             if top_r >= 1 and (m1 != 0 or m2 != 0):
-                # Q_1 = -Δ (q1 + 2 c q2)
-                e = e - dp * dt * Sn[p + 1] * (m1 + 2 * c * m2)
+                # Q_1 = -(q1 + 2 c q2) per unit lag (-Δ (q1 + 2 c q2) per step)
+                e = e - In[p + 1] * (m1 + 2 * c * m2)
             if top_r >= 2 and m2 != 0:
-                # Q_2 = Δ² q2
-                e = e + dp * dt**2 * Sn[p + 2] * m2
+                # Q_2 = q2 per squared lag (Δ² q2 per step)
+                e = e + In[p + 2] * m2
         return e
 
     def propagate(i, j, kk, c):

@@ -33,13 +33,24 @@ import numpy as np
 from scipy.special import chdtri
 
 from obsplan.errors import ConfigError
+from obsplan.estimation.guidance import TruthLimits
 
 #: Columns of the kernels' per-record buffer: NEES, |e_v|², tr P_vv, then e_p,i² and P_pp,ii.
 COL_NEES, COL_SE_VEL, COL_VAR_VEL, COL_AXES = 0, 1, 2, 3
 #: Per-run info of the kernels (see :class:`StatsSums`).
 INFO_FINAL_POS, INFO_FINAL_VEL, INFO_FINAL_STD, INFO_LAST_ABOVE = 0, 1, 2, 3
 INFO_NONFINITE, INFO_FLAGGED, INFO_FLAG_TIME, INFO_NIS = 4, 5, 6, 7
-N_INFO = 8
+INFO_RMSE_POS, INFO_RMSE_LINES = 8, 9
+N_INFO = 10
+#: Per-run truth metrics of the kernels (see :class:`TruthStats`): closest and farthest range
+#: squared [m²], Σ |p - p_ref|² over samples [m²], last |p - p_ref|² [m²], max |p'|² [m²/s²]
+#: (squares: one root per run at the end, not one per sample), max distance outside the area box
+#: and the depth band [m], saturated steps, samples, max |u_i| / bound_i.
+TM_CLOSEST, TM_FARTHEST, TM_TRACK_SS, TM_TRACK_LAST, TM_SPEED_MAX = 0, 1, 2, 3, 4
+TM_AREA_OUT, TM_DEPTH_OUT, TM_SAT, TM_SAMPLES, TM_ACCEL = 5, 6, 7, 8, 9
+#: ``p - b`` of the last sample added (3 columns; the chord to the next span starts there).
+TM_PREV = 10
+N_TM = 13
 
 #: Quantile of one run's NEES above which the monitor counts a record as inconsistent.
 MONITOR_LEVEL = 0.999
@@ -70,8 +81,21 @@ def convergence_time(t: np.ndarray, err: np.ndarray, threshold: float) -> float 
     return None if last == t.size - 1 else float(t[last + 1])
 
 
+def empty_metrics(runs: int) -> np.ndarray:
+    """The kernels' truth metrics (runs, N_TM) before any sample."""
+    tm = np.zeros((runs, N_TM))
+    tm[:, TM_CLOSEST] = np.inf
+    return tm
+
+
 def _num(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
+
+
+def _rms(x: np.ndarray) -> float | None:
+    """RMS over runs of per-run RMS values (None when undefined)."""
+    x = np.asarray(x, float)
+    return _num(float(np.sqrt(np.mean(x**2)))) if x.size and np.all(np.isfinite(x)) else None
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,10 +107,11 @@ class StatsSums:
     sums : ndarray, shape (2, Nr, 3 + 2n)
         Per record, summed over the runs of group 0 (unflagged) and 1 (flagged): NEES,
         ``|p̂' - p'|²``, ``tr P_vv``, then ``(p̂_i - p_i)²`` and ``P_pp,ii`` per axis.
-    info : ndarray, shape (runs, 8)
+    info : ndarray, shape (runs, N_INFO)
         Per run (in run order): final ``|p̂ - p|``, final ``|p̂' - p'|``, final
         ``sqrt(tr P_pp)``, index of the last record above the convergence threshold (-1: none),
-        non-finite (0/1), flagged (0/1), flag time [s] (NaN), mean normalised innovation squared.
+        non-finite (0/1), flagged (0/1), flag time [s] (NaN), mean normalised innovation squared,
+        position RMSE over the records, and over the records of a given subset (NaN: none).
     """
 
     sums: np.ndarray
@@ -213,6 +238,11 @@ class FilterStats:
         The same per axis.
     final_pos_err_runs : ndarray, shape (runs,)
         ``|p̂ - p|`` of each run at the last sample [m].
+    rmse_pos_runs : ndarray, shape (runs,)
+        Each run's position RMSE over the recorded samples, ``sqrt(mean_t |p̂ - p|²)`` [m].
+    rmse_pos_lines_runs : ndarray, shape (runs,)
+        The same over the recorded samples of the subset given to the Monte Carlo (``lines``,
+        e.g. the samples flown on survey lines); NaN without one.
     flagged_runs : int
         Runs the divergence monitor flagged (module docstring; includes the non-finite ones).
     run_flagged : ndarray of bool, shape (runs,)
@@ -245,6 +275,8 @@ class FilterStats:
     rmse_pos_axes_t: np.ndarray
     pos_std_axes_t: np.ndarray
     final_pos_err_runs: np.ndarray
+    rmse_pos_runs: np.ndarray
+    rmse_pos_lines_runs: np.ndarray
     flagged_runs: int
     run_flagged: np.ndarray
     run_flag_time: np.ndarray
@@ -287,6 +319,8 @@ class FilterStats:
             rmse_pos_axes_t=np.sqrt(se_axes),
             pos_std_axes_t=np.sqrt(var_axes),
             final_pos_err_runs=info[:, INFO_FINAL_POS].copy(),
+            rmse_pos_runs=info[:, INFO_RMSE_POS].copy(),
+            rmse_pos_lines_runs=info[:, INFO_RMSE_LINES].copy(),
             flagged_runs=int(flag.sum()),
             run_flagged=flag,
             run_flag_time=info[:, INFO_FLAG_TIME].copy(),
@@ -313,6 +347,148 @@ class FilterStats:
             "diverged_runs": int(self.diverged_runs),
             "flagged_runs": int(self.flagged_runs),
             "nis_mean": _num(self.nis_mean),
+            "rmse_pos_lines": _rms(self.rmse_pos_lines_runs),
             "unflagged": self.unflagged.to_dict(),
             "flagged": self.flagged.to_dict(),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class TruthStats:
+    """The runs' *true* paths against their reference (the plan) and the vehicle's limits.
+
+    Per-run arrays (shape (runs,), in run order) merge exactly by concatenation
+    (:meth:`merge`); the summaries are computed from them.
+
+    Attributes
+    ----------
+    closest_range_runs : ndarray
+        ``min_t |p - b|`` [m] over the filter samples, each step refined to the chord between
+        its samples: the constant-acceleration arc of a step of ``h`` deviates from its chord by
+        at most ``|u| h²/8`` (6e-5 m at 0.05 m/s² and 0.1 s), so the sampling cannot hide an
+        entry deeper than that.
+    farthest_range_runs : ndarray
+        ``max_t |p - b|`` [m].
+    tracking_rmse_runs : ndarray
+        ``sqrt(mean_t |p - p_ref|²)`` over the samples [m]: how far the vehicle flies from the
+        path it was told to fly (open loop: the process-noise drift).
+    final_drift_runs : ndarray
+        ``|p - p_ref|`` at the last sample [m].
+    max_speed_runs : ndarray
+        ``max_t |p'|`` [m/s].
+    area_excursion_runs, depth_excursion_runs : ndarray
+        Largest distance outside the area box and the depth band [m] (0: inside or no bound).
+    saturated_fraction_runs : ndarray
+        Fraction of the steps at which the guidance saturated its command (0 in open loop).
+    accel_ratio_runs : ndarray
+        ``max_t max_i |u_i| / accel_i`` of the applied inputs (0 without an acceleration limit).
+    limits : TruthLimits or None
+        What the paths were checked against.
+    """
+
+    closest_range_runs: np.ndarray
+    farthest_range_runs: np.ndarray
+    tracking_rmse_runs: np.ndarray
+    final_drift_runs: np.ndarray
+    max_speed_runs: np.ndarray
+    area_excursion_runs: np.ndarray
+    depth_excursion_runs: np.ndarray
+    saturated_fraction_runs: np.ndarray
+    accel_ratio_runs: np.ndarray
+    limits: TruthLimits | None = None
+
+    @classmethod
+    def from_metrics(cls, tm: np.ndarray, limits: TruthLimits | None) -> TruthStats:
+        """From the kernels' per-run metrics ``tm`` (runs, N_TM)."""
+        steps = np.maximum(tm[:, TM_SAMPLES] - 1.0, 1.0)
+        return cls(
+            closest_range_runs=np.sqrt(tm[:, TM_CLOSEST]),
+            farthest_range_runs=np.sqrt(tm[:, TM_FARTHEST]),
+            tracking_rmse_runs=np.sqrt(tm[:, TM_TRACK_SS] / np.maximum(tm[:, TM_SAMPLES], 1.0)),
+            final_drift_runs=np.sqrt(tm[:, TM_TRACK_LAST]),
+            max_speed_runs=np.sqrt(tm[:, TM_SPEED_MAX]),
+            area_excursion_runs=tm[:, TM_AREA_OUT].copy(),
+            depth_excursion_runs=tm[:, TM_DEPTH_OUT].copy(),
+            saturated_fraction_runs=tm[:, TM_SAT] / steps,
+            accel_ratio_runs=tm[:, TM_ACCEL].copy(),
+            limits=limits,
+        )
+
+    @staticmethod
+    def merge(parts: Sequence[TruthStats]) -> TruthStats:
+        """The union of disjoint sets of runs (parts in run order)."""
+        names = [f for f in TruthStats.__dataclass_fields__ if f.endswith("_runs")]
+        cat = {f: np.concatenate([getattr(p, f) for p in parts]) for f in names}
+        return TruthStats(**cat, limits=parts[0].limits)
+
+    @property
+    def runs(self) -> int:
+        return int(self.closest_range_runs.size)
+
+    @property
+    def closest_range_m(self) -> float:
+        """The true closest range over all runs [m]."""
+        return float(np.min(self.closest_range_runs))
+
+    @property
+    def tracking_rmse_m(self) -> float:
+        """RMS over runs and samples of ``|p - p_ref|`` [m]."""
+        return float(np.sqrt(np.mean(self.tracking_rmse_runs**2)))
+
+    @property
+    def final_drift_rms_m(self) -> float:
+        """RMS over runs of the final ``|p - p_ref|`` [m]."""
+        return float(np.sqrt(np.mean(self.final_drift_runs**2)))
+
+    @property
+    def runs_inside_min_range(self) -> int:
+        """Runs whose true path enters the keep-out radius ``limits.min_range`` (0 without)."""
+        return int(np.sum(self.violations().get("min_range", np.zeros(self.runs, bool))))
+
+    def violations(self) -> dict[str, np.ndarray]:
+        """Per limit that is set, which runs break it on their true path, (runs,) bool."""
+        lim = self.limits
+        out: dict[str, np.ndarray] = {}
+        if lim is None:
+            return out
+        r = 1.0 + lim.rtol
+        if lim.accel is not None:
+            out["accel"] = self.accel_ratio_runs > r
+        if lim.speed is not None:
+            out["speed"] = self.max_speed_runs > lim.speed * r
+        if lim.area is not None:
+            out["area"] = self.area_excursion_runs > lim.atol_m
+        if lim.depth is not None:
+            out["depth"] = self.depth_excursion_runs > lim.atol_m
+        if lim.min_range is not None:
+            out["min_range"] = self.closest_range_runs < lim.min_range * (1.0 - lim.rtol)
+        if lim.max_range is not None:
+            out["max_range"] = self.farthest_range_runs > lim.max_range * r
+        return out
+
+    @property
+    def violation_fraction(self) -> dict[str, float]:
+        """Per limit, the fraction of runs that break it."""
+        return {k: float(np.mean(v)) for k, v in self.violations().items()}
+
+    @property
+    def any_violation_fraction(self) -> float:
+        """Fraction of runs that break any limit on their true path."""
+        v = self.violations()
+        if not v:
+            return 0.0
+        return float(np.mean(np.any(np.stack(list(v.values())), axis=0)))
+
+    def to_dict(self) -> dict:
+        return {
+            "runs": self.runs,
+            "closest_range_m": _num(self.closest_range_m),
+            "runs_inside_min_range": self.runs_inside_min_range,
+            "tracking_rmse_m": _num(self.tracking_rmse_m),
+            "final_drift_rms_m": _num(self.final_drift_rms_m),
+            "max_speed": _num(float(np.max(self.max_speed_runs))),
+            "saturated_fraction": _num(float(np.mean(self.saturated_fraction_runs))),
+            "violation_fraction": self.violation_fraction,
+            "any_violation_fraction": self.any_violation_fraction,
+            "limits": None if self.limits is None else self.limits.to_dict(),
         }

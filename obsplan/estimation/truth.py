@@ -1,8 +1,19 @@
 """Truth simulation: the vehicle along a trajectory, perturbed by process noise, and its readings.
 
 The truth of run ``r`` at sample ``k`` is ``x_k = x̄_k + δ_k`` where ``x̄`` is the trajectory's state
-(``p``, ``v = p' - v_f``, ``v_f``) and ``δ_{k+1} = F_k δ_k + w_k``, ``w_k = L z_k ~ N(0, Q)``
-(exact ZOH ``F_k``, ``L Lᵀ = Q``): with no process noise the truth is the trajectory itself.
+(``p``, ``v = p' - v_f``, ``v_f``) and ``δ_{k+1} = F_k δ_k + w_k``, ``w_k = L_k z_k ~ N(0, Q_k)``
+(exact ZOH ``F_k``, ``L_k L_kᵀ = Q_k``): with no process noise the truth is the trajectory itself.
+In closed loop (:mod:`obsplan.estimation.closedloop`) the truth adds the response to the input
+corrections, ``x = x̄ + c + δ``, with the same ``δ``.
+
+Process noise per step (:func:`truth_factor`): with the physical noise (white acceleration of
+intensity ``q``, optionally a current random walk ``q_f``) ``Q_k`` is the exact integral over the
+step ``h_k``, and ``L_k = diag(h_k^e) L_1`` with exponents ``e = 3/2`` on ``p`` and ``1/2`` on
+``v``, ``v_f``: each white source of intensity ``q_s`` on state ``j`` (``v_i`` or ``v_f,i``) feeding
+``p_i`` gets two columns, ``sqrt(q_s) (1/√3, √3/2)`` on ``(p_i, j)`` and ``sqrt(q_s) (0, 1/2)``,
+whose outer products sum to ``q_s [[h³/3, h²/2], [h²/2, h]]``; sources in state order (the
+accelerations, then the current). In the paper's per-step setting ``L_k = L``
+(:func:`noise_factor` of the per-step ``Q``).
 Readings are the device quantities (range ``r`` [m], DVL [m/s], depth [m]) plus Gaussian noise,
 drawn only where the schedule says the sensor reports.
 
@@ -18,7 +29,9 @@ key                         draws, in order
 ==========================  ===================================================================
 ``(r, 0)``                  initial error: ``state_dim`` normals (``x̂0 - x0 = chol(P0) z``),
                             then 2 normals for the KF's ``(p0ᵀν0, |ν0|²)`` (``init_error="sample"``)
-``(r, 1)``                  process noise: ``(N - 1, rank Q)`` normals, row ``k`` drives step ``k``
+``(r, 1)``                  process noise: ``(N - 1, columns of L)`` normals, row ``k`` drives
+                            step ``k`` (drawn in one call, or in consecutive blocks of rows: the
+                            same numbers)
 ``(r, 2, i)``               noise of sensor ``SENSORS[i]``: ``(reports, width)`` normals
 ``(r, 3, i)``               dropout of sensor ``SENSORS[i]``: ``reports`` uniforms (if it drops)
 ==========================  ===================================================================
@@ -32,6 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from obsplan.estimation.stats import empty_metrics
 from obsplan.model import SENSORS, VehicleModel
 from obsplan.trajectory import Trajectory
 
@@ -73,28 +87,90 @@ def noise_factor(Q: np.ndarray) -> np.ndarray:
     return V[:, keep] * np.sqrt(lam[keep])
 
 
+def truth_factor(
+    continuous: bool, q: np.ndarray, n: int, current: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(L_1, e)`` with ``L_k = diag(h_k^e) L_1`` the noise factor of a step ``h_k`` (module
+    docstring); ``q`` is the intensity ``W`` (continuous) or the per-step ``Q``, (m, m)."""
+    q = np.asarray(q, float)
+    m = q.shape[0]
+    if not continuous:
+        return noise_factor(q), np.zeros(m)
+    if np.count_nonzero(q - np.diag(np.diag(q))) or np.any(np.diag(q)[:n] != 0):
+        raise ValueError("the physical noise intensity is diagonal, on v (and v_f) only")
+    cols = []
+    for j in range(n, m):
+        qs = float(q[j, j])
+        if qs > 0:
+            a, b = np.zeros(m), np.zeros(m)
+            i = j % n  # the position p_i that v_i (or v_f,i) drives
+            a[i], a[j] = np.sqrt(qs / 3.0), np.sqrt(qs) * np.sqrt(3.0) / 2.0
+            b[j] = 0.5 * np.sqrt(qs)
+            cols += [a, b]
+    L = np.column_stack(cols) if cols else np.zeros((m, 0))
+    expo = np.full(m, 0.5)
+    expo[:n] = 1.5
+    return L, expo
+
+
 def truth_deviation(
-    traj: Trajectory, model: VehicleModel, L: np.ndarray, z: np.ndarray, points: np.ndarray
+    traj: Trajectory,
+    model: VehicleModel,
+    L: np.ndarray,
+    z: np.ndarray,
+    points: np.ndarray,
+    expo: np.ndarray | None = None,
 ) -> np.ndarray:
     """``δ`` at the samples ``points`` (sorted), shape (P, state_dim), from the normals ``z``.
 
-    ``z`` has shape ``(N - 1, L.shape[1])``; ``δ_0 = 0``.
+    ``z`` has shape ``(N - 1, L.shape[1])``; ``δ_0 = 0``; the factor of step ``k`` is
+    ``diag(h_k^expo) L`` (``expo`` zero by default: the per-step setting).
     """
-    out = np.zeros((points.size, model.state_dim))
-    if L.shape[1] == 0:
-        return out
+    return open_loop_truth(traj, model, L, z, points, expo)[0]
+
+
+def open_loop_truth(
+    traj: Trajectory,
+    model: VehicleModel,
+    L: np.ndarray,
+    z: np.ndarray,
+    points: np.ndarray,
+    expo: np.ndarray | None = None,
+    navs: np.ndarray | None = None,
+    box: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`truth_deviation` and the metrics of the true paths ``nav + δ`` of paths on the
+    same grid.
+
+    ``navs`` (J, N, 2n) are the paths' nominal ``(p, p')`` (none by default), ``box`` (3, 2)
+    the area and depth bounds (``TruthLimits.box``). Returns ``δ`` at ``points`` and the
+    metrics (J, N_TM) of :func:`obsplan.estimation.kernels.span_metrics`.
+    """
     from obsplan.estimation import kernels
 
+    n, m = model.dim, model.state_dim
+    out = np.zeros((points.size, m))
+    navs = np.zeros((0, traj.n_samples, 2 * n)) if navs is None else np.asarray(navs, float)
+    tm = empty_metrics(navs.shape[0])
+    if L.shape[1] == 0 and navs.shape[0] == 0:
+        return out, tm
+    if L.shape[1] == 0:
+        z = np.zeros((traj.n_samples - 1, 0))
     kernels.truth_deviation(
         np.ascontiguousarray(z),
         np.ascontiguousarray(L),
         traj.dt,
-        model.dim,
+        np.zeros(m) if expo is None else np.asarray(expo, float),
+        n,
         model.current,
         points,
         out,
+        np.ascontiguousarray(navs),
+        model.beacon_array,
+        np.tile([-np.inf, np.inf], (3, 1)) if box is None else np.asarray(box, float),
+        tm,
     )
-    return out
+    return out, tm
 
 
 def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
@@ -158,12 +234,23 @@ def noisy_readings(
     ``x_epochs`` are the true states at the epochs (E, state_dim), ``draws`` from
     :func:`reading_draws` (shared by every path on the same time grid).
     """
-    y = np.full((x_epochs.shape[0], model.output_dim), np.nan)
-    clean = clean_readings(model, x_epochs)
+    return clean_readings(model, x_epochs) + reading_noise(model, reports, noise, draws)
+
+
+def reading_noise(
+    model: VehicleModel,
+    reports: np.ndarray,
+    noise: dict[str, float],
+    draws: list[tuple[np.ndarray, np.ndarray | None]],
+) -> np.ndarray:
+    """The noise of the readings at the epochs, (E, output_dim): ``σ`` times the drawn normals
+    where a sensor reports, NaN where it does not (or drops). A reading is the clean value at
+    the true state plus this (in closed loop computed inside the simulation loop)."""
+    y = np.full((reports.shape[0], model.output_dim), np.nan)
     for i, (s, sl) in enumerate(model.output_slices.items()):
         rows = np.flatnonzero(reports[:, i])
         e, drop = draws[i]
-        val = clean[rows, sl] + noise[s] * e
+        val = noise[s] * e
         if drop is not None:
             val[drop] = np.nan
         y[rows, sl] = val
