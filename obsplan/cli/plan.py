@@ -49,7 +49,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument(
         "--force", action="store_true", help="replace a non-empty DIR whole (old files removed)"
     )
-    p.add_argument("--runs", type=int, metavar="N", help="override validation.runs")
+    p.add_argument(
+        "--runs", type=int, metavar="N", help="override validation.runs (the first batch)"
+    )
+    p.add_argument(
+        "--max-runs",
+        type=int,
+        metavar="N",
+        help="override validation.max_runs: runs are added (doubling) until every verdict is "
+        "decided at 95 %% confidence or N runs are reached; N = --runs: one batch",
+    )
     p.add_argument("--steps", type=int, metavar="N", help="override horizon.steps")
     p.add_argument("--starts", type=int, metavar="N", help="override objective.starts")
     p.add_argument("--no-validate", action="store_true", help="skip the Monte Carlo validation")
@@ -61,6 +70,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningProblem:
     if args.runs is not None and args.runs < 1:
         raise InputError(f"--runs must be at least 1, got {args.runs}")
+    if args.max_runs is not None and args.max_runs < 1:
+        raise InputError(f"--max-runs must be at least 1, got {args.max_runs}")
     if args.steps is not None:
         pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=args.steps))
     if args.starts is not None:
@@ -75,10 +86,13 @@ def _fmt(x: float | None, spec: str = ".4g") -> str:
 
 
 def summary_table(result: PlanResult) -> str:
-    """Planned vs baselines: objective, bounds, Monte Carlo errors [m], closest approach [m]."""
+    """Planned vs baselines: objective, bounds, Monte Carlo errors [m], closest approach [m] of
+    the path and of the true paths over all runs, runs inside ``min_range``, runs breaking any
+    limit on their true path [%]."""
     head = (
         f"{'path':<16} {'objective':>10} {'PCRB avg':>9} {'PCRB fin':>9} {'EKF rmse':>9} "
-        f"{'EKF fin':>8} {'KF rmse':>8} {'closest':>8} {'limits':>6}"
+        f"{'EKF fin':>8} {'KF rmse':>8} {'closest':>8} {'limits':>6} {'true min':>8} "
+        f"{'in min_r':>8} {'breaks':>7}"
     )
     lines = [head, "-" * len(head)]
     for name, m in result.metrics.items():
@@ -86,13 +100,23 @@ def summary_table(result: PlanResult) -> str:
         r = v.result if v is not None else None
         ekf = r.ekf if r is not None else None
         kf = r.kf if r is not None else None
+        truth = r.truth if r is not None else None
+        inside = "-" if truth is None else str(truth.runs_inside_min_range)
+        breaks = "-" if truth is None else f"{100 * truth.any_violation_fraction:.1f}%"
         lines.append(
             f"{name:<16} {_fmt(m.objective):>10} {_fmt(m.pcrb_mean_pos_std):>9} "
             f"{_fmt(m.pcrb_final_pos_std):>9} "
             f"{_fmt(ekf.rmse_pos if ekf else None):>9} "
             f"{_fmt(ekf.final_pos_err if ekf else None):>8} "
             f"{_fmt(kf.rmse_pos if kf else None):>8} {_fmt(m.closest_approach_m, '.1f'):>8} "
-            f"{'ok' if m.within_limits else 'NO':>6}"
+            f"{'ok' if m.within_limits else 'NO':>6} "
+            f"{_fmt(truth.closest_range_m if truth else None, '.2f'):>8} {inside:>8} {breaks:>7}"
+        )
+    if result.validation:
+        r0 = next(iter(result.validation.values())).result
+        lines.append(
+            f"validation: {r0.mode}, {r0.runs} runs per path; 'true min' is the closest approach "
+            "of the true paths over all runs, 'breaks' the runs whose true path breaks a limit"
         )
     return "\n".join(lines)
 
@@ -139,6 +163,7 @@ def run(args: argparse.Namespace) -> int:
             pb,
             validate=not args.no_validate,
             runs=args.runs,
+            max_runs=args.max_runs,
             progress=not args.quiet,
             verbose=args.verbose,
         )

@@ -33,7 +33,9 @@ from obsplan.planning.schema import (
     MODES,
     OBJECTIVE_KINDS,
     OBJECTIVES,
+    PROCESS_NOISE_MODELS,
     TIMED_OBJECTIVES,
+    VALIDATION_MODES,
     field_error,
 )
 from obsplan.trajectory import Trajectory
@@ -200,6 +202,22 @@ def _check_validation(pb: PlanningProblem) -> None:
         x = getattr(val, name)
         if not (math.isfinite(x) and x > 0):
             raise field_error(f"validation.{name}", f"must be > 0, got {x}")
+    if not (math.isfinite(val.accel_noise) and val.accel_noise >= 0):
+        raise field_error(
+            "validation.accel_noise",
+            f"must be an intensity >= 0 in m/s^2/sqrt(Hz), got {val.accel_noise}",
+        )
+    if val.mode not in VALIDATION_MODES:
+        raise field_error(
+            "validation.mode", f"must be one of {', '.join(VALIDATION_MODES)}, got {val.mode!r}"
+        )
+    if val.process_noise_model not in PROCESS_NOISE_MODELS:
+        raise field_error(
+            "validation.process_noise_model",
+            f"must be one of {', '.join(PROCESS_NOISE_MODELS)}, got {val.process_noise_model!r}",
+        )
+    if val.max_runs < 1:
+        raise field_error("validation.max_runs", f"must be at least 1, got {val.max_runs}")
     ratio = hor.dt / val.dt
     if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
         raise field_error(
