@@ -118,6 +118,11 @@ def summary_table(result: PlanResult) -> str:
             f"validation: {r0.mode}, {r0.runs} runs per path; 'true min' is the closest approach "
             "of the true paths over all runs, 'breaks' the runs whose true path breaks a limit"
         )
+        for name, v in result.validation.items():
+            frac = {} if v.result.truth is None else v.result.truth.violation_fraction
+            broken = ", ".join(f"{k} in {100 * f:.1f} %" for k, f in frac.items() if f > 0)
+            if broken:
+                lines.append(f"  {name}: the true path breaks {broken} of the runs")
     return "\n".join(lines)
 
 
