@@ -354,7 +354,10 @@ def resolve_problem_geodetic(
         except InputError as exc:
             raise ProblemError(str(exc)) from None
         depth = float(raw[2]) if dim == 3 else 0.0
-        p = geodetic_to_local(float(raw[0]), float(raw[1]), depth, origin, dim)
+        try:
+            p = geodetic_to_local(float(raw[0]), float(raw[1]), depth, origin, dim, where)
+        except InputError as exc:
+            raise ProblemError(str(exc)) from None
         section = {k: v for k, v in data[sec].items() if k != "geodetic"}
         section["position"] = [float(x) for x in p]
         out[sec] = section
