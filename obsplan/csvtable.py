@@ -34,11 +34,11 @@ _SEP_DISPLAY = {",": ",", ";": ";", "\t": "<tab>"}
 MAX_ROWS = 2_000_000
 #: Memory the parsed cells of a table take, about [bytes per cell] (for the refusal's figure).
 _BYTES_PER_CELL = 80
-#: Largest magnitude and unit of each standard column: beyond any vehicle (positions 100,000 km,
-#: 10 km/s, 1000 m/s²; times up to 1e10 s so that Unix time stamps are accepted).
+#: Largest magnitude and unit of each standard column: beyond any vehicle (positions 10,000 km (as
+#: problem files), 10 km/s, 1000 m/s²; times up to 1e10 s so that Unix time stamps are accepted).
 COLUMN_LIMITS: dict[str, tuple[float, str]] = {
     "t": (1e10, "s"),
-    **{f"p{a}": (1e8, "m") for a in "xyz"},
+    **{f"p{a}": (1e7, "m") for a in "xyz"},
     **{f"v{a}": (1e4, "m/s") for a in "xyz"},
     **{f"u{a}": (1e3, "m/s²") for a in "xyz"},
 }
