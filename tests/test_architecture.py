@@ -27,8 +27,8 @@ PACKAGE = Path(obsplan.__file__).resolve().parent
 #: gives its stage.
 STAGES: tuple[tuple[str, tuple[str, ...]], ...] = (
     # no obsplan imports but the errors: exceptions, the version, atomic file writes, the vehicle
-    # model, geodetic conversions
-    ("foundations", ("errors", "version", "atomic", "model", "geodesy")),
+    # model, geodetic conversions, reading user text files (encodings, magnitudes)
+    ("foundations", ("errors", "version", "atomic", "model", "geodesy", "textfiles")),
     # sampled paths, their CSV form (csvtable) and the motion classes of Tables 1-3
     ("trajectory", ("trajectory", "csvtable", "generators")),
     ("observability", ("observability",)),

@@ -37,7 +37,9 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from obsplan.atomic import atomic_file, remove_tree, replace_dir, staging_dir
+from obsplan.csvtable import COLUMN_LIMITS
 from obsplan.errors import InputError
+from obsplan.textfiles import check_magnitude
 from obsplan.trajectory import InconsistentTrajectoryWarning, Trajectory
 
 
@@ -139,6 +141,8 @@ def parse_beacon(text: str | None, dim: int) -> tuple[float, ...] | None:
             f"--beacon {text!r}: the trajectory is {dim}D, so the beacon needs {dim} finite "
             f"coordinates [m], e.g. --beacon {','.join(['0'] * dim)}"
         )
+    limit, unit = COLUMN_LIMITS["px"]  # the same bound as a position in a trajectory CSV
+    check_magnitude(values, f"--beacon {text!r}", limit, unit)
     return values
 
 
