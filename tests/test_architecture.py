@@ -63,6 +63,7 @@ PLANNING_ORDER: tuple[str, ...] = (
     "ipopt",  # nlpsol construction and calls, projection, Ctrl-C
     "starts",  # one IPOPT run per guess, serial or in processes
     "solve",  # strategy: multi-start, coarse-to-fine, candidates
+    "margins",  # keep-out margins from the predicted uncertainty, re-solve with tightened limits
     "validation",  # Monte Carlo of the filters on every path
     "verdict",
     "figures",

@@ -264,6 +264,12 @@ def _check_range_and_speed_limits(pb: PlanningProblem) -> None:
         x = getattr(lim, name)
         if not (math.isfinite(x) and x >= 0):
             raise field_error(f"limits.{name}", f"must be >= 0 (0 disables it), got {x}")
+    c = lim.keepout_confidence
+    if not (isinstance(c, int | float) and math.isfinite(c) and 0 <= c < 1):
+        raise field_error(
+            "limits.keepout_confidence",
+            f"must be a probability in [0, 1) such as 0.999 (0 disables the margins), got {c!r}",
+        )
     r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon, float)))
     tau, a = _margins(pb)
     s0 = float(np.linalg.norm(pb.v0))

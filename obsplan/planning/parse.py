@@ -174,6 +174,7 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
             min_range=lim["min_range"],
             max_range=lim["max_range"],
             min_speed=lim["min_speed"],
+            keepout_confidence=lim["keepout_confidence"],
         ),
         horizon=Horizon(**s["horizon"]),
         objective=ObjectiveSpec(**s["objective"]),
@@ -195,6 +196,7 @@ def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
         "speed": lim.speed,
         "min_range": lim.min_range,
         "min_speed": lim.min_speed,
+        "keepout_confidence": lim.keepout_confidence,
     }
     if lim.depth is not None:
         limits["depth"] = list(lim.depth)

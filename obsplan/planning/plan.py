@@ -8,9 +8,10 @@ from pathlib import Path
 
 from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.evaluate import PathMetrics, path_metrics
+from obsplan.planning.margins import KeepoutReport, solve_with_keepout
 from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
-from obsplan.planning.solve import SolveResult, solve
+from obsplan.planning.solve import SolveResult
 from obsplan.planning.validation import PathValidation, validate_paths
 from obsplan.planning.verdict import Verdict, verdict
 from obsplan.trajectory import Trajectory
@@ -34,6 +35,9 @@ class PlanResult:
         Total time [s].
     not_fitted : dict[str, str]
         Baselines the problem cannot fit, with the reason.
+    keepout : KeepoutReport or None
+        How the plan keeps its limits with the keep-out margins
+        (:mod:`obsplan.planning.margins`).
     """
 
     problem: PlanningProblem
@@ -43,6 +47,7 @@ class PlanResult:
     validation: dict[str, PathValidation]
     wall_s: float
     not_fitted: dict[str, str] = field(default_factory=dict)
+    keepout: KeepoutReport | None = None
 
     @property
     def verdict(self) -> Verdict:
@@ -88,6 +93,7 @@ class PlanResult:
             "baselines": {k: b.description for k, b in self.baselines.items()},
             "baselines_not_fitted": dict(self.not_fitted),
             "problem_file": problem_to_dict(pb),
+            "keepout": None if self.keepout is None else self.keepout.to_dict(),
             "wall_s": float(self.wall_s),
         }
 
@@ -128,7 +134,9 @@ def plan(
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
     bls = baselines(pb)
-    res = solve(pb, baselines=bls, progress=progress, verbose=verbose, processes=processes)
+    res, keepout = solve_with_keepout(
+        pb, baselines=bls, progress=progress, verbose=verbose, processes=processes
+    )
     paths: dict[str, Trajectory] = {}
     if res.trajectory is not None:
         paths["planned"] = res.trajectory
@@ -145,4 +153,5 @@ def plan(
         validation=validation,
         wall_s=time.perf_counter() - t0,
         not_fitted=unfitted_baselines(pb),
+        keepout=keepout,
     )

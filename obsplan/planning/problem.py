@@ -67,6 +67,7 @@ class Limits:
     min_range: float = 5.0
     max_range: float | None = None
     min_speed: float = 0.0
+    keepout_confidence: float = 0.999
 
 
 @dataclass(frozen=True)

@@ -234,6 +234,17 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "respect it. 0 disables it.",
         ),
         FieldSpec(
+            "keepout_confidence",
+            "float",
+            0.999,
+            "-",
+            "Confidence with which the true vehicle, steering its estimate onto the plan, keeps "
+            "min_range, max_range, the area and the depth band: the plan keeps them with a "
+            "margin k times a bound on the std of its true deviation from the plan (from the "
+            "posterior CRB along the path and the guidance loop), k the normal quantile of the "
+            "confidence (3.09 at 0.999). 0 disables the margins.",
+        ),
+        FieldSpec(
             "area",
             "area",
             _NONE,
