@@ -178,6 +178,21 @@ def _check_objective(pb: PlanningProblem) -> None:
         raise field_error("objective.max_iter", f"must be at least 1, got {obj.max_iter}")
     if obj.tol is not None and not 0 < obj.tol < 1:
         raise field_error("objective.tol", f"must be in (0, 1), got {obj.tol}")
+    if obj.robust_aggregate not in ("worst", "mean"):
+        raise field_error(
+            "objective.robust_aggregate", f'must be "worst" or "mean", got {obj.robust_aggregate!r}'
+        )
+    if (obj.robust_prior or obj.robust_range_noise) and obj.kind not in TIMED_OBJECTIVES:
+        raise field_error(
+            "objective.robust_prior" if obj.robust_prior else "objective.robust_range_noise",
+            f"robust planning needs an estimator objective ({', '.join(TIMED_OBJECTIVES)}), not "
+            f"{obj.kind}; change objective.kind or remove the robust_* fields",
+        )
+    for name in ("stress_prior", "stress_range_noise"):
+        if not getattr(val, name) > 0:
+            raise field_error(
+                f"validation.{name}", f"must be a multiple > 0, got {getattr(val, name)}"
+            )
     if obj.seed < 0 or val.seed < 0:
         raise field_error("objective.seed" if obj.seed < 0 else "validation.seed", "must be >= 0")
 

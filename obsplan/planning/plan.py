@@ -12,6 +12,7 @@ from obsplan.planning.margins import KeepoutReport, solve_with_keepout
 from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult
+from obsplan.planning.stress import Robustness, stress_active, stress_validate
 from obsplan.planning.validation import PathValidation, validate_paths
 from obsplan.planning.verdict import Verdict, verdict
 from obsplan.trajectory import Trajectory
@@ -38,6 +39,8 @@ class PlanResult:
     keepout : KeepoutReport or None
         How the plan keeps its limits with the keep-out margins
         (:mod:`obsplan.planning.margins`).
+    robustness : Robustness or None
+        Every path re-validated at ``validation.stress_*`` (:mod:`obsplan.planning.stress`).
     """
 
     problem: PlanningProblem
@@ -48,6 +51,7 @@ class PlanResult:
     wall_s: float
     not_fitted: dict[str, str] = field(default_factory=dict)
     keepout: KeepoutReport | None = None
+    robustness: Robustness | None = None
 
     @property
     def verdict(self) -> Verdict:
@@ -94,6 +98,7 @@ class PlanResult:
             "baselines_not_fitted": dict(self.not_fitted),
             "problem_file": problem_to_dict(pb),
             "keepout": None if self.keepout is None else self.keepout.to_dict(),
+            "robustness": None if self.robustness is None else self.robustness.to_dict(),
             "wall_s": float(self.wall_s),
         }
 
@@ -145,6 +150,9 @@ def plan(
     validation: dict[str, PathValidation] = {}
     if validate:
         validation = validate_paths(paths, pb, runs=runs, progress=progress)
+    robustness = None
+    if validate and stress_active(pb):
+        robustness = stress_validate(paths, pb, runs=runs, progress=progress)
     return PlanResult(
         problem=pb,
         solve=res,
@@ -154,4 +162,5 @@ def plan(
         wall_s=time.perf_counter() - t0,
         not_fitted=unfitted_baselines(pb),
         keepout=keepout,
+        robustness=robustness,
     )

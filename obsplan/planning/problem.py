@@ -93,6 +93,9 @@ class ObjectiveSpec:
     seed: int = 0
     max_iter: int = 1000
     tol: float | None = None
+    robust_prior: tuple[float, ...] = ()
+    robust_range_noise: tuple[float, ...] = ()
+    robust_aggregate: str = "worst"
 
     @property
     def solver_tol(self) -> float:
@@ -117,6 +120,8 @@ class ValidationSpec:
     depth_std: float = 0.1
     init_pos_error: float = 1.0
     init_vel_error: float = 0.1
+    stress_prior: float = 1.0
+    stress_range_noise: float = 1.0
 
 
 @dataclass(frozen=True)
