@@ -57,14 +57,17 @@ PLANNING_ORDER: tuple[str, ...] = (
     "gramian_objectives",
     "lwo_objective",
     "estimator_objectives",
+    "robust",  # an estimator objective over a family of conditions (worst case or mean)
     "objectives",  # the registry by objective.kind
     "evaluate",  # objective values and path metrics on a path
     "formulation",  # path constraints, bounds, assembly
     "ipopt",  # nlpsol construction and calls, projection, Ctrl-C
     "starts",  # one IPOPT run per guess, serial or in processes
     "solve",  # strategy: multi-start, coarse-to-fine, candidates
+    "margins",  # keep-out margins from the predicted uncertainty, re-solve with tightened limits
     "validation",  # Monte Carlo of the filters on every path
     "verdict",
+    "stress",  # every path re-validated at stated multiples of the prior and range noise
     "figures",
     "plan",  # solve + baselines + metrics + validation
     "__init__",  # the planning package's public API

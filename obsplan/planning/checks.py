@@ -180,6 +180,21 @@ def _check_objective(pb: PlanningProblem) -> None:
         raise field_error("objective.max_iter", f"must be at least 1, got {obj.max_iter}")
     if obj.tol is not None and not 0 < obj.tol < 1:
         raise field_error("objective.tol", f"must be in (0, 1), got {obj.tol}")
+    if obj.robust_aggregate not in ("worst", "mean"):
+        raise field_error(
+            "objective.robust_aggregate", f'must be "worst" or "mean", got {obj.robust_aggregate!r}'
+        )
+    if (obj.robust_prior or obj.robust_range_noise) and obj.kind not in TIMED_OBJECTIVES:
+        raise field_error(
+            "objective.robust_prior" if obj.robust_prior else "objective.robust_range_noise",
+            f"robust planning needs an estimator objective ({', '.join(TIMED_OBJECTIVES)}), not "
+            f"{obj.kind}; change objective.kind or remove the robust_* fields",
+        )
+    for name in ("stress_prior", "stress_range_noise"):
+        if not getattr(val, name) > 0:
+            raise field_error(
+                f"validation.{name}", f"must be a multiple > 0, got {getattr(val, name)}"
+            )
     if obj.seed < 0 or val.seed < 0:
         raise field_error("objective.seed" if obj.seed < 0 else "validation.seed", "must be >= 0")
 
@@ -282,6 +297,12 @@ def _check_range_and_speed_limits(pb: PlanningProblem) -> None:
         x = getattr(lim, name)
         if not (math.isfinite(x) and x >= 0):
             raise field_error(f"limits.{name}", f"must be >= 0 (0 disables it), got {x}")
+    c = lim.keepout_confidence
+    if not (isinstance(c, int | float) and math.isfinite(c) and 0 <= c < 1):
+        raise field_error(
+            "limits.keepout_confidence",
+            f"must be a probability in [0, 1) such as 0.999 (0 disables the margins), got {c!r}",
+        )
     r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon, float)))
     tau, a = _margins(pb)
     s0 = float(np.linalg.norm(pb.v0))

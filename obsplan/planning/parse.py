@@ -66,6 +66,14 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
         if not isinstance(raw, list) or not all(isinstance(s, str) for s in raw):
             raise field_error(where, f'expected a list of names such as ["range"], got {raw!r}')
         return raw
+    if k == "float-list":
+        if not isinstance(raw, list) or not all(
+            _is_number(x) and math.isfinite(x) and x > 0 for x in raw
+        ):
+            raise field_error(
+                where, f"expected a list of positive numbers such as [1, 5], got {raw!r}"
+            )
+        return tuple(float(x) for x in raw)
     if k in ("vec", "vec-or-float"):
         if k == "vec-or-float" and _is_number(raw):
             raw = [raw] * dim
@@ -174,6 +182,7 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
             min_range=lim["min_range"],
             max_range=lim["max_range"],
             min_speed=lim["min_speed"],
+            keepout_confidence=lim["keepout_confidence"],
         ),
         horizon=Horizon(**s["horizon"]),
         objective=ObjectiveSpec(**s["objective"]),
@@ -195,6 +204,7 @@ def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
         "speed": lim.speed,
         "min_range": lim.min_range,
         "min_speed": lim.min_speed,
+        "keepout_confidence": lim.keepout_confidence,
     }
     if lim.depth is not None:
         limits["depth"] = list(lim.depth)
@@ -216,7 +226,9 @@ def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
         "limits": limits,
         "horizon": {"duration": hor.duration, "steps": hor.steps},
         "objective": {
-            f: getattr(obj, f) for f in obj.__dataclass_fields__ if getattr(obj, f) is not None
+            f: list(v) if isinstance(v, tuple) else v
+            for f in obj.__dataclass_fields__
+            if (v := getattr(obj, f)) is not None
         },
         "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
         "validation": {f: getattr(val, f) for f in val.__dataclass_fields__},
