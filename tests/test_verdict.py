@@ -114,3 +114,22 @@ def test_one_batch_when_the_cap_is_the_first_batch(short):
     pb, paths = short
     val = validate_until_decided(paths, pb, runs=3, max_runs=1)
     assert val["planned"].result.runs == 3
+
+
+def test_rmse_interval_is_about_the_reported_ratio(short):
+    """Every interval contains its verdict's reported ratio (the RMSE's is carried from the ratio
+    of the runs' RMS to the reported time-averaged one)."""
+    pb, paths = short
+    v = verdict(validate_paths(paths, pb, runs=6), {})
+    for comps in v.comparisons.values():
+        for key in RUN_METRICS:
+            c = comps[key]
+            assert c.ci[0] <= c.ratio <= c.ci[1], (key, c)
+
+
+def test_rms_interval_of_squares():
+    rng = np.random.default_rng(5)
+    b = rng.lognormal(0.0, 0.3, 100)
+    a = 0.7 * b
+    lo, hi = ratio_interval(a, b, seed=0, rms=True)
+    assert lo == pytest.approx(0.7) and hi == pytest.approx(0.7)

@@ -12,6 +12,7 @@ import argparse
 import contextlib
 import json
 import sys
+from typing import Any
 
 import numpy as np
 
@@ -353,7 +354,7 @@ def run(args: argparse.Namespace) -> int:
                 traj.dim, args.sensors or "range", current=bool(args.current), beacon=beacon
             )
             guidance, limits = _guidance(args, fine)
-            common = {
+            common: dict[str, Any] = {
                 "rates_hz": parse_pairs(args.rates or "", "--rates"),
                 "noise": parse_pairs(args.noise or "", "--noise"),
                 "init_error": _init_error(args.init_error or "sample"),
