@@ -57,7 +57,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("--no-figures", action="store_true", help="do not draw DIR/figures/")
     p.add_argument(
-        "--force", action="store_true", help="write into a non-empty DIR that holds no sweep"
+        "--force",
+        action="store_true",
+        help="write into a DIR that holds another sweep (or another obsplan output)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -118,11 +120,12 @@ def run(args: argparse.Namespace) -> int:
             force=args.force,
             on_start=lambda info: _announce(info, args.quiet),
         )
-    except KeyboardInterrupt:
-        print(
-            f"obsplan sweep: finished tasks are kept in {out}; run the same command again to "
-            "resume",
-            file=sys.stderr,
+    except KeyboardInterrupt as exc:
+        # the one line `obsplan` prints for the interruption says what is kept
+        exc.kept = (  # type: ignore[attr-defined]
+            f"finished tasks are kept in {out}; run the same command again to resume"
+            if out.is_dir()
+            else "nothing was written"
         )
         raise
     counts = df["status"].value_counts()
