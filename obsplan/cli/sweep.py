@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from obsplan.errors import InputError
+from obsplan.outputs import check_name
 
 # obsplan.sweeps (pandas, Dask) is imported when the verb runs: every `obsplan` command imports
 # this module to build its parser
@@ -105,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give a SWEEP.toml (or --report DIR to redraw a sweep's figures)")
     if args.out is None:
         raise InputError("give --out DIR, the folder for the results (re-use it to resume)")
-    out = Path(args.out)
+    out = check_name(args.out, "--out")  # "" is not the working folder
     # Dask logs a lost connection or a dead worker as tracebacks; the sweep reports both itself
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
     try:
