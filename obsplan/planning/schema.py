@@ -30,9 +30,6 @@ MAX_STEPS = 5000
 #: far beyond any vehicle (a bound keeps absurd inputs from overflowing the checks' arithmetic).
 MAX_DURATION_S = 1e7
 MAX_MAGNITUDE = 1e7
-#: Budget of the validation Monte Carlo: runs x filter samples x state size (~8 bytes each per
-#: stored quantity); beyond it the simulation would need tens of GiB.
-MAX_MC_SIZE = 1e9
 
 
 @dataclass(frozen=True)

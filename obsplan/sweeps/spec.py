@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from obsplan import budget
 from obsplan.errors import InputError, ProblemError
 from obsplan.estimation.runs import FILTERS
 from obsplan.estimation.stats import FilterStats
@@ -199,6 +200,8 @@ def sweep_from_dict(
                 f"sweep.combine = zip needs axes of equal length; {shown} values "
                 '(use combine = "product", or give each axis the same number of values)'
             )
+    n_tasks = len(axes[0].values) if combine == "zip" else math.prod(len(a.values) for a in axes)
+    budget.check_tasks(n_tasks, f"[axes] ({combine} of {len(axes)} axes)", SweepFileError)
     figs = _table(data, "figures")
     bad = sorted(set(figs) - {"metrics"})
     if bad:
@@ -417,6 +420,7 @@ def _generate(where: str, raw: Mapping[str, Any]) -> list[Any]:
             )
         if len(args) == 3 and args[2] == 0:
             raise SweepFileError(f"{where}: range step must not be 0")
+        budget.check_tasks(len(range(*args)), where, SweepFileError)  # before the list exists
         return list(range(*args))
     if (
         not isinstance(arg, list)
@@ -432,6 +436,7 @@ def _generate(where: str, raw: Mapping[str, Any]) -> list[Any]:
             f"integer), got {arg!r}"
         )
     a, b, n = float(arg[0]), float(arg[1]), int(arg[2])
+    budget.check_tasks(n, where, SweepFileError)
     if kind == "geomspace":
         if not (a > 0 and b > 0):
             raise SweepFileError(f"{where}: geomspace needs start and stop > 0, got {arg!r}")
