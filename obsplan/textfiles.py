@@ -79,6 +79,11 @@ def read_text(
     if raw.startswith(codecs.BOM_UTF8):
         raw = raw[len(codecs.BOM_UTF8) :]  # Windows editors write one; it is not content
     if b"\x00" in raw:
+        if len(raw) >= 4 and (raw[1::2].count(0) > 0.9 * (len(raw) // 2)):
+            raise error(
+                f"{path}: the file is saved as UTF-16 text (no byte-order mark); save it as "
+                f"UTF-8 (expected {what})"
+            )
         raise error(f"{path}: not a text file (it contains NUL bytes); expected {what}")
     try:
         text = raw.decode("utf-8")

@@ -322,3 +322,57 @@ def test_row21_the_geodetic_sample_is_the_default_problem_geodetically():
     np.testing.assert_allclose(geo.beacon, [0.0, 0.0], atol=1e-3)
     np.testing.assert_allclose(geo.start_position, [-80.0, 60.0], atol=1e-3)
     assert geo.limits == load_problem(DEFAULT).limits
+
+
+# ------------------------------------------------------------------ row 34: figures
+def _fake_validation(end: float, runs: int = 5):
+    from types import SimpleNamespace
+
+    t = np.linspace(0.0, 600.0, 61)
+    ekf = SimpleNamespace(
+        rmse_pos_t=np.linspace(1.0, end, t.size), rmse_pos=float(np.mean([1.0, end])),
+        final_pos_err=end,
+    )  # fmt: skip
+    return SimpleNamespace(
+        result=SimpleNamespace(
+            t=t, ekf=ekf, kf=None, crlb_pos_std_t=np.full(t.size, 0.05), runs=runs, seed=0
+        )
+    )
+
+
+def test_row34_path_figure_draws_the_min_range_and_zooms_on_loops_at_the_beacon():
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle
+
+    from obsplan import generators
+    from obsplan.planning.figures import plot_filter_errors, plot_paths
+    from obsplan.planning.parse import load_problem
+
+    pb = load_problem(DEFAULT)
+    loops = generators.circle(radius=5.5, speed=0.5, duration=200.0, dt=1.0)
+    mower = generators.lawnmower((-80.0, 60.0), 160.0, 40.0, 4, 1.0, dt=1.0)
+    fig = plot_paths({"planned": loops, "lawnmower": mower}, pb)
+    ax = fig.axes[0]
+    circles = [p for p in ax.patches if isinstance(p, Circle)]
+    assert [c.radius for c in circles] == [pb.limits.min_range]
+    assert pb.name in ax.get_title()
+    (inset,) = ax.child_axes  # the zoom on the beacon
+    lo, hi = inset.get_xlim()
+    assert hi - lo < 0.25 * np.ptp(mower.p[:, 0]) and lo < pb.beacon[0] < hi
+    plt.close(fig)
+    far = generators.circle(radius=60.0, speed=0.5, duration=200.0, dt=1.0)
+    fig = plot_paths({"planned": far, "lawnmower": mower}, pb)
+    assert not fig.axes[0].child_axes  # nothing hides under the marker: no inset
+    plt.close(fig)
+
+    # filters.png: the problem's name, and a note when the plan's curve ends above
+    val = {"planned": _fake_validation(0.3), "lawnmower": _fake_validation(0.2)}
+    fig = plot_filter_errors(val, problem=pb.name)
+    title = fig.axes[0].get_title()
+    assert title.startswith(pb.name) and "at the end: plan 0.3 m > lawn-mower 0.2 m" in title
+    plt.close(fig)
+    val["planned"] = _fake_validation(0.1)
+    fig = plot_filter_errors(val, problem=pb.name)
+    assert "at the end" not in fig.axes[0].get_title()
+    plt.close(fig)

@@ -162,7 +162,8 @@ def write_outputs(result: PlanResult, out: Path) -> list[Path]:
     written.append(save_figure(plot_paths(paths, pb), out / FIGURES[0]))
     written.append(save_figure(plot_gramian_eigs(paths, pb), out / FIGURES[1]))
     if result.validation:
-        written.append(save_figure(plot_filter_errors(result.validation), out / FIGURES[2]))
+        fig = plot_filter_errors(result.validation, problem=pb.name)
+        written.append(save_figure(fig, out / FIGURES[2]))
     return written
 
 

@@ -402,7 +402,7 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
         from obsplan.planning.validation import PathValidation
 
         # the figure `obsplan plan` writes as filters.png, for this one path
-        fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)})
+        fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)}, problem=pb.name)
         written.append(plots.save(fig, staging / "filters.png"))
     ranks = sampled_rank_over_time(fine, cfg)
     idx = np.searchsorted(fine.t, res.t)
