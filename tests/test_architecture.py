@@ -26,9 +26,23 @@ PACKAGE = Path(obsplan.__file__).resolve().parent
 #: import only from its own stage or a lower one. The longest listed prefix of a module's name
 #: gives its stage.
 STAGES: tuple[tuple[str, tuple[str, ...]], ...] = (
-    # no obsplan imports but the errors: exceptions, the version, atomic file writes, the vehicle
-    # model, geodetic conversions
-    ("foundations", ("errors", "version", "atomic", "model", "geodesy")),
+    # no obsplan imports but the errors: exceptions, the version, signals, atomic file writes,
+    # safe output folders, the cost budget, the vehicle model, geodetic conversions, reading user
+    # text files (encodings, magnitudes)
+    (
+        "foundations",
+        (
+            "errors",
+            "version",
+            "interrupts",
+            "atomic",
+            "outputs",
+            "budget",
+            "model",
+            "geodesy",
+            "textfiles",
+        ),
+    ),
     # sampled paths, their CSV form (csvtable) and the motion classes of Tables 1-3
     ("trajectory", ("trajectory", "csvtable", "generators")),
     ("observability", ("observability",)),

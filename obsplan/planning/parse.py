@@ -11,7 +11,6 @@ every check, the structural ones included, so a problem it returns can be solved
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,7 @@ from obsplan.planning.problem import (
     VehicleSpec,
 )
 from obsplan.planning.schema import SCHEMA, FieldSpec, field_error
+from obsplan.textfiles import read_toml
 
 #: Where ``obsplan plan`` looks when no problem file is given.
 PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
@@ -265,13 +265,9 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
                 "the repository (pip install -e .) or pass a PROBLEM.toml"
             )
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ProblemError(f"problem file not found: {path}")
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ProblemError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "a problem file (TOML)", error=ProblemError)
     try:
         return problem_from_dict(data, name=path.stem)
     except ProblemError as exc:
@@ -370,7 +366,10 @@ def resolve_problem_geodetic(
         except InputError as exc:
             raise ProblemError(str(exc)) from None
         depth = float(raw[2]) if dim == 3 else 0.0
-        p = geodetic_to_local(float(raw[0]), float(raw[1]), depth, origin, dim)
+        try:
+            p = geodetic_to_local(float(raw[0]), float(raw[1]), depth, origin, dim, where)
+        except InputError as exc:
+            raise ProblemError(str(exc)) from None
         section = {k: v for k, v in data[sec].items() if k != "geodetic"}
         section["position"] = [float(x) for x in p]
         out[sec] = section

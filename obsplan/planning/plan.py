@@ -13,8 +13,8 @@ from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult
 from obsplan.planning.stress import Robustness, stress_active, stress_validate
-from obsplan.planning.validation import PathValidation, validate_paths
-from obsplan.planning.verdict import Verdict, verdict
+from obsplan.planning.validation import PathValidation
+from obsplan.planning.verdict import Verdict, validate_until_decided, verdict
 from obsplan.trajectory import Trajectory
 
 
@@ -67,6 +67,16 @@ class PlanResult:
         """The planned path on the planning grid (None if no feasible path was found)."""
         return self.solve.trajectory
 
+    def validation_dict(self) -> dict:
+        """``report.json``'s ``validation``: ``mode`` (``"closed-loop"`` or ``"open-loop"``)
+        and one entry per validated path (empty when no validation was run)."""
+        if not self.validation:
+            return {}
+        return {
+            "mode": self.problem.validation.mode,
+            **{k: v.to_dict() for k, v in self.validation.items()},
+        }
+
     def paths(self) -> dict[str, Trajectory]:
         """``planned`` (when found) then every baseline."""
         out: dict[str, Trajectory] = {}
@@ -81,7 +91,7 @@ class PlanResult:
         return {
             "solver": self.solve.to_dict(),
             "metrics": {k: m.to_dict() for k, m in self.metrics.items()},
-            "validation": {k: v.to_dict() for k, v in self.validation.items()},
+            "validation": self.validation_dict(),
             "verdict": self.verdict.to_dict(),
             "problem": {
                 "name": pb.name,
@@ -108,6 +118,7 @@ def plan(
     *,
     validate: bool = True,
     runs: int | None = None,
+    max_runs: int | None = None,
     progress: bool = False,
     verbose: bool = False,
     processes: int | None = None,
@@ -119,9 +130,14 @@ def plan(
     problem
         A :class:`PlanningProblem`, a path to a problem TOML, or None for ``problems/default.toml``.
     validate
-        Run the EKF/KF Monte Carlo on the plan and every baseline.
+        Run the EKF/KF Monte Carlo on the plan and every baseline (in closed loop unless
+        ``validation.mode = "open-loop"``), adding batches of runs until every verdict is
+        decided or ``validation.max_runs`` is reached
+        (:func:`~obsplan.planning.verdict.validate_until_decided`).
     runs
-        Override ``validation.runs``.
+        Override ``validation.runs`` (the first batch).
+    max_runs
+        Override ``validation.max_runs`` (the cap on the runs).
     progress
         Progress bars (tqdm, on stderr) for the starts and the validation.
     verbose
@@ -149,7 +165,9 @@ def plan(
     metrics = {k: path_metrics(tr, pb) for k, tr in paths.items()}
     validation: dict[str, PathValidation] = {}
     if validate:
-        validation = validate_paths(paths, pb, runs=runs, progress=progress)
+        validation = validate_until_decided(
+            paths, pb, runs=runs, max_runs=max_runs, progress=progress
+        )
     robustness = None
     if validate and stress_active(pb):
         robustness = stress_validate(paths, pb, runs=runs, progress=progress)

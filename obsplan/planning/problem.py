@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 from obsplan.geodesy import GeodeticOrigin
 from obsplan.model import VehicleModel
 from obsplan.observability.scaling import Scales
@@ -107,7 +108,8 @@ class ObjectiveSpec:
 
 @dataclass(frozen=True)
 class ValidationSpec:
-    """Monte Carlo validation settings: runs, seed, filter step [s], rates [Hz], noises, prior."""
+    """Monte Carlo validation settings: runs, seed, filter step [s], rates [Hz], noises, prior,
+    process noise [m/s²/√Hz], closed or open loop, cap on the runs."""
 
     runs: int = 50
     seed: int = 0
@@ -120,6 +122,10 @@ class ValidationSpec:
     depth_std: float = 0.1
     init_pos_error: float = 1.0
     init_vel_error: float = 0.1
+    accel_noise: float = DEFAULT_ACCEL_NOISE
+    process_noise_model: str = "physical"
+    mode: str = "closed-loop"
+    max_runs: int = 400
     stress_prior: float = 1.0
     stress_range_noise: float = 1.0
 

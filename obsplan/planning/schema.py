@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from obsplan.errors import ProblemError
+from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 
 #: Largest ``horizon.steps`` the planner accepts: the NLP grows linearly in N and IPOPT's time
 #: faster; N = 1000 solves in seconds to a minute (README benchmarks), 5000 is already hours.
@@ -29,9 +30,6 @@ MAX_STEPS = 5000
 #: far beyond any vehicle (a bound keeps absurd inputs from overflowing the checks' arithmetic).
 MAX_DURATION_S = 1e7
 MAX_MAGNITUDE = 1e7
-#: Budget of the validation Monte Carlo: runs x filter samples x state size (~8 bytes each per
-#: stored quantity); beyond it the simulation would need tens of GiB.
-MAX_MC_SIZE = 1e9
 
 
 @dataclass(frozen=True)
@@ -81,6 +79,10 @@ OBJECTIVES: tuple[str, ...] = tuple(OBJECTIVE_KINDS)
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
 #: Objectives for which a smaller value is better.
 MINIMISED: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.sense == "min")
+#: ``validation.mode`` values (the first is the default).
+VALIDATION_MODES: tuple[str, ...] = ("closed-loop", "open-loop")
+#: ``validation.process_noise_model`` values (the first is the default).
+PROCESS_NOISE_MODELS: tuple[str, ...] = ("physical", "paper-per-step")
 #: ``objective.mode`` values; ``auto`` is ``final`` for kf-position-std (its historical meaning)
 #: and ``average-and-final`` for pcrb-position (:attr:`ObjectiveKind.auto_mode`).
 MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final")
@@ -366,6 +368,45 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             0.1,
             "m/s",
             "Initial velocity error standard deviation per axis.",
+        ),
+        FieldSpec(
+            "accel_noise",
+            "float",
+            DEFAULT_ACCEL_NOISE,
+            "m/s^2/sqrt(Hz)",
+            "Intensity of the white acceleration noise on each axis (truth, filters, bound and "
+            "the planner's objective alike), discretised exactly for any dt; the default adds "
+            "the paper's velocity variance (1e-3 dt)^2 per step at dt = 0.1 s. 0: no process "
+            "noise.",
+        ),
+        FieldSpec(
+            "process_noise_model",
+            "str",
+            "physical",
+            "-",
+            'How process noise enters: "physical" (accel_noise, independent of dt) or '
+            '"paper-per-step" (the paper\'s Q = diag(1e-3 dt)^2 per filter step, section 7, '
+            "whose intensity changes with dt; accel_noise is then ignored).",
+        ),
+        FieldSpec(
+            "mode",
+            "str",
+            "closed-loop",
+            "-",
+            'How the Monte Carlo flies every path: "closed-loop" (the vehicle steers its EKF '
+            "estimate onto the path: feed-forward of the path's acceleration plus feedback "
+            'saturated at the limits) or "open-loop" (the accelerations flown blind).',
+        ),
+        FieldSpec(
+            "max_runs",
+            "int",
+            400,
+            "-",
+            "Cap on the runs of the validation: starting from `runs`, batches doubling the "
+            "runs are added until every verdict of the plan against a baseline (EKF and KF RMSE "
+            "and final error) is decided at 95 % confidence (paired bootstrap interval of the "
+            "ratio excluding 1) or the cap is reached (the undecided ones are ties). At most "
+            "`runs`: one batch.",
         ),
         FieldSpec(
             "stress_prior",
