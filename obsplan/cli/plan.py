@@ -193,9 +193,23 @@ def run(args: argparse.Namespace) -> int:
     )
     if s.note:
         print(f"note: {s.note}")
+    k = result.keepout
+    if k is not None and k.k > 0:
+        print(
+            f"keep-out at {k.confidence:.4g} confidence: margins up to "
+            f"{k.max_range_margin_m:.2f} m "
+            f"(range), {k.max_box_margin_m:.2f} m (area/depth), up to {k.max_accel_reserve:.0%} "
+            f"of the acceleration kept for the guidance; {k.rounds} re-solve(s), "
+            + ("held" if k.held else f"NOT held: {k.note}")
+        )
     print(summary_table(result))
     for line in result.verdict.summary():
         print(line)
+    if result.robustness is not None:
+        r = result.robustness
+        print(f"robustness (prior x{r.prior:g}, range noise x{r.range_noise:g}, not replanned):")
+        for line in r.verdict.summary():
+            print(f"  {line}")
     print(f"wrote {', '.join(str(p) for p in written)}")
     if not result.success:
         print(
