@@ -7,8 +7,9 @@ whole run (imports, building, solving, validation, figures, writing): SIGINT to 
 (Ctrl-C in a terminal), SIGTERM to the group or to the parent only (a batch scheduler's stop).
 Each time it checks
 
-* the exit code: 130 for SIGINT, 143 for SIGTERM (or death by the signal itself when it came
-  before Python ran obsplan's first line: a shell reports that as 130 / 143 too);
+* the exit code: 130 for SIGINT, 143 for SIGTERM, and one line on stderr (or death by the
+  signal itself when it came while the interpreter started, before obsplan's first line ran: a
+  shell reports that as 130 / 143 too);
 * no new file in the output's parent folder (for ``sweep``, whose folder keeps finished tasks to
   resume, only that folder, without any temporary file in it);
 * no live process of the group once the parent has exited (the starts' fork pool, Dask's
@@ -40,7 +41,7 @@ from obsplan.trajectory import write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Moments per verb by default (spread evenly over a whole run).
-POINTS = {"plan": 8, "simulate": 6, "paper": 6, "sweep": 5}
+POINTS = {"plan": 6, "simulate": 5, "paper": 5, "sweep": 4}
 #: Runs interrupted at the same time (the machine has few cores).
 PARALLEL = 2
 #: The ways a signal is sent: (signal, to the whole group?).
@@ -168,7 +169,9 @@ def test_a_signal_at_any_moment_ends_cleanly(verb, tmp_path):
     for r in results:
         if r["finished_first"]:
             continue  # the run ended before this moment (a faster run than the measured one)
-        if r["code"] not in r["expected"] or r["alive"] or r["left"] or "Traceback" in r["err"]:
+        # Python's own traceback only when the signal came before obsplan's first line ran
+        traceback = "Traceback" in r["err"] and r["code"] >= 0
+        if r["code"] not in r["expected"] or r["alive"] or r["left"] or traceback:
             bad.append(r)
     assert not bad, "\n".join(str(r) for r in bad)
     assert sum(not r["finished_first"] for r in results) >= len(results) // 2, results
