@@ -66,6 +66,7 @@ PLANNING_ORDER: tuple[str, ...] = (
     "validation",  # Monte Carlo of the filters on every path
     "verdict",
     "figures",
+    "replan",  # receding-horizon re-solves inside the closed-loop Monte Carlo
     "plan",  # solve + baselines + metrics + validation
     "__init__",  # the planning package's public API
 )
