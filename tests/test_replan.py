@@ -84,7 +84,7 @@ def test_resolve_from_a_perturbed_estimate_keeps_the_past_and_the_limits(small):
         np.testing.assert_allclose(new.p[k], state[:n], atol=1e-9)  # it starts at the estimate
         np.testing.assert_allclose(new.v[k], state[n:], atol=1e-9)
         assert np.all(np.abs(new.u[k:-1]) <= pb.accel * (1 + 1e-6))
-        after = min(k + recovery_steps(pb), pb.horizon.steps - 1)
+        after = min(k + recovery_steps(pb) + 1, pb.horizon.steps - 1)
         assert replace(check_limits(new.window(after), pb), start=0.0).ok()
         # the remaining path is dynamically consistent (exact double integrator)
         assert max(new.window(k).consistency_error()) < 1e-6
@@ -129,7 +129,6 @@ def test_cli_replan_flag_writes_the_replan_report(tmp_path, capsys):
         ["--replan", "7"],
         ["--replan", "-30"],
         ["--replan", "600"],
-        ["--replan", "x"],
         ["--replan", "60", "--no-validate"],
     ],
 )
@@ -138,3 +137,10 @@ def test_cli_bad_replan_exits_2(tmp_path, capsys, extra):
     assert code == 2
     assert "--replan" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_cli_replan_not_a_number_is_a_usage_error(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:  # argparse's own usage error
+        main(["plan", "--out", str(tmp_path / "o"), *SMALL, "--replan", "x"])
+    assert exc.value.code == 2
+    assert "--replan" in capsys.readouterr().err

@@ -21,8 +21,9 @@ changes bounds and the initial point:
 * a run whose estimate is already too close to the beacon (or too fast) cannot meet the limits
   at once: over a *recovery window* of :func:`recovery_steps` steps after ``k`` (the time to
   shed the full speed at the smallest acceleration bound) the inequality limits are loosened to
-  what the initial point reaches, so each is no worse than flying on; from the window's end on
-  every limit holds as planned, and the returned path is checked there.
+  what the initial point reaches, so each is no worse than flying on; after the window every
+  limit holds as planned, and the returned path is checked there (independently, on the
+  continuous path, from the node after the window).
 
 The objective is the one-shot plan's, over the whole horizon: for the covariance objectives the
 information gathered before ``k`` is the planner's prediction along the past of the plan in force
@@ -299,8 +300,9 @@ class Replanner:
         return ReplanSolve(t_k, run, status, True, iters, wall, cpu, obj), traj
 
     def _flyable(self, traj: Trajectory, k: int) -> bool:
-        """Every limit holds from the end of the recovery window after ``k`` on."""
-        after = min(k + self.recovery, self.form.grid.N - 1)
+        """Every limit holds after the recovery window: from node ``k + recovery + 1`` on (the
+        NLP enforces them from the window's last step on)."""
+        after = min(k + self.recovery + 1, self.form.grid.N - 1)
         return replace(check_limits(traj.window(after), self.problem), start=0.0).ok()
 
 
