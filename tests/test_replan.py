@@ -110,6 +110,12 @@ def test_replanned_monte_carlo_is_paired_and_reported(small):
     assert doc["solves"] == 6 and doc["failures"] == out.failures
     assert doc["solve_s"]["max"] >= doc["solve_s"]["median"] > 0
     assert "one-shot" in doc["verdict"]["baselines"]
+    assert set(doc["verdict"]["baselines"]["one-shot"]) == {
+        "ekf.rmse_pos",
+        "ekf.final_pos_err",
+        "kf.rmse_pos",
+        "kf.final_pos_err",
+    }
     assert out.summary()[0].startswith("replanning every 150 s: 6 re-solves")
 
 
