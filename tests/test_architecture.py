@@ -83,6 +83,7 @@ PLANNING_ORDER: tuple[str, ...] = (
     "verdict",
     "stress",  # every path re-validated at stated multiples of the prior and range noise
     "figures",
+    "replan",  # receding-horizon re-solves inside the closed-loop Monte Carlo
     "plan",  # solve + baselines + metrics + validation
     "__init__",  # the planning package's public API
 )
