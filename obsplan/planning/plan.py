@@ -6,13 +6,14 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from obsplan.estimation.runs import DEFAULT_FILTERS
 from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.evaluate import PathMetrics, path_metrics
 from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult, solve
 from obsplan.planning.validation import PathValidation, validate_paths
-from obsplan.planning.verdict import Verdict, verdict
+from obsplan.planning.verdict import Verdict, ekf_diverges, verdict
 from obsplan.trajectory import Trajectory
 
 
@@ -137,6 +138,11 @@ def plan(
     validation: dict[str, PathValidation] = {}
     if validate:
         validation = validate_paths(paths, pb, runs=runs, progress=progress)
+        if "planned" in validation and ekf_diverges(validation["planned"]):
+            # the EKF is lost on the plan while the KF is not: validate the Gaussian-sum filter
+            # beside them on every path (same seeds), so the report says what a robust filter does
+            filters = (*DEFAULT_FILTERS, "gsf")
+            validation = validate_paths(paths, pb, runs=runs, progress=progress, filters=filters)
     return PlanResult(
         problem=pb,
         solve=res,

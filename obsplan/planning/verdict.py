@@ -32,6 +32,11 @@ METRICS: tuple[tuple[str, str], ...] = (
 )
 #: The metrics a plan must win on against every baseline to be called a win.
 HEADLINE = ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos")
+#: The EKF "diverges" on a path when the divergence monitor flags at least this fraction of its
+#: runs, or its final error is :data:`DIVERGED_RATIO` times the KF's; the KF "converges" when
+#: fewer than this fraction of its runs are flagged.
+DIVERGED_FRACTION = 0.1
+DIVERGED_RATIO = 3.0
 
 
 def metric_value(v: PathValidation, key: str) -> float | None:
@@ -98,10 +103,14 @@ class Verdict:
         ``{baseline: {metric: Comparison}}``.
     not_fitted : dict
         ``{baseline: reason}`` for baselines the problem cannot fit.
+    notes : tuple of str
+        Further sentences about the filters (an EKF that diverges on the plan while the KF
+        converges, and the Gaussian-sum filter validated beside it).
     """
 
     comparisons: Mapping[str, Mapping[str, Comparison]]
     not_fitted: Mapping[str, str]
+    notes: tuple[str, ...] = ()
 
     @property
     def beats_all(self) -> bool:
@@ -141,6 +150,7 @@ class Verdict:
                 "it loses here:"
             )
             lines += [f"  - {s}" for s in self.losses()]
+        lines += list(self.notes)
         for name, why in self.not_fitted.items():
             lines.append(f"baseline {name} not fitted: {why}")
         return lines
@@ -154,6 +164,7 @@ class Verdict:
                 for name, comps in self.comparisons.items()
             },
             "losses": self.losses(),
+            "notes": list(self.notes),
             "not_fitted": dict(self.not_fitted),
         }
 
@@ -172,7 +183,48 @@ def verdict(validation: Mapping[str, PathValidation], not_fitted: Mapping[str, s
                 )
                 for key, _ in METRICS
             }
-    return Verdict(comps, dict(not_fitted))
+    return Verdict(comps, dict(not_fitted), filter_notes(validation))
+
+
+def ekf_diverges(v: PathValidation) -> bool:
+    """The EKF diverges on this path while the KF converges (:data:`DIVERGED_FRACTION`)."""
+    r = v.result
+    e, k = r.ekf, r.kf
+    if e is None or k is None or r.runs < 1:
+        return False
+    if k.flagged_runs >= DIVERGED_FRACTION * r.runs:
+        return False
+    far = not math.isfinite(e.final_pos_err) or e.final_pos_err > DIVERGED_RATIO * k.final_pos_err
+    return e.flagged_runs >= DIVERGED_FRACTION * r.runs or far
+
+
+def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
+    """Sentences on an EKF that diverges on the plan while the KF converges, with the
+    Gaussian-sum filter's numbers on the plan and the baselines when it was run."""
+    plan = validation.get("planned")
+    if plan is None or not ekf_diverges(plan):
+        return ()
+    r = plan.result
+    e, k = r.ekf, r.kf
+    out = [
+        f"the EKF diverges on the plan while the KF converges: {e.flagged_runs} of {r.runs} EKF "
+        f"runs flagged by the divergence monitor (KF {k.flagged_runs}), EKF final error "
+        f"{e.final_pos_err:.3g} m against the KF's {k.final_pos_err:.3g} m; fly it with the KF "
+        "or a Gaussian-sum filter"
+    ]
+    gsf = {n: (v.result.filters or {}).get("gsf") for n, v in validation.items()}
+    if gsf.get("planned") is not None:
+        g = gsf["planned"]
+        base = ", ".join(
+            f"{n} {s.rmse_pos:.3g} / {s.final_pos_err:.3g} m"
+            for n, s in gsf.items()
+            if n != "planned" and s is not None
+        )
+        out.append(
+            f"  Gaussian-sum filter (RMSE / final error): plan {g.rmse_pos:.3g} / "
+            f"{g.final_pos_err:.3g} m" + (f"; {base}" if base else "")
+        )
+    return tuple(out)
 
 
 def paired_noise(a: PathValidation, b: PathValidation, key: str) -> float | None:
