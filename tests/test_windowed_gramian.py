@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -20,6 +21,8 @@ from obsplan.planning.guesses import random_guess, reference_path
 from obsplan.planning.objectives import objective_of
 from obsplan.planning.parse import problem_from_dict, problem_to_dict
 from obsplan.planning.plan import plan
+from obsplan.planning.validation import PathValidation
+from obsplan.planning.verdict import LWO_NOTE, ekf_diverges, filter_notes, verdict
 from obsplan.planning.windowed_gramian import (
     auto_window_s,
     paper_form,
@@ -229,3 +232,34 @@ def test_default_plan_beats_the_lawnmower():
     comps = res.verdict.comparisons["lawnmower"]
     for key in ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos", "kf.final_pos_err"):
         assert comps[key].ratio is not None and comps[key].ratio < 0.8, key
+
+
+def _fake(ekf_flagged, ekf_final, kf_flagged, kf_final, runs=30, gsf=None):
+    stats = SimpleNamespace
+    return PathValidation(
+        "x",
+        SimpleNamespace(
+            runs=runs,
+            ekf=stats(flagged_runs=ekf_flagged, final_pos_err=ekf_final, rmse_pos=1.0),
+            kf=stats(flagged_runs=kf_flagged, final_pos_err=kf_final, rmse_pos=0.5),
+            filters=None if gsf is None else {"gsf": stats(rmse_pos=gsf[0], final_pos_err=gsf[1])},
+        ),
+    )
+
+
+def test_an_ekf_lost_on_the_plan_is_said_in_words():
+    assert ekf_diverges(_fake(5, 1.0, 0, 0.5))  # flagged runs
+    assert ekf_diverges(_fake(0, 2.0, 0, 0.5))  # final error 4x the KF's
+    assert not ekf_diverges(_fake(0, 1.0, 0, 0.5))
+    assert not ekf_diverges(_fake(5, 1.0, 5, 0.5))  # the KF is lost too: not this case
+    notes = filter_notes({"planned": _fake(5, 1.0, 0, 0.5, gsf=(0.3, 0.2))})
+    assert "the EKF diverges on the plan while the KF converges: 5 of 30" in notes[0]
+    assert "Gaussian-sum filter" in notes[1] and "plan 0.3 / 0.2 m" in notes[1]
+    assert filter_notes({"planned": _fake(0, 1.0, 0, 0.5)}) == ()
+
+
+def test_lwo_condition_is_reported_as_a_diagnostic():
+    v: dict = {}  # no validation run: the note is about the kind, whatever the numbers
+    assert verdict(v, {}, "lwo-condition").notes[0] == LWO_NOTE
+    assert LWO_NOTE in verdict(v, {}, "lwo-condition").summary()
+    assert LWO_NOTE not in verdict(v, {}, "gramian-min-eig").notes

@@ -48,7 +48,7 @@ class PlanResult:
     @property
     def verdict(self) -> Verdict:
         """The plan against every validated baseline (:mod:`obsplan.planning.verdict`)."""
-        return verdict(self.validation, self.not_fitted)
+        return verdict(self.validation, self.not_fitted, self.problem.objective.kind)
 
     @property
     def success(self) -> bool:

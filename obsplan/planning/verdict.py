@@ -169,8 +169,22 @@ class Verdict:
         }
 
 
-def verdict(validation: Mapping[str, PathValidation], not_fitted: Mapping[str, str]) -> Verdict:
-    """Compare ``validation["planned"]`` with every other validated path."""
+#: What the verdict of an ``lwo-condition`` plan says: the kind is a diagnostic, not a plan to fly.
+LWO_NOTE = (
+    "lwo-condition is a diagnostic of local, node-by-node observability: scale-free, it ignores "
+    "the range's distance, the rates and the process noise, and its plans do not serve the "
+    "filters (suite/lwo-dvl3d.toml: EKF final error 3.4x, final bound 4.1x the lawn-mower's); "
+    "to fly, plan with pcrb-position or a Gramian objective"
+)
+
+
+def verdict(
+    validation: Mapping[str, PathValidation],
+    not_fitted: Mapping[str, str],
+    objective: str | None = None,
+) -> Verdict:
+    """Compare ``validation["planned"]`` with every other validated path (``objective``: the
+    problem's ``objective.kind``, for the notes)."""
     comps: dict[str, dict[str, Comparison]] = {}
     plan = validation.get("planned")
     if plan is not None:
@@ -183,7 +197,10 @@ def verdict(validation: Mapping[str, PathValidation], not_fitted: Mapping[str, s
                 )
                 for key, _ in METRICS
             }
-    return Verdict(comps, dict(not_fitted), filter_notes(validation))
+    notes = filter_notes(validation)
+    if objective == "lwo-condition":
+        notes = (LWO_NOTE, *notes)
+    return Verdict(comps, dict(not_fitted), notes)
 
 
 def ekf_diverges(v: PathValidation) -> bool:
