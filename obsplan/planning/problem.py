@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 from obsplan.geodesy import GeodeticOrigin
 from obsplan.model import VehicleModel
 from obsplan.observability.scaling import Scales
@@ -67,6 +68,7 @@ class Limits:
     min_range: float = 5.0
     max_range: float | None = None
     min_speed: float = 0.0
+    keepout_confidence: float = 0.999
 
 
 @dataclass(frozen=True)
@@ -96,6 +98,9 @@ class ObjectiveSpec:
     window: float | str = "auto"
     stride: float | str = "auto"
     anchor: str = "current"
+    robust_prior: tuple[float, ...] = ()
+    robust_range_noise: tuple[float, ...] = ()
+    robust_aggregate: str = "worst"
 
     @property
     def solver_tol(self) -> float:
@@ -111,7 +116,8 @@ class ObjectiveSpec:
 
 @dataclass(frozen=True)
 class ValidationSpec:
-    """Monte Carlo validation settings: runs, seed, filter step [s], rates [Hz], noises, prior."""
+    """Monte Carlo validation settings: runs, seed, filter step [s], rates [Hz], noises, prior,
+    process noise [m/s²/√Hz], closed or open loop, cap on the runs."""
 
     runs: int = 50
     seed: int = 0
@@ -124,6 +130,12 @@ class ValidationSpec:
     depth_std: float = 0.1
     init_pos_error: float = 1.0
     init_vel_error: float = 0.1
+    accel_noise: float = DEFAULT_ACCEL_NOISE
+    process_noise_model: str = "physical"
+    mode: str = "closed-loop"
+    max_runs: int = 400
+    stress_prior: float = 1.0
+    stress_range_noise: float = 1.0
 
 
 @dataclass(frozen=True)
