@@ -68,6 +68,7 @@ PLANNING_ORDER: tuple[str, ...] = (
     "grid",  # decision variables in intrinsic units, sample operator, dynamics
     "guesses",  # initial guesses, reference path, coarse grid
     "blocks",  # NLP building blocks and the objective interface
+    "windowed_gramian",  # information-weighted windowed Gramians
     "gramian_objectives",
     "lwo_objective",
     "estimator_objectives",
