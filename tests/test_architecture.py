@@ -26,9 +26,23 @@ PACKAGE = Path(obsplan.__file__).resolve().parent
 #: import only from its own stage or a lower one. The longest listed prefix of a module's name
 #: gives its stage.
 STAGES: tuple[tuple[str, tuple[str, ...]], ...] = (
-    # no obsplan imports but the errors: exceptions, the version, atomic file writes, the vehicle
-    # model, geodetic conversions
-    ("foundations", ("errors", "version", "atomic", "model", "geodesy")),
+    # no obsplan imports but the errors: exceptions, the version, signals, atomic file writes,
+    # safe output folders, the cost budget, the vehicle model, geodetic conversions, reading user
+    # text files (encodings, magnitudes)
+    (
+        "foundations",
+        (
+            "errors",
+            "version",
+            "interrupts",
+            "atomic",
+            "outputs",
+            "budget",
+            "model",
+            "geodesy",
+            "textfiles",
+        ),
+    ),
     # sampled paths, their CSV form (csvtable) and the motion classes of Tables 1-3
     ("trajectory", ("trajectory", "csvtable", "generators")),
     ("observability", ("observability",)),
@@ -57,14 +71,17 @@ PLANNING_ORDER: tuple[str, ...] = (
     "gramian_objectives",
     "lwo_objective",
     "estimator_objectives",
+    "robust",  # an estimator objective over a family of conditions (worst case or mean)
     "objectives",  # the registry by objective.kind
     "evaluate",  # objective values and path metrics on a path
     "formulation",  # path constraints, bounds, assembly
     "ipopt",  # nlpsol construction and calls, projection, Ctrl-C
     "starts",  # one IPOPT run per guess, serial or in processes
     "solve",  # strategy: multi-start, coarse-to-fine, candidates
+    "margins",  # keep-out margins from the predicted uncertainty, re-solve with tightened limits
     "validation",  # Monte Carlo of the filters on every path
     "verdict",
+    "stress",  # every path re-validated at stated multiples of the prior and range noise
     "figures",
     "plan",  # solve + baselines + metrics + validation
     "__init__",  # the planning package's public API

@@ -9,6 +9,7 @@ import pytest
 
 from obsplan import generators as gen
 from obsplan.cli import main
+from obsplan.outputs import MARKER, write_marker
 from obsplan.trajectory import write_csv
 
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
@@ -89,9 +90,13 @@ def test_out_folder_with_user_files_is_not_overwritten(csv_2d, tmp_path, capsys)
     assert code == 2
     assert "--force" in capsys.readouterr().err
     assert (out / "estimation.png").read_bytes() == b"the user's own figure"
-    assert (
-        main(["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]) == 0
-    )
+    # --force does not replace a folder obsplan did not make
+    args = ["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]
+    assert main(args) == 2
+    assert "not an obsplan output" in capsys.readouterr().err
+    assert (out / "estimation.png").read_bytes() == b"the user's own figure"
+    write_marker(out, "simulate")  # an earlier obsplan output is replaced
+    assert main(args) == 0
     assert (out / "estimation.png").read_bytes() != b"the user's own figure"
 
 
@@ -128,7 +133,7 @@ def test_absurd_resampling_is_refused_before_allocating(csv_2d, capsys):
     assert "more than the limit of 2000000 samples per run" in err and "--dt >=" in err
     assert peak < 50 * 2**20  # nothing near the 89 GiB was attempted (50 MiB: imports etc.)
     assert main(["simulate", str(csv_2d), "--runs", "100000000", "--quiet"]) == 2
-    assert "Monte Carlo budget" in capsys.readouterr().err
+    assert "more than the limit of 10000 Monte Carlo runs" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("where", ["under-a-file", "sys"])
@@ -153,10 +158,11 @@ def test_unwritable_out_is_refused_before_any_work(csv_2d, tmp_path, capsys, whe
 def test_force_replaces_the_figure_folder_whole(csv_2d, tmp_path, capsys):
     out = tmp_path / "figs"
     out.mkdir()
+    write_marker(out, "simulate")
     (out / "stale.png").write_bytes(b"from an earlier run")
     args = ["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]
     assert main(args) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["estimation.png", "monte_carlo.png"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "estimation.png", "monte_carlo.png"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no staging left
 
 
@@ -179,7 +185,7 @@ def test_ctrl_c_during_the_monte_carlo_exits_130_and_writes_nothing(csv_2d, tmp_
     from _interrupt import interrupt_after
 
     code, err = interrupt_after(
-        ["simulate", str(csv_2d), "--runs", "100000", "--out", str(out)], b"run", 0.5
+        ["simulate", str(csv_2d), "--runs", "10000", "--out", str(out)], b"run", 0.5
     )
     assert code == 130, err
     assert "interrupted" in err and "Traceback" not in err
@@ -189,6 +195,7 @@ def test_ctrl_c_during_the_monte_carlo_exits_130_and_writes_nothing(csv_2d, tmp_
 def test_force_never_deletes_the_input_trajectory(csv_2d, tmp_path, capsys):
     res = tmp_path / "res"
     res.mkdir()
+    write_marker(res, "plan")  # an obsplan output folder, yet it holds the input
     traj = res / "plan.csv"
     traj.write_bytes(csv_2d.read_bytes())
     args = ["simulate", str(traj), "--runs", "2", "--quiet", "--out", str(res), "--force"]

@@ -9,6 +9,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from obsplan import budget
 from obsplan.cli.common import OutputDir
 from obsplan.errors import InputError
 from obsplan.planning.figures import (
@@ -47,7 +48,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--out", metavar="DIR", default=DEFAULT_OUT, help=f"output folder ({DEFAULT_OUT})"
     )
     p.add_argument(
-        "--force", action="store_true", help="replace a non-empty DIR whole (old files removed)"
+        "--force",
+        action="store_true",
+        help="replace DIR whole if it is an earlier obsplan output (old files removed)",
     )
     p.add_argument(
         "--runs", type=int, metavar="N", help="override validation.runs (the first batch)"
@@ -68,6 +71,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 
 def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningProblem:
+    """The command-line overrides, checked against the same limits as the problem file's."""
     if args.runs is not None and args.runs < 1:
         raise InputError(f"--runs must be at least 1, got {args.runs}")
     if args.max_runs is not None and args.max_runs < 1:
@@ -75,7 +79,11 @@ def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningP
     if args.steps is not None:
         pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=args.steps))
     if args.starts is not None:
+        budget.check_starts(args.starts, "--starts")
         pb = replace(pb, objective=replace(pb.objective, starts=args.starts))
+    if args.runs is not None and not args.no_validate:
+        samples = pb.horizon.duration / pb.validation.dt + 1
+        budget.check_monte_carlo(args.runs, samples, pb.dim, "--runs", "a longer validation.dt")
     return pb
 
 
@@ -154,7 +162,8 @@ def write_outputs(result: PlanResult, out: Path) -> list[Path]:
     written.append(save_figure(plot_paths(paths, pb), out / FIGURES[0]))
     written.append(save_figure(plot_gramian_eigs(paths, pb), out / FIGURES[1]))
     if result.validation:
-        written.append(save_figure(plot_filter_errors(result.validation), out / FIGURES[2]))
+        fig = plot_filter_errors(result.validation, problem=pb.name)
+        written.append(save_figure(fig, out / FIGURES[2]))
     return written
 
 
@@ -162,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the verb; 0 on success, 1 if no start converged (outputs are still written)."""
     # validate the problem and the output folder before any work
     pb = _apply_overrides(load_problem(args.problem), args)
-    out = OutputDir(args.out, args.force, inputs=[args.problem])
+    out = OutputDir(args.out, args.force, inputs=[args.problem or DEFAULT_PROBLEM], verb="plan")
     with out:  # Ctrl-C or an error: no output folder, an old one untouched
         result = plan(
             pb,

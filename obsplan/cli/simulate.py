@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from obsplan import budget
 from obsplan.cli.common import (
     OutputDir,
     add_output_arguments,
@@ -35,8 +36,6 @@ from obsplan.plots import filter_stats
 #: Acceleration bound [m/s²] of the guidance without a problem (the default problem's), raised to
 #: the trajectory's largest input so that its own feed-forward never saturates.
 DEFAULT_GUIDANCE_ACCEL = 0.05
-#: Largest filter grid a simulation accepts (samples per run): the filters loop over samples.
-MAX_FILTER_SAMPLES = 2_000_000
 #: Options that a problem file's [vehicle], [beacon] and [validation] sections replace.
 PROBLEM_REPLACES = {
     "sensors": "vehicle.sensors",
@@ -239,34 +238,19 @@ def format_result(res: MonteCarloResult, path: str) -> str:
 
 
 def check_filter_grid(traj, dt: float | None, runs: int) -> None:
-    """Refuse, before allocating anything, a filter grid or Monte Carlo beyond the limits.
-
-    The limits: :data:`MAX_FILTER_SAMPLES` samples per run and the validation budget
-    ``runs x samples x 3n <= MAX_MC_SIZE`` of :mod:`obsplan.planning.problem`.
-    """
-    from obsplan.planning.schema import MAX_MC_SIZE
-
+    """Refuse, before allocating anything, a filter grid or Monte Carlo beyond the limits of
+    :mod:`obsplan.budget` (samples per run, runs, memory and time)."""
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         raise InputError(f"--dt {dt:g}: the filter step must be a positive number of seconds")
     samples = traj.n_samples if dt is None else traj.duration / dt + 1
-    what = f"--dt {dt:g} s" if dt is not None else f"{traj.n_samples} samples of the trajectory"
-    if samples > MAX_FILTER_SAMPLES:
-        fix = (
-            f"choose --dt >= {traj.duration / (MAX_FILTER_SAMPLES - 1):.3g} s"
-            if dt is not None
-            else "resample the trajectory more coarsely"
-        )
-        raise InputError(
-            f"{what} puts {samples:.4g} samples on the filter grid over {traj.duration:g} s, "
-            f"more than the limit of {MAX_FILTER_SAMPLES} samples per run; {fix}"
-        )
-    size = runs * samples * 3 * traj.dim
-    if size > MAX_MC_SIZE:
-        raise InputError(
-            f"--runs {runs} with {samples:.4g} filter samples per run exceeds the Monte Carlo "
-            f"budget (runs x samples x 3n <= {MAX_MC_SIZE:g}); use at most "
-            f"{int(MAX_MC_SIZE / (samples * 3 * traj.dim))} runs or a coarser --dt"
-        )
+    field = f"--dt {dt:g} s" if dt is not None else f"the {traj.n_samples} trajectory samples"
+    fix = (
+        f"choose --dt >= {traj.duration / (budget.MAX_SAMPLES - 1):.3g} s"
+        if dt is not None
+        else "resample the trajectory more coarsely (--dt)"
+    )
+    budget.check_samples(samples, field, fix)
+    budget.check_monte_carlo(runs, samples, traj.dim, "--runs", "a coarser --dt")
 
 
 def _problem_mode(args: argparse.Namespace, traj):
@@ -324,14 +308,16 @@ def run(args: argparse.Namespace) -> int:
     check_seed(args.seed)
     if args.runs is not None and args.runs < 1:
         raise InputError(f"--runs {args.runs}: needs at least 1 run")
+    if args.runs is not None:
+        budget.check_runs(args.runs, "--runs")  # before reading the trajectory
     traj = read_trajectory(args.trajectory, "simulate")
     pb = _problem_mode(args, traj) if args.problem else None
     runs = args.runs if args.runs is not None else (pb.validation.runs if pb else 50)
     check_filter_grid(traj, pb.validation.dt if pb else args.dt, runs)
     # the output folder is checked before the (long) simulation, written only at the end
     out = (
-        OutputDir(args.out, args.force, inputs=[args.trajectory, args.problem])
-        if args.out
+        OutputDir(args.out, args.force, inputs=[args.trajectory, args.problem], verb="simulate")
+        if args.out is not None
         else None
     )
     with out or contextlib.nullcontext():
@@ -416,7 +402,7 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
         from obsplan.planning.validation import PathValidation
 
         # the figure `obsplan plan` writes as filters.png, for this one path
-        fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)})
+        fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)}, problem=pb.name)
         written.append(plots.save(fig, staging / "filters.png"))
     ranks = sampled_rank_over_time(fine, cfg)
     idx = np.searchsorted(fine.t, res.t)

@@ -8,9 +8,11 @@ from pathlib import Path
 
 from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.evaluate import PathMetrics, path_metrics
+from obsplan.planning.margins import KeepoutReport, solve_with_keepout
 from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
-from obsplan.planning.solve import SolveResult, solve
+from obsplan.planning.solve import SolveResult
+from obsplan.planning.stress import Robustness, stress_active, stress_validate
 from obsplan.planning.validation import PathValidation
 from obsplan.planning.verdict import Verdict, validate_until_decided, verdict
 from obsplan.trajectory import Trajectory
@@ -34,6 +36,11 @@ class PlanResult:
         Total time [s].
     not_fitted : dict[str, str]
         Baselines the problem cannot fit, with the reason.
+    keepout : KeepoutReport or None
+        How the plan keeps its limits with the keep-out margins
+        (:mod:`obsplan.planning.margins`).
+    robustness : Robustness or None
+        Every path re-validated at ``validation.stress_*`` (:mod:`obsplan.planning.stress`).
     """
 
     problem: PlanningProblem
@@ -43,6 +50,8 @@ class PlanResult:
     validation: dict[str, PathValidation]
     wall_s: float
     not_fitted: dict[str, str] = field(default_factory=dict)
+    keepout: KeepoutReport | None = None
+    robustness: Robustness | None = None
 
     @property
     def verdict(self) -> Verdict:
@@ -98,6 +107,8 @@ class PlanResult:
             "baselines": {k: b.description for k, b in self.baselines.items()},
             "baselines_not_fitted": dict(self.not_fitted),
             "problem_file": problem_to_dict(pb),
+            "keepout": None if self.keepout is None else self.keepout.to_dict(),
+            "robustness": None if self.robustness is None else self.robustness.to_dict(),
             "wall_s": float(self.wall_s),
         }
 
@@ -144,7 +155,9 @@ def plan(
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
     bls = baselines(pb)
-    res = solve(pb, baselines=bls, progress=progress, verbose=verbose, processes=processes)
+    res, keepout = solve_with_keepout(
+        pb, baselines=bls, progress=progress, verbose=verbose, processes=processes
+    )
     paths: dict[str, Trajectory] = {}
     if res.trajectory is not None:
         paths["planned"] = res.trajectory
@@ -155,6 +168,9 @@ def plan(
         validation = validate_until_decided(
             paths, pb, runs=runs, max_runs=max_runs, progress=progress
         )
+    robustness = None
+    if validate and stress_active(pb):
+        robustness = stress_validate(paths, pb, runs=runs, progress=progress)
     return PlanResult(
         problem=pb,
         solve=res,
@@ -163,4 +179,6 @@ def plan(
         validation=validation,
         wall_s=time.perf_counter() - t0,
         not_fitted=unfitted_baselines(pb),
+        keepout=keepout,
+        robustness=robustness,
     )

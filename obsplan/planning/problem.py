@@ -68,6 +68,7 @@ class Limits:
     min_range: float = 5.0
     max_range: float | None = None
     min_speed: float = 0.0
+    keepout_confidence: float = 0.999
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,9 @@ class ObjectiveSpec:
     seed: int = 0
     max_iter: int = 1000
     tol: float | None = None
+    robust_prior: tuple[float, ...] = ()
+    robust_range_noise: tuple[float, ...] = ()
+    robust_aggregate: str = "worst"
 
     @property
     def solver_tol(self) -> float:
@@ -122,6 +126,8 @@ class ValidationSpec:
     process_noise_model: str = "physical"
     mode: str = "closed-loop"
     max_runs: int = 400
+    stress_prior: float = 1.0
+    stress_range_noise: float = 1.0
 
 
 @dataclass(frozen=True)

@@ -30,9 +30,6 @@ MAX_STEPS = 5000
 #: far beyond any vehicle (a bound keeps absurd inputs from overflowing the checks' arithmetic).
 MAX_DURATION_S = 1e7
 MAX_MAGNITUDE = 1e7
-#: Budget of the validation Monte Carlo: runs x filter samples x state size (~8 bytes each per
-#: stored quantity); beyond it the simulation would need tens of GiB.
-MAX_MC_SIZE = 1e9
 
 
 @dataclass(frozen=True)
@@ -102,7 +99,9 @@ class FieldSpec:
     """One documented field of the problem file."""
 
     name: str
-    kind: str  # "int", "float", "bool", "str", "str-list", "vec", "vec-or-float", "range", "area"
+    # "int", "float", "bool", "str", "str-list", "float-list", "vec", "vec-or-float", "range",
+    # "area"
+    kind: str
     default: Any
     unit: str
     doc: str
@@ -239,6 +238,17 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "respect it. 0 disables it.",
         ),
         FieldSpec(
+            "keepout_confidence",
+            "float",
+            0.999,
+            "-",
+            "Confidence with which the true vehicle, steering its estimate onto the plan, keeps "
+            "min_range, max_range, the area and the depth band: the plan keeps them with a "
+            "margin k times a bound on the std of its true deviation from the plan (from the "
+            "posterior CRB along the path and the guidance loop), k the normal quantile of the "
+            "confidence (3.09 at 0.999). 0 disables the margins.",
+        ),
+        FieldSpec(
             "area",
             "area",
             _NONE,
@@ -295,6 +305,32 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "the lawn-mower; default 1e-8, or 1e-4 for pcrb-position and kf-position-std (L-BFGS "
             "converges slowly: at N = 1000, 1e-5 takes 5x the iterations for a 0.4 % better "
             "bound).",
+        ),
+        FieldSpec(
+            "robust_prior",
+            "float-list",
+            (),
+            "-",
+            "Robust planning (pcrb-position, kf-position-std): multiples of the validation's "
+            "prior std (init_pos_error, init_vel_error) to plan for, e.g. [1, 5]; every "
+            "combination with robust_range_noise is a condition. Default none (plan for the "
+            "stated prior only).",
+        ),
+        FieldSpec(
+            "robust_range_noise",
+            "float-list",
+            (),
+            "-",
+            "Robust planning: multiples of validation.range_std to plan for, e.g. [1, 3]. "
+            "Default none.",
+        ),
+        FieldSpec(
+            "robust_aggregate",
+            "str",
+            "worst",
+            "-",
+            'How the conditions combine: "worst" (the largest of the objectives, each relative '
+            'to its value on the lawn-mower; an epigraph) or "mean" (their mean).',
         ),
     ),
     "scales": (
@@ -371,6 +407,23 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "and final error) is decided at 95 % confidence (paired bootstrap interval of the "
             "ratio excluding 1) or the cap is reached (the undecided ones are ties). At most "
             "`runs`: one batch.",
+        ),
+        FieldSpec(
+            "stress_prior",
+            "float",
+            1.0,
+            "-",
+            "Robustness row of the report: every path re-validated, without replanning, with "
+            "the prior std (init_pos_error, init_vel_error) times this. With stress_range_noise "
+            "both 1 (the default), no robustness row.",
+        ),
+        FieldSpec(
+            "stress_range_noise",
+            "float",
+            1.0,
+            "-",
+            "Robustness row: the true range noise is range_std times this (the filters are "
+            "told the stated range_std, as a vehicle told the wrong noise).",
         ),
     ),
 }
