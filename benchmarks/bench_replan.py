@@ -107,7 +107,8 @@ def main() -> int:
     kept = sum(s.kept_warm_start for s in out.solves)
     print(
         f"{len(out.solves)} re-solves, {out.failures} failed (plan in force kept), "
-        f"{kept} kept the warm start; NLP + solver built once in {out.build_s:.2f} s; "
+        f"{kept} kept the warm start, {out.unconverged_flown} flown unconverged (iteration "
+        f"budget); NLP + solver built once in {out.build_s:.2f} s; "
         f"replanned Monte Carlo {out.wall_s:.1f} s"
     )
     statuses: dict[str, int] = {}
