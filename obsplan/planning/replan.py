@@ -49,17 +49,18 @@ from tqdm import tqdm
 from obsplan.errors import ConfigError
 from obsplan.estimation.closedloop import ClosedLoop
 from obsplan.estimation.crlb import posterior_crlb
-from obsplan.estimation.guidance import Guidance, TruthLimits
+from obsplan.estimation.guidance import Guidance
 from obsplan.estimation.results import MonteCarloResult, merge_monte_carlo
-from obsplan.estimation.simulate import DEFAULT_FILTERS, monte_carlo_paths
+from obsplan.estimation.simulate import DEFAULT_FILTERS
 from obsplan.planning.evaluate import better, objective_value
 from obsplan.planning.feasibility import check_limits
 from obsplan.planning.formulation import Formulation, build_formulation
 from obsplan.planning.ipopt import SUCCESS_STATUS, _call, make_solver
+from obsplan.planning.margins import keepout_margins, tighten
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.starts import default_processes
-from obsplan.planning.validation import PathValidation
-from obsplan.planning.validation_setup import estimation_config
+from obsplan.planning.validation import PathValidation, validate_paths
+from obsplan.planning.validation_setup import estimation_config, truth_limits, validation_guidance
 from obsplan.planning.verdict import Verdict, verdict
 from obsplan.trajectory import Trajectory, resample
 
@@ -85,29 +86,21 @@ _STEP_RTOL = 1e-9
 _PER_NODE = {"dynamics", "speed", "min_range", "max_range", "min_speed"}
 
 
-def guidance_of(pb: PlanningProblem) -> Guidance:
-    """The guidance law the replanned runs fly with: gains from the acceleration and speed
-    limits, the prior position std as the typical error
-    (:meth:`~obsplan.estimation.guidance.Guidance.from_limits`)."""
-    return Guidance.from_limits(
-        tuple(float(a) for a in pb.accel),
-        float(pb.limits.speed),
-        error_scale_m=float(pb.validation.init_pos_error),
-    )
+def replan_guidance(pb: PlanningProblem) -> Guidance:
+    """The closed-loop validation's guidance law (replanning runs only in closed loop).
 
-
-def truth_limits_of(pb: PlanningProblem) -> TruthLimits:
-    """The problem's limits as the limits the true paths are checked against."""
-    lim = pb.limits
-    area = None if lim.area is None else (tuple(lim.area.x), tuple(lim.area.y))
-    return TruthLimits(
-        accel=tuple(float(a) for a in pb.accel),
-        speed=float(lim.speed),
-        area=area,
-        depth=None if lim.depth is None else tuple(lim.depth),
-        min_range=float(lim.min_range) if lim.min_range > 0 else None,
-        max_range=None if lim.max_range is None else float(lim.max_range),
-    )
+    Raises
+    ------
+    ConfigError
+        For ``validation.mode = "open-loop"``.
+    """
+    g = validation_guidance(pb)
+    if g is None:
+        raise ConfigError(
+            "--replan re-solves from the EKF estimate the vehicle steers on: it needs "
+            'validation.mode = "closed-loop" (the default), not "open-loop"'
+        )
+    return g
 
 
 def replan_nodes(pb: PlanningProblem, every: float) -> np.ndarray:
@@ -206,6 +199,9 @@ class Replanner:
     ----------
     pb
         The problem (its formulation and objective are the one-shot plan's).
+    plan
+        The one-shot plan: with ``limits.keepout_confidence > 0`` the re-solves keep the
+        keep-out margins computed along it (:mod:`obsplan.planning.margins`).
     expand
         Expand the NLP to SX (faster iterations, slower construction).
     ipopt_options
@@ -214,11 +210,19 @@ class Replanner:
     """
 
     def __init__(
-        self, pb: PlanningProblem, *, expand: bool = True, ipopt_options: dict | None = None
+        self,
+        pb: PlanningProblem,
+        *,
+        plan: Trajectory | None = None,
+        expand: bool = True,
+        ipopt_options: dict | None = None,
     ) -> None:
         t0 = time.perf_counter()
         self.problem = pb
         self.form: Formulation = build_formulation(pb)
+        if plan is not None and pb.limits.keepout_confidence > 0:
+            # the one-shot plan's keep-out margins (bounds only: the same compiled NLP)
+            self.form = tighten(self.form, keepout_margins(plan, pb, replan_guidance(pb)))
         opts = {
             "tol": REPLAN_TOL_FACTOR * pb.objective.solver_tol,
             "max_iter": REPLAN_MAX_ITER,
@@ -393,7 +397,7 @@ class ReplanResult:
             name: {k: c for k, c in cs.items() if not k.startswith("crlb.")}
             for name, cs in full.comparisons.items()
         }
-        return Verdict(comps, {})
+        return Verdict(comps, {}, full.runs, full.notes)
 
     @property
     def unconverged_flown(self) -> int:
@@ -564,7 +568,7 @@ def replan_monte_carlo(
 ) -> ReplanResult:
     """Closed-loop Monte Carlo with receding-horizon replanning every ``every`` s.
 
-    Every run flies ``plan`` in closed loop (:func:`guidance_of`); at each replan time it
+    Every run flies ``plan`` in closed loop (:func:`replan_guidance`); at each replan time it
     re-solves from its EKF estimate over the remaining horizon (:class:`Replanner`) and flies
     the new plan from there. The one-shot plan and every baseline are flown in closed loop with
     the same guidance, runs and seed, so all comparisons are paired.
@@ -605,7 +609,8 @@ def replan_monte_carlo(
         raise ConfigError(
             f"plan has {plan.n_samples} samples; the planning grid has {pb.horizon.steps + 1}"
         )
-    rp = replanner if replanner is not None else Replanner(pb)
+    replan_guidance(pb)  # closed loop only, before any work
+    rp = replanner if replanner is not None else Replanner(pb, plan=plan)
     config = estimation_config(pb)
     fine = resample(plan, val.dt)
     job = {
@@ -613,8 +618,8 @@ def replan_monte_carlo(
         "fine": fine,
         "config": config,
         "seed": val.seed,
-        "guidance": guidance_of(pb),
-        "limits": truth_limits_of(pb),
+        "guidance": replan_guidance(pb),
+        "limits": truth_limits(pb),
         "filters": tuple(filters),
         "nodes": nodes,
         "crlb": posterior_crlb(fine, config),
@@ -626,17 +631,8 @@ def replan_monte_carlo(
     solves = tuple(s for _, ss in parts for s in ss)
     replanned = merge_monte_carlo([p for p, _ in parts])
     others = {"one-shot": plan, **dict(baselines or {})}
-    fixed = monte_carlo_paths(
-        [resample(tr, val.dt) for tr in others.values()],
-        config,
-        runs=n_runs,
-        seed=val.seed,
-        filters=filters,
-        guidance=job["guidance"],
-        limits=job["limits"],
-    )
     validation = {"replanned": PathValidation("replanned", replanned)}
-    validation.update({k: PathValidation(k, r) for k, r in zip(others, fixed, strict=True)})
+    validation.update(validate_paths(others, pb, runs=n_runs, filters=filters))
     return ReplanResult(
         every=float(every),
         times=tuple(float(k) * pb.horizon.dt for k in nodes),
