@@ -9,7 +9,8 @@ The problem defaults to the *median suite problem*: ``problems/suite/*.toml`` so
 ``(horizon.steps, horizon.duration, file name)``, the middle one (``moving-start``: 2D range-only,
 600 s, N = 200, the size of the speed requirement). The script
 
-1. plans it one-shot (:func:`obsplan.planning.solve.solve`) and builds the replanning NLP once;
+1. plans it one-shot as ``obsplan plan`` does (:func:`obsplan.planning.margins
+   .solve_with_keepout`) and builds the replanning NLP once (with the plan's keep-out margins);
 2. flies the replanned closed-loop Monte Carlo (:func:`~obsplan.planning.replan
    .replan_monte_carlo`): every ``--every`` s each run re-solves from its EKF estimate;
 3. prints the re-solve times (wall and CPU: the machine is shared, CPU time is what one solve
@@ -35,8 +36,8 @@ sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
 from obsplan.planning.baselines import baselines  # noqa: E402
+from obsplan.planning.margins import solve_with_keepout  # noqa: E402
 from obsplan.planning.replan import Replanner, replan_monte_carlo  # noqa: E402
-from obsplan.planning.solve import solve  # noqa: E402
 from obsplan.planning.verdict import metric_value, paired_noise  # noqa: E402
 
 COLUMNS = (
@@ -81,12 +82,12 @@ def main() -> int:
     )
     t0 = time.perf_counter()
     bls = baselines(pb)
-    res = solve(pb, baselines=bls, processes=args.processes)
+    res, _ = solve_with_keepout(pb, baselines=bls, processes=args.processes)  # as `obsplan plan`
     print(f"one-shot solve: {res.status}, {time.perf_counter() - t0:.1f} s wall")
     if res.trajectory is None:
         print("no one-shot plan: nothing to replan")
         return 1
-    rp = Replanner(pb)
+    rp = Replanner(pb, plan=res.trajectory)
     out = replan_monte_carlo(
         pb,
         res.trajectory,
@@ -107,7 +108,8 @@ def main() -> int:
     kept = sum(s.kept_warm_start for s in out.solves)
     print(
         f"{len(out.solves)} re-solves, {out.failures} failed (plan in force kept), "
-        f"{kept} kept the warm start; NLP + solver built once in {out.build_s:.2f} s; "
+        f"{kept} kept the warm start, {out.unconverged_flown} flown unconverged (iteration "
+        f"budget); NLP + solver built once in {out.build_s:.2f} s; "
         f"replanned Monte Carlo {out.wall_s:.1f} s"
     )
     statuses: dict[str, int] = {}

@@ -49,17 +49,18 @@ from tqdm import tqdm
 from obsplan.errors import ConfigError
 from obsplan.estimation.closedloop import ClosedLoop
 from obsplan.estimation.crlb import posterior_crlb
-from obsplan.estimation.guidance import Guidance, TruthLimits
+from obsplan.estimation.guidance import Guidance
 from obsplan.estimation.results import MonteCarloResult, merge_monte_carlo
-from obsplan.estimation.simulate import DEFAULT_FILTERS, monte_carlo_paths
+from obsplan.estimation.simulate import DEFAULT_FILTERS
 from obsplan.planning.evaluate import better, objective_value
 from obsplan.planning.feasibility import check_limits
 from obsplan.planning.formulation import Formulation, build_formulation
 from obsplan.planning.ipopt import SUCCESS_STATUS, _call, make_solver
+from obsplan.planning.margins import keepout_margins, tighten
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.starts import default_processes
-from obsplan.planning.validation import PathValidation
-from obsplan.planning.validation_setup import estimation_config
+from obsplan.planning.validation import PathValidation, validate_paths
+from obsplan.planning.validation_setup import estimation_config, truth_limits, validation_guidance
 from obsplan.planning.verdict import Verdict, verdict
 from obsplan.trajectory import Trajectory, resample
 
@@ -71,35 +72,35 @@ BATCH = 5
 #: problem from estimates 0.7 m off the plan: tol 1e-4 took 20-100 iterations (median 3.6 s on a
 #: loaded machine), 1e-3 took 6-16 (0.6 s).
 REPLAN_TOL_FACTOR = 10.0
+#: IPOPT iterations of a re-solve: a deterministic budget (a wall-time limit would make results
+#: depend on the machine's load). Measured on the median suite problem (360 re-solves): median 11,
+#: 90 % <= 40, the longest 152.
+REPLAN_MAX_ITER = 60
+#: IPOPT statuses whose path is flown when it is within the limits: a converged solve, or one
+#: stopped by the iteration budget (its iterate is checked like any path, and never flown when
+#: flying on is better).
+FLOWN_STATUSES = (SUCCESS_STATUS, "Solved_To_Acceptable_Level", "Maximum_Iterations_Exceeded")
 #: Relative tolerance for ``every`` to be a multiple of the planning step.
 _STEP_RTOL = 1e-9
 #: Path-constraint blocks whose rows belong to nodes (and midpoints) of the grid.
 _PER_NODE = {"dynamics", "speed", "min_range", "max_range", "min_speed"}
 
 
-def guidance_of(pb: PlanningProblem) -> Guidance:
-    """The guidance law the replanned runs fly with: gains from the acceleration and speed
-    limits, the prior position std as the typical error
-    (:meth:`~obsplan.estimation.guidance.Guidance.from_limits`)."""
-    return Guidance.from_limits(
-        tuple(float(a) for a in pb.accel),
-        float(pb.limits.speed),
-        error_scale_m=float(pb.validation.init_pos_error),
-    )
+def replan_guidance(pb: PlanningProblem) -> Guidance:
+    """The closed-loop validation's guidance law (replanning runs only in closed loop).
 
-
-def truth_limits_of(pb: PlanningProblem) -> TruthLimits:
-    """The problem's limits as the limits the true paths are checked against."""
-    lim = pb.limits
-    area = None if lim.area is None else (tuple(lim.area.x), tuple(lim.area.y))
-    return TruthLimits(
-        accel=tuple(float(a) for a in pb.accel),
-        speed=float(lim.speed),
-        area=area,
-        depth=None if lim.depth is None else tuple(lim.depth),
-        min_range=float(lim.min_range) if lim.min_range > 0 else None,
-        max_range=None if lim.max_range is None else float(lim.max_range),
-    )
+    Raises
+    ------
+    ConfigError
+        For ``validation.mode = "open-loop"``.
+    """
+    g = validation_guidance(pb)
+    if g is None:
+        raise ConfigError(
+            "--replan re-solves from the EKF estimate the vehicle steers on: it needs "
+            'validation.mode = "closed-loop" (the default), not "open-loop"'
+        )
+    return g
 
 
 def replan_nodes(pb: PlanningProblem, every: float) -> np.ndarray:
@@ -144,7 +145,8 @@ class ReplanSolve:
         IPOPT's ``return_status`` (or ``"exception: ..."``, or ``"limits"`` when the returned
         path breaks a limit on the remaining horizon).
     success : bool
-        ``Solve_Succeeded`` and the remaining path within the limits: the new plan is flown.
+        A new plan is flown: IPOPT ended with one of :data:`FLOWN_STATUSES` and the remaining
+        path is within the limits (``status`` says whether it converged).
     iterations : int
     wall_s : float
         Time of the IPOPT call [s].
@@ -197,20 +199,35 @@ class Replanner:
     ----------
     pb
         The problem (its formulation and objective are the one-shot plan's).
+    plan
+        The one-shot plan: with ``limits.keepout_confidence > 0`` the re-solves keep the
+        keep-out margins computed along it (:mod:`obsplan.planning.margins`).
     expand
         Expand the NLP to SX (faster iterations, slower construction).
     ipopt_options
-        Extra IPOPT options (after the warm-start ones and the tolerance
-        :data:`REPLAN_TOL_FACTOR` ``* objective.solver_tol``).
+        Extra IPOPT options (after the warm-start ones, the tolerance
+        :data:`REPLAN_TOL_FACTOR` ``* objective.solver_tol`` and :data:`REPLAN_MAX_ITER`).
     """
 
     def __init__(
-        self, pb: PlanningProblem, *, expand: bool = True, ipopt_options: dict | None = None
+        self,
+        pb: PlanningProblem,
+        *,
+        plan: Trajectory | None = None,
+        expand: bool = True,
+        ipopt_options: dict | None = None,
     ) -> None:
         t0 = time.perf_counter()
         self.problem = pb
         self.form: Formulation = build_formulation(pb)
-        opts = {"tol": REPLAN_TOL_FACTOR * pb.objective.solver_tol, **(ipopt_options or {})}
+        if plan is not None and pb.limits.keepout_confidence > 0:
+            # the one-shot plan's keep-out margins (bounds only: the same compiled NLP)
+            self.form = tighten(self.form, keepout_margins(plan, pb, replan_guidance(pb)))
+        opts = {
+            "tol": REPLAN_TOL_FACTOR * pb.objective.solver_tol,
+            "max_iter": REPLAN_MAX_ITER,
+            **(ipopt_options or {}),
+        }
         self.solver: ca.Function = make_solver(
             self.form, expand=expand, ipopt_options=opts, warm=True
         )
@@ -291,7 +308,7 @@ class Replanner:
         traj, _ = form.unpack(np.asarray(sol["x"]).reshape(-1))
         if not self._flyable(traj, k):
             return ReplanSolve(t_k, run, "limits", False, iters, wall, cpu, None), None
-        if status != SUCCESS_STATUS:
+        if status not in FLOWN_STATUSES:
             return ReplanSolve(t_k, run, status, False, iters, wall, cpu, None), None
         obj = objective_value(traj, pb)
         # never worse than flying on: the warm start, when flyable and strictly better, is kept
@@ -380,7 +397,13 @@ class ReplanResult:
             name: {k: c for k, c in cs.items() if not k.startswith("crlb.")}
             for name, cs in full.comparisons.items()
         }
-        return Verdict(comps, {})
+        return Verdict(comps, {}, full.runs, full.notes)
+
+    @property
+    def unconverged_flown(self) -> int:
+        """Re-solves stopped short of convergence (e.g. by :data:`REPLAN_MAX_ITER`) whose
+        checked path was flown."""
+        return sum(s.success and s.status != SUCCESS_STATUS for s in self.solves)
 
     @property
     def failures(self) -> int:
@@ -403,6 +426,7 @@ class ReplanResult:
             "solves": len(self.solves),
             "failures": int(self.failures),
             "kept_warm_start": sum(s.kept_warm_start for s in self.solves),
+            "unconverged_flown": int(self.unconverged_flown),
             "statuses": statuses,
             "solve_s": {
                 "median": float(np.median(w)) if w.size else None,
@@ -425,7 +449,8 @@ class ReplanResult:
         mx = f"{np.max(w):.2f}" if w.size else "-"
         head = (
             f"replanning every {self.every:g} s: {len(self.solves)} re-solves, "
-            f"{self.failures} failed (plan in force kept), solve time median {med} s, max {mx} s"
+            f"{self.failures} failed (plan in force kept), {self.unconverged_flown} flown "
+            f"unconverged, solve time median {med} s, max {mx} s"
         )
         lines = [head]
         for name in ("replanned", "one-shot"):
@@ -543,7 +568,7 @@ def replan_monte_carlo(
 ) -> ReplanResult:
     """Closed-loop Monte Carlo with receding-horizon replanning every ``every`` s.
 
-    Every run flies ``plan`` in closed loop (:func:`guidance_of`); at each replan time it
+    Every run flies ``plan`` in closed loop (:func:`replan_guidance`); at each replan time it
     re-solves from its EKF estimate over the remaining horizon (:class:`Replanner`) and flies
     the new plan from there. The one-shot plan and every baseline are flown in closed loop with
     the same guidance, runs and seed, so all comparisons are paired.
@@ -584,7 +609,8 @@ def replan_monte_carlo(
         raise ConfigError(
             f"plan has {plan.n_samples} samples; the planning grid has {pb.horizon.steps + 1}"
         )
-    rp = replanner if replanner is not None else Replanner(pb)
+    replan_guidance(pb)  # closed loop only, before any work
+    rp = replanner if replanner is not None else Replanner(pb, plan=plan)
     config = estimation_config(pb)
     fine = resample(plan, val.dt)
     job = {
@@ -592,8 +618,8 @@ def replan_monte_carlo(
         "fine": fine,
         "config": config,
         "seed": val.seed,
-        "guidance": guidance_of(pb),
-        "limits": truth_limits_of(pb),
+        "guidance": replan_guidance(pb),
+        "limits": truth_limits(pb),
         "filters": tuple(filters),
         "nodes": nodes,
         "crlb": posterior_crlb(fine, config),
@@ -605,17 +631,8 @@ def replan_monte_carlo(
     solves = tuple(s for _, ss in parts for s in ss)
     replanned = merge_monte_carlo([p for p, _ in parts])
     others = {"one-shot": plan, **dict(baselines or {})}
-    fixed = monte_carlo_paths(
-        [resample(tr, val.dt) for tr in others.values()],
-        config,
-        runs=n_runs,
-        seed=val.seed,
-        filters=filters,
-        guidance=job["guidance"],
-        limits=job["limits"],
-    )
     validation = {"replanned": PathValidation("replanned", replanned)}
-    validation.update({k: PathValidation(k, r) for k, r in zip(others, fixed, strict=True)})
+    validation.update(validate_paths(others, pb, runs=n_runs, filters=filters))
     return ReplanResult(
         every=float(every),
         times=tuple(float(k) * pb.horizon.dt for k in nodes),
