@@ -18,7 +18,10 @@ verdict is decided or ``validation.max_runs``), so the table also has: the runs 
 true paths' closest approach to the beacon over all runs of the plan (``true min``), the plan's
 runs inside ``min_range`` (``in``) and breaking any limit (``brk``), and the verdicts against the
 lawn-mower and the circle on EKF RMSE, EKF final, KF RMSE and KF final: ``B`` better and
-decided at 95 %, ``W`` worse and decided, ``t`` a tie (not decided at the cap).
+decided at 95 %, ``W`` worse and decided, ``t`` a tie (not decided at the cap). The verdict's
+notes (an EKF that diverges on the plan, with the Gaussian-sum filter beside it; a diagnostic
+objective) follow their row. ``--objective gramian`` keeps the problems whose objective kind
+starts with ``gramian``.
 """
 
 from __future__ import annotations
@@ -80,6 +83,7 @@ def run_one(path: Path, runs: int | None, max_runs: int | None, open_loop: bool)
         "mode": pb.validation.mode,
         "runs": None,
         "verdicts": {},
+        "notes": list(res.verdict.notes),
     }
     v = res.validation
     if "planned" in v:
@@ -127,10 +131,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-runs", type=int, default=None, help="override validation.max_runs")
     ap.add_argument("--open-loop", action="store_true", help="validate in open loop")
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
+    ap.add_argument(
+        "--objective",
+        metavar="PREFIX",
+        help="only the problems whose objective.kind starts with PREFIX (e.g. gramian, lwo)",
+    )
     args = ap.parse_args(argv)
     files = [Path(f).resolve() for f in args.files] or sorted((ROOT / "problems").glob("*.toml"))
     if not args.files:
         files += sorted((ROOT / "problems" / "suite").glob("*.toml"))
+    if args.objective:
+        files = [f for f in files if load_problem(f).objective.kind.startswith(args.objective)]
     rows = []
     head = (
         f"{'problem':34s} {'objective':34s} {'status':26s} {'solve':>6s}  "
@@ -166,6 +177,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['solve_s']:6.1f}  {cells}  {closest:>7s} {truth}  {letters:9s}  {verdict}",
             flush=True,
         )
+        for note in r["notes"]:  # an EKF lost on the plan, a diagnostic objective
+            print(f"    {note}", flush=True)
         if args.json:  # rows so far, so that an interrupted run keeps them
             Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
     suite = [r for r in rows if "/suite/" in r["problem"]] or rows

@@ -68,6 +68,7 @@ PLANNING_ORDER: tuple[str, ...] = (
     "grid",  # decision variables in intrinsic units, sample operator, dynamics
     "guesses",  # initial guesses, reference path, coarse grid
     "blocks",  # NLP building blocks and the objective interface
+    "windowed_gramian",  # information-weighted windowed Gramians
     "gramian_objectives",
     "lwo_objective",
     "estimator_objectives",
@@ -83,6 +84,7 @@ PLANNING_ORDER: tuple[str, ...] = (
     "verdict",
     "stress",  # every path re-validated at stated multiples of the prior and range noise
     "figures",
+    "replan",  # receding-horizon re-solves inside the closed-loop Monte Carlo
     "plan",  # solve + baselines + metrics + validation
     "__init__",  # the planning package's public API
 )

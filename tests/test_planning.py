@@ -114,8 +114,12 @@ def test_pcrb_plan_improves_on_every_guess_and_keeps_the_limits(pcrb_result):
     assert res.objective < 0.9 * min(s.initial_objective for s in res.starts)
 
 
+#: The paper's Gramian objectives: G(t_N, t_0), unit weights (the lifted λ_min / log det).
+PAPER = {"window": "mission", "weights": "none"}
+
+
 def test_min_eig_reaches_true_lambda_min():
-    res = solve(small("gramian-min-eig", steps=30, starts=2), processes=1)
+    res = solve(small("gramian-min-eig", steps=30, starts=2, **PAPER), processes=1)
     pb = res.problem
     lam = np.linalg.eigvalsh(gramian(res.trajectory, pb.model, pb.scales))[0]
     assert res.objective == pytest.approx(lam, rel=1e-12)
@@ -127,7 +131,7 @@ def test_min_eig_reaches_true_lambda_min():
 
 
 def test_log_det_matches_numpy_slogdet():
-    res = solve(small("gramian-log-det", steps=24, starts=1), processes=1)
+    res = solve(small("gramian-log-det", steps=24, starts=1, **PAPER), processes=1)
     pb = res.problem
     sign, logdet = np.linalg.slogdet(gramian(res.trajectory, pb.model, pb.scales))
     assert sign > 0
@@ -144,7 +148,7 @@ def test_log_det_plan_does_not_depend_on_the_metric_scales():
 
     plans = []
     for sc in ((100.0, 100.0), (1.0, 1.0), (1e4, 10.0)):
-        pb = replace(small("gramian-log-det", steps=24, starts=1), scales=Scales(*sc))
+        pb = replace(small("gramian-log-det", steps=24, starts=1, **PAPER), scales=Scales(*sc))
         plans.append(solve(pb, processes=1).trajectory)
     for other in plans[1:]:
         np.testing.assert_allclose(other.u, plans[0].u, rtol=0, atol=1e-6 * 0.05)
@@ -154,7 +158,7 @@ def test_min_eig_converges_in_other_metric_scales():
     # the metric scales L = v_max T_f and T = T_f once stopped IPOPT far below the optimum
     from obsplan.observability.scaling import Scales
 
-    pb = replace(small("gramian-min-eig", steps=30, starts=2), scales=Scales(600.0, 600.0))
+    pb = replace(small("gramian-min-eig", steps=30, starts=2, **PAPER), scales=Scales(600.0, 600.0))
     res = solve(pb, processes=1)
     assert res.success
     # measured: 32x the lawn-mower's lambda_min (49x at N = 200)

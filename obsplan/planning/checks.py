@@ -199,6 +199,27 @@ def _check_objective(pb: PlanningProblem) -> None:
             )
     if obj.seed < 0 or val.seed < 0:
         raise field_error("objective.seed" if obj.seed < 0 else "validation.seed", "must be >= 0")
+    _check_windows(pb)
+
+
+def _check_windows(pb: PlanningProblem) -> None:
+    obj = pb.objective
+    if obj.weights not in ("information", "none"):
+        raise field_error(
+            "objective.weights", f'must be "information" or "none", got {obj.weights!r}'
+        )
+    if obj.anchor not in ("start", "current"):
+        raise field_error("objective.anchor", f'must be "start" or "current", got {obj.anchor!r}')
+    for name, names in (("window", ("auto", "mission")), ("stride", ("auto",))):
+        val = getattr(obj, name)
+        if isinstance(val, str):
+            if val not in names:
+                choices = " or ".join(f'"{n}"' for n in names)
+                raise field_error(
+                    f"objective.{name}", f"must be a length in s or {choices}, got {val!r}"
+                )
+        elif not 0 < val <= MAX_DURATION_S:
+            raise field_error(f"objective.{name}", f"must be a positive length in s, got {val!r}")
 
 
 def _check_validation(pb: PlanningProblem) -> None:

@@ -52,6 +52,12 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
         if not _is_number(raw) or not math.isfinite(raw):
             raise field_error(where, f"expected a finite number [{spec.unit}], got {raw!r}")
         return float(raw)
+    if k == "float-or-str":
+        if isinstance(raw, str):
+            return raw
+        if not _is_number(raw) or not math.isfinite(raw):
+            raise field_error(where, f"expected a number [{spec.unit}] or a name, got {raw!r}")
+        return float(raw)
     if k == "bool":
         if not isinstance(raw, bool):
             raise field_error(where, f"expected true or false, got {raw!r}")

@@ -6,6 +6,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from obsplan.estimation.runs import DEFAULT_FILTERS
 from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.evaluate import PathMetrics, path_metrics
 from obsplan.planning.margins import KeepoutReport, solve_with_keepout
@@ -14,7 +15,7 @@ from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult
 from obsplan.planning.stress import Robustness, stress_active, stress_validate
 from obsplan.planning.validation import PathValidation
-from obsplan.planning.verdict import Verdict, validate_until_decided, verdict
+from obsplan.planning.verdict import Verdict, ekf_diverges, validate_until_decided, verdict
 from obsplan.trajectory import Trajectory
 
 
@@ -56,7 +57,7 @@ class PlanResult:
     @property
     def verdict(self) -> Verdict:
         """The plan against every validated baseline (:mod:`obsplan.planning.verdict`)."""
-        return verdict(self.validation, self.not_fitted)
+        return verdict(self.validation, self.not_fitted, self.problem.objective.kind)
 
     @property
     def success(self) -> bool:
@@ -182,6 +183,15 @@ def plan(
         validation = validate_until_decided(
             paths, pb, runs=runs, max_runs=max_runs, progress=progress
         )
+        if "planned" in validation and ekf_diverges(validation["planned"]):
+            # the EKF is lost on the plan while the KF is not: validate the Gaussian-sum filter
+            # beside them on every path (same seeds and runs), so the report says what a robust
+            # filter does there
+            n = int(validation["planned"].result.runs)
+            filters = (*DEFAULT_FILTERS, "gsf")
+            validation = validate_until_decided(
+                paths, pb, runs=n, max_runs=n, progress=progress, filters=filters
+            )
     robustness = None
     if validate and stress_active(pb):
         robustness = stress_validate(paths, pb, runs=runs, progress=progress)

@@ -86,7 +86,7 @@ class Horizon:
 
 @dataclass(frozen=True)
 class ObjectiveSpec:
-    """Objective kind and multi-start settings."""
+    """Objective kind, multi-start settings and the Gramian objectives' weights and windows."""
 
     kind: str = "pcrb-position"
     mode: str = "auto"
@@ -94,6 +94,10 @@ class ObjectiveSpec:
     seed: int = 0
     max_iter: int = 1000
     tol: float | None = None
+    weights: str = "information"
+    window: float | str = "auto"
+    stride: float | str = "auto"
+    anchor: str = "current"
     robust_prior: tuple[float, ...] = ()
     robust_range_noise: tuple[float, ...] = ()
     robust_aggregate: str = "worst"
@@ -103,7 +107,11 @@ class ObjectiveSpec:
         """``tol``, or the kind's default (:data:`~obsplan.planning.schema.OBJECTIVE_KINDS`)."""
         if self.tol is not None:
             return self.tol
-        return OBJECTIVE_KINDS[self.kind].default_tol
+        kind = OBJECTIVE_KINDS[self.kind]
+        paper = self.window == "mission" and self.weights == "none"
+        if kind.windowed_tol is not None and not paper:
+            return kind.windowed_tol
+        return kind.default_tol
 
 
 @dataclass(frozen=True)

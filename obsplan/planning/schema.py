@@ -51,6 +51,9 @@ class ObjectiveKind:
     structure : {"lwo", "gramian", None}
         The structural rank the kind needs (checked before solving by
         :mod:`obsplan.planning.checks`): of the LWO matrix, of the augmented Gramian, or none.
+    windowed_tol : float or None
+        IPOPT ``tol`` of the kind's windowed form (``objective.window``/``weights`` other than
+        the paper's ``"mission"``/``"none"``), solved with L-BFGS; None: ``default_tol``.
     """
 
     name: str
@@ -59,6 +62,7 @@ class ObjectiveKind:
     auto_mode: str
     default_tol: float
     structure: Literal["lwo", "gramian"] | None
+    windowed_tol: float | None = None
 
 
 #: Every objective kind, in the order the documents list them (the first is the default).
@@ -68,8 +72,8 @@ OBJECTIVE_KINDS: dict[str, ObjectiveKind] = {
         # L-BFGS (the covariance objectives) converges slowly: at N = 1000, tol 1e-5 takes 5x the
         # iterations of 1e-4 for a 0.4 % better bound
         ObjectiveKind("pcrb-position", "min", True, "average-and-final", 1e-4, None),
-        ObjectiveKind("gramian-min-eig", "max", False, "average-and-final", 1e-8, "gramian"),
-        ObjectiveKind("gramian-log-det", "max", False, "average-and-final", 1e-8, "gramian"),
+        ObjectiveKind("gramian-min-eig", "max", False, "average-and-final", 1e-8, "gramian", 1e-4),
+        ObjectiveKind("gramian-log-det", "max", False, "average-and-final", 1e-8, "gramian", 1e-4),
         ObjectiveKind("lwo-condition", "max", False, "average-and-final", 1e-8, "lwo"),
         ObjectiveKind("kf-position-std", "min", True, "final", 1e-4, None),
     )
@@ -99,8 +103,8 @@ class FieldSpec:
     """One documented field of the problem file."""
 
     name: str
-    # "int", "float", "bool", "str", "str-list", "float-list", "vec", "vec-or-float", "range",
-    # "area"
+    # "int", "float", "float-or-str", "bool", "str", "str-list", "float-list", "vec",
+    # "vec-or-float", "range", "area"
     kind: str
     default: Any
     unit: str
@@ -295,6 +299,42 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "Number of initial guesses: lawn-mower, circle, then seeded random ones.",
         ),
         FieldSpec("seed", "int", 0, "-", "Seed of the random initial guesses."),
+        FieldSpec(
+            "weights",
+            "str",
+            "information",
+            "-",
+            'For gramian-min-eig and gramian-log-det: "information" (each output row scaled by '
+            "its information rate, rate / variance; for the range 1/(r^2 sigma_r^2 + sigma_r^4/2) "
+            'with r from the path) or "none" (the paper\'s unit weights).',
+        ),
+        FieldSpec(
+            "window",
+            "float-or-str",
+            "auto",
+            "s",
+            "For gramian-min-eig and gramian-log-det: length of the sliding windows whose "
+            'Gramians are scored; "auto" is 2 tau_f, tau_f = (3 sigma_r^2 / q_v)^(1/3) from the '
+            "validation's velocity process noise q_v (at least 10 range samples, at most the "
+            'horizon); "mission" is one window over the whole horizon (with weights = "none" '
+            "the paper's G(t_N, t_0), eq. 25).",
+        ),
+        FieldSpec(
+            "stride",
+            "float-or-str",
+            "auto",
+            "s",
+            'Spacing of the windows; "auto" is window / 8 (at least one planning step).',
+        ),
+        FieldSpec(
+            "anchor",
+            "str",
+            "current",
+            "-",
+            'State each window\'s Gramian is about: "start" (observability of the state at the '
+            'window\'s start) or "current" (constructibility of the state at its end; the final '
+            "window then counts as much as the mean of all windows).",
+        ),
         FieldSpec("max_iter", "int", 1000, "-", "IPOPT iteration limit per start."),
         FieldSpec(
             "tol",
@@ -302,7 +342,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             _NONE,
             "-",
             "IPOPT convergence tolerance (tol) of the NLP, whose objective is normalised to 1 on "
-            "the lawn-mower; default 1e-8, or 1e-4 for pcrb-position and kf-position-std (L-BFGS "
+            "the lawn-mower; default 1e-8, or 1e-4 for pcrb-position, kf-position-std and the "
+            "windowed Gramian objectives (L-BFGS "
             "converges slowly: at N = 1000, 1e-5 takes 5x the iterations for a 0.4 % better "
             "bound).",
         ),

@@ -50,6 +50,11 @@ METRICS: tuple[tuple[str, str], ...] = (
 )
 #: The metrics a plan must win on against every baseline to be called a win.
 HEADLINE = ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos")
+#: The EKF "diverges" on a path when the divergence monitor flags at least this fraction of its
+#: runs, or its final error is :data:`DIVERGED_RATIO` times the KF's; the KF "converges" when
+#: fewer than this fraction of its runs are flagged.
+DIVERGED_FRACTION = 0.1
+DIVERGED_RATIO = 3.0
 #: Metrics estimated from the runs, and the per-run array whose mean the interval is about.
 RUN_METRICS: dict[str, str] = {
     "ekf.rmse_pos": "rmse_pos_runs",
@@ -150,11 +155,15 @@ class Verdict:
         ``{baseline: reason}`` for baselines the problem cannot fit.
     runs : int
         Monte Carlo runs behind the comparisons (0: no validation).
+    notes : tuple of str
+        Further sentences: an EKF that diverges on the plan while the KF converges (with the
+        Gaussian-sum filter validated beside it), an objective kind that is a diagnostic.
     """
 
     comparisons: Mapping[str, Mapping[str, Comparison]]
     not_fitted: Mapping[str, str]
     runs: int = 0
+    notes: tuple[str, ...] = ()
 
     @property
     def beats_all(self) -> bool:
@@ -238,6 +247,7 @@ class Verdict:
                 f"every verdict is decided at {100 * CONFIDENCE:.0f} % confidence "
                 f"({self.runs} runs)"
             )
+        lines += list(self.notes)
         for name, why in self.not_fitted.items():
             lines.append(f"baseline {name} not fitted: {why}")
         return lines
@@ -256,17 +266,32 @@ class Verdict:
             },
             "losses": self.losses(),
             "ties": self.ties(),
+            "notes": list(self.notes),
             "not_fitted": dict(self.not_fitted),
         }
 
 
-def verdict(validation: Mapping[str, PathValidation], not_fitted: Mapping[str, str]) -> Verdict:
+#: What the verdict of an ``lwo-condition`` plan says: the kind is a diagnostic, not a plan to fly.
+LWO_NOTE = (
+    "lwo-condition is a diagnostic of local, node-by-node observability: scale-free, it ignores "
+    "the range's distance, the rates and the process noise, and its plans do not serve the "
+    "filters (suite/lwo-dvl3d.toml: EKF final error 3.4x, final bound 4.1x the lawn-mower's); "
+    "to fly, plan with pcrb-position or a Gramian objective"
+)
+
+
+def verdict(
+    validation: Mapping[str, PathValidation],
+    not_fitted: Mapping[str, str],
+    objective: str | None = None,
+) -> Verdict:
     """Compare ``validation["planned"]`` with every other validated path (intervals seeded by the
-    validation's seed)."""
+    validation's seed; ``objective``: the problem's ``objective.kind``, for the notes)."""
     comps: dict[str, dict[str, Comparison]] = {}
     plan = validation.get("planned")
+    notes = (LWO_NOTE,) if objective == "lwo-condition" else ()
     if plan is None:
-        return Verdict(comps, dict(not_fitted))
+        return Verdict(comps, dict(not_fitted), notes=notes)
     for b, (name, v) in enumerate(validation.items()):
         if name == "planned":
             continue
@@ -278,7 +303,49 @@ def verdict(validation: Mapping[str, PathValidation], not_fitted: Mapping[str, s
             else:  # a computed bound: no sampling noise
                 ci = None if pv is None or bv is None or bv == 0 else (pv / bv, pv / bv)
             comps[name][key] = Comparison(key, pv, bv, paired_noise(plan, v, key), ci)
-    return Verdict(comps, dict(not_fitted), int(plan.result.runs))
+    notes = (*notes, *filter_notes(validation))
+    return Verdict(comps, dict(not_fitted), int(plan.result.runs), notes)
+
+
+def ekf_diverges(v: PathValidation) -> bool:
+    """The EKF diverges on this path while the KF converges (:data:`DIVERGED_FRACTION`)."""
+    r = v.result
+    e, k = r.ekf, r.kf
+    if e is None or k is None or r.runs < 1:
+        return False
+    if k.flagged_runs >= DIVERGED_FRACTION * r.runs:
+        return False
+    far = not math.isfinite(e.final_pos_err) or e.final_pos_err > DIVERGED_RATIO * k.final_pos_err
+    return e.flagged_runs >= DIVERGED_FRACTION * r.runs or far
+
+
+def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
+    """Sentences on an EKF that diverges on the plan while the KF converges, with the
+    Gaussian-sum filter's numbers on the plan and the baselines when it was run."""
+    plan = validation.get("planned")
+    if plan is None or not ekf_diverges(plan):
+        return ()
+    r = plan.result
+    e, k = r.ekf, r.kf
+    out = [
+        f"the EKF diverges on the plan while the KF converges: {e.flagged_runs} of {r.runs} EKF "
+        f"runs flagged by the divergence monitor (KF {k.flagged_runs}), EKF final error "
+        f"{e.final_pos_err:.3g} m against the KF's {k.final_pos_err:.3g} m; fly it with the KF "
+        "or a Gaussian-sum filter"
+    ]
+    gsf = {n: (v.result.filters or {}).get("gsf") for n, v in validation.items()}
+    if gsf.get("planned") is not None:
+        g = gsf["planned"]
+        base = ", ".join(
+            f"{n} {s.rmse_pos:.3g} / {s.final_pos_err:.3g} m"
+            for n, s in gsf.items()
+            if n != "planned" and s is not None
+        )
+        out.append(
+            f"  Gaussian-sum filter (RMSE / final error): plan {g.rmse_pos:.3g} / "
+            f"{g.final_pos_err:.3g} m" + (f"; {base}" if base else "")
+        )
+    return tuple(out)
 
 
 def _interval(plan, v, key, seed, pv, bv) -> tuple[float, float] | None:
