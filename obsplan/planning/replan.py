@@ -41,6 +41,7 @@ import signal
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any, cast
 
 import casadi as ca
 import numpy as np
@@ -95,8 +96,8 @@ def truth_limits_of(pb: PlanningProblem) -> TruthLimits:
     return TruthLimits(
         accel=tuple(float(a) for a in pb.accel),
         speed=float(lim.speed),
-        area=area,
-        depth=None if lim.depth is None else tuple(lim.depth),
+        area=cast("tuple[tuple[float, float], tuple[float, float]] | None", area),
+        depth=None if lim.depth is None else cast(tuple[float, float], tuple(lim.depth)),
         min_range=float(lim.min_range) if lim.min_range > 0 else None,
         max_range=None if lim.max_range is None else float(lim.max_range),
     )
@@ -445,7 +446,7 @@ def _f(x: float | None) -> str:
 
 
 # ----------------------------------------------------------------------------- Monte Carlo
-_WORKER: tuple | None = None  # (Replanner, job) set in the parent before fork
+_WORKER: tuple[Replanner, dict] | None = None  # (Replanner, job) set in the parent before fork
 
 
 def _fly_batch(
@@ -587,7 +588,7 @@ def replan_monte_carlo(
     rp = replanner if replanner is not None else Replanner(pb)
     config = estimation_config(pb)
     fine = resample(plan, val.dt)
-    job = {
+    job: dict[str, Any] = {
         "plan": plan,
         "fine": fine,
         "config": config,
