@@ -15,7 +15,8 @@ if TYPE_CHECKING:
     from obsplan.estimation import EstimationConfig, MonteCarloResult, monte_carlo
     from obsplan.model import VehicleModel, make_model
     from obsplan.observability.analyze import ObservabilityReport, analyze
-    from obsplan.planning import PlanningProblem, PlanResult, load_problem, plan
+    from obsplan.planning import PlanningProblem, PlanResult, load_problem
+    from obsplan.planning.plan import plan
     from obsplan.sweeps import sweep
     from obsplan.trajectory import Trajectory, read_csv, write_csv
 
@@ -24,19 +25,29 @@ def __getattr__(name: str):
     # the public names are imported on first use: `import obsplan` (and the `obsplan` command,
     # which must install its signal handlers before the heavy imports) stays fast
     if name in ("EstimationConfig", "MonteCarloResult", "monte_carlo"):
-        from obsplan import estimation as mod
+        import obsplan.estimation  # noqa: F401
+
+        mod = sys.modules["obsplan.estimation"]
     elif name in ("VehicleModel", "make_model"):
-        from obsplan import model as mod
+        import obsplan.model  # noqa: F401
+
+        mod = sys.modules["obsplan.model"]
     elif name in ("ObservabilityReport", "analyze"):
         import obsplan.observability.analyze  # noqa: F401 (the package re-exports analyze())
 
         mod = sys.modules["obsplan.observability.analyze"]
     elif name in ("PlanningProblem", "PlanResult", "load_problem", "plan"):
-        from obsplan import planning as mod
+        import obsplan.planning  # noqa: F401
+
+        mod = sys.modules["obsplan.planning"]
     elif name == "sweep":  # parameter studies need pandas and Dask
-        from obsplan import sweeps as mod
+        import obsplan.sweeps  # noqa: F401
+
+        mod = sys.modules["obsplan.sweeps"]
     elif name in ("Trajectory", "read_csv", "write_csv"):
-        from obsplan import trajectory as mod
+        import obsplan.trajectory  # noqa: F401
+
+        mod = sys.modules["obsplan.trajectory"]
     else:
         raise AttributeError(f"module 'obsplan' has no attribute {name!r}")
     value = getattr(mod, name)

@@ -61,7 +61,7 @@ def dead_leftovers(target: str | Path) -> list[Path]:
     pattern = re.compile(
         rf"^\.{re.escape(target.stem)}\.(?:tmp|old)-(\d+)-[0-9a-f]{{8}}{re.escape(target.suffix)}$"
     )
-    out = []
+    out: list[Path] = []
     try:
         entries = list(target.parent.iterdir())
     except OSError:

@@ -54,7 +54,7 @@ class GeodeticOrigin:
                 f"origin altitude {self.altitude!r} m: expected a finite height within 100 km"
             )
 
-    def to_dict(self) -> dict[str, float]:
+    def to_dict(self) -> dict[str, float | str]:
         """``{"latitude": ..., "longitude": ..., "altitude": ..., "frame": "NED"}``."""
         return {
             "latitude": self.latitude,

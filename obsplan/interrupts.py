@@ -24,6 +24,7 @@ import os
 import signal
 import threading
 from collections.abc import Iterator
+from typing import Any
 
 #: The signals handled, in the order a terminal and a batch scheduler send them.
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -61,7 +62,7 @@ def _handler(signum: int, frame: object) -> None:
     raise Interrupted(signum)
 
 
-def install() -> dict[int, object] | None:
+def install() -> dict[Any, Any] | None:
     """Route SIGINT and SIGTERM to :class:`Interrupted` (main thread only; else no-op).
 
     Returns the previous handlers, for :func:`uninstall`.
@@ -74,7 +75,7 @@ def install() -> dict[int, object] | None:
     return previous
 
 
-def uninstall(previous: dict[int, object] | None) -> None:
+def uninstall(previous: dict[Any, Any] | None) -> None:
     """Put back the handlers :func:`install` replaced (a library caller's own, e.g. pytest's)."""
     global _installed
     if previous is None or threading.current_thread() is not threading.main_thread():
@@ -122,7 +123,9 @@ def deferred() -> Iterator[None]:
         yield
         return
     caught: list[int] = []
-    previous = {s: signal.signal(s, lambda signum, frame: caught.append(signum)) for s in SIGNALS}
+    previous: dict[Any, Any] = {
+        s: signal.signal(s, lambda signum, frame: caught.append(signum)) for s in SIGNALS
+    }
     try:
         yield
     finally:

@@ -242,7 +242,15 @@ def make_model(
     beacon: Sequence[float] | None = None,
     range_form: RangeForm = "half-squared",
 ) -> VehicleModel:
-    """Convenience constructor accepting ``"range,dvl-water"`` strings for ``sensors``."""
+    """Convenience constructor accepting ``"range,dvl-water"`` strings for ``sensors``.
+
+    Examples
+    --------
+    >>> from obsplan import make_model
+    >>> m = make_model(3, "range,dvl-water", beacon=(0.0, 0.0, 10.0))
+    >>> m.sensors, m.state_dim
+    (('range', 'dvl-water'), 6)
+    """
     return VehicleModel(
         dim=dim,
         sensors=parse_sensors(sensors),

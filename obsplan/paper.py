@@ -716,8 +716,10 @@ def windows(quick: bool = False, lengths: tuple[float, ...] = (10.0, 20.0, 40.0)
     for h in lengths:
         w = circ.window(0, round(h / dt) + 1)
         G = exact_gramian(w, model, DEFAULT_SCALES)
-        fixed = tuple(float(x) for x in exact_min_eigenvalue(G, rtol=1e-3))
-        equil = tuple(float(x) for x in exact_min_eigenvalue(G, equilibrate=True, rtol=1e-3))
+        lo, hi = exact_min_eigenvalue(G, rtol=1e-3)
+        fixed = (float(lo), float(hi))
+        lo, hi = exact_min_eigenvalue(G, equilibrate=True, rtol=1e-3)
+        equil = (float(lo), float(hi))
         out.append(WindowEig(h, fixed, equil, gramian_report(w, model).rank))
     return tuple(out)
 

@@ -41,6 +41,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -58,7 +59,9 @@ PAPER_DT = 0.01
 
 def _with_z(traj: Trajectory, z0: float, vz0: float, uz: np.ndarray) -> Trajectory:
     """Add a vertical motion with inputs ``uz`` (one per sample) to a 2D trajectory."""
-    zt = Trajectory.from_inputs(traj.t, [0.0, z0], [0.0, vz0], np.column_stack([0 * uz, uz]))
+    zt = Trajectory.from_inputs(
+        traj.t, np.array([0.0, z0]), np.array([0.0, vz0]), np.column_stack([0 * uz, uz])
+    )
     return Trajectory(
         t=traj.t,
         p=np.column_stack([traj.p, zt.p[:, 1]]),
@@ -135,7 +138,7 @@ def _fig2(dt: float, quick: bool) -> Trajectory:
 
 
 def _lawn(dt: float, quick: bool, from_rest: bool) -> Trajectory:
-    kw = {"initial_speed": 0.0} if from_rest else {}
+    kw: dict[str, Any] = {"initial_speed": 0.0} if from_rest else {}
     return gen.lawnmower(
         (-80.0, 60.0), 160.0, 30.0, 3 if quick else 4, 2.0, dt, first_turn="right", **kw
     )
@@ -277,7 +280,7 @@ def run_scenario(
     runs: int = 1,
     seed: int = 0,
     progress: bool = False,
-    **overrides: object,
+    **overrides: Any,
 ) -> ScenarioRun:
     """Run the scenario of figure ``fig`` (paper's initial conditions).
 

@@ -161,6 +161,8 @@ def scenario_figure(
     """Six panels like the paper's figures: (a) paths, (b) error norms, (c) position std,
     (d) velocity std, (e) Gramian rank, (f) range readings."""
     hist = result.example
+    if hist is None:
+        raise ValueError("the result holds no run history (monte_carlo keeps run 0's history)")
     n = traj.dim
     fig = plt.figure(figsize=(13, 8))
     ax_a = fig.add_subplot(2, 3, 1, projection="3d" if n == 3 else None)

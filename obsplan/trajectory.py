@@ -280,6 +280,16 @@ def write_csv(traj: Trajectory, path: str | Path, overwrite: bool = True) -> Pat
     written on their grid (:func:`grid_times`: ``57.0``, not ``56.99999999999999``), other
     times exactly. The file is
     written to a temporary name and renamed, so an interruption never leaves half a file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from obsplan import generators, write_csv
+    >>> path = write_csv(generators.straight((0.0, 0.0), (1.0, 0.0), 10.0, duration=5.0, dt=1.0),
+    ...                  Path(tempfile.mkdtemp()) / "line.csv")
+    >>> path.read_text().splitlines()[0]
+    't,px,py,vx,vy,ux,uy'
     """
     path = Path(path)
     if path.exists() and not overwrite:
@@ -299,6 +309,17 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
     TrajectoryFormatError
         Naming the row (the line number in the file, header is row 1 when it is the first line)
         or column at fault, a column that appears twice, or a missing header row.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from obsplan import generators, read_csv, write_csv
+    >>> traj = generators.circle(50.0, 1.0, 60.0, 1.0)
+    >>> back = read_csv(write_csv(traj, Path(tempfile.mkdtemp()) / "circle.csv"))
+    >>> back.n_samples, bool(np.allclose(back.p, traj.p))
+    (61, True)
     """
     return trajectory_from_table(read_table(path, _EXAMPLE_HEADER), check=check)
 

@@ -38,6 +38,7 @@ from obsplan.errors import ConfigError
 from obsplan.estimation import kalman
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.crlb import CRLBResult, posterior_crlb
+from obsplan.estimation.ekf import ExtendedKalmanFilter
 from obsplan.estimation.epochs import segment_table
 from obsplan.estimation.guidance import Guidance, TruthLimits
 from obsplan.estimation.results import MonteCarloResult, build_result
@@ -47,7 +48,6 @@ from obsplan.estimation.runs import (
     check_filters,
     check_runs,
     draw_run,
-    make_filter,
     start_of,
 )
 from obsplan.estimation.stats import COL_AXES, TruthStats, empty_metrics
@@ -163,9 +163,10 @@ class ClosedLoop:
         self.traj, self.config, self.guidance, self.limits = traj, config, guidance, limits
         self.seed, self.run_start = seed, run_start
         self.run_ids = np.arange(run_start, run_start + runs)
-        self.nav_filter = setup.filters.get("ekf") or make_filter(
-            "ekf", config, setup.cov, setup.noise
-        )
+        nav = setup.filters.get("ekf")
+        if not isinstance(nav, ExtendedKalmanFilter):
+            nav = ExtendedKalmanFilter.from_config(config, setup.cov, setup.noise)
+        self.nav_filter = nav
         self._draws = [draw_run(setup, seed, int(r)) for r in self.run_ids]
         self._procs = [run_rng(seed, int(r), STREAM_PROCESS) for r in self.run_ids]
         self._refs: list | None = None
@@ -345,6 +346,7 @@ class ClosedLoop:
 
     def _reference_chunk(self, ka: int, kb: int) -> np.ndarray:
         cols = []
+        assert self._refs is not None  # the caller checks: references were set
         for j, (k0, arr) in enumerate(self._refs):
             if kb - k0 >= arr.shape[0]:
                 raise ConfigError(

@@ -237,7 +237,7 @@ def epoch_plan(
 ) -> EpochPlan:
     """The :class:`EpochPlan` of ``schedule`` on ``traj`` with recorded samples ``records``
     (``continuous``: noise sums of an intensity, :func:`segment_table`)."""
-    any_report = schedule.mask.any(axis=1)
+    any_report = np.array(schedule.mask.any(axis=1), dtype=bool)
     any_report[0] = True
     epochs = np.flatnonzero(any_report).astype(np.int64)
     records = np.asarray(records, dtype=np.int64)

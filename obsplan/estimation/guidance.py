@@ -33,10 +33,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from obsplan.errors import ConfigError
+
+
+def _axes(value: float | Sequence[float]) -> tuple[float, ...]:
+    """One bound per axis from a number or a sequence (checked by :func:`_positive`)."""
+    return (cast(float, value),) if np.isscalar(value) else tuple(cast(Sequence[float], value))
 
 
 def _positive(value: float, name: str) -> float:
@@ -77,7 +83,7 @@ class Guidance:
     kd: float
 
     def __post_init__(self) -> None:
-        acc = (self.accel,) if np.isscalar(self.accel) else tuple(self.accel)
+        acc = _axes(self.accel)
         object.__setattr__(
             self, "accel", tuple(_positive(a, "guidance accel") for a in acc) or (math.inf,)
         )
@@ -108,7 +114,7 @@ class Guidance:
             Typical position error [m] (e.g. the prior position std): the feedback on it uses
             half of the smallest acceleration bound.
         """
-        acc = (accel,) if np.isscalar(accel) else tuple(accel)
+        acc = _axes(accel)
         a_min = min(_positive(a, "guidance accel") for a in acc)
         omega = math.sqrt(a_min / (2.0 * _positive(error_scale_m, "error_scale_m")))
         return cls(accel=acc, speed=speed, kp=omega**2, kd=2.0 * omega)
@@ -165,7 +171,7 @@ class TruthLimits:
 
     def __post_init__(self) -> None:
         if self.accel is not None:
-            acc = (self.accel,) if np.isscalar(self.accel) else tuple(self.accel)
+            acc = _axes(self.accel)
             object.__setattr__(self, "accel", tuple(_positive(a, "limits accel") for a in acc))
         for name in ("speed", "min_range", "max_range"):
             if getattr(self, name) is not None:

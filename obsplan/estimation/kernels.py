@@ -22,6 +22,10 @@ in numba each array argument of an inlined call costs ~10 ns of reference counti
 4-state update. The helpers called once per epoch or record for a whole batch (``predict``,
 ``ekf_measure``, ``record_batch``) are compiled functions of their own, shared by the EKF, the
 KF and the closed loop (:mod:`obsplan.estimation.loop_kernels`) instead of inlined copies.
+The batch kernels (``ekf_batch``, ``kf_batch``) and the per-epoch steps of the filters' epoch by
+epoch interface (``ekf_predict``, ``kf_predict``, ``kf_measure``) take their model, records,
+outputs and corrections as keyword-named bundles (:mod:`obsplan.estimation.bundles`), unpacked
+once per call.
 Compiled on first use and cached on disk (``cache=True``); this module is
 imported lazily, so ``import obsplan`` does not load numba.
 
@@ -813,7 +817,7 @@ def kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple):
                 Q[kc + c, i, b] = Q[i, kc + c, b]
 
 
-@jit
+@inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
 def kf_predict(X, P, Q, kw, ws, mdl, e, cor):
     """The augmented KF's prediction of every run to epoch ``e`` (``e > 0``) over segment ``e``:
     the coupling's gains at the segment's start, the composed noise (kinematic terms, then the
@@ -839,7 +843,7 @@ def kf_predict(X, P, Q, kw, ws, mdl, e, cor):
         correct_inputs(X, ce, e, tab[e, TAB_T], n, 1)
 
 
-@jit
+@inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
 def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
     """The augmented KF's updates at epoch ``e`` (the linear range row ``ȳ``, then the linear
     rows) of every run, and their NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``)."""

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -173,9 +174,9 @@ def merge_monte_carlo(parts: Sequence[MonteCarloResult]) -> MonteCarloResult:
     thr = first.config.convergence_threshold_m
     stats = {
         name: FilterStats.from_sums(
-            StatsSums.merge([p.filters[name].sums for p in parts]), first.t, thr
+            StatsSums.merge([cast(dict, p.filters)[name].sums for p in parts]), first.t, thr
         )
-        for name in first.filters
+        for name in cast(dict, first.filters)  # merged results carry their filters
     }
     example = next((p.example for p in parts if p.example is not None), None)
     return MonteCarloResult(
@@ -192,7 +193,9 @@ def merge_monte_carlo(parts: Sequence[MonteCarloResult]) -> MonteCarloResult:
         config=first.config,
         run_start=first.run_start,
         filters=stats,
-        truth=None if first.truth is None else TruthStats.merge([p.truth for p in parts]),
+        truth=None
+        if first.truth is None
+        else TruthStats.merge([cast(TruthStats, p.truth) for p in parts]),
         mode=first.mode,
         guidance=first.guidance,
     )

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -235,7 +236,7 @@ def recursion_step(model: RecursionModel, K: int) -> ca.Function:
 
 def _nonzeros(M: np.ndarray) -> list[list[tuple[int, float]]]:
     """Per row, the ``(column, value)`` pairs of the non-zero entries of ``M``."""
-    return [[(j, float(M[i, j])) for j in np.flatnonzero(M[i])] for i in range(M.shape[0])]
+    return [[(int(j), float(M[i, j])) for j in np.flatnonzero(M[i])] for i in range(M.shape[0])]
 
 
 def _moments(X: np.ndarray, A: np.ndarray) -> list[np.ndarray]:
@@ -300,7 +301,7 @@ def _updates(model: RecursionModel, Pl: list, h, rho, mask) -> list:
     support (variance ``rho``), then the constant rows, each weighted by its sensor's mask."""
     m, zero = model.m, ca.SX(0)
 
-    def update(Pl, row: list[tuple[int, object]], var, w):
+    def update(Pl, row: list[tuple[int, Any]], var, w):
         ph = [sum((Pl[i][j] * r for j, r in row), zero) for i in range(m)]
         c = w / (sum((r * ph[j] for j, r in row), zero) + var)
         cph = [c * x for x in ph]
@@ -313,7 +314,7 @@ def _updates(model: RecursionModel, Pl: list, h, rho, mask) -> list:
     support = model.range_support
     Pu = update(Pl, [(j, h[i]) for i, j in enumerate(support)], rho, mask[model.range_sensor])
     for r, v, sen in zip(model.rows, model.row_var, model.row_sensor, strict=True):
-        Pu = update(Pu, [(j, float(r[j])) for j in np.flatnonzero(r)], float(v), mask[sen])
+        Pu = update(Pu, [(int(j), float(r[j])) for j in np.flatnonzero(r)], float(v), mask[sen])
     return Pu
 
 

@@ -129,6 +129,7 @@ class PathSetup:
         self.sums = {name: np.zeros((2, Nr, 3 + 2 * n)) for name in names}
         self.info = {name: np.zeros((runs, N_INFO)) for name in names}
         self.hist: dict = {}
+        self.tm: list[np.ndarray] = []  # the truth metrics of the runs (filled by the caller)
         self.range_rows = np.flatnonzero(plan.reports[:, 0])
         mx = model.state_dim
         self.L, self.expo = truth_factor(pn.continuous, pn.q_ekf, n, model.current)

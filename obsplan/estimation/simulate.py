@@ -115,6 +115,15 @@ def monte_carlo(
     Returns
     -------
     MonteCarloResult
+
+    Examples
+    --------
+    >>> from obsplan import EstimationConfig, generators, make_model, monte_carlo
+    >>> traj = generators.circle(30.0, 1.5, 20.0, 0.1)
+    >>> cfg = EstimationConfig.paper(make_model(2, "range"), 0.1)
+    >>> res = monte_carlo(traj, cfg, runs=4, seed=0, filters=("ekf",))
+    >>> res.runs, "ekf" in res.to_dict()
+    (4, True)
     """
     return monte_carlo_paths(
         [traj],

@@ -133,7 +133,7 @@ def open_loop_truth(
     traj: Trajectory,
     model: VehicleModel,
     L: np.ndarray,
-    z: np.ndarray,
+    z: np.ndarray | None,
     points: np.ndarray,
     expo: np.ndarray | None = None,
     navs: np.ndarray | None = None,

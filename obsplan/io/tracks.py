@@ -378,7 +378,7 @@ def read_track_rosbag(path: str | Path, topic: str | None = None, frame: str = "
             )
         t, p = [], []
         for conn, stamp_ns, raw in reader.messages(connections=conns):
-            msg = reader.deserialize(raw, conn.msgtype)
+            msg: Any = reader.deserialize(raw, conn.msgtype)
             pose = msg.pose.pose if _ros_type(conn.msgtype) == ROS_TYPES[0] else msg.pose
             st = msg.header.stamp
             ts = st.sec + 1e-9 * st.nanosec
@@ -674,7 +674,7 @@ def _kalman(
             xp[k], Pp[k] = x, P
         i = nodes.sample[k]
         if i >= 0:
-            meas = [(0, y[i, axis], r_p)]
+            meas: list[tuple[int, Any, Any]] = [(0, y[i, axis], r_p)]
             if w is not None:
                 meas.append((1, w[i, axis], sv**2))
             for comp, val, r in meas:

@@ -29,7 +29,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -218,7 +218,7 @@ def waypoints_from_trajectory(
     """
     if (every is None) == (spacing is None):
         raise InputError("give exactly one of --every SECONDS and --spacing METRES")
-    value, name = (every, "--every") if every is not None else (spacing, "--spacing")
+    value, name = (every, "--every") if every is not None else (cast(float, spacing), "--spacing")
     if not (math.isfinite(value) and value > 0):
         raise InputError(f"{name} {value!r}: must be a positive number")
     t0, t1 = float(traj.t[0]), float(traj.t[-1])

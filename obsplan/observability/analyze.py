@@ -126,6 +126,16 @@ def analyze(
     InputError
         If ``trajectory`` is not a :class:`Trajectory`; ``ConfigError`` (an ``InputError``) for
         unknown sensors, a beacon of the wrong dimension, a bad range form or bad scales.
+
+    Examples
+    --------
+    A circle about the beacon is observable with range only (rank 6 of the augmented state):
+
+    >>> from obsplan import analyze, generators
+    >>> report = analyze(generators.circle(50.0, 1.0, 120.0, 1.0))
+    >>> g = report.to_dict()["gramian"]
+    >>> g["full_rank"], g["rank"], g["dim"]
+    (True, 6, 6)
     """
     if not isinstance(trajectory, Trajectory):
         raise InputError(

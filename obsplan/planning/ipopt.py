@@ -92,7 +92,7 @@ def make_projection(pb: PlanningProblem, form: Formulation) -> ca.Function:
     g = [c.g for c in path_constraints(grid, pb, W)]
     f = 0.5 * ca.sumsqr(W[:n, :] - Wbar[:n, :])
     nlp: dict[str, Any] = {"x": ca.vec(W), "p": ca.vec(Wbar), "f": f, "g": ca.vertcat(*g)}
-    ipopt = {
+    ipopt: dict[str, Any] = {
         "linear_solver": "mumps",
         "print_level": 0,
         "sb": "yes",

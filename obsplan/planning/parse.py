@@ -259,6 +259,13 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
     ------
     ProblemError
         If the file is missing, is not TOML, or any field is unknown, mistyped or infeasible.
+
+    Examples
+    --------
+    >>> from obsplan import load_problem
+    >>> pb = load_problem()  # the default problem (problems/default.toml)
+    >>> pb.model.dim, pb.objective.kind, pb.horizon.steps
+    (2, 'pcrb-position', 200)
     """
     if path is None:
         # problems/ sits beside the package in a clone (editable install); a copied-out

@@ -152,6 +152,20 @@ def plan(
     PlanResult
         ``success`` is False when no start converged (the best feasible iterate, if any, is still
         reported, flagged by ``solve.status``).
+
+    Examples
+    --------
+    The default problem on a coarse horizon, one start, without the Monte Carlo validation:
+
+    >>> from dataclasses import replace
+    >>> from obsplan import load_problem, plan
+    >>> from obsplan.planning.problem import Horizon
+    >>> pb = load_problem()
+    >>> pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=20),
+    ...              objective=replace(pb.objective, starts=1))
+    >>> result = plan(pb, validate=False)
+    >>> result.solve.trajectory.n_samples, len(result.baselines) > 0
+    (21, True)
     """
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)

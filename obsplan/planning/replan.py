@@ -41,6 +41,7 @@ import signal
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -470,7 +471,7 @@ def _f(x: float | None) -> str:
 
 
 # ----------------------------------------------------------------------------- Monte Carlo
-_WORKER: tuple | None = None  # (Replanner, job) set in the parent before fork
+_WORKER: tuple[Replanner, dict] | None = None  # (Replanner, job) set in the parent before fork
 
 
 def _fly_batch(
@@ -613,7 +614,7 @@ def replan_monte_carlo(
     rp = replanner if replanner is not None else Replanner(pb, plan=plan)
     config = estimation_config(pb)
     fine = resample(plan, val.dt)
-    job = {
+    job: dict[str, Any] = {
         "plan": plan,
         "fine": fine,
         "config": config,

@@ -31,10 +31,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from obsplan.estimation.simulate import DEFAULT_FILTERS
+from obsplan.estimation.stats import FilterStats
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.validation import PathValidation, merge_validations, validate_paths
 from obsplan.trajectory import Trajectory
@@ -326,7 +328,7 @@ def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
     if plan is None or not ekf_diverges(plan):
         return ()
     r = plan.result
-    e, k = r.ekf, r.kf
+    e, k = cast(FilterStats, r.ekf), cast(FilterStats, r.kf)  # ekf_diverges(plan) ran both
     out = [
         f"the EKF diverges on the plan while the KF converges: {e.flagged_runs} of {r.runs} EKF "
         f"runs flagged by the divergence monitor (KF {k.flagged_runs}), EKF final error "
@@ -335,7 +337,7 @@ def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
     ]
     gsf = {n: (v.result.filters or {}).get("gsf") for n, v in validation.items()}
     if gsf.get("planned") is not None:
-        g = gsf["planned"]
+        g = cast(FilterStats, gsf["planned"])
         base = ", ".join(
             f"{n} {s.rmse_pos:.3g} / {s.final_pos_err:.3g} m"
             for n, s in gsf.items()

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Sequence
+from functools import partial
 from io import BytesIO
 from pathlib import Path
 from typing import Any
@@ -226,7 +227,7 @@ def study_figures(
             buf = BytesIO()
             fig.savefig(buf, format="png", dpi=100)
             data = buf.getvalue()
-            written.append(atomic_write(target, lambda tmp, data=data: tmp.write_bytes(data)))
+            written.append(atomic_write(target, partial(Path.write_bytes, data=data)))
     return written
 
 

@@ -258,6 +258,21 @@ def sweep(
         The scheduler was lost (finished tasks are kept).
     KeyboardInterrupt
         After writing everything that had finished.
+
+    Examples
+    --------
+    Two beacon positions of the default problem, baselines only (no solver), one worker:
+
+    >>> import tempfile
+    >>> from obsplan import sweep
+    >>> from obsplan.planning.parse import PROBLEMS_DIR
+    >>> base = str(PROBLEMS_DIR / "default.toml")
+    >>> spec = {"sweep": {"name": "doc", "base": base, "mode": "baselines"},
+    ...         "base": {"horizon": {"steps": 20}, "validation": {"runs": 2}},
+    ...         "axes": {"beacon.position": [[0.0, 0.0], [50.0, 0.0]]}}
+    >>> table = sweep(spec, tempfile.mkdtemp(), workers=1, progress=False, figures=False)
+    >>> len(table)
+    2
     """
     spec = as_spec(spec)
     tasks = expand(spec)

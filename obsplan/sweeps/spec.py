@@ -25,10 +25,10 @@ import itertools
 import json
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -452,6 +452,7 @@ def _generate(where: str, raw: Mapping[str, Any]) -> list[Any]:
 def combinations(spec: SweepSpec) -> list[dict[str, Any]]:
     """Axis path -> value for every task, in order (last axis varies fastest for a product)."""
     paths = [a.path for a in spec.axes]
+    rows: Iterable[tuple[Any, ...]]
     if spec.combine == "zip":
         rows = zip(*(a.values for a in spec.axes), strict=True)
     else:
@@ -474,7 +475,7 @@ def apply_axes(base: Mapping[str, Any], spec: SweepSpec, values: Mapping[str, An
 
 def _set(data: dict[str, Any], axis: Axis, value: Any) -> None:
     section, name, *rest = axis.keys
-    sec = data.setdefault(section, {})
+    sec = data.setdefault(cast(str, section), {})
     if not isinstance(sec, dict):
         raise SweepFileError(f"axes.{axis.path}: [{section}] of the base problem is not a table")
     if not rest:
@@ -512,10 +513,11 @@ def _set(data: dict[str, Any], axis: Axis, value: Any) -> None:
         area[rest[0]] = value
     else:
         side = area.get(rest[0])
-        if not isinstance(side, list) or not rest[1] < len(side):
+        index = cast(int, rest[1])
+        if not isinstance(side, list) or not index < len(side):
             raise SweepFileError(f"axes.{axis.path}: the base has no {section}.{name}.{rest[0]}")
         side = list(side)
-        side[rest[1]] = value
+        side[index] = value
         area[rest[0]] = side
     sec[name] = area
 
