@@ -56,7 +56,10 @@ class Block:
     directives: list[str] = field(default_factory=list)
 
     def directive(self, name: str) -> list[str]:
-        return [d[len(name) :].strip(" :") for d in self.directives if d.split()[0] == name]
+        """The arguments of every ``name`` directive (``skip: REASON`` or ``skip REASON``)."""
+        return [
+            d[len(name) :].strip(" :") for d in self.directives if d.split()[0].rstrip(":") == name
+        ]
 
 
 def parse_readme(text: str) -> list[Block]:
@@ -139,6 +142,7 @@ text
     assert [b.lang for b in blocks] == ["bash", "sh"]
     assert blocks[0].directive("creates") == ["a/b c"]
     assert blocks[0].directive("skip-line") == ["2: the suite"]
+    assert Block("sh", "", 1, ["skip: a cluster"]).directive("skip") == ["a cluster"]
     cmds = shell_commands(blocks[0].body)
     assert " ".join(cmds[1].split()) == "obsplan sweep x.toml --out s --workers 2"
     assert without_install(cmds[0]) == "obsplan plan --out a"
