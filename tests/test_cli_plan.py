@@ -12,7 +12,7 @@ from obsplan.cli import main
 from obsplan.outputs import MARKER, write_marker
 from obsplan.trajectory import read_csv
 
-SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--quiet"]
+SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--max-runs", "2", "--quiet"]
 
 
 def _strict_json(path: Path) -> dict:
@@ -43,8 +43,15 @@ def test_default_problem_writes_plan_report_and_figures(default_run, capsys):
     assert {"planned", "lawnmower", "circle", "straight"} <= set(rep["metrics"])
     for m in rep["metrics"].values():
         assert set(m) >= {"min_eig", "log_det", "condition", "kf_final_pos_std"}
-    for v in rep["validation"].values():
+    assert rep["validation"]["mode"] == "closed-loop"  # the default
+    for name, v in rep["validation"].items():
+        if name == "mode":
+            continue
         assert {"rmse_pos", "final_pos_err", "nees_mean"} <= set(v["ekf"]) & set(v["kf"])
+        truth = v["truth"]
+        assert truth["closest_range_m"] > 0 and truth["tracking_rmse_m"] > 0
+        assert 0 <= truth["runs_inside_min_range"] <= v["runs"]
+        assert 0 <= truth["any_violation_fraction"] <= 1
     # the straight line has a singular Gramian: log_det is null, not -Infinity
     assert rep["metrics"]["straight"]["log_det"] is None
 
@@ -75,13 +82,22 @@ def test_verdict_in_words_and_in_the_report(tmp_path, capsys):
     text = capsys.readouterr().out
     rep = _strict_json(out / "report.json")
     verdict = rep["verdict"]
-    assert set(verdict["baselines"]) == set(rep["validation"]) - {"planned"}
+    assert set(verdict["baselines"]) == set(rep["validation"]) - {"planned", "mode"}
     for comps in verdict["baselines"].values():
         assert {"ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos"} <= set(comps)
         for c in comps.values():
             assert c["better"] == (
                 c["planned"] is not None and (c["baseline"] is None or c["planned"] < c["baseline"])
             )
+            # an interval of the ratio that excludes 1 on the side of "better" decides
+            assert isinstance(c["decided"], bool)
+            if c["ci"] is not None:
+                lo, hi = c["ci"]
+                assert lo <= hi
+                assert c["decided"] == ((hi < 1) if c["better"] else (lo > 1))
+    # every tie is printed, in words
+    for tie in verdict["ties"]:
+        assert tie in text
     # every loss in the report is printed, in words
     for loss in verdict["losses"]:
         assert loss in text

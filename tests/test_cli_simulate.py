@@ -66,6 +66,9 @@ def test_table_rates_and_figures(csv_2d, tmp_path, capsys):
         (["--init-error", "1,2"], "init_error: expected 4"),
         (["--runs", "0"], "at least 1 run"),
         (["--beacon", "1,2,3"], "beacon"),
+        (["--accel-noise", "-1"], "intensity >= 0"),
+        (["--accel-noise", "1e-3", "--paper-noise"], "two settings of the same process noise"),
+        (["--accel", "0"], "positive bound"),
     ],
 )
 def test_bad_options_exit_2(csv_2d, capsys, args, match):
@@ -198,3 +201,24 @@ def test_force_never_deletes_the_input_trajectory(csv_2d, tmp_path, capsys):
     args = ["simulate", str(traj), "--runs", "2", "--quiet", "--out", str(res), "--force"]
     assert main(args) == 2
     assert "holds the input" in capsys.readouterr().err and traj.is_file()
+
+
+def test_closed_loop_by_default_open_loop_on_request(csv_2d, capsys):
+    """The default flies the path in closed loop (the truth steered on the EKF's estimate) and
+    reports the true paths; --open-loop flies the inputs blind; the physical process noise is the
+    default and the paper's per-step setting is reachable."""
+    base = ["simulate", str(csv_2d), "--runs", "3", "--json", "--beacon", "5,5"]
+    assert main(base) == 0
+    closed = json.loads(capsys.readouterr().out)
+    assert closed["mode"] == "closed-loop" and closed["guidance"]["kp"] > 0
+    assert closed["truth"]["closest_range_m"] > 0 and closed["truth"]["tracking_rmse_m"] > 0
+    assert closed["config"]["process_noise_model"] == "continuous"
+    assert main([*base, "--open-loop", "--paper-noise"]) == 0
+    opened = json.loads(capsys.readouterr().out)
+    assert opened["mode"] == "open-loop" and opened["guidance"] is None
+    assert opened["config"]["process_noise_model"] == "per-step"
+    assert main([*base, "--accel-noise", "0.01"]) == 0
+    assert json.loads(capsys.readouterr().out)["config"]["accel_noise"] == 0.01
+    prob = str(PROBLEMS / "default.toml")
+    assert main(["simulate", str(csv_2d), "--problem", prob, "--accel-noise", "0.01"]) == 2
+    assert "validation.accel_noise" in capsys.readouterr().err

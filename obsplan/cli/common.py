@@ -18,8 +18,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from obsplan.budget import check_file_rows
+from obsplan.csvtable import COLUMN_LIMITS
 from obsplan.errors import InputError
 from obsplan.outputs import OutputDir, OutputFile, write_marker
+from obsplan.textfiles import check_magnitude
 
 if TYPE_CHECKING:
     from obsplan.trajectory import Trajectory
@@ -125,6 +127,8 @@ def parse_beacon(text: str | None, dim: int) -> tuple[float, ...] | None:
             f"--beacon {text!r}: the trajectory is {dim}D, so the beacon needs {dim} finite "
             f"coordinates [m], e.g. --beacon {','.join(['0'] * dim)}"
         )
+    limit, unit = COLUMN_LIMITS["px"]  # the same bound as a position in a trajectory CSV
+    check_magnitude(values, f"--beacon {text!r}", limit, unit)
     return values
 
 
