@@ -131,13 +131,35 @@ def deferred() -> Iterator[None]:
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
-    if caught:
-        signum = caught[0]
-        handler = previous[signum]
-        if callable(handler):
-            handler(signum, None)  # ours raises Interrupted, Python's KeyboardInterrupt
-        elif handler == signal.SIG_DFL:
-            os.kill(os.getpid(), signum)  # the default action, as if never held
+        # delivered even if the block failed: the signal is then the cause (e.g. a child that
+        # the terminal's Ctrl-C reached), and its exception replaces the block's
+        if caught:
+            signum = caught[0]
+            handler = previous[signum]
+            if callable(handler):
+                handler(signum, None)  # ours raises Interrupted, Python's KeyboardInterrupt
+            elif handler == signal.SIG_DFL:
+                os.kill(os.getpid(), signum)  # the default action, as if never held
+
+
+@contextlib.contextmanager
+def spawning() -> Iterator[None]:
+    """Start worker processes and threads that a terminal's Ctrl-C does not reach.
+
+    SIGINT is blocked (``pthread_sigmask``) in the block: threads and processes started in it
+    inherit the blocked signal, even across ``exec`` (Dask's spawned workers), so a Ctrl-C sent
+    to the whole process group reaches the parent alone, which stops its children. The parent
+    gets the held SIGINT (and a SIGTERM, :func:`deferred`) when the block ends.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    with deferred():
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 @contextlib.contextmanager

@@ -131,6 +131,7 @@ def _interrupt_at(argv: list[str], parent: Path, delay: float, mode) -> dict:
         "finished_first": finished_first,
         "alive": alive,
         "left": _leftovers(parent, out, argv[0]),
+        "traceback": b"Traceback" in b"".join(err_chunks),
         "err": b"".join(err_chunks).decode(errors="replace")[-600:],
     }
 
@@ -170,8 +171,34 @@ def test_a_signal_at_any_moment_ends_cleanly(verb, tmp_path):
         if r["finished_first"]:
             continue  # the run ended before this moment (a faster run than the measured one)
         # Python's own traceback only when the signal came before obsplan's first line ran
-        traceback = "Traceback" in r["err"] and r["code"] >= 0
+        traceback = r["traceback"] and r["code"] >= 0
         if r["code"] not in r["expected"] or r["alive"] or r["left"] or traceback:
             bad.append(r)
     assert not bad, "\n".join(str(r) for r in bad)
     assert sum(not r["finished_first"] for r in results) >= len(results) // 2, results
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_the_starts_processes_end_with_their_parent(sig, tmp_path):
+    """A batch scheduler's SIGTERM (or a SIGKILL) to the parent alone, while the starts run in
+    worker processes: no worker runs on (exit 143 for SIGTERM, nothing written)."""
+    out = tmp_path / "o"
+    argv = ["plan", "--steps", "400", "--starts", "4", "--no-validate", "--out", str(out)]
+    proc = _start(argv, tmp_path)
+    seen = b""
+    deadline = time.monotonic() + 300
+    children: list[psutil.Process] = []
+    while time.monotonic() < deadline and not children:
+        seen += os.read(proc.stderr.fileno(), 4096)  # the starts' progress bar
+        if b"starts" in seen:
+            children = psutil.Process(proc.pid).children(recursive=True)
+    assert children, seen.decode(errors="replace")
+    os.kill(proc.pid, sig)
+    code = proc.wait(timeout=120)
+    assert code == (143 if sig == signal.SIGTERM else -signal.SIGKILL)
+    _, still = psutil.wait_procs(children, timeout=GRACE_S)
+    for p in still:  # pragma: no cover - only when the test fails
+        p.kill()
+    assert not still, still
+    if sig == signal.SIGTERM:
+        assert sorted(p.name for p in tmp_path.iterdir()) == []

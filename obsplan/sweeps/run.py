@@ -23,6 +23,7 @@ import contextlib
 import dataclasses
 import logging
 import os
+import sys
 import time
 import uuid
 import warnings
@@ -33,6 +34,7 @@ from typing import Any
 
 import pandas as pd
 
+from obsplan import interrupts
 from obsplan.errors import InputError, ObsplanError
 from obsplan.sweeps.spec import SweepSpec, Task, as_spec, expand, unique_tasks
 from obsplan.sweeps.store import (
@@ -165,23 +167,55 @@ def dask_client(
             with contextlib.suppress(Exception):
                 c.close(timeout=5)
         return
-    cluster = local_cluster(workers)
-    c = Client(cluster)
+    cluster = c = None
     interrupted = False
     try:
+        # a signal while the cluster starts is held until it has started (interrupted half-way,
+        # Dask would close it only at exit, with a traceback)
+        with interrupts.spawning(), _workers_stderr_quiet():
+            cluster = local_cluster(workers)
+            c = Client(cluster)
         yield c
     except BaseException:
         interrupted = True
         raise
     finally:
-        with contextlib.suppress(Exception):
-            c.close(timeout=5)
-        if interrupted:
-            # a worker busy in IPOPT would get 4 s to finish its task: stop at once instead
+        if c is not None:
             with contextlib.suppress(Exception):
-                cluster.sync(_stop_workers, cluster, KILL_TIMEOUT_S)
-        with contextlib.suppress(Exception):
-            cluster.close(timeout=10)
+                c.close(timeout=5)
+        if cluster is not None:
+            if interrupted:
+                # a worker busy in IPOPT would get 4 s to finish its task: stop at once instead
+                with contextlib.suppress(Exception):
+                    cluster.sync(_stop_workers, cluster, KILL_TIMEOUT_S)
+            with contextlib.suppress(Exception):
+                cluster.close(timeout=10)
+
+
+@contextlib.contextmanager
+def _workers_stderr_quiet() -> Iterator[None]:
+    """Start worker processes with their stderr on ``/dev/null``.
+
+    A terminal's Ctrl-C reaches the whole process group, workers included; a worker still
+    importing (before its preload ignores SIGINT) would print a traceback of Python's own. The
+    sweep reports a worker's death itself (the task's error) and Dask's logs are silenced, so
+    nothing of use is lost. The parent's stderr is back when the block ends.
+    """
+    try:
+        saved = os.dup(2)
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:  # pragma: no cover - no /dev/null
+        yield
+        return
+    sys.stderr.flush()
+    os.dup2(null, 2)
+    try:
+        yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
 
 
 async def _stop_workers(cluster: Any, timeout: float) -> None:
