@@ -167,22 +167,23 @@ def dask_client(
             with contextlib.suppress(Exception):
                 c.close(timeout=5)
         return
-    cluster = c = None
+    cluster: Any = None
+    local: Client | None = None
     interrupted = False
     try:
         # a signal while the cluster starts is held until it has started (interrupted half-way,
         # Dask would close it only at exit, with a traceback)
         with interrupts.spawning(), _workers_stderr_quiet():
             cluster = local_cluster(workers)
-            c = Client(cluster)
-        yield c
+            local = Client(cluster)
+        yield local
     except BaseException:
         interrupted = True
         raise
     finally:
-        if c is not None:
+        if local is not None:
             with contextlib.suppress(Exception):
-                c.close(timeout=5)
+                local.close(timeout=5)
         if cluster is not None:
             if interrupted:
                 # a worker busy in IPOPT would get 4 s to finish its task: stop at once instead
