@@ -86,9 +86,12 @@ def coarse_problem(pb: PlanningProblem) -> PlanningProblem | None:
     for k in range(2, N // 50 + 1):
         if N % k == 0 and N // k <= COARSE_STEPS:
             try:
-                return replace(pb, horizon=Horizon(pb.horizon.duration, N // k))
+                coarse = replace(pb, horizon=Horizon(pb.horizon.duration, N // k))
             except ProblemError:  # e.g. the coarse step cannot keep a limit from the start
                 return None
+            if pb.mission is not None and "lawnmower" not in all_baselines(coarse):
+                return None  # a mission's coarse starts need its lawn-mower flown coarsely
+            return coarse
     return None
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.evaluate import PathMetrics, path_metrics
+from obsplan.planning.mission_check import MissionCheck, mission_check
 from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult, solve
@@ -43,11 +44,21 @@ class PlanResult:
     validation: dict[str, PathValidation]
     wall_s: float
     not_fitted: dict[str, str] = field(default_factory=dict)
+    #: Per path, the independent mission check (empty without a ``[mission]``).
+    missions: dict[str, MissionCheck] = field(default_factory=dict)
 
     @property
     def verdict(self) -> Verdict:
-        """The plan against every validated baseline (:mod:`obsplan.planning.verdict`)."""
-        return verdict(self.validation, self.not_fitted)
+        """The plan against every validated baseline (:mod:`obsplan.planning.verdict`); with a
+        mission, only against the paths that complete it."""
+        val = dict(self.validation)
+        not_fitted = dict(self.not_fitted)
+        for name, chk in self.missions.items():
+            if not chk.complete and name in val and name != "planned":
+                del val[name]
+                not_fitted[name] = "does not complete the mission (not compared)"
+        survey = self.problem.mission is not None and bool(self.problem.mission.lines)
+        return verdict(val, not_fitted, lines=survey)
 
     @property
     def success(self) -> bool:
@@ -87,6 +98,7 @@ class PlanResult:
             },
             "baselines": {k: b.description for k, b in self.baselines.items()},
             "baselines_not_fitted": dict(self.not_fitted),
+            "mission": {k: c.to_dict() for k, c in self.missions.items()},
             "problem_file": problem_to_dict(pb),
             "wall_s": float(self.wall_s),
         }
@@ -134,9 +146,11 @@ def plan(
         paths["planned"] = res.trajectory
     paths.update({k: b.trajectory for k, b in bls.items()})
     metrics = {k: path_metrics(tr, pb) for k, tr in paths.items()}
+    missions = {k: c for k, tr in paths.items() if (c := mission_check(tr, pb)) is not None}
+    lines = {k: c.line_mask(pb.filter_times) for k, c in missions.items() if c.lines}
     validation: dict[str, PathValidation] = {}
     if validate:
-        validation = validate_paths(paths, pb, runs=runs, progress=progress)
+        validation = validate_paths(paths, pb, runs=runs, progress=progress, lines=lines or None)
     return PlanResult(
         problem=pb,
         solve=res,
@@ -145,4 +159,5 @@ def plan(
         validation=validation,
         wall_s=time.perf_counter() - t0,
         not_fitted=unfitted_baselines(pb),
+        missions=missions,
     )

@@ -56,6 +56,7 @@ def validate_paths(
     runs: int | None = None,
     progress: bool = False,
     filters: Sequence[str] = DEFAULT_FILTERS,
+    lines: Mapping[str, np.ndarray] | None = None,
 ) -> dict[str, PathValidation]:
     """Monte Carlo of the filters on each path under the problem's ``[validation]`` settings.
 
@@ -71,6 +72,9 @@ def validate_paths(
         Progress bar over runs.
     filters
         Estimators to run (names of :data:`obsplan.estimation.simulate.FILTERS`).
+    lines
+        Name -> boolean mask of the filter samples (``pb.filter_times``) flown on survey lines:
+        the samples of that path's ``rmse_pos_lines``; default none.
     """
     val = pb.validation
     config = estimation_config(pb)
@@ -78,7 +82,14 @@ def validate_paths(
     if not paths:
         return {}
     fine = [resample(traj, val.dt) for traj in paths.values()]
+    masks = [None if lines is None else lines.get(name) for name in paths]
     results = monte_carlo_paths(
-        fine, config, runs=n_runs, seed=val.seed, progress=progress, filters=filters
+        fine,
+        config,
+        runs=n_runs,
+        seed=val.seed,
+        progress=progress,
+        filters=filters,
+        lines=masks if any(m is not None for m in masks) else None,
     )
     return {name: PathValidation(name, res) for name, res in zip(paths, results, strict=True)}

@@ -30,6 +30,11 @@ METRICS: tuple[tuple[str, str], ...] = (
     ("crlb.mean_pos_std", "mission-average position bound (PCRB)"),
     ("crlb.final_pos_std", "final position bound (PCRB)"),
 )
+#: Compared too when the problem has survey lines: the RMSE over the samples flown on them.
+LINES_METRICS: tuple[tuple[str, str], ...] = (
+    ("ekf.rmse_pos_lines", "EKF position RMSE on the survey lines"),
+    ("kf.rmse_pos_lines", "KF position RMSE on the survey lines"),
+)
 #: The metrics a plan must win on against every baseline to be called a win.
 HEADLINE = ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos")
 
@@ -40,6 +45,11 @@ def metric_value(v: PathValidation, key: str) -> float | None:
     group, name = key.split(".")
     if group == "crlb":
         val = getattr(r.crlb, name, None)
+    elif name == "rmse_pos_lines":
+        # RMS over the runs of each run's RMSE on the lines (as report.json's rmse_pos_lines)
+        runs = getattr(getattr(r, group, None), "rmse_pos_lines_runs", None)
+        x = np.asarray([] if runs is None else runs, float)
+        val = float(np.sqrt(np.mean(x**2))) if x.size and np.all(np.isfinite(x)) else None
     else:
         stats = getattr(r, group, None)
         val = None if stats is None else getattr(stats, name, None)
@@ -112,7 +122,7 @@ class Verdict:
 
     def losses(self) -> list[str]:
         """One sentence per (baseline, metric) the plan does not win."""
-        words = dict(METRICS)
+        words = dict((*METRICS, *LINES_METRICS))
         out = []
         for name, comps in self.comparisons.items():
             for key, c in comps.items():
@@ -158,8 +168,14 @@ class Verdict:
         }
 
 
-def verdict(validation: Mapping[str, PathValidation], not_fitted: Mapping[str, str]) -> Verdict:
-    """Compare ``validation["planned"]`` with every other validated path."""
+def verdict(
+    validation: Mapping[str, PathValidation],
+    not_fitted: Mapping[str, str],
+    lines: bool = False,
+) -> Verdict:
+    """Compare ``validation["planned"]`` with every other validated path (``lines``: also on
+    :data:`LINES_METRICS`)."""
+    metrics = (*METRICS, *LINES_METRICS) if lines else METRICS
     comps: dict[str, dict[str, Comparison]] = {}
     plan = validation.get("planned")
     if plan is not None:
@@ -170,7 +186,7 @@ def verdict(validation: Mapping[str, PathValidation], not_fitted: Mapping[str, s
                 key: Comparison(
                     key, metric_value(plan, key), metric_value(v, key), paired_noise(plan, v, key)
                 )
-                for key, _ in METRICS
+                for key, _ in metrics
             }
     return Verdict(comps, dict(not_fitted))
 
