@@ -59,6 +59,11 @@ def check_values(pb: PlanningProblem) -> None:
     _check_objective(pb)
     _check_validation(pb)
     _check_budget(pb)
+    if pb.objective.mode == "lines" and (pb.mission is None or not pb.mission.lines):
+        raise field_error(
+            "objective.mode",
+            '"lines" averages over survey lines: it needs a [mission] with lines',
+        )
     if pb.mission is not None:
         _check_mission(pb)
         mission_fit_error(pb)
