@@ -16,7 +16,8 @@ bound uses) on the validation's filter grid (:func:`~obsplan.planning.validation
 Each has a time mode (:func:`timed_value`): at the end (``final``), averaged over the filter
 samples (``mission-average``), the sum of the two, each relative to its value on the reference
 path (``average-and-final``), or averaged over the filter samples inside the survey lines'
-windows (``lines``: the schedule's, :mod:`obsplan.planning.mission_schedule`). The exact Hessian of a recursion over hundreds of epochs is dense
+windows (``lines``: the schedule's, :mod:`obsplan.planning.mission_schedule`). The exact
+Hessian of a recursion over hundreds of epochs is dense
 and slow to build, so IPOPT runs L-BFGS on them.
 """
 
@@ -93,7 +94,7 @@ class CovarianceObjective:
 def _lines_average(D, n: int, epochs: Epochs, lines: np.ndarray):
     """The mean of ``sqrt(tr P_pp)`` over the samples ``lines`` (CasADi), in the column layout
     of :func:`~obsplan.estimation.riccati.position_std` (epoch ``j``, step ``kk < gap_j``)."""
-    K, J = epochs.max_gap, epochs.count
+    K = epochs.max_gap
     sample = epochs.index[:, None] + np.arange(K)[None, :]
     keep = np.arange(K)[None, :] < epochs.gap[:, None]
     on = keep & lines[np.minimum(sample, lines.size - 1)]
