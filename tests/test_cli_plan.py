@@ -104,7 +104,7 @@ def test_bad_problem_file_exit_2_names_field(tmp_path, capsys):
 def test_failed_solve_exits_1(tmp_path, capsys):
     prob = tmp_path / "p.toml"
     prob.write_text(
-        Path("problems/default.toml")
+        Path("problems/localise.toml")
         .read_text()
         .replace("seed = 0\n", "seed = 0\nmax_iter = 1\n", 1)
     )
@@ -130,11 +130,11 @@ def test_times_are_written_on_the_planning_grid(default_run):
 def test_simulate_with_the_problem_reproduces_the_plan_validation(tmp_path, capsys):
     """``simulate plan.csv --problem P.toml`` runs exactly the validation of ``plan``."""
     out = tmp_path / "plan"
-    assert main(["plan", str(PROBLEMS / "default.toml"), "--out", str(out), *SMALL]) == 0
+    assert main(["plan", str(PROBLEMS / "localise.toml"), "--out", str(out), *SMALL]) == 0
     capsys.readouterr()
     rep = _strict_json(out / "report.json")["validation"]["planned"]
     figs = tmp_path / "figs"
-    args = ["simulate", str(out / "plan.csv"), "--problem", str(PROBLEMS / "default.toml")]
+    args = ["simulate", str(out / "plan.csv"), "--problem", str(PROBLEMS / "localise.toml")]
     assert main([*args, "--runs", "2", "--json", "--out", str(figs)]) == 0
     sim = json.loads(capsys.readouterr().out)
     assert sim["runs"] == rep["runs"] == 2 and sim["seed"] == rep["seed"]
@@ -263,7 +263,7 @@ def test_force_never_deletes_the_problem_file(tmp_path, capsys):
     res = tmp_path / "res"
     res.mkdir()
     prob = res / "p.toml"
-    prob.write_text((PROBLEMS / "default.toml").read_text())
+    prob.write_text((PROBLEMS / "localise.toml").read_text())
     assert main(["plan", str(prob), "--out", str(res), "--force", *SMALL]) == 2
     assert "holds the input" in capsys.readouterr().err
     assert prob.is_file()

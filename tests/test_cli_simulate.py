@@ -163,7 +163,7 @@ def test_filters_option_and_problem_conflicts(csv_2d, capsys):
     assert d["ekf"] is not None and d["kf"] is None
     assert main(["simulate", str(csv_2d), "--filters", "ukf9"]) == 2
     assert "filters" in capsys.readouterr().err
-    prob = str(PROBLEMS / "default.toml")
+    prob = str(PROBLEMS / "localise.toml")
     assert main(["simulate", str(csv_2d), "--problem", prob, "--dt", "0.1"]) == 2
     err = capsys.readouterr().err
     assert "--dt cannot be combined with --problem" in err and "validation.dt" in err

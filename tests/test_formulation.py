@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from obsplan.planning import load_problem
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.blocks import ConstraintBlock, FormulationPart, VariableBlock
 from obsplan.planning.formulation import PARTS, build_formulation
 from obsplan.planning.guesses import reference_path
@@ -23,7 +24,7 @@ from obsplan.planning.problem import Horizon
 
 
 def _problem(kind: str):
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     return replace(
         pb,
         horizon=Horizon(duration=pb.horizon.duration, steps=12),

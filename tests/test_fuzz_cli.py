@@ -54,7 +54,7 @@ def _files() -> dict[str, str]:
     (_TMP / "afile").write_text("x")
     files.update(
         {
-            "default": ROOT / "problems" / "default.toml",
+            "default": ROOT / "problems" / "localise.toml",
             "3d": ROOT / "problems" / "range3d.toml",
             "missing": _TMP / "missing.csv",
             "folder": _TMP,

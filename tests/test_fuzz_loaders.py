@@ -31,7 +31,7 @@ FUZZ = settings(
     database=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
-DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "default.toml"
+DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "localise.toml"
 _TMP = Path(tempfile.mkdtemp(prefix="obsplan-fuzz-"))
 
 VALID_2D = (

@@ -17,6 +17,7 @@ import pytest
 from obsplan.estimation.crlb import posterior_crlb
 from obsplan.observability.gramian import gramian
 from obsplan.planning import load_problem, solve
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.baselines import baselines, lawnmower_baseline
 from obsplan.planning.estimator_objectives import covariance_stds
 from obsplan.planning.evaluate import better, kf_final_pos_std, objective_value
@@ -37,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def small(kind: str = "pcrb-position", steps: int = 30, starts: int = 2, pb=None, **obj):
-    pb = load_problem() if pb is None else pb
+    pb = load_problem(LOCALISE_PROBLEM) if pb is None else pb
     return replace(
         pb,
         horizon=Horizon(duration=pb.horizon.duration, steps=steps),
@@ -340,7 +341,7 @@ def test_default_problem_beats_the_lawnmower_and_the_circle():
     from obsplan.planning.plan import plan
     from obsplan.planning.verdict import metric_value
 
-    res = plan(load_problem())
+    res = plan(load_problem(LOCALISE_PROBLEM))
     assert res.success
     assert_limits_and_dynamics(res.trajectory, res.problem)
     assert res.verdict.beats_all, res.verdict.losses()

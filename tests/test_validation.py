@@ -10,6 +10,7 @@ import pytest
 
 from obsplan.errors import InputError
 from obsplan.planning import load_problem
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.baselines import baselines
 from obsplan.planning.evaluate import kf_final_pos_std
 from obsplan.planning.problem import Horizon, ValidationSpec
@@ -20,7 +21,7 @@ from obsplan.trajectory import resample
 
 @pytest.fixture(scope="module")
 def short_problem():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     return replace(
         pb,
         horizon=Horizon(duration=120.0, steps=40),

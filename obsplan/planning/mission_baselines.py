@@ -85,11 +85,13 @@ def mission_lawnmower(pb: PlanningProblem, accelerated: bool = False) -> tuple[T
         For the accelerated one when the lines leave no speed headroom (the schedule flies them
         at the top of ``mission.speed``).
     """
+    m = pb.mission
+    assert m is not None
+    if accelerated and not m.lines:
+        raise ProblemError("the mission has no survey lines to accelerate on")
     base = mission_schedule(pb)
     sched = build_schedule(pb, base.speed, accelerated=accelerated) if accelerated else base
     traj = fly_schedule(sched, pb)
-    m = pb.mission
-    assert m is not None
     what = f"{len(m.lines)} survey lines" if m.kind == "survey" else f"{len(m.waypoints)} waypoints"
     radius = base.speed**2 / (float(np.min(pb.accel)))
     desc = (

@@ -38,6 +38,8 @@ from obsplan.planning.schema import SCHEMA, FieldSpec, field_error
 #: Where ``obsplan plan`` looks when no problem file is given.
 PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
 DEFAULT_PROBLEM = PROBLEMS_DIR / "default.toml"
+#: The free localisation problem (no ``[mission]``): the default before missions.
+LOCALISE_PROBLEM = PROBLEMS_DIR / "localise.toml"
 
 
 def _is_number(x: Any) -> bool:
