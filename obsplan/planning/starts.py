@@ -163,7 +163,7 @@ def run_start(
     lifted = form.lifted_value(float(sol["f"]))
     limits = check_limits(traj, pb)
     projected = False
-    if not limits.ok():
+    if not (limits.ok() and completes_mission(traj, pb)):
         proj, _ = project(form, ctx.projection(), traj)
         projected = True
         if proj is not None:
