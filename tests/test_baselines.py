@@ -11,11 +11,11 @@ from obsplan.generators import paper_lawnmower
 from obsplan.observability.gramian import gramian
 from obsplan.observability.scaling import numerical_rank, psd_metrics
 from obsplan.planning import load_problem
-from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.baselines import baselines
 from obsplan.planning.estimator_objectives import covariance_stds
 from obsplan.planning.evaluate import objective_value, path_metrics
 from obsplan.planning.feasibility import check_limits
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon
 
 

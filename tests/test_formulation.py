@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from obsplan.planning import load_problem
-from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.blocks import ConstraintBlock, FormulationPart, VariableBlock
 from obsplan.planning.formulation import PARTS, build_formulation
 from obsplan.planning.guesses import reference_path
 from obsplan.planning.objectives import REGISTRY
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon
 
 

@@ -17,7 +17,6 @@ import pytest
 from obsplan.estimation.crlb import posterior_crlb
 from obsplan.observability.gramian import gramian
 from obsplan.planning import load_problem, solve
-from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.baselines import baselines, lawnmower_baseline
 from obsplan.planning.estimator_objectives import covariance_stds
 from obsplan.planning.evaluate import better, kf_final_pos_std, objective_value
@@ -28,7 +27,7 @@ from obsplan.planning.guesses import initial_guesses, random_guess, reference_pa
 from obsplan.planning.ipopt import make_projection
 from obsplan.planning.ipopt import project as _project
 from obsplan.planning.lwo_objective import LWO_BETA, lwo_condition, lwo_conditions, lwo_softmin
-from obsplan.planning.parse import problem_from_dict
+from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict
 from obsplan.planning.problem import Horizon, Limits
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.validation_setup import estimation_config

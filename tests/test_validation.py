@@ -10,9 +10,9 @@ import pytest
 
 from obsplan.errors import InputError
 from obsplan.planning import load_problem
-from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.baselines import baselines
 from obsplan.planning.evaluate import kf_final_pos_std
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon, ValidationSpec
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.validation_setup import estimation_config
