@@ -19,7 +19,7 @@ from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon
 
 
-@pytest.fixture(scope="module", params=["default", "range3d", "range-dvl-water-current2d"])
+@pytest.fixture(scope="module", params=["localise", "range3d", "range-dvl-water-current2d"])
 def problem(request):
     return load_problem(f"problems/{request.param}.toml")
 

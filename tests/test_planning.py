@@ -289,7 +289,7 @@ def test_problem_from_dict_3d_plans_without_area():
 
 
 @pytest.mark.parametrize(
-    "name", ["default", "range3d", "range-dvl3d", "range-dvl-water-current2d", "lowrate-range"]
+    "name", ["localise", "range3d", "range-dvl3d", "range-dvl-water-current2d", "lowrate-range"]
 )
 def test_every_shipped_problem_solves_at_reduced_size(name):
     pb = load_problem(ROOT / "problems" / f"{name}.toml")

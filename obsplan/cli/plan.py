@@ -15,15 +15,17 @@ from obsplan.planning.figures import (
     plot_filter_errors,
     plot_gramian_eigs,
     plot_paths,
+    plot_speed,
     save_figure,
 )
 from obsplan.planning.parse import DEFAULT_PROBLEM, load_problem
 from obsplan.planning.plan import PlanResult, plan
 from obsplan.planning.problem import Horizon, PlanningProblem
+from obsplan.planning.verdict import metric_value
 from obsplan.trajectory import write_csv
 
 DEFAULT_OUT = "obsplan-plan"
-FIGURES = ("path.png", "gramian.png", "filters.png")
+FIGURES = ("path.png", "gramian.png", "filters.png", "speed.png")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -80,6 +82,9 @@ def summary_table(result: PlanResult) -> str:
         f"{'path':<16} {'objective':>10} {'PCRB avg':>9} {'PCRB fin':>9} {'EKF rmse':>9} "
         f"{'EKF fin':>8} {'KF rmse':>8} {'closest':>8} {'limits':>6}"
     )
+    missions = result.missions
+    if missions:
+        head += f" {'EKF lines':>9} {'mission':>8}"
     lines = [head, "-" * len(head)]
     for name, m in result.metrics.items():
         v = result.validation.get(name)
@@ -94,6 +99,11 @@ def summary_table(result: PlanResult) -> str:
             f"{_fmt(kf.rmse_pos if kf else None):>8} {_fmt(m.closest_approach_m, '.1f'):>8} "
             f"{'ok' if m.within_limits else 'NO':>6}"
         )
+        if missions:
+            lines_rmse = metric_value(v, "ekf.rmse_pos_lines") if v is not None else None
+            done = missions[name].complete if name in missions else None
+            word = "-" if done is None else ("done" if done else "NOT")
+            lines[-1] += f" {_fmt(lines_rmse):>9} {word:>8}"
     return "\n".join(lines)
 
 
@@ -126,6 +136,8 @@ def write_outputs(result: PlanResult, out: Path) -> list[Path]:
     written.append(save_figure(plot_gramian_eigs(paths, pb), out / FIGURES[1]))
     if result.validation:
         written.append(save_figure(plot_filter_errors(result.validation), out / FIGURES[2]))
+    if pb.mission is not None:
+        written.append(save_figure(plot_speed(paths, pb), out / FIGURES[3]))
     return written
 
 
