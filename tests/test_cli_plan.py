@@ -12,6 +12,9 @@ from obsplan.cli import main
 from obsplan.trajectory import read_csv
 
 SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--quiet"]
+PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
+#: The free localisation problem: the small CLI runs (a mission refuses 20 steps).
+LOCALISE = str(PROBLEMS / "localise.toml")
 
 
 def _strict_json(path: Path) -> dict:
@@ -24,8 +27,18 @@ def _strict_json(path: Path) -> dict:
 @pytest.fixture(scope="module")
 def default_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("plan") / "out"
-    code = main(["plan", "--out", str(out), *SMALL])
+    code = main(["plan", LOCALISE, "--out", str(out), *SMALL])
     return code, out
+
+
+def test_default_survey_plans_and_reports_its_mission(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["plan", "--out", str(out), "--steps", "96", "--runs", "2", "--quiet"]) == 0
+    assert (out / "speed.png").is_file()
+    doc = _strict_json(out / "report.json")
+    assert doc["mission"]["planned"]["complete"] is True
+    assert len(doc["mission"]["lawnmower"]["lines"]) == 3
+    assert "mission" in capsys.readouterr().out
 
 
 def test_default_problem_writes_plan_report_and_figures(default_run, capsys):
@@ -50,16 +63,16 @@ def test_default_problem_writes_plan_report_and_figures(default_run, capsys):
 
 def test_refuses_non_empty_out_without_force(default_run, capsys):
     _, out = default_run
-    code = main(["plan", "--out", str(out), *SMALL])
+    code = main(["plan", LOCALISE, "--out", str(out), *SMALL])
     assert code == 2
     assert "--force" in capsys.readouterr().err
-    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
     rep = _strict_json(out / "report.json")
     assert rep["validation"] == {}
 
 
 def test_summary_table_printed(tmp_path, capsys):
-    code = main(["plan", "--out", str(tmp_path / "o"), "--no-validate", *SMALL])
+    code = main(["plan", LOCALISE, "--out", str(tmp_path / "o"), "--no-validate", *SMALL])
     assert code == 0
     text = capsys.readouterr().out
     assert "planned" in text and "lawnmower" in text and "PCRB avg" in text
@@ -69,7 +82,7 @@ def test_summary_table_printed(tmp_path, capsys):
 
 def test_verdict_in_words_and_in_the_report(tmp_path, capsys):
     out = tmp_path / "o"
-    code = main(["plan", "--out", str(out), "--runs", "3", *SMALL])
+    code = main(["plan", LOCALISE, "--out", str(out), "--runs", "3", *SMALL])
     assert code == 0
     text = capsys.readouterr().out
     rep = _strict_json(out / "report.json")
@@ -117,7 +130,6 @@ def test_failed_solve_exits_1(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- rows of the CLI issue
-PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 
 
 def test_times_are_written_on_the_planning_grid(default_run):
@@ -152,7 +164,7 @@ def test_force_replaces_the_results_folder_whole(tmp_path, capsys):
     out.mkdir()
     for name in ("filters.png", "plan.csv", "notes.txt"):
         (out / name).write_text("old")
-    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
     names = {p.name for p in out.iterdir()}
     assert names == {"plan.csv", "report.json", "path.png", "gramian.png"}
     assert (out / "plan.csv").read_text() != "old"
@@ -178,7 +190,7 @@ def test_unwritable_out_is_refused_before_planning(tmp_path, capsys, monkeypatch
         if not Path("/sys").is_dir():
             pytest.skip("no /sys")
     try:
-        code = main(["plan", "--out", str(out), *extra, *SMALL])
+        code = main(["plan", LOCALISE, "--out", str(out), *extra, *SMALL])
     finally:
         if case == "read-only-folder":
             out.chmod(0o755)
@@ -202,13 +214,13 @@ def test_interrupt_while_writing_leaves_nothing(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(cli_plan, "save_figure", interrupted)
     out = tmp_path / "o"
-    assert main(["plan", "--out", str(out), "--no-validate", *SMALL]) == 130
+    assert main(["plan", LOCALISE, "--out", str(out), "--no-validate", *SMALL]) == 130
     assert "interrupted" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
     # an existing results folder replaced with --force is left untouched
     out.mkdir()
     (out / "plan.csv").write_text("old plan")
-    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 130
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 130
     assert [p.name for p in tmp_path.iterdir()] == ["o"]
     assert [p.name for p in out.iterdir()] == ["plan.csv"]
     assert (out / "plan.csv").read_text() == "old plan"
@@ -226,9 +238,10 @@ def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing
         out.mkdir()
         (out / "plan.csv").write_text("old plan")
         extra = ["--force"]
-    # the default problem at N = 1000 (a coarse pass, then 4 fine starts): tens of seconds
+    # the free localisation problem at N = 1000 (a coarse pass, then 4 fine starts): tens of
+    # seconds
     code, err = interrupt_after(
-        ["plan", "--out", str(out), "--steps", "1000", *extra], b"starts", 1.0
+        ["plan", LOCALISE, "--out", str(out), "--steps", "1000", *extra], b"starts", 1.0
     )
     assert code == 130, err
     assert "Traceback" not in err
