@@ -41,7 +41,7 @@ def test_default_survey_plans_and_reports_its_mission(tmp_path, capsys):
     assert "mission" in capsys.readouterr().out
 
 
-def test_default_problem_writes_plan_report_and_figures(default_run, capsys):
+def test_a_small_plan_writes_plan_report_and_figures(default_run, capsys):
     code, out = default_run
     assert code == 0
     for name in ("plan.csv", "report.json", "path.png", "gramian.png", "filters.png"):
@@ -51,7 +51,8 @@ def test_default_problem_writes_plan_report_and_figures(default_run, capsys):
     rep = _strict_json(out / "report.json")
     assert set(rep["solver"]) >= {"success", "status", "iterations", "wall_s"}
     assert rep["solver"]["success"] is True
-    assert rep["problem"]["name"] == "default: 2D range-only"  # no PROBLEM: the default file
+    assert rep["problem"]["name"] == "localise: 2D range-only, free localisation"
+    assert rep["mission"] == {}  # no [mission]
     assert {"planned", "lawnmower", "circle", "straight"} <= set(rep["metrics"])
     for m in rep["metrics"].values():
         assert set(m) >= {"min_eig", "log_det", "condition", "kf_final_pos_std"}
