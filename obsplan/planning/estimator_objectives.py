@@ -17,8 +17,8 @@ Each has a time mode (:func:`timed_value`): at the end (``final``), averaged ove
 samples (``mission-average``), the sum of the two, each relative to its value on the reference
 path (``average-and-final``), or averaged over the filter samples inside the survey lines'
 windows (``lines``: the schedule's, :mod:`obsplan.planning.mission_schedule`). The exact
-Hessian of a recursion over hundreds of epochs is dense
-and slow to build, so IPOPT runs L-BFGS on them.
+Hessian of a recursion over hundreds of epochs is dense and slow to build, so IPOPT runs L-BFGS
+on them.
 """
 
 from __future__ import annotations
