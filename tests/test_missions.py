@@ -327,3 +327,10 @@ def test_default_survey_completes_and_beats_both_lawnmowers():
         assert metric_value(v["planned"], key) <= ratio * metric_value(v["lawnmower"], key), key
     lines = "ekf.rmse_pos_lines"
     assert metric_value(v["planned"], lines) < metric_value(v["lawnmower-accel"], lines)
+
+
+def test_a_waypoint_window_the_schedule_misses_is_refused():
+    d = _small()
+    d["mission"] = {"kind": "waypoints", "waypoints": [[0.0, 30.0]], "windows": [[0.0, 10.0]]}
+    with pytest.raises(ProblemError, match=re.escape("mission.windows[0]")):
+        problem_from_dict(d)

@@ -469,8 +469,25 @@ def mission_schedule(pb: PlanningProblem) -> Schedule:
 
 
 def mission_fit_error(pb: PlanningProblem) -> None:
-    """Refuse a mission that cannot fit the horizon (see :func:`mission_schedule`)."""
-    mission_schedule(pb)
+    """Refuse a mission that cannot fit the horizon (see :func:`mission_schedule`), or whose
+    schedule passes a waypoint outside its time window (the planner passes it at that time).
+
+    Raises
+    ------
+    ProblemError
+        On ``horizon.duration`` or ``mission.windows[i]``.
+    """
+    sched = mission_schedule(pb)
+    m = pb.mission
+    assert m is not None
+    for i, (t, (t0, t1)) in enumerate(zip(sched.waypoint_times, m.windows, strict=False)):
+        if not t0 <= t <= t1:
+            raise field_error(
+                f"mission.windows[{i}]",
+                f"[{t0:g}, {t1:g}] s does not contain t = {t:.1f} s, when the constant-speed "
+                f"schedule ({sched.speed:.3g} m/s) passes waypoint {i}; widen the window or "
+                "change horizon.duration",
+            )
 
 
 def line_sample_mask(pb: PlanningProblem, t: np.ndarray) -> np.ndarray:
