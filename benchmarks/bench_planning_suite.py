@@ -2,7 +2,8 @@
 
 Run (minutes; the full validation Monte Carlo of every path):
 
-    MPLBACKEND=Agg python benchmarks/bench_planning_suite.py [--runs N] [--json out.json] [FILES...]
+    MPLBACKEND=Agg python benchmarks/bench_planning_suite.py [--runs N] [--max-runs N]
+        [--open-loop] [--json out.json] [FILES...]
 
 For each problem (default: ``problems/*.toml`` then ``problems/suite/*.toml``) this runs
 ``obsplan.plan`` exactly as ``obsplan plan`` does and prints: solver status, solve time, and the
@@ -11,6 +12,16 @@ metric among the lawn-mower, circle, straight line and the paper's lawn-mower) o
 position RMSE, the EKF final error and the final posterior CRB, the closest approach to the
 beacon, whether the plan beats every baseline on the headline metrics, and the baselines that
 could not be fitted. Medians of the ratios to the lawn-mower are over ``problems/suite``.
+
+The validation is the problem's (closed loop unless ``--open-loop``; runs added until every
+verdict is decided or ``validation.max_runs``), so the table also has: the runs it took, the
+true paths' closest approach to the beacon over all runs of the plan (``true min``), the plan's
+runs inside ``min_range`` (``in``) and breaking any limit (``brk``), and the verdicts against the
+lawn-mower and the circle on EKF RMSE, EKF final, KF RMSE and KF final: ``B`` better and
+decided at 95 %, ``W`` worse and decided, ``t`` a tie (not decided at the cap). The verdict's
+notes (an EKF that diverges on the plan, with the Gaussian-sum filter beside it; a diagnostic
+objective) follow their row. ``--objective gramian`` keeps the problems whose objective kind
+starts with ``gramian``.
 """
 
 from __future__ import annotations
@@ -20,6 +31,7 @@ import json
 import statistics
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,19 +41,31 @@ from obsplan.planning import load_problem  # noqa: E402
 from obsplan.planning.plan import plan  # noqa: E402
 from obsplan.planning.verdict import metric_value  # noqa: E402
 
+#: The verdicts shown against these baselines, on these metrics.
+VERDICT_BASELINES = ("lawnmower", "circle")
+VERDICT_METRICS = ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos", "kf.final_pos_err")
+
 #: (column, verdict metric key) of the ratios reported.
 RATIOS = (
     ("EKF rmse", "ekf.rmse_pos"),
     ("EKF final", "ekf.final_pos_err"),
     ("KF rmse", "kf.rmse_pos"),
+    ("KF final", "kf.final_pos_err"),
     ("bound final", "crlb.final_pos_std"),
 )
 
 
-def run_one(path: Path, runs: int | None) -> dict:
+def _letter_of(d: dict) -> str:
+    """``B``/``W`` decided better/worse, ``t`` a tie."""
+    return {"better": "B", "worse": "W"}.get(d["outcome"], "t")
+
+
+def run_one(path: Path, runs: int | None, max_runs: int | None, open_loop: bool) -> dict:
     pb = load_problem(path)
+    if open_loop:
+        pb = replace(pb, validation=replace(pb.validation, mode="open-loop"))
     t0 = time.perf_counter()
-    res = plan(pb, runs=runs)
+    res = plan(pb, runs=runs, max_runs=max_runs)
     wall = time.perf_counter() - t0
     row: dict = {
         "problem": str(path.relative_to(ROOT)),
@@ -56,8 +80,35 @@ def run_one(path: Path, runs: int | None) -> dict:
         "not_fitted": sorted(res.not_fitted),
         "lawnmower": {},
         "best": {},
+        "mode": pb.validation.mode,
+        "runs": None,
+        "verdicts": {},
+        "notes": list(res.verdict.notes),
     }
     v = res.validation
+    if "planned" in v:
+        r = v["planned"].result
+        row["runs"] = int(r.runs)
+        t = r.truth
+        row["true_closest_m"] = t.closest_range_m
+        row["runs_inside_min_range"] = t.runs_inside_min_range
+        row["any_violation_fraction"] = t.any_violation_fraction
+        row["violation_fraction"] = t.violation_fraction
+        row["tracking_rmse_m"] = t.tracking_rmse_m
+        row["baselines_true_closest_m"] = {
+            k: x.result.truth.closest_range_m for k, x in v.items() if k != "planned"
+        }
+        comps = res.verdict.comparisons
+        for b in VERDICT_BASELINES:
+            if b in comps:
+                row["verdicts"][b] = {
+                    k: {
+                        "outcome": comps[b][k].outcome,
+                        "ratio": comps[b][k].ratio,
+                        "ci": comps[b][k].ci,
+                    }
+                    for k in VERDICT_METRICS
+                }
     if "planned" in v:
         for _, key in RATIOS:
             p = metric_value(v["planned"], key)
@@ -77,22 +128,32 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("files", nargs="*", help="problem files (default: shipped and suite)")
     ap.add_argument("--runs", type=int, default=None, help="override validation.runs")
+    ap.add_argument("--max-runs", type=int, default=None, help="override validation.max_runs")
+    ap.add_argument("--open-loop", action="store_true", help="validate in open loop")
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
+    ap.add_argument(
+        "--objective",
+        metavar="PREFIX",
+        help="only the problems whose objective.kind starts with PREFIX (e.g. gramian, lwo)",
+    )
     args = ap.parse_args(argv)
     files = [Path(f).resolve() for f in args.files] or sorted((ROOT / "problems").glob("*.toml"))
     if not args.files:
         files += sorted((ROOT / "problems" / "suite").glob("*.toml"))
+    if args.objective:
+        files = [f for f in files if load_problem(f).objective.kind.startswith(args.objective)]
     rows = []
     head = (
         f"{'problem':34s} {'objective':34s} {'status':26s} {'solve':>6s}  "
         + "  ".join(f"{c:>13s}" for c, _ in RATIOS)
-        + f"  {'closest':>7s}  verdict"
+        + f"  {'closest':>7s} {'runs':>5s} {'true min':>8s} {'in':>3s} {'brk':>5s}"
+        + "  lm/circle  verdict"
     )
     print("ratios planned/lawn-mower | planned/best baseline")
     print(head)
     print("-" * len(head))
     for f in files:
-        r = run_one(f, args.runs)
+        r = run_one(f, args.runs, args.max_runs, args.open_loop)
         rows.append(r)
         cells = "  ".join(
             f"{fmt(r['lawnmower'].get(k))}|{fmt(r['best'].get(k))}" for _, k in RATIOS
@@ -101,11 +162,25 @@ def main(argv: list[str] | None = None) -> int:
         if r["not_fitted"]:
             verdict += f" (not fitted: {', '.join(r['not_fitted'])})"
         closest = "-" if r["closest_m"] is None else f"{r['closest_m']:.1f}"
+        truth = "    -        -   -     -"
+        if r["runs"] is not None:
+            truth = (
+                f"{r['runs']:5d} {r['true_closest_m']:8.2f} {r['runs_inside_min_range']:3d} "
+                f"{100 * r['any_violation_fraction']:4.0f}%"
+            )
+        letters = "/".join(
+            "".join(_letter_of(d) for d in r["verdicts"].get(b, {}).values()) or "-"
+            for b in VERDICT_BASELINES
+        )
         print(
             f"{r['problem'][-34:]:34s} {r['objective'][:34]:34s} {r['status'][:26]:26s} "
-            f"{r['solve_s']:6.1f}  {cells}  {closest:>7s}  {verdict}",
+            f"{r['solve_s']:6.1f}  {cells}  {closest:>7s} {truth}  {letters:9s}  {verdict}",
             flush=True,
         )
+        for note in r["notes"]:  # an EKF lost on the plan, a diagnostic objective
+            print(f"    {note}", flush=True)
+        if args.json:  # rows so far, so that an interrupted run keeps them
+            Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
     suite = [r for r in rows if "/suite/" in r["problem"]] or rows
     print()
     print(f"medians over {len(suite)} suite problems, planned / lawn-mower:")
@@ -115,6 +190,20 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {col:12s} {statistics.median(vals):.3f}  (worst {max(vals):.3f})")
     wins = sum(r["beats_all"] and r["success"] for r in rows)
     print(f"solver success and a win on every headline metric: {wins} of {len(rows)} problems")
+    decided = [
+        r
+        for r in rows
+        if r["verdicts"]
+        and all(d["outcome"] == "better" for b in r["verdicts"].values() for d in b.values())
+    ]
+    print(
+        f"plan better than the lawn-mower and the circle on EKF/KF RMSE and final, every verdict "
+        f"decided at 95 %: {len(decided)} of {len(rows)} problems"
+    )
+    kept = [
+        r for r in rows if r["runs"] is not None and r["runs_inside_min_range"] <= 0.001 * r["runs"]
+    ]
+    print(f"plan's true path outside min_range in >= 99.9 % of runs: {len(kept)} of {len(rows)}")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
     return 0

@@ -11,44 +11,80 @@ Ctrl-C never leaves a half-written file or a folder that mixes old and new resul
 * :func:`staging_dir` creates a fresh, empty folder beside a target (hidden name, permissions from
   the umask, unlike :func:`tempfile.mkdtemp`'s 0700).
 
-Temporary names start with ``.<name>.tmp-`` so that a leftover after a power cut is recognisable.
+Temporary names are ``.<name>.tmp-<pid>-<random><suffix>`` (and ``.old-`` for a folder renamed
+aside): :func:`dead_leftovers` recognises those of a process that no longer runs (``kill -9``, a
+power cut), and the next run removes them.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
 import shutil
-import signal
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 
+from obsplan.interrupts import deferred
+
+#: Hold SIGINT and SIGTERM during a few renames (:func:`obsplan.interrupts.deferred`).
+deferred_sigint = deferred
+
 
 def _tmp_name(target: Path, tag: str = "tmp") -> Path:
-    # keep the suffix: matplotlib and json writers choose the format from the extension
-    return target.with_name(f".{target.stem}.{tag}-{secrets.token_hex(4)}{target.suffix}")
+    # keep the suffix: matplotlib and json writers choose the format from the extension; the
+    # pid tells a later run whether the writer is still alive
+    token = f"{os.getpid()}-{secrets.token_hex(4)}"
+    return target.with_name(f".{target.stem}.{tag}-{token}{target.suffix}")
 
 
-@contextlib.contextmanager
-def deferred_sigint() -> Iterator[None]:
-    """Hold SIGINT (Ctrl-C) until the block ends, then raise :class:`KeyboardInterrupt`.
-
-    Only effective in the main thread (elsewhere Python cannot install handlers; the block then
-    runs unprotected).
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
     try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    if caught:
-        raise KeyboardInterrupt
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def dead_leftovers(target: str | Path) -> list[Path]:
+    """Temporary siblings of ``target`` (:func:`_tmp_name`) whose writing process is gone.
+
+    Only names of exactly our form are returned (``.<stem>.tmp-<pid>-<8 hex><suffix>`` or
+    ``.old-``), never a file of the user's.
+    """
+    target = Path(target)
+    pattern = re.compile(
+        rf"^\.{re.escape(target.stem)}\.(?:tmp|old)-(\d+)-[0-9a-f]{{8}}{re.escape(target.suffix)}$"
+    )
+    out = []
+    try:
+        entries = list(target.parent.iterdir())
+    except OSError:
+        return out
+    for p in entries:
+        m = pattern.match(p.name)
+        if m and not _alive(int(m.group(1))):
+            out.append(p)
+    return sorted(out)
+
+
+def remove_dead_leftovers(target: str | Path) -> list[Path]:
+    """Delete :func:`dead_leftovers` of ``target``; returns what was removed."""
+    removed = []
+    for p in dead_leftovers(target):
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                p.unlink()
+        if not p.exists():
+            removed.append(p)
+    return removed
 
 
 @contextlib.contextmanager
@@ -62,7 +98,7 @@ def atomic_file(path: str | Path) -> Iterator[Path]:
     tmp = _tmp_name(target)
     try:
         yield tmp
-        with deferred_sigint():
+        with deferred():
             os.replace(tmp, target)
     finally:
         with contextlib.suppress(FileNotFoundError):
@@ -81,15 +117,15 @@ def staging_dir(target: str | Path) -> Path:
             continue
 
 
-def replace_dir(staging: str | Path, target: str | Path) -> Path:
-    """Move the finished folder ``staging`` to ``target``, replacing ``target`` whole.
+def swap_dir(staging: str | Path, target: str | Path) -> Path | None:
+    """Move the finished folder ``staging`` to ``target``; an old ``target`` is renamed aside
+    (returned, for the caller to delete or to put back), else None.
 
-    Both must be in the same parent folder. If ``target`` exists it is renamed aside, the staging
-    folder takes its name, and the old folder is then deleted: at no time does ``target`` hold a
-    mix of old and new files. If the second rename fails the old folder is put back.
+    Both must be in the same parent folder; SIGINT and SIGTERM are held during the renames. If
+    the second rename fails the old folder is put back.
     """
     staging, target = Path(staging), Path(target)
-    with deferred_sigint():
+    with deferred():
         old = None
         if target.exists():
             old = _tmp_name(target, "old")
@@ -100,9 +136,20 @@ def replace_dir(staging: str | Path, target: str | Path) -> Path:
             if old is not None:
                 os.rename(old, target)
             raise
+    return old
+
+
+def replace_dir(staging: str | Path, target: str | Path) -> Path:
+    """Move the finished folder ``staging`` to ``target``, replacing ``target`` whole.
+
+    Both must be in the same parent folder. If ``target`` exists it is renamed aside, the staging
+    folder takes its name, and the old folder is then deleted: at no time does ``target`` hold a
+    mix of old and new files (:func:`swap_dir`).
+    """
+    old = swap_dir(staging, target)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
-    return target
+    return Path(target)
 
 
 def remove_tree(path: str | Path) -> None:

@@ -75,6 +75,13 @@ def check_lat_lon(lat: Any, lon: Any, where: str) -> None:
             )
 
 
+#: Farthest a point may be from the origin of a local frame [m]: at 50 km the tangent plane is
+#: ~200 m below the surface and the flat-frame distances are off by ~1 part in 10^5.
+MAX_LOCAL_DISTANCE_M = 50_000.0
+#: Largest depth (or height above the surface, negative) of a geodetic point [m].
+MAX_DEPTH_M = 20_000.0
+
+
 def _pymap3d():
     try:
         import pymap3d
@@ -86,12 +93,23 @@ def _pymap3d():
 
 
 def geodetic_to_local(
-    lat: Any, lon: Any, depth: Any, origin: GeodeticOrigin, dim: int = 3
+    lat: Any,
+    lon: Any,
+    depth: Any,
+    origin: GeodeticOrigin,
+    dim: int = 3,
+    where: str = "geodetic point",
 ) -> np.ndarray:
     """Latitude [deg], longitude [deg], depth [m] -> local NED positions [m].
 
     Returns shape ``(N, dim)`` for array inputs and ``(dim,)`` for scalars; in 2D the depth is
     ignored (pass 0) and the result is ``(north, east)``.
+
+    Raises
+    ------
+    InputError
+        Naming ``where``, for a point farther than :data:`MAX_LOCAL_DISTANCE_M` from the origin
+        or deeper than :data:`MAX_DEPTH_M` (a local frame does not serve it).
     """
     pm = _pymap3d()
     scalar = np.ndim(lat) == 0
@@ -99,8 +117,38 @@ def geodetic_to_local(
     n, e, d = pm.geodetic2ned(
         la, lo, origin.altitude - de, origin.latitude, origin.longitude, origin.altitude
     )
-    p = np.column_stack([n, e, d])[:, :dim]
+    p = np.column_stack([n, e, d])
+    check_local_range(p, de, origin, where, scalar)
+    p = p[:, :dim]
     return p[0] if scalar else p
+
+
+def check_local_range(
+    ned: np.ndarray, depth: np.ndarray, origin: GeodeticOrigin, where: str, scalar: bool = False
+) -> None:
+    """Refuse NED points ``(N, 3)`` [m] farther than :data:`MAX_LOCAL_DISTANCE_M` from the
+    origin (distance of the surface point: the depth ``(N,)`` [m] taken out) or deeper than
+    :data:`MAX_DEPTH_M`."""
+    surface = ned.copy()
+    surface[:, 2] -= depth
+    dist = np.linalg.norm(surface, axis=1)
+    bad = np.flatnonzero(~(dist <= MAX_LOCAL_DISTANCE_M))
+    at = "" if scalar else " (sample {k})"
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(
+            f"{where}{at.format(k=k)}: {dist[k] / 1e3:,.1f} km from the origin "
+            f"({origin.latitude:g}, {origin.longitude:g}); a local north-east-down frame serves "
+            f"points within {MAX_LOCAL_DISTANCE_M / 1e3:g} km of its origin (the tangent plane "
+            "is 200 m below the sea there): give an origin near the points"
+        )
+    deep = np.flatnonzero(~(np.abs(depth) <= MAX_DEPTH_M))
+    if deep.size:
+        k = int(deep[0])
+        raise InputError(
+            f"{where}{at.format(k=k)}: depth {depth[k]:g} m is beyond ±{MAX_DEPTH_M:g} m "
+            "(the deepest ocean is 11 km); depths are in metres, positive down"
+        )
 
 
 def local_to_geodetic(p: Any, origin: GeodeticOrigin) -> tuple[np.ndarray, ...]:

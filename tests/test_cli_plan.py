@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from obsplan.cli import main
+from obsplan.outputs import MARKER, write_marker
 from obsplan.trajectory import read_csv
 
-SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--quiet"]
+SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--max-runs", "2", "--quiet"]
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 #: The free localisation problem: the small CLI runs (a mission refuses 20 steps).
 LOCALISE = str(PROBLEMS / "localise.toml")
@@ -56,8 +57,15 @@ def test_a_small_plan_writes_plan_report_and_figures(default_run, capsys):
     assert {"planned", "lawnmower", "circle", "straight"} <= set(rep["metrics"])
     for m in rep["metrics"].values():
         assert set(m) >= {"min_eig", "log_det", "condition", "kf_final_pos_std"}
-    for v in rep["validation"].values():
+    assert rep["validation"]["mode"] == "closed-loop"  # the default
+    for name, v in rep["validation"].items():
+        if name == "mode":
+            continue
         assert {"rmse_pos", "final_pos_err", "nees_mean"} <= set(v["ekf"]) & set(v["kf"])
+        truth = v["truth"]
+        assert truth["closest_range_m"] > 0 and truth["tracking_rmse_m"] > 0
+        assert 0 <= truth["runs_inside_min_range"] <= v["runs"]
+        assert 0 <= truth["any_violation_fraction"] <= 1
     # the straight line has a singular Gramian: log_det is null, not -Infinity
     assert rep["metrics"]["straight"]["log_det"] is None
 
@@ -88,13 +96,22 @@ def test_verdict_in_words_and_in_the_report(tmp_path, capsys):
     text = capsys.readouterr().out
     rep = _strict_json(out / "report.json")
     verdict = rep["verdict"]
-    assert set(verdict["baselines"]) == set(rep["validation"]) - {"planned"}
+    assert set(verdict["baselines"]) == set(rep["validation"]) - {"planned", "mode"}
     for comps in verdict["baselines"].values():
         assert {"ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos"} <= set(comps)
         for c in comps.values():
             assert c["better"] == (
                 c["planned"] is not None and (c["baseline"] is None or c["planned"] < c["baseline"])
             )
+            # an interval of the ratio that excludes 1 on the side of "better" decides
+            assert isinstance(c["decided"], bool)
+            if c["ci"] is not None:
+                lo, hi = c["ci"]
+                assert lo <= hi
+                assert c["decided"] == ((hi < 1) if c["better"] else (lo > 1))
+    # every tie is printed, in words
+    for tie in verdict["ties"]:
+        assert tie in text
     # every loss in the report is printed, in words
     for loss in verdict["losses"]:
         assert loss in text
@@ -163,11 +180,12 @@ def test_force_replaces_the_results_folder_whole(tmp_path, capsys):
     """The old filters.png no longer stays beside a new plan written with --no-validate."""
     out = tmp_path / "results"
     out.mkdir()
+    write_marker(out, "plan")  # an earlier obsplan output: --force may replace it
     for name in ("filters.png", "plan.csv", "notes.txt"):
         (out / name).write_text("old")
     assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
     names = {p.name for p in out.iterdir()}
-    assert names == {"plan.csv", "report.json", "path.png", "gramian.png"}
+    assert names == {MARKER, "plan.csv", "report.json", "path.png", "gramian.png"}
     assert (out / "plan.csv").read_text() != "old"
     assert [p.name for p in tmp_path.iterdir()] == ["results"]  # no staging or old copy left
 
@@ -184,6 +202,7 @@ def test_unwritable_out_is_refused_before_planning(tmp_path, capsys, monkeypatch
     elif case == "read-only-folder":
         out, extra = tmp_path / "ro", ["--force"]
         out.mkdir()
+        write_marker(out, "plan")
         (out / "keep.txt").write_text("mine")
         out.chmod(0o555)
     else:
@@ -220,10 +239,11 @@ def test_interrupt_while_writing_leaves_nothing(tmp_path, capsys, monkeypatch):
     assert list(tmp_path.iterdir()) == []
     # an existing results folder replaced with --force is left untouched
     out.mkdir()
+    write_marker(out, "plan")
     (out / "plan.csv").write_text("old plan")
     assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 130
     assert [p.name for p in tmp_path.iterdir()] == ["o"]
-    assert [p.name for p in out.iterdir()] == ["plan.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "plan.csv"]
     assert (out / "plan.csv").read_text() == "old plan"
 
 
@@ -237,6 +257,7 @@ def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing
     extra = []
     if existing:
         out.mkdir()
+        write_marker(out, "plan")
         (out / "plan.csv").write_text("old plan")
         extra = ["--force"]
     # the free localisation problem at N = 1000 (a coarse pass, then 4 fine starts): tens of
@@ -247,7 +268,7 @@ def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing
     assert code == 130, err
     assert "Traceback" not in err
     if existing:
-        assert [p.name for p in out.iterdir()] == ["plan.csv"]
+        assert sorted(p.name for p in out.iterdir()) == [MARKER, "plan.csv"]
         assert (out / "plan.csv").read_text() == "old plan"
     else:
         assert not out.exists()
@@ -276,6 +297,7 @@ def test_3d_path_figure_has_a_depth_view_and_the_area_in_the_legend():
 def test_force_never_deletes_the_problem_file(tmp_path, capsys):
     res = tmp_path / "res"
     res.mkdir()
+    write_marker(res, "plan")  # even an obsplan output folder is kept when it holds the input
     prob = res / "p.toml"
     prob.write_text((PROBLEMS / "localise.toml").read_text())
     assert main(["plan", str(prob), "--out", str(res), "--force", *SMALL]) == 2

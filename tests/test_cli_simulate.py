@@ -9,6 +9,7 @@ import pytest
 
 from obsplan import generators as gen
 from obsplan.cli import main
+from obsplan.outputs import MARKER, write_marker
 from obsplan.trajectory import write_csv
 
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
@@ -65,6 +66,9 @@ def test_table_rates_and_figures(csv_2d, tmp_path, capsys):
         (["--init-error", "1,2"], "init_error: expected 4"),
         (["--runs", "0"], "at least 1 run"),
         (["--beacon", "1,2,3"], "beacon"),
+        (["--accel-noise", "-1"], "intensity >= 0"),
+        (["--accel-noise", "1e-3", "--paper-noise"], "two settings of the same process noise"),
+        (["--accel", "0"], "positive bound"),
     ],
 )
 def test_bad_options_exit_2(csv_2d, capsys, args, match):
@@ -86,9 +90,13 @@ def test_out_folder_with_user_files_is_not_overwritten(csv_2d, tmp_path, capsys)
     assert code == 2
     assert "--force" in capsys.readouterr().err
     assert (out / "estimation.png").read_bytes() == b"the user's own figure"
-    assert (
-        main(["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]) == 0
-    )
+    # --force does not replace a folder obsplan did not make
+    args = ["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]
+    assert main(args) == 2
+    assert "not an obsplan output" in capsys.readouterr().err
+    assert (out / "estimation.png").read_bytes() == b"the user's own figure"
+    write_marker(out, "simulate")  # an earlier obsplan output is replaced
+    assert main(args) == 0
     assert (out / "estimation.png").read_bytes() != b"the user's own figure"
 
 
@@ -125,7 +133,7 @@ def test_absurd_resampling_is_refused_before_allocating(csv_2d, capsys):
     assert "more than the limit of 2000000 samples per run" in err and "--dt >=" in err
     assert peak < 50 * 2**20  # nothing near the 89 GiB was attempted (50 MiB: imports etc.)
     assert main(["simulate", str(csv_2d), "--runs", "100000000", "--quiet"]) == 2
-    assert "Monte Carlo budget" in capsys.readouterr().err
+    assert "more than the limit of 10000 Monte Carlo runs" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("where", ["under-a-file", "sys"])
@@ -150,10 +158,11 @@ def test_unwritable_out_is_refused_before_any_work(csv_2d, tmp_path, capsys, whe
 def test_force_replaces_the_figure_folder_whole(csv_2d, tmp_path, capsys):
     out = tmp_path / "figs"
     out.mkdir()
+    write_marker(out, "simulate")
     (out / "stale.png").write_bytes(b"from an earlier run")
     args = ["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]
     assert main(args) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["estimation.png", "monte_carlo.png"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "estimation.png", "monte_carlo.png"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no staging left
 
 
@@ -176,7 +185,7 @@ def test_ctrl_c_during_the_monte_carlo_exits_130_and_writes_nothing(csv_2d, tmp_
     from _interrupt import interrupt_after
 
     code, err = interrupt_after(
-        ["simulate", str(csv_2d), "--runs", "100000", "--out", str(out)], b"run", 0.5
+        ["simulate", str(csv_2d), "--runs", "10000", "--out", str(out)], b"run", 0.5
     )
     assert code == 130, err
     assert "interrupted" in err and "Traceback" not in err
@@ -186,8 +195,30 @@ def test_ctrl_c_during_the_monte_carlo_exits_130_and_writes_nothing(csv_2d, tmp_
 def test_force_never_deletes_the_input_trajectory(csv_2d, tmp_path, capsys):
     res = tmp_path / "res"
     res.mkdir()
+    write_marker(res, "plan")  # an obsplan output folder, yet it holds the input
     traj = res / "plan.csv"
     traj.write_bytes(csv_2d.read_bytes())
     args = ["simulate", str(traj), "--runs", "2", "--quiet", "--out", str(res), "--force"]
     assert main(args) == 2
     assert "holds the input" in capsys.readouterr().err and traj.is_file()
+
+
+def test_closed_loop_by_default_open_loop_on_request(csv_2d, capsys):
+    """The default flies the path in closed loop (the truth steered on the EKF's estimate) and
+    reports the true paths; --open-loop flies the inputs blind; the physical process noise is the
+    default and the paper's per-step setting is reachable."""
+    base = ["simulate", str(csv_2d), "--runs", "3", "--json", "--beacon", "5,5"]
+    assert main(base) == 0
+    closed = json.loads(capsys.readouterr().out)
+    assert closed["mode"] == "closed-loop" and closed["guidance"]["kp"] > 0
+    assert closed["truth"]["closest_range_m"] > 0 and closed["truth"]["tracking_rmse_m"] > 0
+    assert closed["config"]["process_noise_model"] == "continuous"
+    assert main([*base, "--open-loop", "--paper-noise"]) == 0
+    opened = json.loads(capsys.readouterr().out)
+    assert opened["mode"] == "open-loop" and opened["guidance"] is None
+    assert opened["config"]["process_noise_model"] == "per-step"
+    assert main([*base, "--accel-noise", "0.01"]) == 0
+    assert json.loads(capsys.readouterr().out)["config"]["accel_noise"] == 0.01
+    prob = str(PROBLEMS / "localise.toml")
+    assert main(["simulate", str(csv_2d), "--problem", prob, "--accel-noise", "0.01"]) == 2
+    assert "validation.accel_noise" in capsys.readouterr().err

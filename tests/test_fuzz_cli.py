@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import tempfile
 import uuid
 from pathlib import Path
 
@@ -22,7 +21,18 @@ from obsplan.cli import main
 from obsplan.trajectory import Trajectory, write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
-_TMP = Path(tempfile.mkdtemp(prefix="obsplan-fuzz-cli-"))
+_TMP = Path()  # set by the fixture below: pytest's tmp_path, cleaned up by pytest
+FILES: dict[str, str] = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _fuzz_files(tmp_path_factory):
+    global _TMP
+    _TMP = tmp_path_factory.mktemp("fuzz-cli")
+    FILES.update(_files())
+    yield
+    FILES.clear()
+    _TMP = Path()
 
 
 class Reached(Exception):
@@ -51,6 +61,17 @@ def _files() -> dict[str, str]:
     badtoml = _TMP / "bad.toml"
     badtoml.write_text("[limits]\naccel = -1\n")
     files["badtoml"] = badtoml
+    # encodings: a Latin-1 problem, one with a byte-order mark, a UTF-16 trajectory, a comment
+    default = (ROOT / "problems" / "localise.toml").read_text(encoding="utf-8")
+    for key, data in (
+        ("latin1toml", default.encode("latin-1", errors="replace")),
+        ("bomtoml", b"\xef\xbb\xbf" + default.encode("utf-8")),
+        ("utf16", files["traj"].read_text().encode("utf-16")),
+        ("commented", ("# a comment\n" + files["traj"].read_text()).encode("utf-8")),
+        ("huge", files["traj"].read_text().replace("\n0.0,-80.0,", "\n0.0,-8e300,").encode()),
+    ):
+        files[key] = _TMP / f"{key}.{'toml' if 'toml' in key else 'csv'}"
+        files[key].write_bytes(data)
     (_TMP / "afile").write_text("x")
     files.update(
         {
@@ -64,7 +85,6 @@ def _files() -> dict[str, str]:
     return {k: str(v) for k, v in files.items()}
 
 
-FILES = _files()
 NUMBERS = (
     st.sampled_from(
         [
@@ -96,6 +116,10 @@ NUMBERS = (
             "sonar",
             "range=0.1",
             "range=-1",
+            "range=1e200",
+            "1e300",
+            "1e300,0",
+            "-1e12,5",
             "dvl=10",
             "sample",
             "1,2,3,4",
@@ -128,7 +152,8 @@ PATH_OPTIONS = {"--out", "--waypoints", "--qgc", "--problem"}
 GOOD = {
     "--sensors": ["range", "range,dvl-water", "range,depth"],
     "--beacon": ["-50,10", "0,0", "10,-20,5"],
-    "--beacon-geodetic": ["43.7001,10.3001", "-33.9,151.2,4"],
+    # near the origin, 60 km north, the antipode
+    "--beacon-geodetic": ["43.7001,10.3001", "-33.9,151.2,4", "44.24,10.3", "-43.7,-169.7"],
     "--origin": ["43.7,10.3", "-33.9,151.2", "43.7,10.3,2"],
     "--length-scale": ["100", "10"],
     "--time-scale": ["100", "-1"],
@@ -161,9 +186,13 @@ def argvs(draw) -> list[str]:
     verb = draw(st.sampled_from([*OPTIONS] * 5 + ["bogus"]))
     argv = [verb]
     if verb != "bogus" and draw(st.integers(0, 9)):
-        kind = {"plan": ["default", "default", "3d", "badtoml", "missing", "traj"]}.get(
-            verb, ["traj", "traj", "traj3", "track", "track", "bad", "missing", "folder"]
-        )
+        kind = {
+            "plan": ["default", "default", "3d", "badtoml", "missing", "traj", "latin1toml",
+                     "bomtoml"],
+        }.get(
+            verb, ["traj", "traj", "traj3", "track", "track", "bad", "missing", "folder",
+                   "utf16", "commented", "huge"]
+        )  # fmt: skip
         argv.append(FILES[draw(st.sampled_from(kind))])
     for _ in range(draw(st.integers(0, 5))):
         opt = draw(st.sampled_from(OPTIONS.get(verb, ["--help"]) * 4 + ["--bogus", "--help"]))
@@ -174,7 +203,7 @@ def argvs(draw) -> list[str]:
             fresh = str(_TMP / "out" / uuid.uuid4().hex / ("o.csv" if opt != "--out" else "o"))
             pick = ["fresh", "fresh", "file", "folder", "underfile", "sys"]
             if opt == "--problem":
-                pick = ["default", "3d", "badtoml", "missing"]
+                pick = ["default", "3d", "badtoml", "missing", "latin1toml", "bomtoml"]
             which = draw(st.sampled_from(pick))
             argv.append(
                 {"fresh": fresh, "file": FILES["traj"], "sys": "/sys/obsplan-fuzz"}.get(

@@ -9,14 +9,17 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import tempfile
 import tomllib
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from obsplan.csvtable import COLUMN_LIMITS
 from obsplan.errors import InputError
 from obsplan.io.tracks import Track, TrackFit, load_trajectory, read_track_csv
 from obsplan.planning.parse import load_problem, problem_from_dict
@@ -32,7 +35,16 @@ FUZZ = settings(
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "localise.toml"
-_TMP = Path(tempfile.mkdtemp(prefix="obsplan-fuzz-"))
+_TMP = Path()  # set per module by the fixture below: pytest's tmp_path, cleaned up by pytest
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _fuzz_folder(tmp_path_factory):
+    global _TMP
+    _TMP = tmp_path_factory.mktemp("fuzz-loaders")
+    yield
+    _TMP = Path()
+
 
 VALID_2D = (
     "t,px,py,vx,vy,ux,uy\n0,0,0,1,0,0,0\n1,1,0,1,0,0,0\n2,2,0,1,0,0.1,0\n3,3.05,0,1.1,0,0,0\n"
@@ -45,12 +57,15 @@ VALID_TRACK = "t,px,py\n0,0,0\n1,1,0.1\n2,2,0\n3,3,-0.1\n4,4,0\n5,5,0.05\n"
 TOKENS = [
     "", " ", "0", "-1", "1e308", "-1e308", "1e-320", "nan", "NaN", "inf", "-inf", "1,5", "abc",
     "0x10", "1_000", "٣", "\u2028", '"', '"1"', "1.", ".5", "1e", "--1", "t", "px", "ux", "pz",
+    "1e300", "-1e300", "1e12", "-1e9", "1e7", "9999999", "1e10", "# c", "#",
 ]  # fmt: skip
 ALPHABET = ",;\t\n\r -.0123456789eEinfatxpyzvuINF#\"'\x00é"
 
 
 def _file(text: str | bytes, suffix: str = ".csv") -> Path:
-    path = Path(tempfile.mkstemp(dir=_TMP, suffix=suffix)[1])
+    fd, name = tempfile.mkstemp(dir=_TMP, suffix=suffix)
+    os.close(fd)
+    path = Path(name)
     if isinstance(text, bytes):
         path.write_bytes(text)
     else:
@@ -101,6 +116,10 @@ def _expect_trajectory(fn, path: Path) -> None:
     traj = out[0] if isinstance(out, tuple) else out
     assert isinstance(traj, Trajectory | Track)
     assert np.all(np.isfinite(traj.p)) and np.all(np.diff(traj.t) > 0)
+    # magnitudes beyond any vehicle are refused, never passed on
+    assert np.all(np.abs(traj.t) <= COLUMN_LIMITS["t"][0])
+    if not (isinstance(out, tuple) and out[1] is not None):  # a fit may overshoot a little
+        assert np.all(np.abs(traj.p) <= COLUMN_LIMITS["px"][0])
     if isinstance(out, tuple) and out[1] is not None:
         assert isinstance(out[1], TrackFit)
 
@@ -131,6 +150,60 @@ def test_fuzz_track_csv(text):
 def test_fuzz_trajectory_or_track_with_fit(text):
     """What analyze and simulate read: a trajectory, or a track fitted on the fly."""
     _expect_trajectory(lambda p: load_trajectory(p, check=False), _file(text))
+
+
+#: The encodings files arrive in; only UTF-8 (with or without a byte-order mark) is text to us.
+ENCODINGS = ["utf-8", "utf-8-sig", "utf-16", "utf-16-le", "utf-32", "latin-1", "cp1252"]
+NON_ASCII = ["", "# logged at Livorno, 20 °C, café\n", "# Ünterwasser ✓\n"]
+
+
+@st.composite
+def encoded(draw, docs: list[str]) -> tuple[bytes, str]:
+    """A document (with a non-ASCII comment line or not) in one of ENCODINGS: (bytes, text)."""
+    text = draw(st.sampled_from(NON_ASCII)) + draw(st.sampled_from(docs))
+    enc = draw(st.sampled_from(ENCODINGS))
+    raw = text.encode(enc, errors="replace")
+    return raw, text
+
+
+def _decodes_as_utf8(raw: bytes) -> bool:
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\x00" in raw:
+        return False  # a byte-order mark of UTF-16/32, or NUL bytes: not text to a reader
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+@FUZZ
+@given(encoded([VALID_2D, VALID_3D, VALID_TRACK]))
+def test_fuzz_csv_encodings(doc):
+    """UTF-8 text (a byte-order mark or not) reads as the same table; anything else is one
+    InputError, never a wrong table."""
+    raw, text = doc
+    ref = load_trajectory(_file(text), check=False)[0]
+    try:
+        got = load_trajectory(_file(raw), check=False)[0]
+    except InputError as exc:
+        assert not _decodes_as_utf8(raw), exc
+        assert "UTF" in str(exc) or "text" in str(exc)
+        return
+    assert _decodes_as_utf8(raw)
+    np.testing.assert_array_equal(got.p, ref.p)
+    np.testing.assert_array_equal(got.t, ref.t)
+
+
+@FUZZ
+@given(encoded([DEFAULT.read_text(encoding="utf-8")]))
+def test_fuzz_problem_file_encodings(doc):
+    raw, text = doc
+    try:
+        pb = load_problem(_file(raw, ".toml"))
+    except InputError as exc:
+        assert not _decodes_as_utf8(raw), exc
+        return
+    assert pb == load_problem(_file(text, ".toml"))
 
 
 @FUZZ
@@ -214,6 +287,9 @@ def problems(draw):
         elif key == "geodetic" and draw(st.booleans()):
             body[key] = [draw(st.floats(-100, 100)), draw(st.floats(-200, 400))]
             data.setdefault("origin", {"latitude": 43.7, "longitude": 10.3})
+        elif key == "geodetic":  # near the origin: either side of the local frame's range
+            body[key] = [43.7 + draw(st.floats(-0.6, 0.6)), 10.3 + draw(st.floats(-0.8, 0.8))]
+            data["origin"] = {"latitude": 43.7, "longitude": 10.3}
         else:
             body[key] = draw(VALUES)
     return data
@@ -228,6 +304,9 @@ def test_fuzz_problem_mapping(data):
         return
     assert isinstance(pb, PlanningProblem)
     assert all(math.isfinite(x) for x in (*pb.start_position, *pb.beacon))
+    for sec, pos in (("beacon", pb.beacon), ("start", pb.start_position)):
+        if isinstance(data.get(sec), dict) and "geodetic" in data[sec]:
+            assert math.hypot(pos[0], pos[1]) <= 50_000.0 * (1 + 1e-6), (sec, pos)
 
 
 @FUZZ
@@ -239,3 +318,41 @@ def test_fuzz_problem_file_text(text):
             load_problem(_file(doc, ".toml"))
         except InputError:
             pass
+
+
+# ------------------------------------------------------------------------------ geodetic ranges
+@FUZZ
+@given(
+    st.floats(-89.9, 89.9),
+    st.floats(-180.0, 359.9),
+    st.floats(-1.0, 1.0) | st.floats(-180.0, 180.0),
+    st.floats(-1.0, 1.0) | st.floats(-360.0, 360.0),
+    st.floats(-100.0, 100.0) | st.floats(-1e5, 1e5),
+)
+def test_fuzz_geodetic_points_near_or_far_from_the_origin(lat0, lon0, dlat, dlon, depth):
+    """A point within the local frame's range converts and round-trips; one beyond it is refused
+    with the distance, never turned into positions of thousands of kilometres."""
+    pytest.importorskip("pymap3d")
+    from obsplan.geodesy import (
+        MAX_DEPTH_M,
+        MAX_LOCAL_DISTANCE_M,
+        GeodeticOrigin,
+        geodetic_to_local,
+        local_to_geodetic,
+    )
+
+    origin = GeodeticOrigin(lat0, lon0)
+    lat, lon = lat0 + dlat, lon0 + dlon
+    if not -90.0 <= lat <= 90.0:
+        return
+    try:
+        p = geodetic_to_local(lat, lon, depth, origin, dim=3, where="point")
+    except InputError as exc:
+        assert "km from the origin" in str(exc) or "depth" in str(exc)
+        return
+    assert abs(depth) <= MAX_DEPTH_M
+    horizontal = math.hypot(p[0], p[1])
+    assert horizontal <= MAX_LOCAL_DISTANCE_M * (1 + 1e-6)
+    la, lo, de = local_to_geodetic(p, origin)
+    assert abs(la[0] - lat) < 1e-7 and abs(de[0] - depth) < 1e-3
+    assert abs((lo[0] - lon + 180.0) % 360.0 - 180.0) < 1e-7 or abs(abs(lat) - 90.0) < 1e-3

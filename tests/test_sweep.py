@@ -301,7 +301,10 @@ def test_cli_refuses_a_foreign_folder_and_another_sweeps_folder(tmp_path, capsys
     mine.mkdir()
     (mine / "notes.txt").write_text("the user's file")
     assert main(["sweep", str(f), "--out", str(mine)]) == 2
-    assert "holds no sweep" in capsys.readouterr().err
+    assert "not an obsplan output folder" in capsys.readouterr().err
+    assert main(["sweep", str(f), "--out", str(mine), "--force"]) == 2  # --force does not help
+    assert "not an obsplan output folder" in capsys.readouterr().err
+    assert [p.name for p in mine.iterdir()] == ["notes.txt"]
     assert (mine / "notes.txt").read_text() == "the user's file"
     other = tmp_path / "other"
     other.mkdir()

@@ -117,8 +117,11 @@ def test_bad_csv_names_row_or_column(tmp_path, content, match):
 
 def test_unreadable_files(tmp_path):
     binary = tmp_path / "b.csv"
-    binary.write_bytes(b"\xff\xfe\x00garbage")
-    with pytest.raises(TrajectoryFormatError, match="not a text CSV"):
+    binary.write_bytes(b"\x89PNG\x00garbage")
+    with pytest.raises(TrajectoryFormatError, match="not a text file"):
+        read_csv(binary)
+    binary.write_bytes(b"\xff\xfe\x00garbage")  # a UTF-16 byte-order mark
+    with pytest.raises(TrajectoryFormatError, match="saved as UTF-16 text; save it as UTF-8"):
         read_csv(binary)
     with pytest.raises(TrajectoryFormatError, match="not found"):
         read_csv(tmp_path / "missing.csv")

@@ -1,6 +1,7 @@
 """The ``obsplan`` command. Each verb lives in its own module exposing ``add_parser`` and ``run``.
 
-Exit codes: 0 success, 1 solver or validation failure, 2 bad input (file, option, problem).
+Exit codes: 0 success, 1 solver or validation failure, 2 bad input (file, option, problem),
+130 / 143 interrupted by SIGINT / SIGTERM (:mod:`obsplan.interrupts`; nothing is left written).
 Errors raised on purpose (:mod:`obsplan.errors`) are printed as one line, without a traceback.
 """
 
@@ -9,9 +10,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 from collections.abc import Sequence
 
+from obsplan import interrupts, outputs
 from obsplan.cli.common import join_negative_values
 from obsplan.errors import InputError, ObsplanError
 from obsplan.version import __version__
@@ -48,33 +51,66 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``obsplan`` console script; returns the exit code.
 
     0 success, 1 solver/validation failure (or an output that could not be written), 2 bad
-    input (one line naming the field and the fix), 130 interrupted (Ctrl-C; outputs are written
-    atomically, so nothing half-written is left).
+    input (one line naming the field and the fix), 130 / 143 interrupted by SIGINT / SIGTERM at
+    any moment (outputs are swapped in atomically and undone if the signal came after the swap,
+    so nothing is left written).
     """
+    previous = interrupts.install()
+    interrupts.reset()
     os.environ.setdefault("MPLBACKEND", "Agg")
-    verb = "?"
+    code = 1
+    try:
+        code = _run(argv)
+    except BaseException as exc:  # a signal turned into another error (e.g. inside CasADi)
+        if interrupts.pending() is None:
+            raise
+        with interrupts.ignored():
+            print(_interrupted_message("", exc), file=sys.stderr)
+    finally:
+        signalled = interrupts.exit_code()
+        outputs.finish(undo=signalled is not None)
+        interrupts.uninstall(previous)
+    return code if signalled is None else signalled
+
+
+def _interrupted_message(verb: str, exc: BaseException) -> str:
+    signum = interrupts.pending()
+    by = f" by {signal.Signals(signum).name}" if signum not in (None, signal.SIGINT) else ""
+    kept = getattr(exc, "kept", None) or "nothing was written"
+    return f"{_who(verb)}: interrupted{by}; {kept}"
+
+
+def _who(verb: str) -> str:
+    return f"obsplan {verb}" if verb else "obsplan"
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    verb = ""
     try:
         parser = build_parser()
         args = parser.parse_args(
             join_negative_values(parser, sys.argv[1:] if argv is None else argv)
         )
         verb = args.verb
-        return int(args._run(args) or 0)
+        code = int(args._run(args) or 0)
+        interrupts.check()  # a swallowed signal: the exit code says so (outputs are undone)
+        return code
     except InputError as exc:
-        print(f"obsplan {verb}: error: {exc}", file=sys.stderr)
+        print(f"{_who(verb)}: error: {exc}", file=sys.stderr)
         return 2
     except FileExistsError as exc:
-        print(f"obsplan {verb}: error: {exc}", file=sys.stderr)
+        print(f"{_who(verb)}: error: {exc}", file=sys.stderr)
         return 2
     except ObsplanError as exc:
-        print(f"obsplan {verb}: failed: {exc}", file=sys.stderr)
+        print(f"{_who(verb)}: failed: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"obsplan {verb}: interrupted; nothing was written", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        with interrupts.ignored():
+            print(_interrupted_message(verb, exc), file=sys.stderr)
+        return exc.exit_code if isinstance(exc, interrupts.Interrupted) else 130
     except OSError as exc:  # e.g. the disk filled up while writing results
         where = f" ({exc.filename})" if exc.filename else ""
-        print(f"obsplan {verb}: failed: {exc.strerror or exc}{where}", file=sys.stderr)
+        print(f"{_who(verb)}: failed: {exc.strerror or exc}{where}", file=sys.stderr)
         return 1
 
 

@@ -1,44 +1,30 @@
-"""Options and checks shared by the verbs: vehicle options, beacon, inputs and safe outputs.
+"""Options and checks shared by the verbs: vehicle options, beacon, inputs, and the outputs.
 
-Outputs, for every verb (and reusable by ``sweep`` and ``paper``):
-
-* :class:`OutputDir` — a results folder. Construct it **before any work**: it refuses a file, a
-  non-empty folder without ``--force``, a read-only folder, and a place where nothing can be
-  written (it probes the nearest existing parent by creating and removing a folder). Then::
-
-      out = OutputDir(args.out, args.force)       # checks now, writes nothing
-      with out:                                   # any exception or Ctrl-C: nothing is left
-          result = work()
-          staging = out.stage()                   # hidden empty folder beside DIR
-          write_files(staging)
-          out.commit()                            # DIR replaced whole, atomically
-
-  ``commit`` renames the staging folder over ``DIR`` (an old ``DIR`` is renamed aside first and
-  deleted after), so ``--force`` never leaves old files beside new ones and an interruption never
-  leaves a half-written folder.
-* :class:`OutputFile` — the same for one file (``import --out``, ``export --waypoints``):
-  checked at construction, written through :meth:`OutputFile.writing` (temp file + rename).
-
-KeyboardInterrupt is mapped to exit 130 by :func:`obsplan.cli.main`; these helpers only make
-sure that nothing half-written remains when it propagates.
+Output folders and files (:class:`OutputDir`, :class:`OutputFile`) are those of
+:mod:`obsplan.outputs`, one implementation for every verb: checked before any work, written into
+a staging folder and swapped in place, ``--force`` replacing only an earlier obsplan output.
+Signals are mapped to exit 130 / 143 by :func:`obsplan.cli.main` (:mod:`obsplan.interrupts`).
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
-import os
 import re
-import stat
 import sys
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from obsplan.atomic import atomic_file, remove_tree, replace_dir, staging_dir
+from obsplan.budget import check_file_rows
+from obsplan.csvtable import COLUMN_LIMITS
 from obsplan.errors import InputError
-from obsplan.trajectory import InconsistentTrajectoryWarning, Trajectory
+from obsplan.outputs import OutputDir, OutputFile, write_marker
+from obsplan.textfiles import check_magnitude
+
+if TYPE_CHECKING:
+    from obsplan.trajectory import Trajectory
 
 
 # ------------------------------------------------------------------------------ arguments
@@ -76,7 +62,9 @@ def add_output_arguments(p: argparse.ArgumentParser, what: str, default: str | N
     shown = f" (default: {default})" if default else ""
     p.add_argument("--out", metavar="DIR", default=default, help=f"write {what} to DIR{shown}")
     p.add_argument(
-        "--force", action="store_true", help="replace a non-empty DIR whole (old files removed)"
+        "--force",
+        action="store_true",
+        help="replace DIR whole if it is an earlier obsplan output (old files removed)",
     )
 
 
@@ -139,6 +127,8 @@ def parse_beacon(text: str | None, dim: int) -> tuple[float, ...] | None:
             f"--beacon {text!r}: the trajectory is {dim}D, so the beacon needs {dim} finite "
             f"coordinates [m], e.g. --beacon {','.join(['0'] * dim)}"
         )
+    limit, unit = COLUMN_LIMITS["px"]  # the same bound as a position in a trajectory CSV
+    check_magnitude(values, f"--beacon {text!r}", limit, unit)
     return values
 
 
@@ -164,8 +154,11 @@ def read_trajectory(path: str, verb: str) -> Trajectory:
 
     A consistency warning is printed as one line, not a traceback.
     """
+    # imported here: `obsplan` installs its signal handlers before numpy and the rest load
     from obsplan.io.tracks import load_trajectory
+    from obsplan.trajectory import InconsistentTrajectoryWarning
 
+    check_file_rows(path, "the trajectory")  # a huge file is refused before it is read
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InconsistentTrajectoryWarning)
         traj, fit = load_trajectory(path, check=True)
@@ -187,175 +180,27 @@ def read_trajectory(path: str, verb: str) -> Trajectory:
 
 
 # ------------------------------------------------------------------------------ outputs
-def _read_only(path: Path) -> bool:
-    """No write permission for us, or no write bit at all (root ignores permissions, but a
-    folder or file its owner made read-only is meant to stay as it is)."""
-    try:
-        mode = path.stat().st_mode
-    except OSError:
-        return False
-    return not os.access(path, os.W_OK) or not (mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
-
-
-def _existing_ancestor(path: Path, option: str) -> Path:
-    anc = path.parent if path.parent != path else path
-    anc = Path(os.path.abspath(anc))
-    while not anc.exists():
-        anc = anc.parent
-    if not anc.is_dir():
-        raise InputError(f"{option} {path}: {anc} is a file, so nothing can be written under it")
-    return anc
-
-
-def _probe(folder: Path, option: str, path: Path) -> None:
-    """Create and remove a folder in ``folder``: the only test that also works as root and on
-    read-only or special file systems."""
-    try:
-        probe = staging_dir(folder / ".obsplan-write-test")
-        os.rmdir(probe)
-    except OSError as exc:
-        raise InputError(
-            f"{option} {path}: cannot write in {folder} ({exc.strerror}); choose a writable place"
-        ) from None
-
-
-class OutputDir:
-    """A results folder checked before work and replaced whole at the end (see module doc).
-
-    Parameters
-    ----------
-    path
-        The folder (``--out DIR``); missing parents are created at :meth:`stage`.
-    force
-        Allow replacing a non-empty folder (its old content is removed at :meth:`commit`).
-    option
-        How messages name the folder (``"--out"``).
-    inputs
-        Files the verb reads: replacing a folder that holds one of them is refused (``--force``
-        must not delete the user's input).
-    """
-
-    def __init__(
-        self,
-        path: str | Path,
-        force: bool,
-        option: str = "--out",
-        inputs: Sequence[str | Path | None] = (),
-    ) -> None:
-        self.path = Path(path)
-        self.option = option
-        out = self.path
-        if out.exists() and not out.is_dir():
-            raise InputError(f"{option} {out} is a file; give a folder")
-        if out.is_dir():
-            if any(out.iterdir()) and not force:
-                raise InputError(
-                    f"{option} {out} is not empty; choose another folder or pass --force to "
-                    "replace it whole (its files are removed)"
-                )
-            here = out.resolve()
-            for f in inputs:
-                if f is not None and here in Path(f).resolve().parents:
-                    raise InputError(
-                        f"{option} {out} holds the input {f}, which replacing the folder would "
-                        "delete; choose another output folder"
-                    )
-            if _read_only(out):
-                raise InputError(
-                    f"{option} {out} is read-only; make it writable or choose another folder"
-                )
-        _probe(_existing_ancestor(out, option), option, out)
-        self._staging: Path | None = None
-        self._created: list[Path] = []
-        self.committed = False
-
-    def stage(self) -> Path:
-        """Create (once) and return the empty staging folder to write the results into."""
-        if self._staging is None:
-            parent = Path(os.path.abspath(self.path.parent))
-            missing = []
-            while not parent.exists():
-                missing.append(parent)
-                parent = parent.parent
-            for folder in reversed(missing):
-                folder.mkdir()
-                self._created.append(folder)
-            self._staging = staging_dir(self.path.parent / self.path.name)
-        return self._staging
-
-    def final(self, staged: Path) -> Path:
-        """Where a file written in the staging folder ends up after :meth:`commit`."""
-        return self.path / Path(staged).relative_to(self.stage())
-
-    def commit(self) -> Path:
-        """Replace ``path`` by the staging folder (atomic rename; old content removed)."""
-        replace_dir(self.stage(), self.path)
-        self.committed = True
-        self._staging = None
-        return self.path
-
-    def discard(self) -> None:
-        """Remove the staging folder and any parent folder created for it."""
-        if self._staging is not None:
-            remove_tree(self._staging)
-            self._staging = None
-        if not self.committed:
-            for folder in reversed(self._created):
-                with contextlib.suppress(OSError):
-                    folder.rmdir()
-            self._created = []
-
-    def __enter__(self) -> OutputDir:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.discard()
-
-
-class OutputFile:
-    """One output file, checked before work and written atomically.
-
-    Refuses a folder, an existing file without ``force``, one of the verb's ``inputs``, a
-    read-only file and a place where nothing can be written.
-    """
-
-    def __init__(
-        self,
-        path: str | Path,
-        force: bool,
-        option: str,
-        inputs: Sequence[str | Path | None] = (),
-    ) -> None:
-        self.path = Path(path)
-        self.option = option
-        p = self.path
-        if p.is_dir():
-            raise InputError(f"{option} {p} is a folder; give a file name")
-        if p.exists() and any(f is not None and Path(f).resolve() == p.resolve() for f in inputs):
-            raise InputError(f"{option} {p} is the input file; give another name for the output")
-        if p.exists():
-            if not force:
-                raise InputError(
-                    f"{option} {p} exists; choose another name or pass --force to replace it"
-                )
-            if _read_only(p):
-                raise InputError(f"{option} {p} is read-only; make it writable or choose another")
-        _probe(_existing_ancestor(p, option), option, p)
-
-    @contextlib.contextmanager
-    def writing(self) -> Iterator[Path]:
-        """Yield a temporary path; it becomes ``path`` when the block succeeds."""
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_file(self.path) as tmp:
-            yield tmp
-
-
 def output_dir(path: str | Path, force: bool) -> Path:
     """Deprecated simple form: check and create ``path`` (not atomic; prefer :class:`OutputDir`).
 
-    Kept for verbs that write their files one by one.
+    Kept for callers that write their files one by one; the folder gets the marker.
     """
     OutputDir(path, force)
     out = Path(path)
     out.mkdir(parents=True, exist_ok=True)
+    write_marker(out, "")
     return out
+
+
+__all__ = [
+    "OutputDir",
+    "OutputFile",
+    "add_output_arguments",
+    "add_vehicle_arguments",
+    "check_seed",
+    "join_negative_values",
+    "output_dir",
+    "parse_beacon",
+    "read_trajectory",
+    "resolve_beacon",
+]

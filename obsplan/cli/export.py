@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -51,8 +52,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--depth",
         metavar="M",
         type=float,
-        default=0.0,
-        help="depth [m] of a 2D plan in the mission (default 0: at the surface)",
+        default=None,
+        help="depth [m] >= 0 of a 2D plan in the mission (default 0: at the surface; a 3D plan "
+        "has its own depths)",
     )
     p.add_argument(
         "--acceptance-radius",
@@ -108,7 +110,23 @@ def run(args: argparse.Namespace) -> int:
             + " needs geodetic coordinates: give --origin LAT,LON[,ALT] (the origin of the "
             "plan's north-east-down frame), or export a plan whose report.json has an origin"
         )
+    if args.depth is not None and args.qgc is None:
+        raise InputError("--depth is the depth of a 2D plan in the --qgc mission; give --qgc")
+    if args.depth is not None and not (math.isfinite(args.depth) and args.depth >= 0):
+        raise InputError(
+            f"--depth {args.depth:g}: a depth must be a finite number of metres >= 0 "
+            "(0: at the surface)"
+        )
+    if not (math.isfinite(args.acceptance_radius) and args.acceptance_radius > 0):
+        raise InputError(
+            f"--acceptance-radius {args.acceptance_radius:g}: must be a positive number of metres"
+        )
     traj = read_trajectory(args.plan, "export")
+    if args.depth is not None and traj.dim == 3:
+        raise InputError(
+            f"--depth: {args.plan} is a 3D plan, whose mission flies its own depths (pz); "
+            "drop --depth"
+        )
     every = args.every if (args.every is not None or args.spacing is not None) else DEFAULT_EVERY_S
     wp = waypoints_from_trajectory(traj, every=every, spacing=args.spacing, origin=origin)
     written = []
@@ -118,7 +136,9 @@ def run(args: argparse.Namespace) -> int:
         written.append(str(outs[0].path))
     if args.qgc is not None:
         with outs[-1].writing() as tmp:
-            write_qgc_plan(wp, tmp, depth_2d=args.depth, acceptance_radius=args.acceptance_radius)
+            write_qgc_plan(
+                wp, tmp, depth_2d=args.depth or 0.0, acceptance_radius=args.acceptance_radius
+            )
         written.append(str(outs[-1].path))
     summary = {
         "waypoints": len(wp),

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from obsplan.cli.common import OutputFile
 from obsplan.io.tracks import DEFAULT_VELOCITY_STD, MAX_GAP_INTERVALS, fit_track, read_track
@@ -56,7 +57,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--origin",
         metavar="LAT,LON[,ALT]",
         default=None,
-        help="origin of the local frame for GLOBAL_POSITION_INT (default: the first fix)",
+        help="origin of the local frame for GLOBAL_POSITION_INT or a geodetic waypoint CSV "
+        "(default: the first fix)",
     )
     p.add_argument(
         "--grid",
@@ -108,6 +110,8 @@ def run(args: argparse.Namespace) -> int:
         origin=origin,
         ros_frame=args.ros_frame,
     )
+    for note in track.notes:
+        print(f"obsplan import: warning: {note}", file=sys.stderr)
     fit = fit_track(
         track,
         position_std=args.position_std,

@@ -12,7 +12,7 @@ import argparse
 import json
 import sys
 
-from obsplan.cli.common import output_dir
+from obsplan.cli.common import OutputDir
 from obsplan.paper import all_rows, claims, paper_report, render_tables, structural
 
 
@@ -33,7 +33,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument(
         "--quick", action="store_true", help="sample at 0.1 s instead of 0.01 s (same verdicts)"
     )
-    p.add_argument("--force", action="store_true", help="write into a non-empty --out DIR")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace --out DIR whole if it is an earlier obsplan output (old files removed)",
+    )
     p.add_argument("--no-figures", action="store_true", help="with --out: skip the figures")
     p.add_argument("--quiet", action="store_true", help="no progress messages on stderr")
     return p
@@ -41,24 +45,33 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 def run(args: argparse.Namespace) -> int:
     """Compute, print and optionally write the tables; returns the exit code."""
-    out = output_dir(args.out, args.force) if args.out else None
+    out = OutputDir(args.out, args.force, verb="paper") if args.out is not None else None
     if not args.quiet:
         dt = "0.1 s" if args.quick else "0.01 s"
         print(f"obsplan paper: computing Tables 1-3 (dt = {dt})...", file=sys.stderr)
     rows, cl = all_rows(args.quick), claims(args.quick)
     text = render_tables(rows, cl, structural(args.quick))
     report = paper_report(args.quick)
-    print(json.dumps(report, indent=2) if args.json else text)
     if out is None:
+        print(json.dumps(report, indent=2) if args.json else text)
         return 0
-    (out / "tables.txt").write_text(text + "\n", encoding="utf-8")
-    (out / "tables.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    with out:  # the folder appears whole (tables and figures) or not at all
+        staging = out.stage()
+        (staging / "tables.txt").write_text(text + "\n", encoding="utf-8")
+        (staging / "tables.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+        figures = [] if args.no_figures else _figures(staging, args)
+        out.commit()
+    print(json.dumps(report, indent=2) if args.json else text)
     if not args.quiet:
+        extra = f" and {len(figures)} figures" if figures else ""
         print(
-            f"obsplan paper: wrote {out / 'tables.txt'} and {out / 'tables.json'}", file=sys.stderr
+            f"obsplan paper: wrote {out.path / 'tables.txt'}, {out.path / 'tables.json'}{extra}",
+            file=sys.stderr,
         )
-    if args.no_figures:
-        return 0
+    return 0
+
+
+def _figures(folder, args: argparse.Namespace) -> list:
     try:
         from obsplan.paper_figures import write_figures
     except ModuleNotFoundError as exc:
@@ -66,6 +79,5 @@ def run(args: argparse.Namespace) -> int:
             raise
         if not args.quiet:
             print("obsplan paper: figure scenarios not available yet; skipped", file=sys.stderr)
-        return 0
-    write_figures(out, quick=args.quick, progress=not args.quiet)
-    return 0
+        return []
+    return write_figures(folder, quick=args.quick, progress=not args.quiet)

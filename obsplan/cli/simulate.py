@@ -1,4 +1,10 @@
-"""``obsplan simulate TRAJ.csv``: EKF and augmented KF Monte Carlo along a trajectory CSV."""
+"""``obsplan simulate TRAJ.csv``: EKF and augmented KF Monte Carlo along a trajectory CSV.
+
+In closed loop by default, as ``obsplan plan`` validates: the simulated vehicle steers its EKF
+estimate onto the trajectory (:class:`~obsplan.estimation.guidance.Guidance`); ``--open-loop``
+flies its accelerations blind. Process noise is the physical white acceleration noise
+(``--accel-noise``, m/s²/√Hz) unless ``--paper-noise`` selects the paper's per-step ``Q``.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +12,11 @@ import argparse
 import contextlib
 import json
 import sys
+from typing import Any
 
 import numpy as np
 
+from obsplan import budget
 from obsplan.cli.common import (
     OutputDir,
     add_output_arguments,
@@ -18,14 +26,16 @@ from obsplan.cli.common import (
     resolve_beacon,
 )
 from obsplan.errors import InputError
-from obsplan.estimation.config import EstimationConfig
+from obsplan.estimation.config import DEFAULT_ACCEL_NOISE, EstimationConfig
+from obsplan.estimation.guidance import Guidance, TruthLimits
 from obsplan.estimation.schedule import sample_rate
 from obsplan.estimation.simulate import DEFAULT_FILTERS, FILTERS, MonteCarloResult, monte_carlo
 from obsplan.model import make_model
 from obsplan.plots import filter_stats
 
-#: Largest filter grid a simulation accepts (samples per run): the filters loop over samples.
-MAX_FILTER_SAMPLES = 2_000_000
+#: Acceleration bound [m/s²] of the guidance without a problem (the default problem's), raised to
+#: the trajectory's largest input so that its own feed-forward never saturates.
+DEFAULT_GUIDANCE_ACCEL = 0.05
 #: Options that a problem file's [vehicle], [beacon] and [validation] sections replace.
 PROBLEM_REPLACES = {
     "sensors": "vehicle.sensors",
@@ -37,6 +47,10 @@ PROBLEM_REPLACES = {
     "dt": "validation.dt",
     "init_error": "validation.init_pos_error / init_vel_error",
     "no_process_noise": "the validation's process noise",
+    "accel_noise": "validation.accel_noise",
+    "paper_noise": "validation.process_noise_model",
+    "accel": "limits.accel",
+    "speed": "limits.speed",
     "filters": "the validation's filters (EKF and KF)",
 }
 
@@ -116,6 +130,42 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         default=None,
         help="truth without process noise",
     )
+    p.add_argument(
+        "--open-loop",
+        action="store_true",
+        help="fly the trajectory's accelerations blind (default: closed loop, the vehicle "
+        "steers its EKF estimate onto the trajectory)",
+    )
+    p.add_argument(
+        "--accel-noise",
+        metavar="A",
+        type=float,
+        default=None,
+        help="white acceleration noise intensity [m/s^2/sqrt(Hz)] of the truth and the filters "
+        f"(default {DEFAULT_ACCEL_NOISE:.3g}, the paper's per-step Q at a 0.1 s step)",
+    )
+    p.add_argument(
+        "--paper-noise",
+        action="store_true",
+        default=None,
+        help="the paper's per-step process noise Q = diag(1e-3 dt)^2 (its intensity changes "
+        "with the step) instead of --accel-noise",
+    )
+    p.add_argument(
+        "--accel",
+        metavar="A",
+        type=float,
+        default=None,
+        help="closed loop: the vehicle's acceleration bound per axis [m/s^2] (default "
+        f"{DEFAULT_GUIDANCE_ACCEL:g}, or the trajectory's largest input if larger)",
+    )
+    p.add_argument(
+        "--speed",
+        metavar="V",
+        type=float,
+        default=None,
+        help="closed loop: the vehicle's speed bound [m/s] (default none)",
+    )
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     add_output_arguments(p, "figures", None)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -171,38 +221,36 @@ def format_result(res: MonteCarloResult, path: str) -> str:
         f"[{lo:.2f}, {hi:.2f}] (95 %, dof {2 * cfg.model.dim}); "
         f"convergence: error below {cfg.convergence_threshold_m:g} m"
     )
+    tr = res.truth
+    if tr is not None:
+        lines.append(
+            f"{res.mode}: true paths' closest approach {tr.closest_range_m:.2f} m over all runs, "
+            f"tracking error {tr.tracking_rmse_m:.3f} m RMS, final drift "
+            f"{tr.final_drift_rms_m:.3f} m RMS, {100 * tr.any_violation_fraction:.1f} % of runs "
+            f"break a limit"
+            + (
+                f"; {tr.runs_inside_min_range} runs inside min_range"
+                if tr.limits is not None and tr.limits.min_range is not None
+                else ""
+            )
+        )
     return "\n".join(lines)
 
 
 def check_filter_grid(traj, dt: float | None, runs: int) -> None:
-    """Refuse, before allocating anything, a filter grid or Monte Carlo beyond the limits.
-
-    The limits: :data:`MAX_FILTER_SAMPLES` samples per run and the validation budget
-    ``runs x samples x 3n <= MAX_MC_SIZE`` of :mod:`obsplan.planning.problem`.
-    """
-    from obsplan.planning.schema import MAX_MC_SIZE
-
+    """Refuse, before allocating anything, a filter grid or Monte Carlo beyond the limits of
+    :mod:`obsplan.budget` (samples per run, runs, memory and time)."""
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         raise InputError(f"--dt {dt:g}: the filter step must be a positive number of seconds")
     samples = traj.n_samples if dt is None else traj.duration / dt + 1
-    what = f"--dt {dt:g} s" if dt is not None else f"{traj.n_samples} samples of the trajectory"
-    if samples > MAX_FILTER_SAMPLES:
-        fix = (
-            f"choose --dt >= {traj.duration / (MAX_FILTER_SAMPLES - 1):.3g} s"
-            if dt is not None
-            else "resample the trajectory more coarsely"
-        )
-        raise InputError(
-            f"{what} puts {samples:.4g} samples on the filter grid over {traj.duration:g} s, "
-            f"more than the limit of {MAX_FILTER_SAMPLES} samples per run; {fix}"
-        )
-    size = runs * samples * 3 * traj.dim
-    if size > MAX_MC_SIZE:
-        raise InputError(
-            f"--runs {runs} with {samples:.4g} filter samples per run exceeds the Monte Carlo "
-            f"budget (runs x samples x 3n <= {MAX_MC_SIZE:g}); use at most "
-            f"{int(MAX_MC_SIZE / (samples * 3 * traj.dim))} runs or a coarser --dt"
-        )
+    field = f"--dt {dt:g} s" if dt is not None else f"the {traj.n_samples} trajectory samples"
+    fix = (
+        f"choose --dt >= {traj.duration / (budget.MAX_SAMPLES - 1):.3g} s"
+        if dt is not None
+        else "resample the trajectory more coarsely (--dt)"
+    )
+    budget.check_samples(samples, field, fix)
+    budget.check_monte_carlo(runs, samples, traj.dim, "--runs", "a coarser --dt")
 
 
 def _problem_mode(args: argparse.Namespace, traj):
@@ -225,7 +273,34 @@ def _problem_mode(args: argparse.Namespace, traj):
         )
     if args.seed is not None:
         pb = replace(pb, validation=replace(pb.validation, seed=args.seed))
+    if args.open_loop:
+        pb = replace(pb, validation=replace(pb.validation, mode="open-loop"))
     return pb
+
+
+def _guidance(args: argparse.Namespace, traj) -> tuple[Guidance | None, TruthLimits | None]:
+    """Without a problem: the guidance law and the limits the true paths are checked against
+    (``--accel``, ``--speed``; open loop: no guidance, the limits given)."""
+    for opt in ("accel", "speed"):
+        x = getattr(args, opt)
+        if x is not None and not (np.isfinite(x) and x > 0):
+            raise InputError(f"--{opt} {x:g}: must be a positive bound")
+    if args.accel_noise is not None:
+        if not (np.isfinite(args.accel_noise) and args.accel_noise >= 0):
+            raise InputError(f"--accel-noise {args.accel_noise:g}: must be an intensity >= 0")
+        if args.paper_noise:
+            raise InputError(
+                "--accel-noise and --paper-noise are two settings of the same process noise; "
+                "give one"
+            )
+    accel = args.accel
+    if accel is None:
+        largest = float(np.max(np.abs(traj.u))) if traj.u.size else 0.0
+        accel = max(DEFAULT_GUIDANCE_ACCEL, largest)
+    limits = TruthLimits(accel=accel, speed=args.speed)
+    if args.open_loop:
+        return None, limits
+    return Guidance.from_limits(accel, args.speed, error_scale_m=1.0), limits
 
 
 def run(args: argparse.Namespace) -> int:
@@ -233,14 +308,16 @@ def run(args: argparse.Namespace) -> int:
     check_seed(args.seed)
     if args.runs is not None and args.runs < 1:
         raise InputError(f"--runs {args.runs}: needs at least 1 run")
+    if args.runs is not None:
+        budget.check_runs(args.runs, "--runs")  # before reading the trajectory
     traj = read_trajectory(args.trajectory, "simulate")
     pb = _problem_mode(args, traj) if args.problem else None
     runs = args.runs if args.runs is not None else (pb.validation.runs if pb else 50)
     check_filter_grid(traj, pb.validation.dt if pb else args.dt, runs)
     # the output folder is checked before the (long) simulation, written only at the end
     out = (
-        OutputDir(args.out, args.force, inputs=[args.trajectory, args.problem])
-        if args.out
+        OutputDir(args.out, args.force, inputs=[args.trajectory, args.problem], verb="simulate")
+        if args.out is not None
         else None
     )
     with out or contextlib.nullcontext():
@@ -262,14 +339,17 @@ def run(args: argparse.Namespace) -> int:
             model = make_model(
                 traj.dim, args.sensors or "range", current=bool(args.current), beacon=beacon
             )
-            cfg = EstimationConfig.paper(
-                model,
-                1.0 / sample_rate(fine),
-                rates_hz=parse_pairs(args.rates or "", "--rates"),
-                noise=parse_pairs(args.noise or "", "--noise"),
-                init_error=_init_error(args.init_error or "sample"),
-                process_noise=not args.no_process_noise,
-            )
+            guidance, limits = _guidance(args, fine)
+            common: dict[str, Any] = {
+                "rates_hz": parse_pairs(args.rates or "", "--rates"),
+                "noise": parse_pairs(args.noise or "", "--noise"),
+                "init_error": _init_error(args.init_error or "sample"),
+                "process_noise": not args.no_process_noise,
+            }
+            if args.paper_noise:
+                cfg = EstimationConfig.paper(model, 1.0 / sample_rate(fine), **common)
+            else:
+                cfg = EstimationConfig(model=model, accel_noise=args.accel_noise, **common)
             filters = DEFAULT_FILTERS
             if args.filters is not None:
                 filters = tuple(s.strip() for s in args.filters.split(",") if s.strip())
@@ -280,6 +360,8 @@ def run(args: argparse.Namespace) -> int:
                 seed=args.seed or 0,
                 progress=_progress(args),
                 filters=filters,
+                guidance=guidance,
+                limits=limits,
             )
         if args.json:
             out_json = res.to_dict()
@@ -320,7 +402,7 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
         from obsplan.planning.validation import PathValidation
 
         # the figure `obsplan plan` writes as filters.png, for this one path
-        fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)})
+        fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)}, problem=pb.name)
         written.append(plots.save(fig, staging / "filters.png"))
     ranks = sampled_rank_over_time(fine, cfg)
     idx = np.searchsorted(fine.t, res.t)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from obsplan.errors import InputError
+from obsplan.outputs import check_name
 
 # obsplan.sweeps (pandas, Dask) is imported when the verb runs: every `obsplan` command imports
 # this module to build its parser
@@ -57,7 +58,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("--no-figures", action="store_true", help="do not draw DIR/figures/")
     p.add_argument(
-        "--force", action="store_true", help="write into a non-empty DIR that holds no sweep"
+        "--force",
+        action="store_true",
+        help="write into a DIR that holds another sweep (or another obsplan output)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -103,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give a SWEEP.toml (or --report DIR to redraw a sweep's figures)")
     if args.out is None:
         raise InputError("give --out DIR, the folder for the results (re-use it to resume)")
-    out = Path(args.out)
+    out = check_name(args.out, "--out")  # "" is not the working folder
     # Dask logs a lost connection or a dead worker as tracebacks; the sweep reports both itself
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
     try:
@@ -118,11 +121,12 @@ def run(args: argparse.Namespace) -> int:
             force=args.force,
             on_start=lambda info: _announce(info, args.quiet),
         )
-    except KeyboardInterrupt:
-        print(
-            f"obsplan sweep: finished tasks are kept in {out}; run the same command again to "
-            "resume",
-            file=sys.stderr,
+    except KeyboardInterrupt as exc:
+        # the one line `obsplan` prints for the interruption says what is kept
+        exc.kept = (  # type: ignore[attr-defined]
+            f"finished tasks are kept in {out}; run the same command again to resume"
+            if out.is_dir()
+            else "nothing was written"
         )
         raise
     counts = df["status"].value_counts()

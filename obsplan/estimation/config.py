@@ -60,6 +60,9 @@ from obsplan.estimation.kalman import integrated_noise
 from obsplan.model import SENSOR_ALIASES, SENSORS, VehicleModel
 from obsplan.observability.gramian import augmented_model
 
+#: Largest sensor noise standard deviation accepted (m or m/s): beyond it no reading says
+#: anything about a vehicle, and squares of it overflow the filters.
+MAX_NOISE_STD = 1e6
 #: Paper noise levels: range [m], DVL [m/s], depth [m] (depth is not in the paper).
 DEFAULT_NOISE: Mapping[str, float] = MappingProxyType(
     {"range": 0.1, "dvl-bottom": 1e-3, "dvl-water": 1e-3, "depth": 0.05}
@@ -301,9 +304,10 @@ class EstimationConfig:
         for k, v in dict(self.noise).items():
             name = _sensor_key(model, k, "noise")
             val = float(v)
-            if not (np.isfinite(val) and val > 0):
+            if not (np.isfinite(val) and 0 < val <= MAX_NOISE_STD):
                 raise ConfigError(
-                    f"noise[{name!r}] must be a positive standard deviation, got {v!r}"
+                    f"noise[{name!r}] must be a positive standard deviation of at most "
+                    f"{MAX_NOISE_STD:g} (m or m/s), got {v!r}"
                 )
             noise[name] = val
         full_noise = {s: noise.get(s, DEFAULT_NOISE[s]) for s in model.sensors}
@@ -339,9 +343,14 @@ class EstimationConfig:
         else:
             e = np.asarray(self.init_error, float).reshape(-1)
             if e.shape != (mx,) or not np.all(np.isfinite(e)):
+                got = (
+                    f"{e.size} numbers"
+                    if e.shape != (mx,)
+                    else f"{', '.join(f'{x:g}' for x in e)} (not all finite)"
+                )
                 raise ConfigError(
                     f"init_error: expected {mx} finite numbers ({', '.join(model.state_names)}), "
-                    f"got shape {np.shape(self.init_error)}"
+                    f"got {got}"
                 )
             e.setflags(write=False)
             object.__setattr__(self, "init_error", e)

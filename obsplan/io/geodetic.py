@@ -37,7 +37,7 @@ def parse_geodetic_point(
     except InputError as exc:
         raise InputError(f"{option} {text!r}: {exc}") from None
     depth = vals[2] if len(vals) == 3 else 0.0
-    return tuple(float(x) for x in geodetic_to_local(vals[0], vals[1], depth, origin, dim))
+    return tuple(float(x) for x in geodetic_to_local(vals[0], vals[1], depth, origin, dim, option))
 
 
 def _numbers(

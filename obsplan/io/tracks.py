@@ -48,6 +48,7 @@ import numpy as np
 
 from obsplan.csvtable import CsvTable, read_table
 from obsplan.errors import InputError, TrajectoryFormatError
+from obsplan.estimation import linear
 from obsplan.geodesy import GeodeticOrigin, geodetic_to_local
 from obsplan.trajectory import Trajectory, check_samples, csv_columns, trajectory_from_table
 
@@ -59,6 +60,8 @@ MAX_GAP_INTERVALS = 30.0
 FILL_GAP_INTERVALS = 3.0
 #: Largest number of nodes (samples + inserted nodes) a fit accepts: about 10 min of work.
 MAX_NODES = 2_000_000
+#: Least fraction of a MAVLink log's bytes (and of its expected samples) that must decode.
+MIN_READABLE_FRACTION = 0.9
 #: Default standard deviation of logged velocities [m/s] when a log has them.
 DEFAULT_VELOCITY_STD = 0.05
 
@@ -88,6 +91,8 @@ class Track:
     origin : GeodeticOrigin or None
         The geodetic origin of the local frame when positions were converted from latitude and
         longitude.
+    notes : tuple of str
+        What the reader had to drop or assume (e.g. the bytes of a damaged log), for the user.
     """
 
     t: np.ndarray
@@ -95,6 +100,7 @@ class Track:
     v: np.ndarray | None = None
     source: str = "track"
     origin: Any = None
+    notes: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         t = np.asarray(self.t, float).reshape(-1)
@@ -239,32 +245,75 @@ def _track_columns(columns: tuple[str, ...], path: object) -> tuple[list[str], l
     return pos, (vel if all(present) else None)
 
 
-def track_from_table(table: CsvTable) -> Track:
-    """A :class:`Track` from a :class:`~obsplan.csvtable.CsvTable` with ``t,px,py[,pz]``."""
+def _waypoint_track(table: CsvTable, origin: Any) -> Track | None:
+    """obsplan's own waypoint CSV (``t,x,y[,z],speed,...`` or ``t,latitude,longitude[,depth],
+    ...``, written by ``obsplan export``) as a track; None for other tables."""
+    cols = table.columns
+    if "px" in cols or "t" not in cols:
+        return None
+    if table.has("x", "y"):
+        pos = ["x", "y", "z"] if "z" in cols else ["x", "y"]
+        data = table.numbers(["t", *pos])
+        return Track(t=data[:, 0], p=data[:, 1:], source=str(table.path))
+    if table.has("latitude", "longitude"):
+        names = ["t", "latitude", "longitude", *(["depth"] if "depth" in cols else [])]
+        data = table.numbers(names)
+        first = origin is None
+        if first:
+            origin = GeodeticOrigin(latitude=float(data[0, 1]), longitude=float(data[0, 2]))
+        depth = data[:, 3] if data.shape[1] == 4 else np.zeros(data.shape[0])
+        where = f"{table.path}" + (" (origin: the first waypoint)" if first else "")
+        p = geodetic_to_local(
+            data[:, 1], data[:, 2], depth, origin, dim=data.shape[1] - 1, where=where
+        )
+        return Track(t=data[:, 0], p=p, source=str(table.path), origin=origin)
+    return None
+
+
+def track_from_table(table: CsvTable, origin: Any = None) -> Track:
+    """A :class:`Track` from a :class:`~obsplan.csvtable.CsvTable` with ``t,px,py[,pz]`` (or a
+    waypoint CSV of ``obsplan export``: ``t,x,y[,z]`` or ``t,latitude,longitude[,depth]``, the
+    latter about ``origin``, default the first waypoint)."""
     path = table.path
+    wp = _waypoint_track(table, origin)
+    if wp is not None:
+        _check_increasing(wp.t, table)
+        return wp
     pos, vel = _track_columns(table.columns, path)
     data = table.numbers(["t", *pos, *(vel or [])])
     t = data[:, 0]
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if bad.size:
-        k = int(bad[0])
-        raise TrajectoryFormatError(
-            f"{path}: row {table.lines[k + 1]}, column 't': time {float(t[k + 1])!r} does not "
-            f"increase (row {table.lines[k]} has {float(t[k])!r}); sort the log or drop "
-            "duplicated samples"
-        )
+    _check_increasing(t, table)
     n = len(pos)
     v = data[:, 1 + n :] if vel else None
     return Track(t=t, p=data[:, 1 : 1 + n], v=v, source=str(path))
 
 
-def read_track_csv(path: str | Path) -> Track:
+def _check_increasing(t: np.ndarray, table: CsvTable) -> None:
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        k = int(bad[0])
+        raise TrajectoryFormatError(
+            f"{table.path}: row {table.lines[k + 1]}, column 't': time {float(t[k + 1])!r} does "
+            f"not increase (row {table.lines[k]} has {float(t[k])!r}); sort the log or drop "
+            "duplicated samples"
+        )
+
+
+def read_track_csv(path: str | Path, origin: Any = None) -> Track:
     """Read a track CSV: ``t,px,py[,pz]`` [s, m] and optional ``vx,vy[,vz]`` [m/s].
 
     Separators: comma, semicolon or tab; extra columns are ignored. A full trajectory CSV (with
-    ``ux..``) is also a track (its inputs are ignored).
+    ``ux..``) is also a track (its inputs are ignored), and so is a waypoint CSV written by
+    ``obsplan export`` (``t,x,y[,z],...``, or ``t,latitude,longitude[,depth],...`` converted about
+    ``origin``, a :class:`~obsplan.geodesy.GeodeticOrigin`; default: the first waypoint).
     """
-    return track_from_table(read_table(path, "t,px,py[,pz]"))
+    return track_from_table(read_table(path, "t,px,py[,pz]"), origin)
+
+
+def _one_line(exc: BaseException, limit: int = 240) -> str:
+    """A library's exception as one line (YAML and bag readers write several)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _missing_extra(package: str, extra: str) -> InputError:
@@ -311,7 +360,7 @@ def read_track_rosbag(path: str | Path, topic: str | None = None, frame: str = "
         reader = AnyReader([path])
         reader.open()
     except Exception as exc:  # rosbags raises its own error types for every malformed bag
-        raise TrajectoryFormatError(f"{path}: not a readable ROS bag: {exc}") from None
+        raise TrajectoryFormatError(f"{path}: not a readable ROS bag: {_one_line(exc)}") from None
     try:
         conns = [c for c in reader.connections if _ros_type(c.msgtype) in ROS_TYPES]
         if topic is not None:
@@ -339,7 +388,9 @@ def read_track_rosbag(path: str | Path, topic: str | None = None, frame: str = "
     except TrajectoryFormatError:
         raise
     except Exception as exc:
-        raise TrajectoryFormatError(f"{path}: cannot read the bag's messages: {exc}") from None
+        raise TrajectoryFormatError(
+            f"{path}: cannot read the bag's messages: {_one_line(exc)}"
+        ) from None
     finally:
         reader.close()
     if not t:
@@ -386,13 +437,19 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
         raise InputError(f"message must be one of {', '.join(MAVLINK_MESSAGES)}, got {message!r}")
     rows: dict[str, list[tuple[float, ...]]] = {m: [] for m in MAVLINK_MESSAGES}
     mlog = None
+    readable = 0  # bytes of the log in messages that decoded (with their time stamps)
     try:
         mlog = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", robust_parsing=True)
+        stamp = 0 if getattr(mlog, "notimestamps", False) else 8
         while True:
-            m = mlog.recv_match(type=list(MAVLINK_MESSAGES))
+            m = mlog.recv_msg()
             if m is None:
                 break
             name = m.get_type()
+            if name != "BAD_DATA" and not name.startswith("UNKNOWN"):
+                readable += len(m.get_msgbuf()) + stamp
+            if name not in rows:
+                continue
             if name == "LOCAL_POSITION_NED":
                 rows[name].append((m.time_boot_ms * 1e-3, m.x, m.y, m.z, m.vx, m.vy, m.vz))
             else:
@@ -408,7 +465,9 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
                     )
                 )
     except Exception as exc:  # pymavlink raises bare Exceptions on damaged logs
-        raise TrajectoryFormatError(f"{path}: not a readable MAVLink log: {exc}") from None
+        raise TrajectoryFormatError(
+            f"{path}: not a readable MAVLink log: {_one_line(exc)}"
+        ) from None
     finally:
         if mlog is not None:
             mlog.close()
@@ -418,6 +477,7 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
             f"{path}: no {message or ' or '.join(MAVLINK_MESSAGES)} messages in the log"
         )
     a = np.asarray(rows[name], float)
+    notes = _damage(path, readable, name, a[:, 0])
     keep = np.r_[True, np.diff(a[:, 0]) > 0]  # drop repeats; a clock reset stays an error
     if np.any(np.diff(a[:, 0]) < 0):
         k = int(np.flatnonzero(np.diff(a[:, 0]) < 0)[0])
@@ -427,11 +487,38 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
         )
     a = a[keep]
     if name == "GLOBAL_POSITION_INT":
+        first_fix = origin is None
         if origin is None:
             origin = GeodeticOrigin(latitude=float(a[0, 1]), longitude=float(a[0, 2]))
-        p = geodetic_to_local(a[:, 1], a[:, 2], a[:, 3], origin, dim=3)
-        return Track(t=a[:, 0], p=p, v=a[:, 4:7], source=f"{path}:{name}", origin=origin)
-    return Track(t=a[:, 0], p=a[:, 1:4], v=a[:, 4:7], source=f"{path}:{name}")
+        where = f"{path}: {name}" + (" (origin: the first fix)" if first_fix else "")
+        p = geodetic_to_local(a[:, 1], a[:, 2], a[:, 3], origin, dim=3, where=where)
+        return Track(
+            t=a[:, 0], p=p, v=a[:, 4:7], source=f"{path}:{name}", origin=origin, notes=notes
+        )
+    return Track(t=a[:, 0], p=a[:, 1:4], v=a[:, 4:7], source=f"{path}:{name}", notes=notes)
+
+
+def _damage(path: Path, readable: int, name: str, t: np.ndarray) -> tuple[str, ...]:
+    """What a damaged log lost: a note, or an error below :data:`MIN_READABLE_FRACTION`."""
+    size = path.stat().st_size
+    lost = max(0, size - readable)
+    if lost == 0:
+        return ()
+    h = np.diff(np.unique(t))
+    # the sample interval: a low quantile of the intervals, as lost samples only lengthen some
+    step = float(np.quantile(h, 0.25)) if h.size else 0.0
+    expected = int(round((t.max() - t.min()) / step)) + 1 if step > 0 else t.size
+    text = (
+        f"{path}: {lost:,} of {size:,} bytes ({100 * lost / size:.1f} %) could not be decoded "
+        f"(damaged or unknown messages); {t.size} {name} samples read of about "
+        f"{max(expected, t.size)} over the log's time span"
+    )
+    if readable < MIN_READABLE_FRACTION * size or t.size < MIN_READABLE_FRACTION * expected:
+        raise TrajectoryFormatError(
+            f"{text}: below the {100 * MIN_READABLE_FRACTION:.0f} % a fit is trusted with; "
+            "repair the log or export its track to CSV"
+        )
+    return (text,)
 
 
 def read_track(
@@ -455,7 +542,7 @@ def read_track(
         else:
             fmt = "csv"
     if fmt == "csv":
-        return read_track_csv(path)
+        return read_track_csv(path, origin)
     if fmt == "rosbag":
         return read_track_rosbag(path, topic=topic, frame=ros_frame)
     if fmt == "mavlink":
@@ -580,9 +667,7 @@ def _kalman(
     for k in range(M):
         if k > 0:
             hk = h_all[k - 1]
-            F = np.array([[1.0, hk, 0.5 * hk * hk], [0.0, 1.0, hk], [0.0, 0.0, 1.0]])
-            x = x @ F.T
-            P = F @ P @ F.T
+            x, P = linear.predict(x, P, _transition(hk))
             if nodes.jump_dt[k] > 0:
                 P[:, 2, 2] += q * nodes.jump_dt[k]
         if store:
@@ -593,14 +678,9 @@ def _kalman(
             if w is not None:
                 meas.append((1, w[i, axis], sv**2))
             for comp, val, r in meas:
-                S = P[:, comp, comp] + r
-                e = val - x[:, comp]
-                K = P[:, :, comp] / S[:, None]
-                x = x + K * e[:, None]
-                P = P - K[:, :, None] * K[:, None, :] * S[:, None, None]
-                P = 0.5 * (P + np.swapaxes(P, 1, 2))
+                x, P, S, e = linear.update_component(x, P, comp, val, r)
                 if count >= _DIFFUSE:
-                    loglik -= 0.5 * (np.log(2 * np.pi * S) + e * e / S)
+                    loglik += linear.log_likelihood(S, e)
                 count += 1
         if store:
             xf[k], Pf[k] = x, P
@@ -609,20 +689,17 @@ def _kalman(
     return loglik, None
 
 
+def _transition(h: float) -> np.ndarray:
+    """``F`` of the constant-acceleration model ``(p, v, u)`` over a step ``h``."""
+    return np.array([[1.0, h, 0.5 * h * h], [0.0, 1.0, h], [0.0, 0.0, 1.0]])
+
+
 def _rts(nodes: _Nodes, moments) -> tuple[np.ndarray, np.ndarray]:
-    """Rauch–Tung–Striebel smoother: smoothed means (M, B, 3) and u variances (M, B)."""
+    """Rauch–Tung–Striebel smoother (:func:`obsplan.estimation.linear.rts_smooth`): smoothed
+    means (M, B, 3) and u variances (M, B)."""
     xf, Pf, xp, Pp = moments
-    M = xf.shape[0]
-    xs = xf.copy()
-    Ps = Pf.copy()
-    h_all = np.diff(nodes.t)
-    for k in range(M - 2, -1, -1):
-        hk = h_all[k]
-        F = np.array([[1.0, hk, 0.5 * hk * hk], [0.0, 1.0, hk], [0.0, 0.0, 1.0]])
-        # C = Pf F^T Pp^-1, by a solve with the symmetric Pp
-        C = np.swapaxes(np.linalg.solve(Pp[k + 1], (Pf[k] @ F.T).swapaxes(1, 2)), 1, 2)
-        xs[k] = xf[k] + np.einsum("bij,bj->bi", C, xs[k + 1] - xp[k + 1])
-        Ps[k] = Pf[k] + C @ (Ps[k + 1] - Pp[k + 1]) @ np.swapaxes(C, 1, 2)
+    F = np.array([_transition(h) for h in np.diff(nodes.t)]).reshape(-1, 3, 3)
+    xs, Ps = linear.rts_smooth(xf, Pf, xp, Pp, F)
     return xs, Ps[:, :, 2, 2]
 
 

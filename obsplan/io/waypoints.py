@@ -336,9 +336,12 @@ def qgc_plan(
             "a QGroundControl mission needs geodetic waypoints: give --origin LAT,LON[,ALT] or "
             "plan a problem with an [origin] section"
         )
-    for name, val in (("acceptance radius", acceptance_radius), ("depth", depth_2d)):
-        if not math.isfinite(val) or (name != "depth" and val <= 0):
-            raise InputError(f"{name} {val!r}: must be a finite (positive) number of metres")
+    if not (math.isfinite(acceptance_radius) and acceptance_radius > 0):
+        raise InputError(
+            f"acceptance radius {acceptance_radius!r}: must be a positive number of metres"
+        )
+    if not (math.isfinite(depth_2d) and depth_2d >= 0):
+        raise InputError(f"depth {depth_2d!r}: must be a number of metres >= 0 (0: the surface)")
     lat, lon, depth = local_to_geodetic(wp.p, wp.origin)
     if wp.dim == 2:
         depth = np.full(lat.size, float(depth_2d))

@@ -220,6 +220,23 @@ def augmented_model(model: VehicleModel) -> AugmentedModel:
     return AugmentedModel(dim=model.dim, sensors=model.sensors, current=model.current)
 
 
+def _interval_gramian_sx(aug: AugmentedModel, weighted: bool):
+    n = aug.dim
+    d, e, u = ca.SX.sym("d", n), ca.SX.sym("e", n), ca.SX.sym("u", n)
+    tau0, h = ca.SX.sym("tau0"), ca.SX.sym("h")
+    w = ca.SX.sym("w", aug.n_outputs)
+    G = ca.SX.zeros(aug.state_dim, aug.state_dim)
+    hp = [h ** (k + 1) / (k + 1) for k in range(7)]
+    for r, coeffs in enumerate(aug._row_coeffs(d, e, u, tau0)):
+        R = ca.horzcat(*coeffs)  # m × 4
+        H = ca.SX.zeros(4, 4)
+        for i in range(4):
+            for j in range(4):
+                H[i, j] = hp[i + j]
+        G += (w[r] if weighted else 1.0) * (R @ H @ R.T)
+    return [d, e, u, tau0, h, *([w] if weighted else [])], G
+
+
 @cache
 def interval_gramian_function(aug: AugmentedModel) -> ca.Function:
     """CasADi ``G_k = g(d_k, e_k, u_k, tau0, h)``: exact Gramian of one constant-input interval.
@@ -228,19 +245,21 @@ def interval_gramian_function(aug: AugmentedModel) -> ca.Function:
     (n), elapsed time ``tau0 = t_k - t_0`` and interval length ``h``, in consistent (normally
     nondimensional) units. Output: the ``m × m`` symmetric contribution ``∫ Φᵀ Cᵀ C Φ``.
     """
-    n = aug.dim
-    d, e, u = ca.SX.sym("d", n), ca.SX.sym("e", n), ca.SX.sym("u", n)
-    tau0, h = ca.SX.sym("tau0"), ca.SX.sym("h")
-    G = ca.SX.zeros(aug.state_dim, aug.state_dim)
-    hp = [h ** (k + 1) / (k + 1) for k in range(7)]
-    for coeffs in aug._row_coeffs(d, e, u, tau0):
-        R = ca.horzcat(*coeffs)  # m × 4
-        H = ca.SX.zeros(4, 4)
-        for i in range(4):
-            for j in range(4):
-                H[i, j] = hp[i + j]
-        G += R @ H @ R.T
-    return ca.Function("interval_gramian", [d, e, u, tau0, h], [G])
+    args, G = _interval_gramian_sx(aug, weighted=False)
+    return ca.Function("interval_gramian", args, [G])
+
+
+@cache
+def weighted_interval_gramian_function(aug: AugmentedModel) -> ca.Function:
+    """CasADi ``G_k = g(d_k, e_k, u_k, tau0, h, w)``: :func:`interval_gramian_function` with the
+    output rows weighted, ``∫ Φᵀ Cᵀ diag(w) C Φ``.
+
+    ``w`` has one weight per output row (``aug.n_outputs``: range, then DVL axes, then depth),
+    constant on the interval (e.g. information per unit time,
+    :mod:`obsplan.observability.windowed`).
+    """
+    args, G = _interval_gramian_sx(aug, weighted=True)
+    return ca.Function("weighted_interval_gramian", args, [G])
 
 
 #: Cholesky factor of the 4 × 4 Hilbert matrix ``1/(i+j+1)``: ``∫_0^h σ^{i+j} dσ = h^{i+j+1}/(i+j+1)
@@ -268,16 +287,24 @@ def _interval_factors(traj: Trajectory, aug: AugmentedModel, scales: Scales | No
 
 
 def interval_gramians(
-    traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
+    traj: Trajectory,
+    model: VehicleModel | AugmentedModel,
+    scales: Scales | None = DEFAULT_SCALES,
+    row_weights: np.ndarray | None = None,
 ) -> np.ndarray:
     """Exact per-interval contributions ``G_k``, shape ``(N-1, m, m)``, referred to ``z(t_0)``.
 
     The closed form of :func:`interval_gramian_function` evaluated in numpy, vectorised over
     the intervals. ``scales=None`` computes in the trajectory's own units (used by tests of
-    unit invariance).
+    unit invariance). ``row_weights`` (shape ``(N-1, n_outputs)``, optional) weights each output
+    row on each interval, as :func:`weighted_interval_gramian_function`.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     V = _interval_factors(traj, aug, scales)
+    if row_weights is not None:
+        K, rows = V.shape[0], aug.n_outputs
+        w = np.sqrt(np.asarray(row_weights, float).reshape(K, rows))
+        V = (V.reshape(K, rows, 4, -1) * w[:, :, None, None]).reshape(V.shape)
     return np.swapaxes(V, 1, 2) @ V
 
 

@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from obsplan.errors import ConfigError
+from obsplan import budget
+from obsplan.errors import ConfigError, ProblemError
 from obsplan.model import VehicleModel, parse_sensors
 from obsplan.observability.gramian import augmented_model, gramian, rank_scales
 from obsplan.observability.lwo import lwo_structural_max_rank
@@ -30,12 +31,13 @@ from obsplan.planning.mission_spec import MISSION_KINDS, MISSION_ORDERS
 from obsplan.planning.schema import (
     MAX_DURATION_S,
     MAX_MAGNITUDE,
-    MAX_MC_SIZE,
     MAX_STEPS,
     MODES,
     OBJECTIVE_KINDS,
     OBJECTIVES,
+    PROCESS_NOISE_MODELS,
     TIMED_OBJECTIVES,
+    VALIDATION_MODES,
     field_error,
 )
 from obsplan.trajectory import Trajectory
@@ -291,12 +293,50 @@ def _check_objective(pb: PlanningProblem) -> None:
         )
     if obj.starts < 1:
         raise field_error("objective.starts", f"must be at least 1, got {obj.starts}")
+    budget.check_starts(obj.starts, "objective.starts", ProblemError)
     if obj.max_iter < 1:
         raise field_error("objective.max_iter", f"must be at least 1, got {obj.max_iter}")
+    budget.check_iterations(obj.max_iter, "objective.max_iter", ProblemError)
     if obj.tol is not None and not 0 < obj.tol < 1:
         raise field_error("objective.tol", f"must be in (0, 1), got {obj.tol}")
+    if obj.robust_aggregate not in ("worst", "mean"):
+        raise field_error(
+            "objective.robust_aggregate", f'must be "worst" or "mean", got {obj.robust_aggregate!r}'
+        )
+    if (obj.robust_prior or obj.robust_range_noise) and obj.kind not in TIMED_OBJECTIVES:
+        raise field_error(
+            "objective.robust_prior" if obj.robust_prior else "objective.robust_range_noise",
+            f"robust planning needs an estimator objective ({', '.join(TIMED_OBJECTIVES)}), not "
+            f"{obj.kind}; change objective.kind or remove the robust_* fields",
+        )
+    for name in ("stress_prior", "stress_range_noise"):
+        if not getattr(val, name) > 0:
+            raise field_error(
+                f"validation.{name}", f"must be a multiple > 0, got {getattr(val, name)}"
+            )
     if obj.seed < 0 or val.seed < 0:
         raise field_error("objective.seed" if obj.seed < 0 else "validation.seed", "must be >= 0")
+    _check_windows(pb)
+
+
+def _check_windows(pb: PlanningProblem) -> None:
+    obj = pb.objective
+    if obj.weights not in ("information", "none"):
+        raise field_error(
+            "objective.weights", f'must be "information" or "none", got {obj.weights!r}'
+        )
+    if obj.anchor not in ("start", "current"):
+        raise field_error("objective.anchor", f'must be "start" or "current", got {obj.anchor!r}')
+    for name, names in (("window", ("auto", "mission")), ("stride", ("auto",))):
+        val = getattr(obj, name)
+        if isinstance(val, str):
+            if val not in names:
+                choices = " or ".join(f'"{n}"' for n in names)
+                raise field_error(
+                    f"objective.{name}", f"must be a length in s or {choices}, got {val!r}"
+                )
+        elif not 0 < val <= MAX_DURATION_S:
+            raise field_error(f"objective.{name}", f"must be a positive length in s, got {val!r}")
 
 
 def _check_validation(pb: PlanningProblem) -> None:
@@ -317,6 +357,22 @@ def _check_validation(pb: PlanningProblem) -> None:
         x = getattr(val, name)
         if not (math.isfinite(x) and x > 0):
             raise field_error(f"validation.{name}", f"must be > 0, got {x}")
+    if not (math.isfinite(val.accel_noise) and val.accel_noise >= 0):
+        raise field_error(
+            "validation.accel_noise",
+            f"must be an intensity >= 0 in m/s^2/sqrt(Hz), got {val.accel_noise}",
+        )
+    if val.mode not in VALIDATION_MODES:
+        raise field_error(
+            "validation.mode", f"must be one of {', '.join(VALIDATION_MODES)}, got {val.mode!r}"
+        )
+    if val.process_noise_model not in PROCESS_NOISE_MODELS:
+        raise field_error(
+            "validation.process_noise_model",
+            f"must be one of {', '.join(PROCESS_NOISE_MODELS)}, got {val.process_noise_model!r}",
+        )
+    if val.max_runs < 1:
+        raise field_error("validation.max_runs", f"must be at least 1, got {val.max_runs}")
     ratio = hor.dt / val.dt
     if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
         raise field_error(
@@ -354,15 +410,12 @@ def _check_budget(pb: PlanningProblem) -> None:
             "lengthen horizon.duration",
         )
     samples = hor.duration / val.dt + 1
-    size = val.runs * samples * 3 * n
-    if size > MAX_MC_SIZE:
-        runs_max = int(MAX_MC_SIZE / (samples * 3 * n))
-        raise field_error(
-            "validation.runs",
-            f"{val.runs} runs of {samples:.0f} filter steps are too large for the validation "
-            f"Monte Carlo (would need ~{size * 8 * 4 / 2**30:.0f} GiB); use at most {runs_max} "
-            "runs or a longer validation.dt",
-        )
+    budget.check_monte_carlo(
+        val.runs, samples, n, "validation.runs", "a longer validation.dt", ProblemError
+    )
+    obj = pb.objective
+    cost = budget.planning_cost(hor.steps, obj.starts, obj.max_iter)
+    budget.check_cost(cost, "objective.starts", "use fewer starts or steps", ProblemError)
 
 
 def _margins(pb: PlanningProblem) -> tuple[float, float]:
@@ -381,6 +434,12 @@ def _check_range_and_speed_limits(pb: PlanningProblem) -> None:
         x = getattr(lim, name)
         if not (math.isfinite(x) and x >= 0):
             raise field_error(f"limits.{name}", f"must be >= 0 (0 disables it), got {x}")
+    c = lim.keepout_confidence
+    if not (isinstance(c, int | float) and math.isfinite(c) and 0 <= c < 1):
+        raise field_error(
+            "limits.keepout_confidence",
+            f"must be a probability in [0, 1) such as 0.999 (0 disables the margins), got {c!r}",
+        )
     r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon, float)))
     tau, a = _margins(pb)
     s0 = float(np.linalg.norm(pb.v0))

@@ -58,6 +58,7 @@ def plot_paths(
         ax.plot(tr.p[:, ix], tr.p[:, iy], label=name, **_STYLE.get(name, {"lw": 1.0}))
     ax.plot(pb.p0[ix], pb.p0[iy], "ko", ms=5, label="start")
     ax.plot(pb.beacon[ix], pb.beacon[iy], "r^", ms=9, label="beacon")
+    _min_range_circle(ax, pb, ix, iy, label=True)
     if pb.limits.area is not None:
         a = pb.limits.area
         lo = (a.x[0], a.y[0]) if not geo else (a.y[0], a.x[0])
@@ -69,9 +70,13 @@ def plot_paths(
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("y = east [m]" if geo else "x [m]")
     ax.set_ylabel("x = north [m]" if geo else "y [m]")
-    ax.set_title(f"{pb.objective.kind}: planned path vs lawn-mower (horizontal)", fontsize=9)
+    ax.set_title(
+        f"{_problem_title(pb)}{pb.objective.kind}: planned path vs lawn-mower (horizontal)",
+        fontsize=9,
+    )
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper left")
+    _beacon_zoom(ax, paths, names, pb, ix, iy)
     if depth_panel:
         az = fig.add_subplot(1, 2, 2)
         for name in names:
@@ -148,6 +153,58 @@ def plot_speed(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None) ->
     return fig
 
 
+def _problem_title(pb: PlanningProblem) -> str:
+    return f"{pb.name}\n" if getattr(pb, "name", "") else ""
+
+
+def _min_range_circle(ax, pb: PlanningProblem, ix: int, iy: int, label: bool) -> None:
+    """The circle ``|p - b| = limits.min_range`` the path keeps out of (none when 0)."""
+    r = float(pb.limits.min_range or 0.0)
+    if r <= 0:
+        return
+    centre = (pb.beacon[ix], pb.beacon[iy])
+    ax.add_patch(
+        plt.Circle(
+            centre,
+            r,
+            fill=False,
+            ls=":",
+            lw=1.0,
+            color="tab:red",
+            label=f"min range {r:g} m" if label else None,
+        )
+    )
+
+
+#: A path that comes within this fraction of the view's size of the beacon gets a zoomed inset.
+ZOOM_FRACTION = 0.08
+
+
+def _beacon_zoom(ax, paths, names, pb: PlanningProblem, ix: int, iy: int) -> None:
+    """An inset zoomed on the beacon when a path loops close to it (the loops at the minimum
+    range would otherwise hide under the beacon's marker)."""
+    b = np.array([pb.beacon[ix], pb.beacon[iy]])
+    pts = np.concatenate([paths[n].p[:, [ix, iy]] for n in names])
+    extent = float(np.max(np.ptp(np.vstack([pts, b]), axis=0)))
+    near = [paths[n].p[:, [ix, iy]] for n in names]
+    closest = min(float(np.min(np.linalg.norm(q - b, axis=1))) for q in near)
+    if extent <= 0 or closest > ZOOM_FRACTION * extent:
+        return
+    half = max(4.0 * max(closest, float(pb.limits.min_range or 0.0)), 0.02 * extent)
+    inset = ax.inset_axes((0.62, 0.02, 0.36, 0.36))
+    for name in names:
+        q = paths[name].p[:, [ix, iy]]
+        inset.plot(q[:, 0], q[:, 1], **_STYLE.get(name, {"lw": 1.0}))
+    inset.plot(*b, "r^", ms=5)
+    _min_range_circle(inset, pb, ix, iy, label=False)
+    inset.set_xlim(b[0] - half, b[0] + half)
+    inset.set_ylim(b[1] - half, b[1] + half)
+    inset.set_aspect("equal", adjustable="box")
+    inset.tick_params(labelsize=6)
+    inset.set_title(f"near the beacon (±{half:.3g} m)", fontsize=6)
+    ax.indicate_inset_zoom(inset, edgecolor="0.4")
+
+
 def plot_gramian_eigs(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None) -> Figure:
     """Smallest eigenvalue of the scaled Gramian ``G(t, t_0)`` over time, each path."""
     fig, ax = _ax(ax)
@@ -168,10 +225,20 @@ def plot_gramian_eigs(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=N
 
 
 def plot_filter_errors(
-    validation: Mapping[str, PathValidation], ax=None, names: tuple[str, ...] = ()
+    validation: Mapping[str, PathValidation],
+    ax=None,
+    names: tuple[str, ...] = (),
+    problem: str = "",
 ) -> Figure:
     """Position RMSE over the runs for the EKF (solid) and KF (dashed), and the posterior CRB
-    on the position std (dotted), of each path."""
+    on the position std (dotted), of each path; ``problem`` (its name) heads the title.
+
+    The curves are the RMSE over the runs at each time: a root mean square, which a few runs far
+    off (flagged: their errors leave the filter's own covariance) dominate. The verdict's "EKF
+    RMSE" is its time average over the mission and its "final error" the mean error at the end;
+    when the plan's EKF curve ends above the lawn-mower's, a note under the title gives those
+    numbers and the flagged runs, so the figure and the verdict tell one story.
+    """
     fig, ax = _ax(ax)
     names = (
         names or tuple(n for n in ("planned", "lawnmower") if n in validation) or tuple(validation)
@@ -188,10 +255,38 @@ def plot_filter_errors(
     ax.set_ylabel("position RMSE / bound [m]")
     some = next(iter(validation.values())).result if validation else None
     if some is not None:
-        ax.set_title(f"{some.runs} Monte Carlo runs, seed {some.seed}", fontsize=9)
+        head = f"{problem}\n" if problem else ""
+        note = _crossing_note(validation, names)
+        ax.set_title(
+            f"{head}{some.runs} Monte Carlo runs, seed {some.seed}" + (f"\n{note}" if note else ""),
+            fontsize=7 if note else 9,
+        )
+        if note:
+            fig.subplots_adjust(top=0.74)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     return fig
+
+
+def _crossing_note(validation: Mapping[str, PathValidation], names: tuple[str, ...]) -> str:
+    """When the plan's EKF RMSE curve ends above the lawn-mower's, say what the table compares
+    (time averages and final errors), so the figure and the verdict tell one story."""
+    if not {"planned", "lawnmower"} <= set(names):
+        return ""
+    plan, mower = validation["planned"].result.ekf, validation["lawnmower"].result.ekf
+    if plan is None or mower is None:
+        return ""
+    if not plan.rmse_pos_t[-1] > mower.rmse_pos_t[-1]:
+        return ""
+    flagged = int(getattr(plan, "flagged_runs", 0) or 0)
+    led = f", led by its {flagged} flagged runs" if flagged else ""
+    return (
+        f"EKF RMSE at the end: plan {plan.rmse_pos_t[-1]:.3g} m > lawn-mower "
+        f"{mower.rmse_pos_t[-1]:.3g} m\n(a root mean square over the runs{led});\n"
+        f"the verdict compares the mean final error, {plan.final_pos_err:.3g} vs "
+        f"{mower.final_pos_err:.3g} m,\nand the mission RMSE, {plan.rmse_pos:.3g} vs "
+        f"{mower.rmse_pos:.3g} m"
+    )
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:

@@ -9,6 +9,11 @@ Lagrangian Hessian keeps the stage-wise sparsity):
   ``G - tgI = LLᵀ`` forces ``t g <= λ_min(G)``, equal at the optimum;
 * ``gramian-log-det``: ``max 2 Σ log L_ii`` s.t. ``D G(W) D = L Lᵀ`` with a fixed diagonal ``D``.
 
+This is the paper's formulation (``objective.window = "mission"``, ``weights = "none"``); it
+measures the initial state only and does not serve the filters (README, "Choosing the
+objective"). Every other setting is the windowed, information-weighted form of
+:mod:`obsplan.planning.windowed_gramian`.
+
 The values on a path (:func:`gramian_metrics`) are computed numerically with the unit-invariant
 rank test of :mod:`obsplan.observability.scaling`, never read from the lifting variables.
 """
@@ -30,6 +35,7 @@ from obsplan.planning.blocks import (
 from obsplan.planning.grid import Grid
 from obsplan.planning.guesses import excited_path
 from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.windowed_gramian import paper_form, windowed_term, windowed_value
 from obsplan.trajectory import Trajectory
 
 #: Lower bound of the diagonal of the log-det Cholesky variable: IPOPT may relax a bound by 1e-8
@@ -105,7 +111,7 @@ class _Lifted:
         return ConstraintBlock("cholesky", _vech(Gn, self.m) - self.llt(self.Lv), z, z.copy())
 
 
-def min_eig_term(ctx: NLPContext) -> ObjectiveTerm:
+def paper_min_eig_term(ctx: NLPContext) -> ObjectiveTerm:
     """E-optimal: ``max t`` s.t. ``G/g - t I = L Lᵀ`` (module docstring).
 
     E-optimality is not invariant to a diagonal congruence of ``G`` (it is a different objective
@@ -140,7 +146,7 @@ def min_eig_term(ctx: NLPContext) -> ObjectiveTerm:
     )
 
 
-def log_det_term(ctx: NLPContext) -> ObjectiveTerm:
+def paper_log_det_term(ctx: NLPContext) -> ObjectiveTerm:
     """D-optimal: ``max 2 Σ log L_ii`` s.t. ``D G D = L Lᵀ`` (module docstring).
 
     The constraint acts on ``D G D`` with a fixed diagonal ``D`` (unit diagonal on typical paths:
@@ -175,9 +181,26 @@ def log_det_term(ctx: NLPContext) -> ObjectiveTerm:
     )
 
 
-GRAMIAN_MIN_EIG = Objective(
-    "gramian-min-eig", min_eig_term, lambda traj, pb: gramian_metrics(traj, pb)[0]
-)
-GRAMIAN_LOG_DET = Objective(
-    "gramian-log-det", log_det_term, lambda traj, pb: gramian_metrics(traj, pb)[1]
-)
+def min_eig_term(ctx: NLPContext) -> ObjectiveTerm:
+    """``gramian-min-eig``: the paper's lifted ``λ_min`` (:func:`paper_form`) or the windowed,
+    information-weighted E-optimal surrogate (:mod:`obsplan.planning.windowed_gramian`)."""
+    return paper_min_eig_term(ctx) if paper_form(ctx.problem) else windowed_term(ctx)
+
+
+def log_det_term(ctx: NLPContext) -> ObjectiveTerm:
+    """``gramian-log-det``: the paper's lifted ``log det`` or the windowed D-optimal form."""
+    return paper_log_det_term(ctx) if paper_form(ctx.problem) else windowed_term(ctx)
+
+
+def min_eig_value(traj: Trajectory, pb: PlanningProblem) -> float:
+    """``λ_min`` of ``G(t_N, t_0)`` (paper form) or the windowed E-optimal value on a path."""
+    return gramian_metrics(traj, pb)[0] if paper_form(pb) else windowed_value(traj, pb)
+
+
+def log_det_value(traj: Trajectory, pb: PlanningProblem) -> float:
+    """``log det G(t_N, t_0)`` (paper form) or the windowed D-optimal value on a path."""
+    return gramian_metrics(traj, pb)[1] if paper_form(pb) else windowed_value(traj, pb)
+
+
+GRAMIAN_MIN_EIG = Objective("gramian-min-eig", min_eig_term, min_eig_value)
+GRAMIAN_LOG_DET = Objective("gramian-log-det", log_det_term, log_det_value)

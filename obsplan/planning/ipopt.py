@@ -20,6 +20,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from obsplan import interrupts
 from obsplan.planning.formulation import Formulation, path_constraints
 from obsplan.planning.mission_part import mission_part
 from obsplan.planning.problem import PlanningProblem
@@ -128,7 +129,8 @@ def _interrupt_guard():
     raise it once the solver has returned (at the next iteration, i.e. at once).
     """
     hit: list[bool] = []
-    if threading.current_thread() is not threading.main_thread():
+    if interrupts.installed() or threading.current_thread() is not threading.main_thread():
+        # the command line's handler (obsplan.interrupts) records the signal: check() raises it
         yield hit
         return
     prev = signal.getsignal(signal.SIGINT)
@@ -157,6 +159,7 @@ def _call(solver: ca.Function, **kwargs) -> tuple[dict | None, dict, str | None]
             sol, err = None, f"exception: {exc}".splitlines()[0][:200]
         if hit:
             raise KeyboardInterrupt
+    interrupts.check()  # SIGTERM (or a SIGINT CasADi swallowed) stops the solve the same way
     return sol, solver.stats(), err
 
 

@@ -20,6 +20,7 @@ from obsplan.planning.estimator_objectives import KF_POSITION_STD, PCRB_POSITION
 from obsplan.planning.gramian_objectives import GRAMIAN_LOG_DET, GRAMIAN_MIN_EIG
 from obsplan.planning.lwo_objective import LWO_CONDITION
 from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.robust import ROBUST, is_robust
 
 #: ``objective.kind`` -> its implementation.
 REGISTRY: dict[str, Objective] = {
@@ -29,5 +30,6 @@ REGISTRY: dict[str, Objective] = {
 
 
 def objective_of(pb: PlanningProblem) -> Objective:
-    """The registered implementation of ``pb.objective.kind``."""
-    return REGISTRY[pb.objective.kind]
+    """The registered implementation of ``pb.objective.kind`` (over the family of conditions
+    of :mod:`obsplan.planning.robust` when the problem asks for robust planning)."""
+    return ROBUST if is_robust(pb) else REGISTRY[pb.objective.kind]

@@ -11,7 +11,6 @@ every check, the structural ones included, so a problem it returns can be solved
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -34,6 +33,7 @@ from obsplan.planning.problem import (
     VehicleSpec,
 )
 from obsplan.planning.schema import SCHEMA, FieldSpec, field_error
+from obsplan.textfiles import read_toml
 
 #: Where ``obsplan plan`` looks when no problem file is given.
 PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
@@ -57,6 +57,12 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
         if not _is_number(raw) or not math.isfinite(raw):
             raise field_error(where, f"expected a finite number [{spec.unit}], got {raw!r}")
         return float(raw)
+    if k == "float-or-str":
+        if isinstance(raw, str):
+            return raw
+        if not _is_number(raw) or not math.isfinite(raw):
+            raise field_error(where, f"expected a number [{spec.unit}] or a name, got {raw!r}")
+        return float(raw)
     if k == "bool":
         if not isinstance(raw, bool):
             raise field_error(where, f"expected true or false, got {raw!r}")
@@ -71,6 +77,14 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
         if not isinstance(raw, list) or not all(isinstance(s, str) for s in raw):
             raise field_error(where, f'expected a list of names such as ["range"], got {raw!r}')
         return raw
+    if k == "float-list":
+        if not isinstance(raw, list) or not all(
+            _is_number(x) and math.isfinite(x) and x > 0 for x in raw
+        ):
+            raise field_error(
+                where, f"expected a list of positive numbers such as [1, 5], got {raw!r}"
+            )
+        return tuple(float(x) for x in raw)
     if k in ("vec", "vec-or-float"):
         if k == "vec-or-float" and _is_number(raw):
             raw = [raw] * dim
@@ -109,6 +123,14 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
                 raise field_error(f"{where}.{ax}", "missing; give [min, max] in m")
             axes[ax] = _parse_value(where, FieldSpec(ax, "range", None, "m", ""), raw[ax], dim)
         return Area(x=axes["x"], y=axes["y"])
+    if k in ("lines", "points", "windows", "line-area", "end"):
+        return _parse_mission_value(where, spec, raw, dim)
+    raise AssertionError(k)  # pragma: no cover
+
+
+def _parse_mission_value(where: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
+    """The mission's kinds of :func:`_parse_value`: lines, points, windows, an area, an end."""
+    k = spec.kind
     if k in ("lines", "points", "windows"):
         width = {"lines": 2 * dim, "points": dim, "windows": 2}[k]
         form = {
@@ -133,9 +155,7 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
         return tuple(tuple(float(x) for x in r) for r in raw)
     if k == "line-area":
         return _line_area(where, raw, dim)
-    if k == "end":
-        return _end_region(where, raw, dim)
-    raise AssertionError(k)  # pragma: no cover
+    return _end_region(where, raw, dim)
 
 
 def _line_area(where: str, raw: Any, dim: int) -> LineArea:
@@ -284,6 +304,7 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
             min_range=lim["min_range"],
             max_range=lim["max_range"],
             min_speed=lim["min_speed"],
+            keepout_confidence=lim["keepout_confidence"],
         ),
         horizon=Horizon(**s["horizon"]),
         objective=ObjectiveSpec(**s["objective"]),
@@ -306,6 +327,7 @@ def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
         "speed": lim.speed,
         "min_range": lim.min_range,
         "min_speed": lim.min_speed,
+        "keepout_confidence": lim.keepout_confidence,
     }
     if lim.depth is not None:
         limits["depth"] = list(lim.depth)
@@ -327,7 +349,9 @@ def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
         "limits": limits,
         "horizon": {"duration": hor.duration, "steps": hor.steps},
         "objective": {
-            f: getattr(obj, f) for f in obj.__dataclass_fields__ if getattr(obj, f) is not None
+            f: list(v) if isinstance(v, tuple) else v
+            for f in obj.__dataclass_fields__
+            if (v := getattr(obj, f)) is not None
         },
         "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
         "validation": {f: getattr(val, f) for f in val.__dataclass_fields__},
@@ -399,13 +423,9 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
                 "the repository (pip install -e .) or pass a PROBLEM.toml"
             )
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ProblemError(f"problem file not found: {path}")
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ProblemError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "a problem file (TOML)", error=ProblemError)
     try:
         return problem_from_dict(data, name=path.stem)
     except ProblemError as exc:
@@ -504,7 +524,10 @@ def resolve_problem_geodetic(
         except InputError as exc:
             raise ProblemError(str(exc)) from None
         depth = float(raw[2]) if dim == 3 else 0.0
-        p = geodetic_to_local(float(raw[0]), float(raw[1]), depth, origin, dim)
+        try:
+            p = geodetic_to_local(float(raw[0]), float(raw[1]), depth, origin, dim, where)
+        except InputError as exc:
+            raise ProblemError(str(exc)) from None
         section = {k: v for k, v in data[sec].items() if k != "geodetic"}
         section["position"] = [float(x) for x in p]
         out[sec] = section

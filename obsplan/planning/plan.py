@@ -6,14 +6,17 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from obsplan.estimation.runs import DEFAULT_FILTERS
 from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.evaluate import PathMetrics, path_metrics
+from obsplan.planning.margins import KeepoutReport, solve_with_keepout
 from obsplan.planning.mission_check import MissionCheck, mission_check
 from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
-from obsplan.planning.solve import SolveResult, solve
-from obsplan.planning.validation import PathValidation, validate_paths
-from obsplan.planning.verdict import Verdict, verdict
+from obsplan.planning.solve import SolveResult
+from obsplan.planning.stress import Robustness, stress_active, stress_validate
+from obsplan.planning.validation import PathValidation
+from obsplan.planning.verdict import Verdict, ekf_diverges, validate_until_decided, verdict
 from obsplan.trajectory import Trajectory
 
 
@@ -35,6 +38,11 @@ class PlanResult:
         Total time [s].
     not_fitted : dict[str, str]
         Baselines the problem cannot fit, with the reason.
+    keepout : KeepoutReport or None
+        How the plan keeps its limits with the keep-out margins
+        (:mod:`obsplan.planning.margins`).
+    robustness : Robustness or None
+        Every path re-validated at ``validation.stress_*`` (:mod:`obsplan.planning.stress`).
     """
 
     problem: PlanningProblem
@@ -44,6 +52,8 @@ class PlanResult:
     validation: dict[str, PathValidation]
     wall_s: float
     not_fitted: dict[str, str] = field(default_factory=dict)
+    keepout: KeepoutReport | None = None
+    robustness: Robustness | None = None
     #: Per path, the independent mission check (empty without a ``[mission]``).
     missions: dict[str, MissionCheck] = field(default_factory=dict)
 
@@ -58,7 +68,7 @@ class PlanResult:
                 del val[name]
                 not_fitted[name] = "does not complete the mission (not compared)"
         survey = self.problem.mission is not None and bool(self.problem.mission.lines)
-        return verdict(val, not_fitted, lines=survey)
+        return verdict(val, not_fitted, self.problem.objective.kind, lines=survey)
 
     @property
     def success(self) -> bool:
@@ -69,6 +79,16 @@ class PlanResult:
         """The planned path on the planning grid (None if no feasible path was found)."""
         return self.solve.trajectory
 
+    def validation_dict(self) -> dict:
+        """``report.json``'s ``validation``: ``mode`` (``"closed-loop"`` or ``"open-loop"``)
+        and one entry per validated path (empty when no validation was run)."""
+        if not self.validation:
+            return {}
+        return {
+            "mode": self.problem.validation.mode,
+            **{k: v.to_dict() for k, v in self.validation.items()},
+        }
+
     def paths(self) -> dict[str, Trajectory]:
         """``planned`` (when found) then every baseline."""
         out: dict[str, Trajectory] = {}
@@ -78,12 +98,12 @@ class PlanResult:
         return out
 
     def to_dict(self) -> dict:
-        """``report.json`` (PRODUCT.md stable keys ``solver``, ``metrics``, ``validation``)."""
+        """``report.json`` (stable keys ``solver``, ``metrics``, ``validation``)."""
         pb = self.problem
         return {
             "solver": self.solve.to_dict(),
             "metrics": {k: m.to_dict() for k, m in self.metrics.items()},
-            "validation": {k: v.to_dict() for k, v in self.validation.items()},
+            "validation": self.validation_dict(),
             "verdict": self.verdict.to_dict(),
             "problem": {
                 "name": pb.name,
@@ -100,6 +120,8 @@ class PlanResult:
             "baselines_not_fitted": dict(self.not_fitted),
             "mission": {k: c.to_dict() for k, c in self.missions.items()},
             "problem_file": problem_to_dict(pb),
+            "keepout": None if self.keepout is None else self.keepout.to_dict(),
+            "robustness": None if self.robustness is None else self.robustness.to_dict(),
             "wall_s": float(self.wall_s),
         }
 
@@ -109,6 +131,7 @@ def plan(
     *,
     validate: bool = True,
     runs: int | None = None,
+    max_runs: int | None = None,
     progress: bool = False,
     verbose: bool = False,
     processes: int | None = None,
@@ -120,9 +143,14 @@ def plan(
     problem
         A :class:`PlanningProblem`, a path to a problem TOML, or None for ``problems/default.toml``.
     validate
-        Run the EKF/KF Monte Carlo on the plan and every baseline.
+        Run the EKF/KF Monte Carlo on the plan and every baseline (in closed loop unless
+        ``validation.mode = "open-loop"``), adding batches of runs until every verdict is
+        decided or ``validation.max_runs`` is reached
+        (:func:`~obsplan.planning.verdict.validate_until_decided`).
     runs
-        Override ``validation.runs``.
+        Override ``validation.runs`` (the first batch).
+    max_runs
+        Override ``validation.max_runs`` (the cap on the runs).
     progress
         Progress bars (tqdm, on stderr) for the starts and the validation.
     verbose
@@ -140,7 +168,9 @@ def plan(
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
     bls = baselines(pb)
-    res = solve(pb, baselines=bls, progress=progress, verbose=verbose, processes=processes)
+    res, keepout = solve_with_keepout(
+        pb, baselines=bls, progress=progress, verbose=verbose, processes=processes
+    )
     paths: dict[str, Trajectory] = {}
     if res.trajectory is not None:
         paths["planned"] = res.trajectory
@@ -150,7 +180,27 @@ def plan(
     lines = {k: c.line_mask(pb.filter_times) for k, c in missions.items() if c.lines}
     validation: dict[str, PathValidation] = {}
     if validate:
-        validation = validate_paths(paths, pb, runs=runs, progress=progress, lines=lines or None)
+        validation = validate_until_decided(
+            paths, pb, runs=runs, max_runs=max_runs, progress=progress, lines=lines or None
+        )
+        if "planned" in validation and ekf_diverges(validation["planned"]):
+            # the EKF is lost on the plan while the KF is not: validate the Gaussian-sum filter
+            # beside them on every path (same seeds and runs), so the report says what a robust
+            # filter does there
+            n = int(validation["planned"].result.runs)
+            filters = (*DEFAULT_FILTERS, "gsf")
+            validation = validate_until_decided(
+                paths,
+                pb,
+                runs=n,
+                max_runs=n,
+                progress=progress,
+                filters=filters,
+                lines=lines or None,
+            )
+    robustness = None
+    if validate and stress_active(pb):
+        robustness = stress_validate(paths, pb, runs=runs, progress=progress)
     return PlanResult(
         problem=pb,
         solve=res,
@@ -159,5 +209,7 @@ def plan(
         validation=validation,
         wall_s=time.perf_counter() - t0,
         not_fitted=unfitted_baselines(pb),
+        keepout=keepout,
+        robustness=robustness,
         missions=missions,
     )

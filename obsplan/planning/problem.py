@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 from obsplan.geodesy import GeodeticOrigin
 from obsplan.model import VehicleModel
 from obsplan.observability.scaling import Scales
@@ -68,6 +69,7 @@ class Limits:
     min_range: float = 5.0
     max_range: float | None = None
     min_speed: float = 0.0
+    keepout_confidence: float = 0.999
 
 
 @dataclass(frozen=True)
@@ -85,7 +87,7 @@ class Horizon:
 
 @dataclass(frozen=True)
 class ObjectiveSpec:
-    """Objective kind and multi-start settings."""
+    """Objective kind, multi-start settings and the Gramian objectives' weights and windows."""
 
     kind: str = "pcrb-position"
     mode: str = "auto"
@@ -93,18 +95,30 @@ class ObjectiveSpec:
     seed: int = 0
     max_iter: int = 1000
     tol: float | None = None
+    weights: str = "information"
+    window: float | str = "auto"
+    stride: float | str = "auto"
+    anchor: str = "current"
+    robust_prior: tuple[float, ...] = ()
+    robust_range_noise: tuple[float, ...] = ()
+    robust_aggregate: str = "worst"
 
     @property
     def solver_tol(self) -> float:
         """``tol``, or the kind's default (:data:`~obsplan.planning.schema.OBJECTIVE_KINDS`)."""
         if self.tol is not None:
             return self.tol
-        return OBJECTIVE_KINDS[self.kind].default_tol
+        kind = OBJECTIVE_KINDS[self.kind]
+        paper = self.window == "mission" and self.weights == "none"
+        if kind.windowed_tol is not None and not paper:
+            return kind.windowed_tol
+        return kind.default_tol
 
 
 @dataclass(frozen=True)
 class ValidationSpec:
-    """Monte Carlo validation settings: runs, seed, filter step [s], rates [Hz], noises, prior."""
+    """Monte Carlo validation settings: runs, seed, filter step [s], rates [Hz], noises, prior,
+    process noise [m/s²/√Hz], closed or open loop, cap on the runs."""
 
     runs: int = 50
     seed: int = 0
@@ -117,6 +131,12 @@ class ValidationSpec:
     depth_std: float = 0.1
     init_pos_error: float = 1.0
     init_vel_error: float = 0.1
+    accel_noise: float = DEFAULT_ACCEL_NOISE
+    process_noise_model: str = "physical"
+    mode: str = "closed-loop"
+    max_runs: int = 400
+    stress_prior: float = 1.0
+    stress_range_noise: float = 1.0
 
 
 @dataclass(frozen=True)

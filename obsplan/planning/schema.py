@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from obsplan.errors import ProblemError
+from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 
 #: Largest ``horizon.steps`` the planner accepts: the NLP grows linearly in N and IPOPT's time
 #: faster; N = 1000 solves in seconds to a minute (README benchmarks), 5000 is already hours.
@@ -29,9 +30,6 @@ MAX_STEPS = 5000
 #: far beyond any vehicle (a bound keeps absurd inputs from overflowing the checks' arithmetic).
 MAX_DURATION_S = 1e7
 MAX_MAGNITUDE = 1e7
-#: Budget of the validation Monte Carlo: runs x filter samples x state size (~8 bytes each per
-#: stored quantity); beyond it the simulation would need tens of GiB.
-MAX_MC_SIZE = 1e9
 
 
 @dataclass(frozen=True)
@@ -53,6 +51,9 @@ class ObjectiveKind:
     structure : {"lwo", "gramian", None}
         The structural rank the kind needs (checked before solving by
         :mod:`obsplan.planning.checks`): of the LWO matrix, of the augmented Gramian, or none.
+    windowed_tol : float or None
+        IPOPT ``tol`` of the kind's windowed form (``objective.window``/``weights`` other than
+        the paper's ``"mission"``/``"none"``), solved with L-BFGS; None: ``default_tol``.
     """
 
     name: str
@@ -61,6 +62,7 @@ class ObjectiveKind:
     auto_mode: str
     default_tol: float
     structure: Literal["lwo", "gramian"] | None
+    windowed_tol: float | None = None
 
 
 #: Every objective kind, in the order the documents list them (the first is the default).
@@ -70,8 +72,8 @@ OBJECTIVE_KINDS: dict[str, ObjectiveKind] = {
         # L-BFGS (the covariance objectives) converges slowly: at N = 1000, tol 1e-5 takes 5x the
         # iterations of 1e-4 for a 0.4 % better bound
         ObjectiveKind("pcrb-position", "min", True, "average-and-final", 1e-4, None),
-        ObjectiveKind("gramian-min-eig", "max", False, "average-and-final", 1e-8, "gramian"),
-        ObjectiveKind("gramian-log-det", "max", False, "average-and-final", 1e-8, "gramian"),
+        ObjectiveKind("gramian-min-eig", "max", False, "average-and-final", 1e-8, "gramian", 1e-4),
+        ObjectiveKind("gramian-log-det", "max", False, "average-and-final", 1e-8, "gramian", 1e-4),
         ObjectiveKind("lwo-condition", "max", False, "average-and-final", 1e-8, "lwo"),
         ObjectiveKind("kf-position-std", "min", True, "final", 1e-4, None),
     )
@@ -81,6 +83,10 @@ OBJECTIVES: tuple[str, ...] = tuple(OBJECTIVE_KINDS)
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
 #: Objectives for which a smaller value is better.
 MINIMISED: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.sense == "min")
+#: ``validation.mode`` values (the first is the default).
+VALIDATION_MODES: tuple[str, ...] = ("closed-loop", "open-loop")
+#: ``validation.process_noise_model`` values (the first is the default).
+PROCESS_NOISE_MODELS: tuple[str, ...] = ("physical", "paper-per-step")
 #: ``objective.mode`` values; ``auto`` is ``final`` for kf-position-std (its historical meaning)
 #: and ``average-and-final`` for pcrb-position (:attr:`ObjectiveKind.auto_mode`).
 MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final", "lines")
@@ -97,8 +103,9 @@ class FieldSpec:
     """One documented field of the problem file."""
 
     name: str
-    # "int", "float", "bool", "str", "str-list", "vec", "vec-or-float", "range", "area"; the
-    # mission's "lines", "line-area", "points", "windows", "end"
+    # "int", "float", "float-or-str", "bool", "str", "str-list", "float-list", "vec",
+    # "vec-or-float", "range", "area"; the mission's "lines", "line-area", "points", "windows",
+    # "end"
     kind: str
     default: Any
     unit: str
@@ -236,6 +243,17 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "respect it. 0 disables it.",
         ),
         FieldSpec(
+            "keepout_confidence",
+            "float",
+            0.999,
+            "-",
+            "Confidence with which the true vehicle, steering its estimate onto the plan, keeps "
+            "min_range, max_range, the area and the depth band: the plan keeps them with a "
+            "margin k times a bound on the std of its true deviation from the plan (from the "
+            "posterior CRB along the path and the guidance loop), k the normal quantile of the "
+            "confidence (3.09 at 0.999). 0 disables the margins.",
+        ),
+        FieldSpec(
             "area",
             "area",
             _NONE,
@@ -284,6 +302,42 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "Number of initial guesses: lawn-mower, circle, then seeded random ones.",
         ),
         FieldSpec("seed", "int", 0, "-", "Seed of the random initial guesses."),
+        FieldSpec(
+            "weights",
+            "str",
+            "information",
+            "-",
+            'For gramian-min-eig and gramian-log-det: "information" (each output row scaled by '
+            "its information rate, rate / variance; for the range 1/(r^2 sigma_r^2 + sigma_r^4/2) "
+            'with r from the path) or "none" (the paper\'s unit weights).',
+        ),
+        FieldSpec(
+            "window",
+            "float-or-str",
+            "auto",
+            "s",
+            "For gramian-min-eig and gramian-log-det: length of the sliding windows whose "
+            'Gramians are scored; "auto" is 2 tau_f, tau_f = (3 sigma_r^2 / q_v)^(1/3) from the '
+            "validation's velocity process noise q_v (at least 10 range samples, at most the "
+            'horizon); "mission" is one window over the whole horizon (with weights = "none" '
+            "the paper's G(t_N, t_0), eq. 25).",
+        ),
+        FieldSpec(
+            "stride",
+            "float-or-str",
+            "auto",
+            "s",
+            'Spacing of the windows; "auto" is window / 8 (at least one planning step).',
+        ),
+        FieldSpec(
+            "anchor",
+            "str",
+            "current",
+            "-",
+            'State each window\'s Gramian is about: "start" (observability of the state at the '
+            'window\'s start) or "current" (constructibility of the state at its end; the final '
+            "window then counts as much as the mean of all windows).",
+        ),
         FieldSpec("max_iter", "int", 1000, "-", "IPOPT iteration limit per start."),
         FieldSpec(
             "tol",
@@ -291,9 +345,36 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             _NONE,
             "-",
             "IPOPT convergence tolerance (tol) of the NLP, whose objective is normalised to 1 on "
-            "the lawn-mower; default 1e-8, or 1e-4 for pcrb-position and kf-position-std (L-BFGS "
+            "the lawn-mower; default 1e-8, or 1e-4 for pcrb-position, kf-position-std and the "
+            "windowed Gramian objectives (L-BFGS "
             "converges slowly: at N = 1000, 1e-5 takes 5x the iterations for a 0.4 % better "
             "bound).",
+        ),
+        FieldSpec(
+            "robust_prior",
+            "float-list",
+            (),
+            "-",
+            "Robust planning (pcrb-position, kf-position-std): multiples of the validation's "
+            "prior std (init_pos_error, init_vel_error) to plan for, e.g. [1, 5]; every "
+            "combination with robust_range_noise is a condition. Default none (plan for the "
+            "stated prior only).",
+        ),
+        FieldSpec(
+            "robust_range_noise",
+            "float-list",
+            (),
+            "-",
+            "Robust planning: multiples of validation.range_std to plan for, e.g. [1, 3]. "
+            "Default none.",
+        ),
+        FieldSpec(
+            "robust_aggregate",
+            "str",
+            "worst",
+            "-",
+            'How the conditions combine: "worst" (the largest of the objectives, each relative '
+            'to its value on the lawn-mower; an epigraph) or "mean" (their mean).',
         ),
     ),
     "scales": (
@@ -426,6 +507,62 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             0.1,
             "m/s",
             "Initial velocity error standard deviation per axis.",
+        ),
+        FieldSpec(
+            "accel_noise",
+            "float",
+            DEFAULT_ACCEL_NOISE,
+            "m/s^2/sqrt(Hz)",
+            "Intensity of the white acceleration noise on each axis (truth, filters, bound and "
+            "the planner's objective alike), discretised exactly for any dt; the default adds "
+            "the paper's velocity variance (1e-3 dt)^2 per step at dt = 0.1 s. 0: no process "
+            "noise.",
+        ),
+        FieldSpec(
+            "process_noise_model",
+            "str",
+            "physical",
+            "-",
+            'How process noise enters: "physical" (accel_noise, independent of dt) or '
+            '"paper-per-step" (the paper\'s Q = diag(1e-3 dt)^2 per filter step, section 7, '
+            "whose intensity changes with dt; accel_noise is then ignored).",
+        ),
+        FieldSpec(
+            "mode",
+            "str",
+            "closed-loop",
+            "-",
+            'How the Monte Carlo flies every path: "closed-loop" (the vehicle steers its EKF '
+            "estimate onto the path: feed-forward of the path's acceleration plus feedback "
+            'saturated at the limits) or "open-loop" (the accelerations flown blind).',
+        ),
+        FieldSpec(
+            "max_runs",
+            "int",
+            400,
+            "-",
+            "Cap on the runs of the validation: starting from `runs`, batches doubling the "
+            "runs are added until every verdict of the plan against a baseline (EKF and KF RMSE "
+            "and final error) is decided at 95 % confidence (paired bootstrap interval of the "
+            "ratio excluding 1) or the cap is reached (the undecided ones are ties). At most "
+            "`runs`: one batch.",
+        ),
+        FieldSpec(
+            "stress_prior",
+            "float",
+            1.0,
+            "-",
+            "Robustness row of the report: every path re-validated, without replanning, with "
+            "the prior std (init_pos_error, init_vel_error) times this. With stress_range_noise "
+            "both 1 (the default), no robustness row.",
+        ),
+        FieldSpec(
+            "stress_range_noise",
+            "float",
+            1.0,
+            "-",
+            "Robustness row: the true range noise is range_std times this (the filters are "
+            "told the stated range_std, as a vehicle told the wrong noise).",
         ),
     ),
 }

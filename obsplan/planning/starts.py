@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 import multiprocessing as mp
 import os
-import signal
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ import casadi as ca
 import numpy as np
 from tqdm import tqdm
 
+from obsplan import interrupts
 from obsplan.planning.evaluate import objective_value
 from obsplan.planning.feasibility import LimitCheck, check_limits
 from obsplan.planning.formulation import Formulation
@@ -191,7 +191,7 @@ _WORKER: StartContext | None = None  # set in the parent before fork; read by th
 
 
 def _worker_init() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops everyone on Ctrl-C
+    interrupts.child_init()  # the parent stops everyone on Ctrl-C; a child dies with its parent
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
 

@@ -1,10 +1,11 @@
-"""The validation's filters as the estimation layer's objects: their configuration and epochs.
+"""The validation's filters as the estimation layer's objects: configuration, guidance, limits.
 
 One place for what the validation Monte Carlo runs (:mod:`obsplan.planning.validation`) and what
 the estimator-aware objectives predict (:mod:`obsplan.planning.estimator_objectives`): the
-filters' :class:`~obsplan.estimation.config.EstimationConfig` built from ``[validation]`` and the
-measurement epochs on the horizon. Both sides read them here, so the planner's bound is the
-validation's own.
+filters' :class:`~obsplan.estimation.config.EstimationConfig` built from ``[validation]`` (its
+process noise included), the measurement epochs on the horizon, the guidance law a closed-loop
+validation flies every path with and the limits every true path is checked against. Both sides
+read them here, so the planner's bound is the validation's own.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from obsplan.estimation.config import EstimationConfig, paper_covariances
+from obsplan.estimation.guidance import Guidance, TruthLimits
 from obsplan.estimation.riccati import Epochs, make_epochs
 from obsplan.estimation.schedule import make_schedule
 from obsplan.planning.problem import PlanningProblem
@@ -23,9 +25,12 @@ from obsplan.trajectory import Trajectory
 def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     """The filters' configuration of the validation of ``pb``.
 
-    The paper's covariances at step ``validation.dt`` with the prior of ``p`` and ``v`` set by
-    ``init_pos_error`` / ``init_vel_error``, the problem's rates and noises, and the true
-    current ``vehicle.current_velocity``. Used by the validation and by the planning objectives.
+    The paper's prior (section 7) with the position and velocity blocks set by
+    ``init_pos_error`` / ``init_vel_error``, the problem's rates and noises, the true current
+    ``vehicle.current_velocity``, and the process noise of ``validation.process_noise_model``:
+    ``"physical"``, the white acceleration noise ``accel_noise`` [m/s²/√Hz] (exact for any
+    ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``. Used by the
+    validation and by the planning objectives.
     """
     model, val, n = pb.model, pb.validation, pb.dim
     cov: dict[str, Any] = paper_covariances(model, val.dt)
@@ -34,6 +39,11 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
         d[:n] = val.init_pos_error**2
         d[n : 2 * n] = val.init_vel_error**2
         cov[key] = np.diag(d)
+    noise_model: dict[str, Any]
+    if val.process_noise_model == "paper-per-step":
+        noise_model = {"q_ekf": cov["q_ekf"], "q_kf": cov["q_kf"]}
+    else:
+        noise_model = {"accel_noise": val.accel_noise}
     rates = {"range": val.range_rate}
     noise = {"range": val.range_std}
     for s in model.sensors:
@@ -47,7 +57,35 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
         noise=noise,
         true_current=pb.vehicle.current_velocity if pb.vehicle.current else None,
         init_error="sample",
-        **cov,
+        p0_ekf=cov["p0_ekf"],
+        p0_kf=cov["p0_kf"],
+        **noise_model,
+    )
+
+
+def validation_guidance(pb: PlanningProblem) -> Guidance | None:
+    """The guidance law of a closed-loop validation (``None`` for ``validation.mode =
+    "open-loop"``): gains from the limits ``accel`` [m/s²] and ``speed`` [m/s], the feedback on a
+    prior-sized position error (``init_pos_error`` [m]) using half the smallest acceleration
+    bound (:meth:`~obsplan.estimation.guidance.Guidance.from_limits`)."""
+    if pb.validation.mode == "open-loop":
+        return None
+    lim = pb.limits
+    return Guidance.from_limits(lim.accel, lim.speed, pb.validation.init_pos_error)
+
+
+def truth_limits(pb: PlanningProblem) -> TruthLimits:
+    """The problem's limits that every run's *true* path is checked against: acceleration,
+    speed, area, depth band, ``min_range`` (0: none) and ``max_range``, strictly."""
+    lim = pb.limits
+    area = None if lim.area is None else (lim.area.x, lim.area.y)
+    return TruthLimits(
+        accel=lim.accel,
+        speed=lim.speed,
+        area=area,
+        depth=lim.depth,
+        min_range=lim.min_range if lim.min_range > 0 else None,
+        max_range=lim.max_range,
     )
 
 

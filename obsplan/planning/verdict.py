@@ -1,25 +1,43 @@
-"""The plan against each baseline, metric by metric, in numbers and in words.
+"""The plan against each baseline, metric by metric, in numbers, with confidence, and in words.
 
 A metric is *better* when the plan's value is strictly lower than the baseline's (every metric
 here is an error, a standard deviation or a bound). A value that is missing or not finite (a
 filter that diverged, a bound that was not computed) is never better. The words list every metric
-on which the plan loses, so that a user is never told nothing.
+on which the plan loses, and every verdict that is a tie, so that a user is never told nothing.
 
-Final errors are also compared run by run: every path is validated with the same seeds, so the
-per-run differences are paired, and their standard error says whether a difference is larger
-than the Monte Carlo noise (``noise`` = two standard errors; a loss inside it is reported as
-such, still as a loss).
+Confidence. Every path is validated with the same seeds, so the runs are paired. For the metrics
+estimated from the runs (EKF and KF RMSE and final error) the ratio ``plan / baseline`` gets a
+paired bootstrap interval: :data:`BOOTSTRAP` resamples of the runs with replacement (the same runs
+on both paths), the percentile interval at :data:`CONFIDENCE`, seeded by the validation's seed.
+The final error is the mean over runs of each run's final error, so its interval is exactly that
+of the reported ratio. The RMSE is the time average of the RMS over runs, which the per-run
+values do not determine: the bootstrap is of the ratio of the runs' RMS over runs and time
+(``sqrt(mean rmse_runs²)``), and its interval, relative to that ratio on all runs, is carried to
+the reported ratio (the same relative spread assumed: a plan whose error falls fast has a much
+lower time-averaged RMSE ratio than its overall RMS ratio, so the interval of the latter would
+not contain the reported ratio). A verdict is
+*decided* when that interval excludes 1 on the side of ``better`` (the plan's value below the
+baseline's and the whole interval below 1, or above and above); otherwise it is a *tie* at that
+confidence. The bounds (PCRB) are computed, not sampled: their interval is the ratio itself,
+decided unless the two are equal. :func:`validate_until_decided` adds batches of runs (doubling
+the total) until every run-estimated verdict is decided or ``validation.max_runs`` is reached.
+
+Final errors also keep their paired standard error (``noise`` = two standard errors of the mean
+per-run difference; a loss inside it is reported as such).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.planning.validation import PathValidation
+from obsplan.estimation.simulate import DEFAULT_FILTERS
+from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.validation import PathValidation, merge_validations, validate_paths
+from obsplan.trajectory import Trajectory
 
 #: ``(key, words)`` of every compared metric, in report order.
 METRICS: tuple[tuple[str, str], ...] = (
@@ -37,6 +55,23 @@ LINES_METRICS: tuple[tuple[str, str], ...] = (
 )
 #: The metrics a plan must win on against every baseline to be called a win.
 HEADLINE = ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos")
+#: The EKF "diverges" on a path when the divergence monitor flags at least this fraction of its
+#: runs, or its final error is :data:`DIVERGED_RATIO` times the KF's; the KF "converges" when
+#: fewer than this fraction of its runs are flagged.
+DIVERGED_FRACTION = 0.1
+DIVERGED_RATIO = 3.0
+#: Metrics estimated from the runs, and the per-run array whose mean the interval is about.
+RUN_METRICS: dict[str, str] = {
+    "ekf.rmse_pos": "rmse_pos_runs",
+    "ekf.final_pos_err": "final_pos_err_runs",
+    "kf.rmse_pos": "rmse_pos_runs",
+    "kf.final_pos_err": "final_pos_err_runs",
+    "ekf.rmse_pos_lines": "rmse_pos_lines_runs",
+    "kf.rmse_pos_lines": "rmse_pos_lines_runs",
+}
+#: Confidence of the intervals, and the bootstrap resamples that estimate them.
+CONFIDENCE = 0.95
+BOOTSTRAP = 2000
 
 
 def metric_value(v: PathValidation, key: str) -> float | None:
@@ -66,6 +101,7 @@ class Comparison:
     planned: float | None
     baseline: float | None
     noise: float | None = None
+    ci: tuple[float, float] | None = None
 
     @property
     def ratio(self) -> float | None:
@@ -87,6 +123,24 @@ class Comparison:
             return False
         return abs(self.planned - self.baseline) < self.noise
 
+    @property
+    def decided(self) -> bool:
+        """The interval of the ratio excludes 1 on the side of :attr:`better` (module
+        docstring); a value missing on exactly one side decides too (a diverged filter loses)."""
+        if (self.planned is None) != (self.baseline is None):
+            return True
+        if self.ci is None:
+            return False
+        lo, hi = self.ci
+        return hi < 1.0 if self.better else lo > 1.0
+
+    @property
+    def outcome(self) -> str:
+        """``"better"``, ``"worse"`` (both decided) or ``"tie"``."""
+        if not self.decided:
+            return "tie"
+        return "better" if self.better else "worse"
+
     def to_dict(self) -> dict:
         return {
             "planned": self.planned,
@@ -95,6 +149,9 @@ class Comparison:
             "better": bool(self.better),
             "noise": self.noise,
             "within_noise": self.within_noise,
+            "ci": None if self.ci is None else [float(self.ci[0]), float(self.ci[1])],
+            "decided": bool(self.decided),
+            "outcome": self.outcome,
         }
 
 
@@ -108,10 +165,17 @@ class Verdict:
         ``{baseline: {metric: Comparison}}``.
     not_fitted : dict
         ``{baseline: reason}`` for baselines the problem cannot fit.
+    runs : int
+        Monte Carlo runs behind the comparisons (0: no validation).
+    notes : tuple of str
+        Further sentences: an EKF that diverges on the plan while the KF converges (with the
+        Gaussian-sum filter validated beside it), an objective kind that is a diagnostic.
     """
 
     comparisons: Mapping[str, Mapping[str, Comparison]]
     not_fitted: Mapping[str, str]
+    runs: int = 0
+    notes: tuple[str, ...] = ()
 
     @property
     def beats_all(self) -> bool:
@@ -120,22 +184,54 @@ class Verdict:
             c[k].better for c in self.comparisons.values() for k in HEADLINE if k in c
         )
 
+    @property
+    def beats_all_decided(self) -> bool:
+        """:attr:`beats_all`, each of those verdicts decided at :data:`CONFIDENCE`."""
+        return self.beats_all and all(
+            c[k].decided for c in self.comparisons.values() for k in HEADLINE if k in c
+        )
+
+    @property
+    def all_decided(self) -> bool:
+        """Every run-estimated verdict (:data:`RUN_METRICS`) is decided."""
+        return all(
+            c.decided
+            for comps in self.comparisons.values()
+            for k, c in comps.items()
+            if k in RUN_METRICS
+        )
+
+    def _words(self, name: str, key: str, c: Comparison) -> str:
+        pv = "n/a (diverged or missing)" if c.planned is None else f"{c.planned:.3g} m"
+        bv = "n/a" if c.baseline is None else f"{c.baseline:.3g} m"
+        ratio = f" ({c.ratio:.2f}x" if c.ratio is not None else ""
+        if ratio and c.ci is not None and c.ci[0] != c.ci[1]:
+            ratio += f", {100 * CONFIDENCE:.0f} % interval [{c.ci[0]:.2f}, {c.ci[1]:.2f}]"
+        ratio += ")" if ratio else ""
+        return f"against the {name}: {dict((*METRICS, *LINES_METRICS))[key]} {pv} vs {bv}{ratio}"
+
     def losses(self) -> list[str]:
         """One sentence per (baseline, metric) the plan does not win."""
-        words = dict((*METRICS, *LINES_METRICS))
         out = []
         for name, comps in self.comparisons.items():
             for key, c in comps.items():
                 if c.better:
                     continue
-                pv = "n/a (diverged or missing)" if c.planned is None else f"{c.planned:.3g} m"
-                bv = "n/a" if c.baseline is None else f"{c.baseline:.3g} m"
-                ratio = f" ({c.ratio:.2f}x)" if c.ratio is not None else ""
                 noise = (
                     f", within the Monte Carlo noise (+-{c.noise:.2g} m)" if c.within_noise else ""
                 )
-                out.append(f"against the {name}: {words[key]} {pv} vs {bv}{ratio}{noise}")
+                tie = "" if c.decided else ", a tie"
+                out.append(self._words(name, key, c) + noise + tie)
         return out
+
+    def ties(self) -> list[str]:
+        """One sentence per (baseline, metric) not decided at :data:`CONFIDENCE`."""
+        return [
+            self._words(name, key, c)
+            for name, comps in self.comparisons.items()
+            for key, c in comps.items()
+            if not c.decided
+        ]
 
     def summary(self) -> list[str]:
         """Plain-words lines for the terminal."""
@@ -151,6 +247,19 @@ class Verdict:
                 "it loses here:"
             )
             lines += [f"  - {s}" for s in self.losses()]
+        ties = self.ties()
+        if self.comparisons and ties:
+            lines.append(
+                f"ties (not decided at {100 * CONFIDENCE:.0f} % confidence after {self.runs} "
+                "runs; the interval of the ratio contains 1):"
+            )
+            lines += [f"  - {s}" for s in ties]
+        elif self.comparisons:
+            lines.append(
+                f"every verdict is decided at {100 * CONFIDENCE:.0f} % confidence "
+                f"({self.runs} runs)"
+            )
+        lines += list(self.notes)
         for name, why in self.not_fitted.items():
             lines.append(f"baseline {name} not fitted: {why}")
         return lines
@@ -158,37 +267,207 @@ class Verdict:
     def to_dict(self) -> dict:
         return {
             "beats_all": self.beats_all,
+            "beats_all_decided": self.beats_all_decided,
             "headline_metrics": list(HEADLINE),
+            "confidence": CONFIDENCE,
+            "bootstrap": BOOTSTRAP,
+            "runs": int(self.runs),
             "baselines": {
                 name: {k: c.to_dict() for k, c in comps.items()}
                 for name, comps in self.comparisons.items()
             },
             "losses": self.losses(),
+            "ties": self.ties(),
+            "notes": list(self.notes),
             "not_fitted": dict(self.not_fitted),
         }
+
+
+#: What the verdict of an ``lwo-condition`` plan says: the kind is a diagnostic, not a plan to fly.
+LWO_NOTE = (
+    "lwo-condition is a diagnostic of local, node-by-node observability: scale-free, it ignores "
+    "the range's distance, the rates and the process noise, and its plans do not serve the "
+    "filters (suite/lwo-dvl3d.toml: EKF final error 3.4x, final bound 4.1x the lawn-mower's); "
+    "to fly, plan with pcrb-position or a Gramian objective"
+)
 
 
 def verdict(
     validation: Mapping[str, PathValidation],
     not_fitted: Mapping[str, str],
+    objective: str | None = None,
     lines: bool = False,
 ) -> Verdict:
-    """Compare ``validation["planned"]`` with every other validated path (``lines``: also on
-    :data:`LINES_METRICS`)."""
+    """Compare ``validation["planned"]`` with every other validated path (intervals seeded by the
+    validation's seed; ``objective``: the problem's ``objective.kind``, for the notes;
+    ``lines``: also on :data:`LINES_METRICS`, for a survey)."""
     metrics = (*METRICS, *LINES_METRICS) if lines else METRICS
     comps: dict[str, dict[str, Comparison]] = {}
     plan = validation.get("planned")
-    if plan is not None:
-        for name, v in validation.items():
-            if name == "planned":
-                continue
-            comps[name] = {
-                key: Comparison(
-                    key, metric_value(plan, key), metric_value(v, key), paired_noise(plan, v, key)
-                )
-                for key, _ in metrics
-            }
-    return Verdict(comps, dict(not_fitted))
+    notes = (LWO_NOTE,) if objective == "lwo-condition" else ()
+    if plan is None:
+        return Verdict(comps, dict(not_fitted), notes=notes)
+    for b, (name, v) in enumerate(validation.items()):
+        if name == "planned":
+            continue
+        comps[name] = {}
+        for m, (key, _) in enumerate(metrics):
+            pv, bv = metric_value(plan, key), metric_value(v, key)
+            if key in RUN_METRICS:
+                ci = _interval(plan, v, key, (int(plan.result.seed), b, m), pv, bv)
+            else:  # a computed bound: no sampling noise
+                ci = None if pv is None or bv is None or bv == 0 else (pv / bv, pv / bv)
+            comps[name][key] = Comparison(key, pv, bv, paired_noise(plan, v, key), ci)
+    notes = (*notes, *filter_notes(validation))
+    return Verdict(comps, dict(not_fitted), int(plan.result.runs), notes)
+
+
+def ekf_diverges(v: PathValidation) -> bool:
+    """The EKF diverges on this path while the KF converges (:data:`DIVERGED_FRACTION`)."""
+    r = v.result
+    e, k = r.ekf, r.kf
+    if e is None or k is None or r.runs < 1:
+        return False
+    if k.flagged_runs >= DIVERGED_FRACTION * r.runs:
+        return False
+    far = not math.isfinite(e.final_pos_err) or e.final_pos_err > DIVERGED_RATIO * k.final_pos_err
+    return e.flagged_runs >= DIVERGED_FRACTION * r.runs or far
+
+
+def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
+    """Sentences on an EKF that diverges on the plan while the KF converges, with the
+    Gaussian-sum filter's numbers on the plan and the baselines when it was run."""
+    plan = validation.get("planned")
+    if plan is None or not ekf_diverges(plan):
+        return ()
+    r = plan.result
+    e, k = r.ekf, r.kf
+    out = [
+        f"the EKF diverges on the plan while the KF converges: {e.flagged_runs} of {r.runs} EKF "
+        f"runs flagged by the divergence monitor (KF {k.flagged_runs}), EKF final error "
+        f"{e.final_pos_err:.3g} m against the KF's {k.final_pos_err:.3g} m; fly it with the KF "
+        "or a Gaussian-sum filter"
+    ]
+    gsf = {n: (v.result.filters or {}).get("gsf") for n, v in validation.items()}
+    if gsf.get("planned") is not None:
+        g = gsf["planned"]
+        base = ", ".join(
+            f"{n} {s.rmse_pos:.3g} / {s.final_pos_err:.3g} m"
+            for n, s in gsf.items()
+            if n != "planned" and s is not None
+        )
+        out.append(
+            f"  Gaussian-sum filter (RMSE / final error): plan {g.rmse_pos:.3g} / "
+            f"{g.final_pos_err:.3g} m" + (f"; {base}" if base else "")
+        )
+    return tuple(out)
+
+
+def _interval(plan, v, key, seed, pv, bv) -> tuple[float, float] | None:
+    """The interval of the ratio ``pv / bv`` of a run-estimated metric (module docstring)."""
+    a, b = _runs(plan, key), _runs(v, key)
+    rms = key.endswith(("rmse_pos", "rmse_pos_lines"))
+    ci = ratio_interval(a, b, seed, rms=rms)
+    if ci is None or not rms or pv is None or not bv:
+        return ci
+    # the RMSE is the time average of the RMS over runs, not a function of the per-run RMSEs:
+    # the bootstrap's relative spread about the ratio of the runs' RMS is carried to it
+    if a is None or b is None:  # pragma: no cover - ci is None then
+        return None
+    full = math.sqrt(np.mean(np.square(a)) / np.mean(np.square(b)))
+    scale = (pv / bv) / full
+    return (ci[0] * scale, ci[1] * scale)
+
+
+def _runs(v: PathValidation, key: str) -> np.ndarray | None:
+    group, _ = key.split(".")
+    stats = getattr(v.result, group, None)
+    return None if stats is None else getattr(stats, RUN_METRICS[key], None)
+
+
+def ratio_interval(
+    a: np.ndarray | None,
+    b: np.ndarray | None,
+    seed: int | Sequence[int] = 0,
+    rms: bool = False,
+) -> tuple[float, float] | None:
+    """Paired bootstrap interval of ``mean(a) / mean(b)`` at :data:`CONFIDENCE` (``rms``: of
+    ``sqrt(mean(a²) / mean(b²))``).
+
+    Parameters
+    ----------
+    a, b
+        Per-run values of the plan and of a baseline on the same runs, shape (runs,) [m].
+    seed
+        Seed of the resampling.
+    rms
+        Compare root mean squares (of per-run RMSEs: the RMS over runs and time) instead of
+        means.
+
+    Returns
+    -------
+    (lo, hi) or None
+        None when the runs are missing, unpaired, fewer than 2 or not all finite, or the
+        baseline's mean is not positive.
+    """
+    if a is None or b is None:
+        return None
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    n = a.size
+    if n < 2 or b.size != n or not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return None
+    if rms:
+        a, b = a * a, b * b
+    if not b.mean() > 0:
+        return None
+    rng = np.random.default_rng(seed)
+    ratios = np.empty(BOOTSTRAP)
+    chunk = max(1, 2_000_000 // n)  # bounded memory: chunk x n indices at a time
+    for s in range(0, BOOTSTRAP, chunk):
+        idx = rng.integers(0, n, size=(min(chunk, BOOTSTRAP - s), n))
+        mb = b[idx].mean(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratios[s : s + idx.shape[0]] = a[idx].mean(axis=1) / mb
+    tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
+    lo, hi = np.nanpercentile(ratios, [tail, 100.0 - tail])
+    if rms:
+        lo, hi = math.sqrt(lo), math.sqrt(hi)
+    return (float(lo), float(hi))
+
+
+def validate_until_decided(
+    paths: Mapping[str, Trajectory],
+    pb: PlanningProblem,
+    *,
+    runs: int | None = None,
+    max_runs: int | None = None,
+    progress: bool = False,
+    filters: Sequence[str] = DEFAULT_FILTERS,
+    lines: Mapping[str, np.ndarray] | None = None,
+) -> dict[str, PathValidation]:
+    """:func:`~obsplan.planning.validation.validate_paths` in batches until decided (``lines``:
+    each path's samples on the survey lines, for its ``rmse_pos_lines``).
+
+    The first batch has ``runs`` (default ``validation.runs``) runs. While a run-estimated
+    verdict of ``paths["planned"]`` against a baseline is undecided, a batch as large as all the
+    runs so far is added (runs ``k ..`` of the same seed, merged exactly: the total doubles),
+    up to ``max(runs, max_runs)`` runs (default ``validation.max_runs``). Without a
+    ``"planned"`` path, one batch.
+    """
+    done = pb.validation.runs if runs is None else int(runs)
+    cap = max(done, pb.validation.max_runs if max_runs is None else int(max_runs))
+    parts = [validate_paths(paths, pb, runs=done, progress=progress, filters=filters, lines=lines)]
+    merged = parts[0]
+    while done < cap and "planned" in paths and not verdict(merged, {}).all_decided:
+        k = min(done, cap - done)
+        parts.append(
+            validate_paths(
+                paths, pb, runs=k, progress=progress, filters=filters, run_start=done, lines=lines
+            )
+        )
+        done += k
+        merged = merge_validations(parts)
+    return merged
 
 
 def paired_noise(a: PathValidation, b: PathValidation, key: str) -> float | None:

@@ -154,7 +154,7 @@ def dask_client(
             )
         try:
             c = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
             raise InputError(
                 f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc}); check "
                 "the address (tcp://HOST:8786) or start one with `dask scheduler`"

@@ -19,22 +19,27 @@ an edited version of the same sweep, is the same task.
 from __future__ import annotations
 
 import copy
+import difflib
 import hashlib
 import itertools
 import json
 import math
 import re
-import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from obsplan import budget
 from obsplan.errors import InputError, ProblemError
+from obsplan.estimation.runs import FILTERS
+from obsplan.estimation.stats import FilterStats
+from obsplan.planning.evaluate import PathMetrics
 from obsplan.planning.parse import problem_from_dict, problem_to_dict
 from obsplan.planning.schema import SCHEMA
+from obsplan.textfiles import read_toml
 from obsplan.version import __version__
 
 #: What each task computes: ``plan`` (plan + validation against the baselines) or ``baselines``
@@ -148,7 +153,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
     path = Path(path)
     if not path.is_file():
         raise SweepFileError(f"sweep file not found: {path}")
-    data = _read_toml(path, str(path))
+    data = _read_toml(path)
     try:
         return sweep_from_dict(data, base_dir=path.parent, name=path.stem, source=path)
     except SweepFileError as exc:
@@ -195,6 +200,8 @@ def sweep_from_dict(
                 f"sweep.combine = zip needs axes of equal length; {shown} values "
                 '(use combine = "product", or give each axis the same number of values)'
             )
+    n_tasks = len(axes[0].values) if combine == "zip" else math.prod(len(a.values) for a in axes)
+    budget.check_tasks(n_tasks, f"[axes] ({combine} of {len(axes)} axes)", SweepFileError)
     figs = _table(data, "figures")
     bad = sorted(set(figs) - {"metrics"})
     if bad:
@@ -207,6 +214,16 @@ def sweep_from_dict(
             f'figures.metrics: expected a list of metric names such as ["min_eig", '
             f'"ekf.rmse_pos"], got {metrics!r}'
         )
+    known = figure_metric_names()
+    for m in metrics or ():
+        if m not in known:
+            near = difflib.get_close_matches(m, sorted(known), n=1)
+            hint = f"did you mean {near[0]!r}? " if near else ""
+            raise SweepFileError(
+                f"figures.metrics: unknown metric {m!r}; {hint}a metric of a path's report: "
+                "min_eig, log_det, condition, pcrb_final_pos_std, ..., or FILTER.STAT such as "
+                "ekf.rmse_pos, kf.final_pos_err"
+            )
     return SweepSpec(
         name=sweep_name,
         base=base,
@@ -219,12 +236,24 @@ def sweep_from_dict(
     )
 
 
-def _read_toml(path: Path, where: str) -> dict[str, Any]:
+def figure_metric_names() -> frozenset[str]:
+    """The names ``[figures] metrics`` accepts: the scalar fields of a path's metrics
+    (``metrics.<path>.<name>``), the bound, and ``FILTER.STAT`` of every filter's statistics."""
+    scalar = ("float", "int", "float | None", "int | None")
+    names = {f.name for f in fields(PathMetrics) if f.type in scalar}
+    names |= {"within_limits", "crlb_final_pos_std"}
+    stats = [f.name for f in fields(FilterStats) if f.type in scalar]
+    names |= {f"{filt}.{stat}" for filt in FILTERS for stat in stats}
+    return frozenset(names)
+
+
+def _read_toml(path: Path, field: str | None = None) -> dict[str, Any]:
+    """The TOML of ``path``; errors start with ``field`` (e.g. ``sweep.base``) when given."""
+    what = "a problem file (TOML)" if field else "a sweep file (TOML)"
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise SweepFileError(f"{where}: not valid TOML: {exc}") from None
+        return read_toml(path, what, error=SweepFileError)
+    except SweepFileError as exc:
+        raise SweepFileError(f"{field}: {exc}" if field else str(exc)) from None
 
 
 def _table(data: Mapping[str, Any], key: str) -> dict[str, Any]:
@@ -256,7 +285,7 @@ def _base(
                 f"sweep.base: problem file {rel!r} not found (looked for {path}; the path is "
                 "relative to the sweep file)"
             )
-        base = _read_toml(path, f"sweep.base: {path}")
+        base = _read_toml(path, "sweep.base")
         base_name = path.stem
     inline = _table(data, "base")
     for section, values in inline.items():
@@ -391,6 +420,7 @@ def _generate(where: str, raw: Mapping[str, Any]) -> list[Any]:
             )
         if len(args) == 3 and args[2] == 0:
             raise SweepFileError(f"{where}: range step must not be 0")
+        budget.check_tasks(len(range(*args)), where, SweepFileError)  # before the list exists
         return list(range(*args))
     if (
         not isinstance(arg, list)
@@ -406,6 +436,7 @@ def _generate(where: str, raw: Mapping[str, Any]) -> list[Any]:
             f"integer), got {arg!r}"
         )
     a, b, n = float(arg[0]), float(arg[1]), int(arg[2])
+    budget.check_tasks(n, where, SweepFileError)
     if kind == "geomspace":
         if not (a > 0 and b > 0):
             raise SweepFileError(f"{where}: geomspace needs start and stop > 0, got {arg!r}")

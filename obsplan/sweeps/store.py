@@ -23,6 +23,7 @@ from typing import Any
 
 from obsplan.atomic import atomic_file
 from obsplan.errors import InputError
+from obsplan.outputs import check_resumable_dir, has_marker, write_marker
 
 MANIFEST = "sweep.json"
 TASKS = "tasks"
@@ -53,22 +54,21 @@ def check_out(out: str | Path, force: bool, name: str) -> Path:
 
     A folder that holds a sweep of that name (``sweep.json``) is resumed, even if its axes
     changed (tasks are keyed by their problem, so the finished ones are reused); an empty or new
-    folder is used; a folder holding another sweep, or any other non-empty folder (the user's
-    files), is refused unless ``force``.
+    folder is used; a folder holding another sweep (or another obsplan output) is refused unless
+    ``force``; a link, a folder of the user's, the working or home folder (or a parent) are
+    always refused (:func:`obsplan.outputs.check_resumable_dir`).
 
     Raises
     ------
     InputError
         If ``out`` is a file, or a non-empty folder that is not this sweep's, without ``force``.
     """
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out} is a file; give a folder")
+    out = check_resumable_dir(out, "--out", ours=lambda d: (d / MANIFEST).is_file())
     if out.is_dir() and any(out.iterdir()) and not force:
         if not (out / MANIFEST).is_file():
             raise InputError(
                 f"--out {out} is not empty and holds no sweep ({MANIFEST}); choose another "
-                "folder, or pass --force to write the sweep into it"
+                "folder, or pass --force to write the sweep into this obsplan output folder"
             )
         other = read_manifest(out).get("sweep", {}).get("name")
         if other != name:
@@ -104,7 +104,11 @@ def write_task(out: Path, task_id: str, report: dict[str, Any], plan_csv: str | 
 
 
 def write_manifest(out: Path, manifest: dict[str, Any]) -> Path:
-    """``DIR/sweep.json`` (creates ``DIR``): from then on ``DIR`` is this sweep's folder."""
+    """``DIR/sweep.json`` (creates ``DIR``, with the output marker): from then on ``DIR`` is
+    this sweep's folder."""
+    out.mkdir(parents=True, exist_ok=True)
+    if not has_marker(out):
+        write_marker(out, "sweep")
     return atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
 

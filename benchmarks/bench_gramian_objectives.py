@@ -1,0 +1,75 @@
+"""Solve time of every Gramian objective (windowed default and the paper's form) by grid size.
+
+Run (minutes):
+
+    MPLBACKEND=Agg python benchmarks/bench_gramian_objectives.py [--starts K] [--quick]
+
+Cases: 2D range-only (``problems/suite/gramian-offset-beacon.toml``) at N = 200 and N = 1000, and
+3D range + bottom-lock DVL (``problems/range-dvl3d.toml``) at N = 600; for each, ``gramian-min-eig``
+and ``gramian-log-det`` with their default (windowed, information-weighted) settings and with
+``window = "mission"``, ``weights = "none"`` (the paper's). Each row is one ``solve`` as ``obsplan
+plan`` runs it (multi-start, coarse-to-fine above N = 250) with ``--starts`` starts in one process,
+and prints its wall time, status, the windows and the budget of the issue (2D N = 200: 20 s,
+N = 1000: 60 s; 3D DVL N = 600: 90 s). ``--quick`` runs the N = 200 case only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from obsplan.planning import load_problem  # noqa: E402
+from obsplan.planning.problem import Horizon  # noqa: E402
+from obsplan.planning.solve import solve  # noqa: E402
+from obsplan.planning.windowed_gramian import paper_form, window_settings  # noqa: E402
+
+#: (label, problem file, steps, budget [s]).
+CASES = (
+    ("2D range, N=200", "problems/suite/gramian-offset-beacon.toml", 200, 20.0),
+    ("2D range, N=1000", "problems/suite/gramian-offset-beacon.toml", 1000, 60.0),
+    ("3D range+DVL, N=600", "problems/range-dvl3d.toml", 600, 90.0),
+)
+KINDS = ("gramian-min-eig", "gramian-log-det")
+FORMS = (("windowed", {}), ("paper", {"window": "mission", "weights": "none"}))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--starts", type=int, default=1, help="starts per solve (default 1)")
+    ap.add_argument("--quick", action="store_true", help="the N = 200 case only")
+    args = ap.parse_args(argv)
+    head = (
+        f"{'case':22s} {'objective':16s} {'form':9s} {'windows':>8s} {'wall s':>7s} "
+        f"{'budget':>6s}  status"
+    )
+    print(head)
+    print("-" * (len(head) + 20))
+    for label, path, steps, budget in CASES[:1] if args.quick else CASES:
+        base = load_problem(ROOT / path)
+        base = replace(base, horizon=Horizon(base.horizon.duration, steps))
+        for kind in KINDS:
+            for form, fields in FORMS:
+                obj = replace(base.objective, kind=kind, starts=args.starts, **fields)
+                pb = replace(base, objective=obj)
+                ws = window_settings(pb)
+                nw = "1" if paper_form(pb) else f"{len(ws.starts)}x{ws.window_s:.0f}s"
+                t0 = time.perf_counter()
+                res = solve(pb, processes=1)
+                wall = time.perf_counter() - t0
+                flag = "" if wall <= budget else "  OVER BUDGET"
+                print(
+                    f"{label:22s} {kind:16s} {form:9s} {nw:>8s} {wall:7.1f} {budget:6.0f}  "
+                    f"{res.status}{flag}",
+                    flush=True,
+                )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

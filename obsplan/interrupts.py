@@ -1,0 +1,163 @@
+"""SIGINT and SIGTERM at any moment: one exception, one exit code, nothing half-written.
+
+The command line calls :func:`install` first. From then on both signals raise
+:class:`Interrupted` (a :class:`KeyboardInterrupt`, so every ``except KeyboardInterrupt`` and
+``finally`` that cleans up after Ctrl-C also runs on a batch scheduler's SIGTERM), and the
+signal is remembered:
+
+* a native library may swallow the exception (CasADi turns it into a solver status, a
+  ``__del__`` prints "Exception ignored"); :func:`check` raises it again at the next checkpoint
+  (after each solve, before an output is committed) and :func:`exit_code` gives 130 / 143 even
+  if the verb then returned normally or failed with another exception;
+* a second signal while the first unwinds is ignored, so that cleanup (removing a staging
+  folder, stopping worker processes) is not cut short.
+
+Worker processes call :func:`child_init`: Ctrl-C in a terminal reaches the whole process group,
+and only the parent decides; a child dies with its parent even if the parent is killed hard.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import signal
+import threading
+from collections.abc import Iterator
+
+#: The signals handled, in the order a terminal and a batch scheduler send them.
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+_pending: int | None = None
+_installed = False
+
+
+class Interrupted(KeyboardInterrupt):
+    """Raised by SIGINT or SIGTERM once :func:`install` ran.
+
+    Attributes
+    ----------
+    signum : int
+        The signal received.
+    """
+
+    def __init__(self, signum: int = signal.SIGINT) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+
+    @property
+    def exit_code(self) -> int:
+        """128 + the signal number, as a shell reports a process the signal stopped."""
+        return 128 + self.signum
+
+
+def _handler(signum: int, frame: object) -> None:
+    global _pending
+    if _pending is not None:  # already unwinding: let the cleanup finish
+        return
+    _pending = signum
+    raise Interrupted(signum)
+
+
+def install() -> dict[int, object] | None:
+    """Route SIGINT and SIGTERM to :class:`Interrupted` (main thread only; else no-op).
+
+    Returns the previous handlers, for :func:`uninstall`.
+    """
+    global _installed
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    previous = {s: signal.signal(s, _handler) for s in SIGNALS}
+    _installed = True
+    return previous
+
+
+def uninstall(previous: dict[int, object] | None) -> None:
+    """Put back the handlers :func:`install` replaced (a library caller's own, e.g. pytest's)."""
+    global _installed
+    if previous is None or threading.current_thread() is not threading.main_thread():
+        return
+    for s, h in previous.items():
+        signal.signal(s, h)  # type: ignore[arg-type]
+    _installed = False
+
+
+def installed() -> bool:
+    """Whether :func:`install` ran in this process."""
+    return _installed
+
+
+def pending() -> int | None:
+    """The signal received since :func:`install` (or :func:`reset`), or None."""
+    return _pending
+
+
+def check() -> None:
+    """Raise :class:`Interrupted` if a signal arrived (even one whose exception was swallowed)."""
+    if _pending is not None:
+        raise Interrupted(_pending)
+
+
+def exit_code() -> int | None:
+    """130 (SIGINT) or 143 (SIGTERM) once a signal arrived, else None."""
+    return None if _pending is None else 128 + _pending
+
+
+def reset() -> None:
+    """Forget a received signal (the command line starts each call of ``main`` afresh)."""
+    global _pending
+    _pending = None
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM until the block ends, then raise as they would have.
+
+    For the few renames that must not be separated (an output swapped in place). Only effective
+    in the main thread.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, frame: caught.append(signum)) for s in SIGNALS}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+    if caught:
+        signum = caught[0]
+        handler = previous[signum]
+        if callable(handler):
+            handler(signum, None)  # ours raises Interrupted, Python's KeyboardInterrupt
+        elif handler == signal.SIG_DFL:
+            os.kill(os.getpid(), signum)  # the default action, as if never held
+
+
+@contextlib.contextmanager
+def ignored() -> Iterator[None]:
+    """Ignore SIGINT and SIGTERM in the block (the last steps of a finished or undone run)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, signal.SIG_IGN) for s in SIGNALS}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+def child_init() -> None:
+    """For a worker process: ignore SIGINT (the parent handles Ctrl-C and stops its children),
+    die on SIGTERM, and receive SIGTERM when the parent dies (Linux), even by SIGKILL."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    global _pending, _installed
+    _pending, _installed = None, False
+    with contextlib.suppress(OSError, AttributeError):
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)

@@ -1,0 +1,261 @@
+"""Windowed, information-weighted Gramians of the augmented model (eqs. 20-27 with two changes).
+
+The Gramian ``G(t_N, t_0)`` of :mod:`obsplan.observability.gramian` measures what the whole
+horizon says about the *initial* augmented state, with every output row weighted alike. A
+filter with process noise forgets: what it knows at ``t`` comes from the last few ``τ_f``
+seconds of measurements, and a range carries less information the farther the beacon is. So:
+
+* **Information weights.** Each output row is scaled by its information per unit time, rate /
+  variance. For the range pseudo-output ``y = |p - b|²/2`` with range noise ``σ_r`` the variance
+  is ``r² σ_r² + σ_r⁴/2``; ``r²`` is held at its mean over each interval (Simpson's rule on the
+  exact quadratic path). DVL rows get ``rate / σ_dvl²``, the depth row ``rate / σ_z²``. Weights
+  are expressed in the metric scales (outputs ``ȳ/L²``, ``v T/L``, ``p_z/L``; time ``t/T``).
+* **Windows.** The Gramian of a window ``[t_a, t_b]`` is the sum of its intervals' exact
+  contributions (eq. 25), built once for the whole path: a window is a difference of prefix
+  sums. The contributions are referred to ``z(t_0)``; since ``z(t) = Φ(t - t_0) z(t_0)`` +
+  input terms with ``Φ(τ) = I + Aτ`` (eq. 26, ``A² = 0``), the information the window carries
+  about ``z(t_s)`` is ``Φ(-τ_s)ᵀ G_ab Φ(-τ_s)`` with ``τ_s = t_s - t_0``: ``anchor = "start"``
+  takes ``t_s = t_a`` (observability of the window's initial state), ``anchor = "current"``
+  ``t_s = t_b`` (constructibility of the state at the window's end, Salaris et al.).
+  ``det Φ = 1``, so the anchor changes eigenvalues and ``tr G⁻¹`` but not ``log det``.
+
+Criteria of one window (:func:`window_criteria`) are computed on ``G + εI`` with a small floor
+``ε`` (finite at rank-deficient windows) through an unpivoted Cholesky factor, the same formula in
+numpy and in CasADi so that the planner's objective and the value on a path agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from obsplan.observability.gramian import AugmentedModel, interval_gramians
+from obsplan.observability.scaling import Scales
+from obsplan.trajectory import Trajectory
+
+ANCHORS: tuple[str, ...] = ("start", "current")
+
+
+@dataclass(frozen=True)
+class SensorInformation:
+    """Rates [Hz] and noise standard deviations of the sensors (range std on ``|p - b|`` [m],
+    DVL [m/s] per axis, depth [m]); a sensor the model lacks is ignored."""
+
+    range_rate: float
+    range_std: float
+    dvl_rate: float = 0.0
+    dvl_std: float = 1.0
+    depth_rate: float = 0.0
+    depth_std: float = 1.0
+
+
+def range_information(r2, sigma: float):
+    """Information per sample of ``y = r²/2`` with range noise ``sigma`` [m]: ``1/(r²σ² + σ⁴/2)``
+    [1/m⁴], for ``r2 = r²`` [m²] (numpy or CasADi)."""
+    return 1.0 / (r2 * sigma**2 + 0.5 * sigma**4)
+
+
+def simpson_mean(f_start, f_mid, f_end):
+    """Simpson's rule mean of a function over an interval from its start, midpoint and end."""
+    return (f_start + 4.0 * f_mid + f_end) / 6.0
+
+
+def mean_square_range(traj: Trajectory, beacon: np.ndarray) -> np.ndarray:
+    """Mean of ``|p - b|²`` over each interval of ``traj`` (Simpson's rule on the exact quadratic
+    between samples), shape ``(N-1,)`` [m²]."""
+    p, v, u, h = traj.p - beacon, traj.v, traj.u[:-1], traj.dt[:, None]
+    mid = p[:-1] + 0.5 * h * v[:-1] + 0.125 * h**2 * u
+    sq = np.sum(p**2, axis=1)
+    return simpson_mean(sq[:-1], np.sum(mid**2, axis=1), sq[1:])
+
+
+def row_weight_factors(
+    aug: AugmentedModel, info: SensorInformation, scales: Scales
+) -> tuple[float, np.ndarray]:
+    """``(c_range, w_other)``: the range row's weight is ``c_range * range_information(r²)``, the
+    other rows' (DVL axes, then depth) are the constants ``w_other``; all in the metric scales
+    (information per unit of ``t/T`` about outputs ``ȳ/L²``, ``v T/L``, ``p_z/L``)."""
+    L, T = scales.length_m, scales.time_s
+    c_range = info.range_rate * T * L**4
+    other: list[float] = []
+    if any(s.startswith("dvl") for s in aug.sensors):
+        other += [info.dvl_rate * T * (L / T) ** 2 / info.dvl_std**2] * aug.dim
+    if "depth" in aug.sensors:
+        other.append(info.depth_rate * T * L**2 / info.depth_std**2)
+    return c_range, np.asarray(other, float)
+
+
+def information_weights(
+    traj: Trajectory,
+    aug: AugmentedModel,
+    beacon: np.ndarray,
+    info: SensorInformation,
+    scales: Scales,
+) -> np.ndarray:
+    """Row weights of every interval, shape ``(N-1, n_outputs)``, in the metric scales."""
+    c_range, other = row_weight_factors(aug, info, scales)
+    wr = c_range * range_information(mean_square_range(traj, beacon), info.range_std)
+    return np.column_stack([wr, np.broadcast_to(other, (wr.size, other.size))])
+
+
+def window_layout(n_intervals: int, window: int, stride: int) -> tuple[np.ndarray, np.ndarray]:
+    """Windows of ``window`` intervals every ``stride`` intervals, the last one ending at the end.
+
+    Returns ``(starts, ends)`` as interval indices (window ``j`` is intervals
+    ``starts[j] <= k < ends[j]``); one window ``[0, n_intervals)`` when ``window >= n_intervals``.
+    """
+    if window < 1 or stride < 1:
+        raise ValueError(f"window and stride must be >= 1 interval, got {window}, {stride}")
+    if window >= n_intervals:
+        return np.array([0]), np.array([n_intervals])
+    starts = list(range(0, n_intervals - window + 1, stride))
+    if starts[-1] + window < n_intervals:
+        starts.append(n_intervals - window)
+    a = np.asarray(starts)
+    return a, a + window
+
+
+def anchor_times(tau: np.ndarray, starts: np.ndarray, ends: np.ndarray, anchor: str) -> np.ndarray:
+    """The times ``τ_s`` (same units as ``tau``, the node times from ``t_0``) the windows are
+    referred to: their start or their end."""
+    if anchor not in ANCHORS:
+        raise ValueError(f"anchor must be one of {ANCHORS}, got {anchor!r}")
+    return tau[starts] if anchor == "start" else tau[ends]
+
+
+def reanchor_matrix(aug: AugmentedModel, tau_s):
+    """``Φ(-τ_s) = I - A τ_s`` (eq. 26): ``z(t_0) = Φ(-τ_s) z(t_s)`` up to input terms."""
+    return np.eye(aug.state_dim) - aug.A * tau_s
+
+
+def windowed_gramians(
+    Gk: np.ndarray,
+    tau: np.ndarray,
+    aug: AugmentedModel,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    anchor: str,
+) -> np.ndarray:
+    """Window Gramians about the anchor state from interval contributions, by prefix sums.
+
+    Parameters
+    ----------
+    Gk : ndarray, shape (K, m, m)
+        Interval contributions referred to ``z(t_0)`` (:func:`interval_gramians`).
+    tau : ndarray, shape (K + 1,)
+        Node times from ``t_0``, in the units of ``Gk`` (scaled).
+    starts, ends : ndarray of int
+        :func:`window_layout`.
+    anchor : {"start", "current"}
+
+    Returns
+    -------
+    ndarray, shape (n_windows, m, m)
+    """
+    C = np.zeros((Gk.shape[0] + 1, *Gk.shape[1:]))
+    np.cumsum(Gk, axis=0, out=C[1:])
+    G = C[ends] - C[starts]
+    P = np.stack([reanchor_matrix(aug, s) for s in anchor_times(tau, starts, ends, anchor)])
+    G = np.swapaxes(P, 1, 2) @ G @ P
+    return 0.5 * (G + np.swapaxes(G, 1, 2))
+
+
+def windowed_gramians_quadrature(
+    traj: Trajectory,
+    aug: AugmentedModel,
+    row_weights: np.ndarray,
+    scales: Scales,
+    starts: np.ndarray,
+    ends: np.ndarray,
+    anchor: str,
+) -> np.ndarray:
+    """The same window Gramians by Gauss-Legendre quadrature of ``Φ(t - t_s)ᵀ Cᵀ W C Φ(t - t_s)``.
+
+    An independent route (``C(t)`` of :meth:`AugmentedModel.output_matrix` at each quadrature
+    node, no interval closed form, no prefix sums) to check :func:`windowed_gramians`; 5 nodes
+    per interval integrate the degree-6 integrand exactly. Slow: for tests and small paths.
+    """
+    tr = traj.scaled(scales.length_m, scales.time_s)
+    x, wq = np.polynomial.legendre.leggauss(5)
+    tau = tr.t - tr.t[0]
+    ts = anchor_times(tau, starts, ends, anchor)
+    out = np.zeros((starts.size, aug.state_dim, aug.state_dim))
+    for j, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        for k in range(a, b):
+            h = tr.dt[k]
+            for xi, wi in zip(x, wq, strict=True):
+                s = 0.5 * h * (xi + 1.0)
+                p = tr.p[k] + tr.v[k] * s + 0.5 * tr.u[k] * s**2
+                t = tau[k] + s
+                d = p - tr.p[0] - tr.v[0] * t
+                C = aug.output_matrix(d, t) @ (np.eye(aug.state_dim) + aug.A * (t - ts[j]))
+                out[j] += 0.5 * h * wi * (C.T * row_weights[k]) @ C
+    return out
+
+
+def _cholesky_criteria(G, m: int, eps, log, zeros):
+    """``(tr (G + εI)⁻¹, log det(G + εI))`` by an unpivoted Cholesky factor (numpy or SX)."""
+    L = [[zeros() for _ in range(m)] for _ in range(m)]
+    logdet = 0.0
+    for j in range(m):
+        s = G[j, j] + eps - sum(L[j][k] * L[j][k] for k in range(j))
+        L[j][j] = s**0.5
+        logdet = logdet + log(s)
+        for i in range(j + 1, m):
+            L[i][j] = (G[i, j] - sum(L[i][k] * L[j][k] for k in range(j))) / L[j][j]
+    # tr G⁻¹ = ||L⁻¹||_F²: forward substitution for every column of L⁻¹
+    tr = 0.0
+    for c in range(m):
+        y = [zeros() for _ in range(m)]
+        for i in range(c, m):
+            rhs = (1.0 if i == c else 0.0) - sum(L[i][k] * y[k] for k in range(c, i))
+            y[i] = rhs / L[i][i]
+            tr = tr + y[i] * y[i]
+    return tr, logdet
+
+
+def window_criteria(G: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """``tr (G + εI)⁻¹`` and ``log det(G + εI)`` of every window, each shape ``(n_windows,)``.
+
+    ``G`` has shape ``(n_windows, m, m)``; a window that is not positive definite even with the
+    floor (round-off only) reads ``(inf, -inf)``.
+    """
+    m = G.shape[1]
+    tr = np.full(G.shape[0], np.inf)
+    ld = np.full(G.shape[0], -np.inf)
+    for j in range(G.shape[0]):
+        try:
+            Lc = np.linalg.cholesky(G[j] + eps * np.eye(m))
+        except np.linalg.LinAlgError:
+            continue
+        Li = np.linalg.inv(Lc)
+        tr[j] = float(np.sum(Li**2))
+        ld[j] = 2.0 * float(np.sum(np.log(np.diag(Lc))))
+    return tr, ld
+
+
+@cache
+def window_criteria_function(m: int) -> ca.Function:
+    """CasADi ``(tr, logdet) = f(G, eps)`` of one window: :func:`window_criteria` as a smooth
+    expression (``G`` m × m symmetric, ``eps`` the floor)."""
+    G = ca.SX.sym("G", m, m)
+    eps = ca.SX.sym("eps")
+    Gs = 0.5 * (G + G.T)
+    tr, ld = _cholesky_criteria(Gs, m, eps, ca.log, lambda: ca.SX(0))
+    return ca.Function("window_criteria", [G, eps], [tr, ld])
+
+
+def weighted_interval_gramians(
+    traj: Trajectory,
+    aug: AugmentedModel,
+    beacon: np.ndarray,
+    info: SensorInformation | None,
+    scales: Scales,
+) -> np.ndarray:
+    """Interval contributions in ``scales`` with information weights (``info = None``: the
+    paper's unit weights), shape ``(N-1, m, m)``."""
+    w = None if info is None else information_weights(traj, aug, beacon, info, scales)
+    return interval_gramians(traj, aug, scales, row_weights=w)

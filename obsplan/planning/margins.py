@@ -1,0 +1,598 @@
+"""Keep-out margins: limits kept by the *true* vehicle, not only by the plan.
+
+A vehicle steers its estimate onto the plan (:mod:`obsplan.estimation.guidance`), so its true path
+is the plan minus what its navigation filter gets wrong. The limits that protect it
+(``min_range``, ``max_range``, the area box and the depth band) are therefore planned with a
+margin that grows with the predicted uncertainty along the path:
+
+    margin(t) = k · (B(t) + σ_w),    k = Φ⁻¹(limits.keepout_confidence)
+
+**Deviation of the true path.** With the guidance ``u = u_ref + Kp (p_ref - p̂) + Kd (v_ref - v̂)``
+and estimation errors ``e_p = p̂ - p``, ``e_v = v̂ - v``, the deviation ``δ = p - p_ref`` obeys
+``δ'' + Kd δ' + Kp δ = -Kp e_p - Kd e_v + w`` (``w`` the process noise), so along a unit direction
+``d`` it is the loop's impulse response ``g`` (``G(s) = 1/(s² + Kd s + Kp)``, ``δ(0) = 0``)
+applied to the errors. The triangle inequality in L² bounds its standard deviation whatever the
+errors' correlation in time:
+
+    std(dᵀδ(t)) <= B(t) + σ_w,
+    B(t) = ∫₀ᵗ |g(τ)| (Kp σ_p(t - τ) + Kd σ_v(t - τ)) dτ,    σ_w² = q ∫₀^∞ g² = q / (2 Kp Kd)
+
+with ``σ_p(s)² = dᵀ P_pp(s) d`` and ``σ_v(s)² = dᵀ P_vv(s) d`` from the posterior Cramér–Rao
+bound along the path: the same recursion the planner's ``pcrb-position`` objective evaluates
+(:func:`obsplan.planning.estimator_objectives.pcrb_objective`, the validation's prior, process
+noise, sensor rates and noises), run numerically once per round. Between two epochs the
+predicted variance in a fixed direction is convex in time (a quadratic plus the cubic of the
+process noise), so the larger of the priors at the gap's two ends bounds it on the whole gap.
+The tracking error is in the bound (the loop's lag and its response to estimate corrections);
+``q`` is the white-acceleration intensity of the validation's process noise. For ``min_range``
+and ``max_range`` ``d`` is the radial direction at the constraint point, for the area and the
+depth band the axis. ``B`` is evaluated at each constraint point and at the ends of the stretch of
+path it covers (:mod:`obsplan.planning.formulation`), and the largest value is kept.
+
+**Fixed point.** The margin depends on the path, the path on the margin. The plan is solved
+without margins (the full multi-start strategy), the margins are computed on it, and the NLP is
+re-solved warm from it with every limit tightened by its margin (only the bounds ``lbg``, ``ubg``,
+``lbx``, ``ubx`` change: the compiled NLP is the same). The margins are then recomputed on the new
+path; where they grew, the tightening takes the larger value and the NLP is solved again, at most
+:data:`MAX_ROUNDS` times. The margins only grow, so the rounds stop; ``held`` says whether the
+returned path keeps the margins computed on itself. Symbolic margins (the recursion inside every
+constraint) would make every limit row dense in the whole path; this costs one or two warm
+re-solves.
+
+The bound uses the Cramér–Rao bound, which the EKF attains only asymptotically, and the normal
+quantile per point, not over the whole path; how often the true path breaks the limit is measured
+by the closed-loop Monte Carlo (``TruthStats`` of :mod:`obsplan.estimation.stats`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from functools import cache
+
+import casadi as ca
+import numpy as np
+import scipy.linalg
+from scipy.stats import norm
+
+from obsplan.estimation.guidance import Guidance
+from obsplan.estimation.riccati import run_recursion
+from obsplan.planning.estimator_objectives import CovarianceObjective, covariance_objective
+from obsplan.planning.evaluate import objective_value
+from obsplan.planning.feasibility import check_limits, range_extremes
+from obsplan.planning.formulation import Formulation, build_formulation
+from obsplan.planning.grid import Grid
+from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.solve import SolveResult, solve
+from obsplan.planning.starts import StartOutcome, run_start, start_context
+from obsplan.planning.validation_setup import estimation_config, validation_guidance
+from obsplan.trajectory import Trajectory
+
+#: Re-solves with tightened limits at most (module docstring, "Fixed point").
+MAX_ROUNDS = 3
+#: A margin [m] that grew by less than this between rounds counts as unchanged.
+MARGIN_ATOL_M = 1e-2
+#: Each round tightens by the margins recomputed on its path times ``1 + INFLATE`` (never less
+#: than before), so that the next round's path, which moves a little, stays inside them.
+INFLATE = 0.1
+#: Relative tolerance of "the path keeps its margins" on the tightened constraints (intrinsic
+#: units, as IPOPT's constraint tolerance).
+HELD_TOL = 1e-6
+#: Largest fraction of the acceleration bound kept for the guidance's feedback, and the change
+#: of a reserve that counts as a change between rounds.
+RESERVE_CAP = 0.5
+RESERVE_ATOL = 0.01
+#: Largest fraction of the area's (or depth band's) width that margins may take from each side.
+BOX_SHARE = 0.45
+
+
+def guidance_of(pb: PlanningProblem) -> Guidance:
+    """The guidance law the vehicle flies ``pb``'s paths with: the closed-loop validation's
+    (:func:`~obsplan.planning.validation_setup.validation_guidance`), also when the validation
+    runs open loop (the margins are for the vehicle at sea, which steers its estimate)."""
+    g = validation_guidance(pb)
+    if g is None:
+        g = validation_guidance(replace(pb, validation=replace(pb.validation, mode="closed-loop")))
+    assert g is not None
+    return g
+
+
+def confidence_quantile(confidence: float) -> float:
+    """``k = Φ⁻¹(confidence)`` (one-sided normal quantile); 0 when ``confidence`` is 0."""
+    c = float(confidence)
+    return 0.0 if c <= 0 else float(norm.ppf(c))
+
+
+@dataclass(frozen=True)
+class LoopResponse:
+    """The guidance loop's impulse responses on a grid: ``∫₀ˣ |g|``, ``∫₀ˣ |g'|`` and ``∫ g²``.
+
+    Attributes
+    ----------
+    tau : ndarray (M,)
+        Lags [s] from 0 to ``30 /`` (the loop's slowest decay rate).
+    cum_abs, cum_abs_rate : ndarray (M,)
+        ``∫₀^tau |g|`` [s²] and ``∫₀^tau |g'|`` [s] (position and velocity responses).
+    l2 : float
+        ``∫₀^∞ g²`` [s³].
+    kp, kd : float
+        The gains [1/s²], [1/s].
+    """
+
+    tau: np.ndarray
+    cum_abs: np.ndarray
+    cum_abs_rate: np.ndarray
+    l2: float
+    kp: float
+    kd: float
+
+    @classmethod
+    def of(cls, guidance: Guidance, samples: int = 4000) -> LoopResponse:
+        """The responses of ``δ'' + Kd δ' + Kp δ = input``: ``(g, g') = e^{Aτ} [0 1]ᵀ``."""
+        kp, kd = guidance.kp, guidance.kd
+        if kp <= 0 or kd <= 0:
+            raise ValueError("keep-out margins need a guidance with kp > 0 and kd > 0")
+        A = np.array([[0.0, 1.0], [-kp, -kd]])
+        # slowest decay rate of the loop: the real part of its slower pole
+        rate = kd / 2.0 - math.sqrt(max(kd**2 / 4.0 - kp, 0.0))
+        tau = np.linspace(0.0, 30.0 / rate, samples)  # e^-30: the tail beyond is negligible
+        dt = tau[1] - tau[0]
+        step = scipy.linalg.expm(A * dt)
+        resp = np.empty((samples, 2))
+        x = np.array([0.0, 1.0])
+        for i in range(samples):
+            resp[i] = x
+            x = step @ x
+
+        def cumulative(y: np.ndarray) -> np.ndarray:
+            return np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * dt)])
+
+        g = resp[:, 0]
+        return cls(
+            tau=tau,
+            cum_abs=cumulative(np.abs(g)),
+            cum_abs_rate=cumulative(np.abs(resp[:, 1])),
+            l2=float(cumulative(g**2)[-1]),
+            kp=kp,
+            kd=kd,
+        )
+
+    def weight(self, x: np.ndarray, rate: bool = False) -> np.ndarray:
+        """``∫₀ˣ |g|`` (or ``|g'|``) at lags ``x`` [s] (0 for ``x <= 0``)."""
+        cum = self.cum_abs_rate if rate else self.cum_abs
+        return np.interp(np.maximum(x, 0.0), self.tau, cum)
+
+
+@dataclass(frozen=True, eq=False)
+class PathCovariance:
+    """The PCRB's position and velocity covariances at the epochs along a path.
+
+    Attributes
+    ----------
+    time : ndarray (J,)
+        Epoch times [s] from the start.
+    pos, vel : ndarray (J, n, n)
+        Prior covariance (before the update) at each epoch [m²], [m²/s²]; at the first epoch
+        the prior of the validation.
+    """
+
+    time: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+
+    def gap_std(self, d: np.ndarray, block: str) -> np.ndarray:
+        """Per gap ``j`` (epoch ``j`` to ``j + 1``, shape (C, J - 1)) the largest ``sqrt(dᵀPd)``
+        at its ends, for each of the ``C`` unit directions ``d`` (C, n)."""
+        P = self.pos if block == "pos" else self.vel
+        var = np.einsum("ci,jik,ck->cj", d, P, d)
+        return np.sqrt(np.maximum(np.maximum(var[:, :-1], var[:, 1:]), 0.0))
+
+
+@cache
+def _pcrb(pb: PlanningProblem) -> CovarianceObjective:
+    return covariance_objective(pb, "pcrb-position")
+
+
+def path_covariance(traj: Trajectory, pb: PlanningProblem) -> PathCovariance:
+    """The posterior CRB along ``traj`` (on the planning grid), numerically.
+
+    The recursion of the ``pcrb-position`` objective (its model, epochs, prior and range rows),
+    so the margins and that objective predict the same covariance.
+    """
+    cobj = _pcrb(pb)
+    grid = Grid.from_problem(pb)
+    h, rho = cobj.rows(grid, grid.from_trajectory(traj))
+    P_prior, _ = run_recursion(cobj.model, cobj.epochs, cobj.P0, h, rho, cobj.mask)
+    m, J = cobj.model.m, cobj.epochs.count
+    blocks = np.asarray(P_prior).reshape(m, J, m).transpose(1, 0, 2)  # (J, m, m)
+    # block j is the prior at epoch j + 1; epoch 0 starts from the validation's prior
+    P = np.concatenate([np.asarray(cobj.P0, float)[None], blocks[:-1]])
+    nav = cobj.model.nav
+    Pn = np.einsum("ai,jik,bk->jab", nav, P, nav)
+    n = pb.dim
+    s = cobj.scale
+    return PathCovariance(
+        time=np.asarray(cobj.epochs.time, float),
+        pos=Pn[:, :n, :n] * s**2,
+        vel=Pn[:, n:, n:] * s**2,
+    )
+
+
+def deviation_bound(
+    cov: PathCovariance,
+    loop: LoopResponse,
+    q: float,
+    times: np.ndarray,
+    dirs: np.ndarray,
+    rate: bool = False,
+) -> np.ndarray:
+    """``B(t) + σ_w`` (module docstring) [m] along unit directions ``dirs`` (C, n), the largest
+    over the times ``times`` (C, T) [s] of each direction; ``rate``: the same bound of the
+    velocity deviation ``δ'`` [m/s] (``|g'|`` for ``|g|``, ``σ_w² = q ∫ g'²`` bounded by
+    ``q / (2 Kd)``)."""
+    sp = cov.gap_std(dirs, "pos")  # (C, J-1)
+    sv = cov.gap_std(dirs, "vel")
+    a, b = cov.time[:-1], cov.time[1:]
+    drive = loop.kp * sp + loop.kd * sv
+    out = np.zeros(dirs.shape[0])
+    for col in range(times.shape[1]):
+        t = times[:, col][:, None]
+        # ∫ over gap [a, b] ∩ [0, t] of |g(t - s)| ds
+        w = loop.weight(t - a[None, :], rate) - loop.weight(t - np.minimum(b[None, :], t), rate)
+        out = np.maximum(out, np.sum(w * drive, axis=1))
+    noise = q / (2.0 * loop.kd) if rate else q * loop.l2
+    return out + math.sqrt(max(noise, 0.0))
+
+
+@dataclass(frozen=True)
+class KeepoutMargins:
+    """The margins of one path, in metres.
+
+    Attributes
+    ----------
+    confidence : float
+        ``limits.keepout_confidence``.
+    k : float
+        ``Φ⁻¹(confidence)``.
+    range_points : ndarray (2N,)
+        At the distance constraints' points: nodes 1..N, then the N interval midpoints
+        (:func:`obsplan.planning.formulation.path_constraints`); zeros without a distance limit.
+    box : ndarray (n, N)
+        Per axis at nodes 1..N (the area's x, y and the depth band's z); zeros where unbounded.
+    accel_reserve : ndarray (n, N)
+        Per axis and interval, the fraction of the acceleration bound kept for the guidance's
+        feedback (at most :data:`RESERVE_CAP`).
+    """
+
+    confidence: float
+    k: float
+    range_points: np.ndarray
+    box: np.ndarray
+    accel_reserve: np.ndarray
+
+    def maximum(self, other: KeepoutMargins, scale: float = 1.0) -> KeepoutMargins:
+        """The larger of these margins and ``scale`` times ``other``'s at every point (the
+        reserve capped at :data:`RESERVE_CAP`)."""
+        reserve = np.minimum(scale * other.accel_reserve, RESERVE_CAP)
+        return replace(
+            self,
+            range_points=np.maximum(self.range_points, scale * other.range_points),
+            box=np.maximum(self.box, scale * other.box),
+            accel_reserve=np.maximum(self.accel_reserve, reserve),
+        )
+
+    def grew(self, other: KeepoutMargins, atol: float = MARGIN_ATOL_M) -> bool:
+        """True when ``other`` exceeds these margins anywhere by more than ``atol`` [m]."""
+        return bool(
+            np.any(other.range_points > self.range_points + atol)
+            or np.any(other.box > self.box + atol)
+            or np.any(other.accel_reserve > self.accel_reserve + RESERVE_ATOL)
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "confidence": self.confidence,
+            "k": self.k,
+            "max_range_margin_m": float(np.max(self.range_points, initial=0.0)),
+            "max_box_margin_m": float(np.max(self.box, initial=0.0)),
+            "max_accel_reserve": float(np.max(self.accel_reserve, initial=0.0)),
+        }
+
+
+def _range_points(grid: Grid, traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """Times (2N,) and positions relative to the beacon (2N, n) of the distance constraints."""
+    t = grid.times
+    h = grid.h
+    rel = traj.p - grid.beacon
+    mid = rel[:-1] + traj.v[:-1] * (h / 2) + 0.5 * traj.u[:-1] * (h / 2) ** 2
+    return np.concatenate([t[1:], t[:-1] + h / 2]), np.vstack([rel[1:], mid])
+
+
+def _process_intensity(pb: PlanningProblem) -> float:
+    """White-acceleration PSD ``q`` [m²/s³] of the validation's process noise, per axis: the
+    velocity variance it adds per filter step over the step (exact for the physical noise)."""
+    dt = pb.validation.dt
+    q_step = np.asarray(estimation_config(pb).covariances(dt)["q_ekf"], float)
+    n = pb.dim
+    return float(np.max(np.diag(q_step)[n : 2 * n]) / dt)
+
+
+def _box_axes(pb: PlanningProblem) -> list[tuple[int, tuple[float, float]]]:
+    lim = pb.limits
+    out: list[tuple[int, tuple[float, float]]] = []
+    if lim.area is not None:
+        out += [(0, lim.area.x), (1, lim.area.y)]
+    if lim.depth is not None:
+        out.append((2, lim.depth))
+    return out
+
+
+def keepout_margins(
+    traj: Trajectory, pb: PlanningProblem, guidance: Guidance | None = None
+) -> KeepoutMargins:
+    """The margins (module docstring) of the limits of ``pb`` along ``traj`` (planning grid).
+
+    Parameters
+    ----------
+    traj
+        A path on the planning grid (``N + 1`` samples).
+    pb
+        The problem: limits, ``limits.keepout_confidence``, the validation's filter settings.
+    guidance
+        The guidance law the vehicle flies with (default :func:`guidance_of`).
+    """
+    grid = Grid.from_problem(pb)
+    n, N = grid.n, grid.N
+    conf = float(pb.limits.keepout_confidence)
+    k = confidence_quantile(conf)
+    rng = np.zeros(2 * N)
+    box = np.zeros((n, N))
+    reserve = np.zeros((n, N))
+    if k == 0:
+        return KeepoutMargins(conf, k, rng, box, reserve)
+    lim = pb.limits
+    cov = path_covariance(traj, pb)
+    loop = LoopResponse.of(guidance or guidance_of(pb))
+    q = _process_intensity(pb)
+    T = float(grid.times[-1])
+    if lim.min_range > 0 or lim.max_range is not None:
+        t, rel = _range_points(grid, traj)
+        dirs = rel / np.maximum(np.linalg.norm(rel, axis=1, keepdims=True), 1e-12)
+        tau = grid.h / 4.0
+        times = np.clip(np.stack([t - tau, t, t + tau], axis=1), 0.0, T)
+        rng = k * deviation_bound(cov, loop, q, times, dirs)
+    t_nodes = grid.times[1:]
+    at_nodes = np.clip(np.stack([t_nodes - grid.h / 2, t_nodes, t_nodes + grid.h / 2], 1), 0, T)
+    for axis, _ in _box_axes(pb):
+        box[axis] = k * deviation_bound(cov, loop, q, at_nodes, _axis_dirs(N, n, axis))
+    t0 = grid.times[:-1]
+    on_steps = np.stack([t0, t0 + grid.h / 2, t0 + grid.h], axis=1)
+    for axis in range(n):
+        dirs = _axis_dirs(N, n, axis)
+        pos = deviation_bound(cov, loop, q, on_steps, dirs) + _std_at(cov, dirs, on_steps, "pos")
+        vel = deviation_bound(cov, loop, q, on_steps, dirs, rate=True)
+        vel = vel + _std_at(cov, dirs, on_steps, "vel")
+        command = k * (loop.kp * pos + loop.kd * vel)  # feedback std bound [m/s²]
+        reserve[axis] = np.minimum(command / grid.a[axis], RESERVE_CAP)
+    return KeepoutMargins(conf, k, rng, box, reserve)
+
+
+def _axis_dirs(count: int, n: int, axis: int) -> np.ndarray:
+    d = np.zeros((count, n))
+    d[:, axis] = 1.0
+    return d
+
+
+def _std_at(cov: PathCovariance, dirs: np.ndarray, times: np.ndarray, block: str) -> np.ndarray:
+    """The largest gap std (:meth:`PathCovariance.gap_std`) at ``times`` (C, T) [s], (C,)."""
+    std = cov.gap_std(dirs, block)
+    gap = np.clip(np.searchsorted(cov.time, times, side="right") - 1, 0, std.shape[1] - 1)
+    return np.max(np.take_along_axis(std, gap, axis=1), axis=1)
+
+
+def tighten(form: Formulation, margins: KeepoutMargins) -> Formulation:
+    """``form`` with its distance and box limits tightened by ``margins`` (bounds only: the
+    symbols, and so a compiled solver, are unchanged)."""
+    grid = form.grid
+    lbg, ubg = form.lbg.copy(), form.ubg.copy()
+    row = 0
+    for block in form.constraints:
+        sl = slice(row, row + block.size)
+        if block.name == "min_range":
+            lbg[sl] += margins.range_points / grid.Lp
+        elif block.name == "max_range":
+            ubg[sl] -= margins.range_points / grid.Lp
+        row += block.size
+    lbx, ubx = form.lbx.copy(), form.ubx.copy()
+    n, N = grid.n, grid.N
+    lbW = lbx[: form.n_w].reshape(3 * n, N, order="F")  # views into lbx, ubx
+    ubW = ubx[: form.n_w].reshape(3 * n, N, order="F")
+    for axis, (lo, hi) in _box_axes(form.problem):
+        cap = BOX_SHARE * (hi - lo)
+        m = np.minimum(margins.box[axis], cap) / grid.Lp
+        lbW[n + axis] += m
+        ubW[n + axis] -= m
+    # inputs: |U| <= 1 - reserve (U is the input over the per-axis bound)
+    lbW[:n] = np.maximum(lbW[:n], -(1.0 - margins.accel_reserve))
+    ubW[:n] = np.minimum(ubW[:n], 1.0 - margins.accel_reserve)
+    return replace(form, lbg=lbg, ubg=ubg, lbx=lbx, ubx=ubx)
+
+
+def keeps_margins(form: Formulation, traj: Trajectory, tol: float = HELD_TOL) -> bool:
+    """True when ``traj`` satisfies the (tightened) path constraints and bounds of ``form``."""
+    W = form.grid.from_trajectory(traj)
+    w = W.reshape(-1, order="F")
+    k, nw = form.n_path_constraints, form.n_w
+    g_path = ca.Function("g_path", [form.w], [form.g[:k]])
+    x = np.concatenate([w, np.zeros(form.w.numel() - nw)])
+    g = np.asarray(g_path(x)).reshape(-1)
+    scale = 1.0 + np.abs(g)
+    ok_g = np.all(g >= form.lbg[:k] - tol * scale) and np.all(g <= form.ubg[:k] + tol * scale)
+    ok_x = np.all(w >= form.lbx[:nw] - tol) and np.all(w <= form.ubx[:nw] + tol)
+    return bool(ok_g and ok_x)
+
+
+@dataclass(frozen=True)
+class KeepoutReport:
+    """How the keep-out margins were kept (``keepout`` of report.json).
+
+    Attributes
+    ----------
+    confidence, k : float
+        The stated confidence and its normal quantile.
+    rounds : int
+        Re-solves with tightened limits (0: margins disabled or nothing to keep).
+    held : bool
+        The returned path keeps the margins computed on itself.
+    statuses : tuple of str
+        IPOPT status of each re-solve.
+    max_range_margin_m, max_box_margin_m : float
+        Largest margin on the distance limits and on the area/depth band [m].
+    max_accel_reserve : float
+        Largest fraction of an acceleration bound kept for the guidance.
+    planned_closest_range_m : float
+        The returned path's closest distance to the beacon [m].
+    wall_s : float
+        Time of the margins and the re-solves [s].
+    note : str
+    """
+
+    confidence: float
+    k: float
+    rounds: int
+    held: bool
+    statuses: tuple[str, ...]
+    max_range_margin_m: float
+    max_box_margin_m: float
+    max_accel_reserve: float
+    planned_closest_range_m: float
+    wall_s: float
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        return {
+            "confidence": self.confidence,
+            "k": self.k,
+            "rounds": self.rounds,
+            "held": self.held,
+            "statuses": list(self.statuses),
+            "max_range_margin_m": self.max_range_margin_m,
+            "max_box_margin_m": self.max_box_margin_m,
+            "max_accel_reserve": self.max_accel_reserve,
+            "planned_closest_range_m": self.planned_closest_range_m,
+            "wall_s": self.wall_s,
+            "note": self.note,
+        }
+
+
+def _resolve(
+    form: Formulation, margins: KeepoutMargins, guess: Trajectory, label: str
+) -> tuple[StartOutcome, Trajectory | None, bool]:
+    """One warm IPOPT run of the tightened NLP from ``guess``; ``(outcome, path, keeps)``."""
+    tight = tighten(form, margins)
+    ctx = start_context(tight, warm=True)
+    outcome, traj = run_start(ctx, label, guess)
+    keeps = traj is not None and outcome.limits.ok() and keeps_margins(tight, traj)
+    return outcome, traj, keeps
+
+
+def keep_out(
+    pb: PlanningProblem, nominal: Trajectory, guidance: Guidance | None = None
+) -> tuple[Trajectory, KeepoutReport, StartOutcome | None]:
+    """Re-solve from the ``nominal`` plan until it keeps its margins (module docstring).
+
+    Returns the path (``nominal`` when no re-solve kept the margins, with ``held`` False), the
+    report and the last kept re-solve's outcome (None if none).
+    """
+    t0 = time.perf_counter()
+    first = keepout_margins(nominal, pb, guidance)
+    conf, k = first.confidence, first.k
+    margins = first.maximum(first, 1.0 + INFLATE)
+    if k == 0:
+        return nominal, _report(pb, margins, nominal, 0, True, (), t0), None
+    form = build_formulation(pb)
+    if keeps_margins(tighten(form, margins), nominal):
+        return nominal, _report(pb, margins, nominal, 0, True, (), t0), None
+    path, best, statuses = nominal, None, []
+    held = False
+    guess = nominal
+    for rnd in range(MAX_ROUNDS):
+        outcome, traj, keeps = _resolve(form, margins, guess, f"keep-out round {rnd + 1}")
+        statuses.append(outcome.status)
+        if not keeps or traj is None:
+            break
+        path, best, guess = traj, outcome, traj
+        again = keepout_margins(traj, pb, guidance)
+        if not margins.grew(again):
+            held = True
+            break
+        margins = margins.maximum(again, 1.0 + INFLATE)
+    note = "" if held else "no re-solve kept the margins computed on its own path"
+    if best is None:
+        note = f"the tightened re-solve failed ({statuses[-1]}); the nominal plan is returned"
+    rep = _report(pb, margins, path, len(statuses), held, tuple(statuses), t0, note)
+    return path, replace(rep, confidence=conf, k=k), best
+
+
+def _report(
+    pb: PlanningProblem,
+    margins: KeepoutMargins,
+    path: Trajectory,
+    rounds: int,
+    held: bool,
+    statuses: Sequence[str],
+    t0: float,
+    note: str = "",
+) -> KeepoutReport:
+    return KeepoutReport(
+        confidence=margins.confidence,
+        k=margins.k,
+        rounds=rounds,
+        held=held,
+        statuses=tuple(statuses),
+        max_range_margin_m=float(np.max(margins.range_points, initial=0.0)),
+        max_box_margin_m=float(np.max(margins.box, initial=0.0)),
+        max_accel_reserve=float(np.max(margins.accel_reserve, initial=0.0)),
+        planned_closest_range_m=range_extremes(path, pb.beacon)[0],
+        wall_s=time.perf_counter() - t0,
+        note=note,
+    )
+
+
+def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, KeepoutReport]:
+    """:func:`~obsplan.planning.solve.solve`, then :func:`keep_out` on its plan.
+
+    ``kwargs`` go to ``solve``. The returned :class:`SolveResult` carries the kept path (its
+    objective recomputed) when a re-solve kept the margins, else the nominal result unchanged.
+    """
+    res = solve(pb, **kwargs)
+    if res.trajectory is None:
+        return res, KeepoutReport(
+            float(pb.limits.keepout_confidence),
+            0.0,
+            0,
+            False,
+            (),
+            0.0,
+            0.0,
+            0.0,
+            math.nan,
+            0.0,
+            "no plan to keep out",
+        )
+    path, rep, outcome = keep_out(pb, res.trajectory)
+    if outcome is None or path is res.trajectory:
+        return res, rep
+    kept = replace(
+        res,
+        trajectory=path,
+        objective=objective_value(path, pb),
+        chosen=f"{res.chosen} + keep-out margins",
+        wall_s=res.wall_s + rep.wall_s,
+        note=(res.note + "; " if res.note else "") + f"keep-out re-solve: {outcome.status}",
+    )
+    if not check_limits(path, pb).ok():  # never reached: run_start keeps only feasible paths
+        return res, rep
+    return kept, rep

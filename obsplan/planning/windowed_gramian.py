@@ -1,0 +1,267 @@
+"""Information-weighted, windowed Gramian objectives (``objective.weights``, ``window``, ``stride``,
+``anchor`` of ``gramian-min-eig`` and ``gramian-log-det``).
+
+The paper's objectives score ``G(t_N, t_0)`` (eq. 25): information about the *initial* state over
+the whole horizon, every output row alike. With process noise a filter only keeps the last few
+``τ_f`` seconds of information, and a far range says less than a near one, so that optimum
+front-loads excitation and drifts afterwards. Here each output row is weighted by its information
+rate and the path is scored window by window (:mod:`obsplan.observability.windowed`):
+
+* ``gramian-min-eig`` (E-optimal): a smooth surrogate of the worst direction, ``tr (G_w + εI)⁻¹``
+  per window (a soft maximum of ``1/λ``); the value reported is ``m / agg``, the harmonic mean of
+  the eigenvalues (between ``λ_min`` and ``m λ_min``), larger is better;
+* ``gramian-log-det`` (D-optimal): ``log det(G_w + εI)`` per window, the volume with a floor.
+
+``agg`` is the mean over the windows; with ``anchor = "current"`` it is the mean of that mean
+and the final window (the state at the end is the one the mission delivers). The window
+``"auto"`` is ``2 τ_f`` with ``τ_f = (3 σ_r² / q_v)^{1/3}``: the time after which a velocity
+random walk of density ``q_v`` (the validation's process noise) has moved the position by one
+range standard deviation, so older ranges no longer pin it.
+
+``window = "mission"`` with ``weights = "none"`` is the paper's formulation, kept in
+:mod:`obsplan.planning.gramian_objectives` (:func:`paper_form`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sp
+
+from obsplan.observability.gramian import augmented_model, weighted_interval_gramian_function
+from obsplan.observability.windowed import (
+    SensorInformation,
+    anchor_times,
+    range_information,
+    row_weight_factors,
+    simpson_mean,
+    weighted_interval_gramians,
+    window_criteria,
+    window_criteria_function,
+    window_layout,
+    windowed_gramians,
+)
+from obsplan.planning.blocks import Hessian, NLPContext, ObjectiveTerm
+from obsplan.planning.grid import Grid
+from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.validation_setup import estimation_config
+from obsplan.trajectory import Trajectory
+
+#: The criterion of each windowed kind: which output of :func:`window_criteria` it aggregates.
+CRITERIA: dict[str, str] = {"gramian-min-eig": "trace-inverse", "gramian-log-det": "log-det"}
+#: Floor ``ε`` of every window Gramian, relative to the information of one window of unit
+#: excitation (a range at the length scale over the window): finite criteria at rank-deficient
+#: windows, far below the information of any window a vehicle can excite.
+FLOOR_REL = 1e-8
+#: IPOPT's Hessian: every window couples all its intervals, so the exact Hessian is dense over
+#: a band of a window's width (its symbolic construction did not finish in 5 min at N = 200,
+#: 3D); the gradient costs milliseconds, so L-BFGS.
+HESSIAN: Hessian = "limited-memory"
+#: Fewest range samples an ``"auto"`` window spans.
+MIN_WINDOW_SAMPLES = 10.0
+#: ``"auto"`` stride: this fraction of the window.
+AUTO_STRIDE_FRACTION = 1.0 / 8.0
+
+
+def paper_form(pb: PlanningProblem) -> bool:
+    """True when the objective is the paper's ``G(t_N, t_0)``: one window, unit weights."""
+    return pb.objective.window == "mission" and pb.objective.weights == "none"
+
+
+def velocity_noise_density(pb: PlanningProblem) -> float:
+    """``q_v`` [m²/s³]: the validation's velocity process-noise density (mean over the axes);
+    in the per-step setting its covariance per filter step divided by the step."""
+    n, dt = pb.dim, pb.validation.dt
+    noise = estimation_config(pb).process_noise_model(dt)
+    q = float(np.mean(np.diag(noise.q_ekf)[n : 2 * n]))
+    return q if noise.continuous else q / dt
+
+
+def auto_window_s(pb: PlanningProblem) -> float:
+    """``2 τ_f`` [s], ``τ_f = (3 σ_r² / q_v)^{1/3}`` (module docstring), at least
+    :data:`MIN_WINDOW_SAMPLES` range samples, at most the horizon."""
+    val = pb.validation
+    q = velocity_noise_density(pb)
+    tau_f = (3.0 * val.range_std**2 / q) ** (1.0 / 3.0) if q > 0 else np.inf
+    w = max(2.0 * tau_f, MIN_WINDOW_SAMPLES / val.range_rate)
+    return float(min(w, pb.horizon.duration))
+
+
+@dataclass(frozen=True)
+class WindowSettings:
+    """The resolved windows of a problem on its planning grid.
+
+    Attributes
+    ----------
+    window_s, stride_s : float
+        Window length and spacing [s].
+    starts, ends : tuple of int
+        Interval indices of every window (:func:`~obsplan.observability.windowed.window_layout`).
+    anchor : {"start", "current"}
+    weighted : bool
+        Information weights (``objective.weights = "information"``).
+    """
+
+    window_s: float
+    stride_s: float
+    starts: tuple[int, ...]
+    ends: tuple[int, ...]
+    anchor: str
+    weighted: bool
+
+
+def window_settings(pb: PlanningProblem) -> WindowSettings:
+    """The windows of ``pb`` (``objective.window``, ``stride``, ``anchor``) on its grid."""
+    obj, N, h = pb.objective, pb.horizon.steps, pb.horizon.dt
+    if obj.window == "mission":
+        w = pb.horizon.duration
+    elif obj.window == "auto":
+        w = auto_window_s(pb)
+    else:
+        w = min(float(obj.window), pb.horizon.duration)
+    stride = w * AUTO_STRIDE_FRACTION if obj.stride == "auto" else float(obj.stride)
+    w_steps = max(1, int(round(w / h)))
+    s_steps = max(1, int(round(stride / h)))
+    a, b = window_layout(N, w_steps, s_steps)
+    return WindowSettings(
+        window_s=w_steps * h,
+        stride_s=s_steps * h,
+        starts=tuple(int(x) for x in a),
+        ends=tuple(int(x) for x in b),
+        anchor=obj.anchor,
+        weighted=obj.weights == "information",
+    )
+
+
+def sensor_information(pb: PlanningProblem) -> SensorInformation:
+    """The validation's rates and noises (``[validation]``)."""
+    v = pb.validation
+    return SensorInformation(
+        v.range_rate, v.range_std, v.dvl_rate, v.dvl_std, v.depth_rate, v.depth_std
+    )
+
+
+def window_floor(pb: PlanningProblem, ws: WindowSettings) -> float:
+    """``ε`` of every window Gramian (:data:`FLOOR_REL`), in the metric scales."""
+    L, T = pb.scales.length_m, pb.scales.time_s
+    unit = 1.0
+    if ws.weighted:
+        info = sensor_information(pb)
+        c_range, _ = row_weight_factors(augmented_model(pb.model), info, pb.scales)
+        unit = c_range * float(range_information(L**2, info.range_std))
+    return FLOOR_REL * unit * ws.window_s / T
+
+
+def _aggregate(values, anchor: str, mean):
+    """Mean over the windows; with ``anchor = "current"`` the mean of it and the last window."""
+    m = mean(values)
+    return 0.5 * (m + values[-1]) if anchor == "current" else m
+
+
+def windowed_aggregate(traj: Trajectory, pb: PlanningProblem) -> float:
+    """The aggregated window criterion of ``traj`` (module docstring), computed numerically."""
+    ws = window_settings(pb)
+    aug = augmented_model(pb.model)
+    info = sensor_information(pb) if ws.weighted else None
+    Gk = weighted_interval_gramians(traj, aug, np.asarray(pb.beacon), info, pb.scales)
+    tau = (traj.t - traj.t[0]) / pb.scales.time_s
+    a, b = np.asarray(ws.starts), np.asarray(ws.ends)
+    G = windowed_gramians(Gk, tau, aug, a, b, ws.anchor)
+    tr, ld = window_criteria(G, window_floor(pb, ws))
+    vals = tr if CRITERIA[pb.objective.kind] == "trace-inverse" else ld
+    return float(_aggregate(vals, ws.anchor, np.mean))
+
+
+def windowed_value(traj: Trajectory, pb: PlanningProblem) -> float:
+    """The objective's value on a path: ``m / agg`` (E-optimal) or ``agg`` (D-optimal)."""
+    agg = windowed_aggregate(traj, pb)
+    if CRITERIA[pb.objective.kind] == "trace-inverse":
+        return float(augmented_model(pb.model).state_dim / agg) if np.isfinite(agg) else 0.0
+    return agg
+
+
+def _interval_weights(grid: Grid, pb: PlanningProblem, u, p, v):
+    """Row weights of every interval, ``(n_outputs, N)``, of the symbolic path (``p`` from the
+    beacon, SI): the formulas of :func:`~obsplan.observability.windowed.information_weights`."""
+    aug = augmented_model(pb.model)
+    N, h = grid.N, grid.h
+    info = sensor_information(pb)
+    c_range, other = row_weight_factors(aug, info, pb.scales)
+    sq = ca.sum1(p**2)
+    mid = p[:, :N] + 0.5 * h * v[:, :N] + 0.125 * h**2 * u
+    r2 = simpson_mean(sq[:, :N], ca.sum1(mid**2), sq[:, 1:])
+    rows = [c_range * range_information(r2, info.range_std)]
+    rows += [ca.DM.ones(1, N) * float(w) for w in other]
+    return ca.vertcat(*rows)
+
+
+def _window_matrix(N: int, ws: WindowSettings) -> sp.csc_matrix:
+    """Incidence ``S`` (N × windows): column ``j`` sums the intervals of window ``j``."""
+    cols = [np.arange(a, b) for a, b in zip(ws.starts, ws.ends, strict=True)]
+    rows = np.concatenate(cols)
+    idx = np.concatenate([np.full(c.size, j) for j, c in enumerate(cols)])
+    return sp.csc_matrix((np.ones(rows.size), (rows, idx)), shape=(N, len(cols)))
+
+
+def windowed_expr(ctx: NLPContext):
+    """The aggregated criterion of the symbolic path ``ctx.W`` (MX scalar)."""
+    pb, grid, W = ctx.problem, ctx.grid, ctx.W
+    ws = window_settings(pb)
+    aug = augmented_model(pb.model)
+    m, N = aug.state_dim, grid.N
+    L, T = pb.scales.length_m, pb.scales.time_s
+    u, p, v = grid.si_nodes(W)
+    tau = ca.DM(np.arange(N) * grid.h).T
+    D = (p[:, :N] - ca.repmat(ca.DM(grid.p0), 1, N) - ca.DM(grid.v0) @ tau) / L  # eq. 15
+    E = (v[:, :N] - ca.repmat(ca.DM(grid.v0), 1, N)) * (T / L)
+    if ws.weighted:
+        w = _interval_weights(grid, pb, u, p, v)
+    else:
+        w = ca.DM.ones(aug.n_outputs, N)
+    g = weighted_interval_gramian_function(aug).map("interval_gramians", "serial", N, [], [])
+    Gk = g(D, E, u * (T**2 / L), tau / T, ca.DM.ones(1, N) * (grid.h / T), w)  # m × (m N)
+    # each interval built once; every window is a sum of columns: one sparse product (the
+    # symbolic counterpart of the prefix sums of windowed_gramians)
+    Gw = ca.reshape(Gk, m * m, N) @ ca.DM(_window_matrix(N, ws))
+    ts = anchor_times(
+        np.arange(N + 1) * grid.h / T, np.asarray(ws.starts), np.asarray(ws.ends), ws.anchor
+    )
+    crit = _anchored_criteria(aug, m).map("window_criteria", "serial", len(ws.starts), [], [])
+    tr, ld = crit(Gw, ca.DM(ts).T, window_floor(pb, ws))
+    vals = tr if CRITERIA[pb.objective.kind] == "trace-inverse" else ld
+    return _aggregate(vals.T, ws.anchor, lambda x: ca.sum1(x) / x.numel())
+
+
+def _anchored_criteria(aug, m: int) -> ca.Function:
+    """``(tr, logdet)`` of ``Φ(-τ_s)ᵀ G Φ(-τ_s) + εI`` from ``vec G`` (m², column-major)."""
+    g = ca.SX.sym("g", m * m)
+    ts, eps = ca.SX.sym("ts"), ca.SX.sym("eps")
+    P = ca.SX.eye(m) - ca.DM(aug.A) * ts
+    G = P.T @ ca.reshape(g, m, m) @ P
+    tr, ld = window_criteria_function(m)(G, eps)
+    return ca.Function("anchored_window_criteria", [g, ts, eps], [tr, ld])
+
+
+def windowed_term(ctx: NLPContext) -> ObjectiveTerm:
+    """The windowed objective for the NLP, normalised on the reference path.
+
+    E-optimal: ``min log(agg / agg_ref)``; D-optimal: ``min -(agg - agg_ref) / m``.
+    """
+    pb = ctx.problem
+    m = augmented_model(pb.model).state_dim
+    agg = windowed_expr(ctx)
+    agg_ref = float(ca.Function("agg", [ctx.W], [agg])(ctx.W_ref))
+    if CRITERIA[pb.objective.kind] == "trace-inverse":
+        # in logs: the reference may be rank deficient (a 3D lawn-mower at constant depth), its
+        # tr G⁻¹ then ~1/ε, and a ratio to it would make every useful path read ~0 to IPOPT
+        lref = float(np.log(agg_ref))
+        return ObjectiveTerm(
+            f=ca.log(agg) - lref,
+            to_objective=lambda fv: float(m / np.exp(fv + lref)),
+            hessian=HESSIAN,
+        )
+    return ObjectiveTerm(
+        f=-(agg - agg_ref) / m, to_objective=lambda fv: float(agg_ref - m * fv), hessian=HESSIAN
+    )

@@ -1,0 +1,134 @@
+"""Keep-out margins: the loop's responses, the deviation bound, tightening and the re-solve."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from obsplan.errors import ProblemError
+from obsplan.estimation.guidance import Guidance
+from obsplan.planning import load_problem
+from obsplan.planning.baselines import baselines
+from obsplan.planning.feasibility import check_limits, range_extremes
+from obsplan.planning.formulation import build_formulation
+from obsplan.planning.margins import (
+    RESERVE_CAP,
+    LoopResponse,
+    PathCovariance,
+    confidence_quantile,
+    deviation_bound,
+    keep_out,
+    keepout_margins,
+    keeps_margins,
+    path_covariance,
+    tighten,
+)
+from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
+from obsplan.planning.problem import Horizon
+
+
+@pytest.fixture(scope="module")
+def short_problem():
+    pb = load_problem(LOCALISE_PROBLEM)
+    return replace(pb, horizon=Horizon(duration=120.0, steps=40))
+
+
+@pytest.fixture(scope="module")
+def lawnmower(short_problem):
+    return baselines(short_problem)["lawnmower"].trajectory
+
+
+def test_loop_response_of_a_critically_damped_loop_matches_its_closed_form():
+    w = 0.2
+    loop = LoopResponse.of(Guidance(accel=(0.05,), speed=None, kp=w**2, kd=2 * w))
+    # g(t) = t e^{-wt} >= 0: ∫ g = 1/w², ∫ g² = 1/(4 w³); g' = (1 - wt) e^{-wt}: ∫|g'| = 2/(e w)
+    assert loop.cum_abs[-1] == pytest.approx(1 / w**2, rel=1e-4)
+    assert loop.l2 == pytest.approx(1 / (4 * w**3), rel=1e-4)
+    assert loop.cum_abs_rate[-1] == pytest.approx(2 / (math.e * w), rel=1e-4)
+    assert loop.weight(np.array([-1.0]))[0] == 0.0
+
+
+def test_deviation_bound_under_a_constant_covariance_is_the_steady_response():
+    w = 0.2
+    loop = LoopResponse.of(Guidance(accel=(0.05,), speed=None, kp=w**2, kd=2 * w))
+    J = 2001
+    sp, sv = 0.3, 0.02
+    cov = PathCovariance(
+        time=np.linspace(0.0, 1000.0, J),
+        pos=np.tile(np.eye(2) * sp**2, (J, 1, 1)),
+        vel=np.tile(np.eye(2) * sv**2, (J, 1, 1)),
+    )
+    dirs = np.array([[1.0, 0.0], [0.6, 0.8]])
+    times = np.array([[1000.0], [0.0]])
+    got = deviation_bound(cov, loop, 0.0, times, dirs)
+    # long after the start: Kp ∫g (σp + Kd/Kp σv) = σp + 2/w σv; at t = 0 nothing has acted yet
+    assert got[0] == pytest.approx(sp + 2 / w * sv, rel=1e-3)
+    assert got[1] == 0.0
+    q = 1e-6
+    with_noise = deviation_bound(cov, loop, q, times, dirs)
+    np.testing.assert_allclose(with_noise - got, math.sqrt(q / (4 * w**3)), rtol=1e-3)
+
+
+def test_path_covariance_starts_at_the_prior_and_shrinks_with_ranges(short_problem, lawnmower):
+    cov = path_covariance(lawnmower, short_problem)
+    v0 = short_problem.validation.init_pos_error**2
+    np.testing.assert_allclose(cov.pos[0], np.eye(2) * v0)
+    assert cov.pos.shape == (cov.time.size, 2, 2)
+    assert np.trace(cov.pos[-1]) < 0.25 * np.trace(cov.pos[0])
+
+
+def test_margins_scale_with_the_confidence_quantile_and_zero_disables(short_problem, lawnmower):
+    m = keepout_margins(lawnmower, short_problem)
+    assert m.k == pytest.approx(3.0902, abs=1e-4)
+    assert np.all(m.range_points > 0) and np.all(m.box > 0)
+    assert np.all((m.accel_reserve >= 0) & (m.accel_reserve <= RESERVE_CAP))
+    low = replace(short_problem, limits=replace(short_problem.limits, keepout_confidence=0.9))
+    m9 = keepout_margins(lawnmower, low)
+    ratio = confidence_quantile(0.9) / confidence_quantile(0.999)
+    np.testing.assert_allclose(m9.range_points, ratio * m.range_points, rtol=1e-9)
+    off = replace(short_problem, limits=replace(short_problem.limits, keepout_confidence=0.0))
+    m0 = keepout_margins(lawnmower, off)
+    assert m0.k == 0 and not m0.range_points.any() and not m0.box.any()
+
+
+def test_tighten_moves_only_the_limit_bounds(short_problem, lawnmower):
+    form = build_formulation(short_problem)
+    m = keepout_margins(lawnmower, short_problem)
+    tight = tighten(form, m)
+    row = sum(
+        c.size for c in form.constraints[: [c.name for c in form.constraints].index("min_range")]
+    )
+    K = 2 * short_problem.horizon.steps
+    np.testing.assert_allclose(
+        tight.lbg[row : row + K] - form.lbg[row : row + K], m.range_points / form.grid.Lp
+    )
+    changed = np.flatnonzero(tight.lbg != form.lbg)
+    assert changed.min() >= row and changed.max() < row + K
+    assert np.array_equal(tight.ubg, form.ubg)
+    assert np.all(tight.lbx >= form.lbx) and np.all(tight.ubx <= form.ubx)
+    assert np.any(tight.ubx < form.ubx)
+    assert keeps_margins(form, lawnmower)
+
+
+def test_keep_out_returns_a_feasible_path_that_keeps_its_margins(short_problem, lawnmower):
+    path, rep, _ = keep_out(short_problem, lawnmower)
+    assert check_limits(path, short_problem).ok()
+    if rep.held:
+        again = keepout_margins(path, short_problem)
+        assert keeps_margins(tighten(build_formulation(short_problem), again), path, tol=1e-3)
+    assert rep.planned_closest_range_m == pytest.approx(range_extremes(path, [0, 0])[0])
+    assert rep.to_dict()["confidence"] == 0.999
+
+
+def test_keepout_confidence_is_read_written_and_checked():
+    data = problem_to_dict(load_problem(LOCALISE_PROBLEM))
+    assert data["limits"]["keepout_confidence"] == 0.999
+    data["limits"]["keepout_confidence"] = 0.99
+    assert problem_from_dict(data).limits.keepout_confidence == 0.99
+    for bad in (1.0, -0.1, 2):
+        data["limits"]["keepout_confidence"] = bad
+        with pytest.raises(ProblemError, match="limits.keepout_confidence"):
+            problem_from_dict(data)

@@ -1,0 +1,136 @@
+"""Verdicts with confidence: paired bootstrap intervals of the ratio, decided or tie, runs added
+in batches until decided (merged exactly)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from obsplan.planning import load_problem
+from obsplan.planning.baselines import baselines
+from obsplan.planning.parse import LOCALISE_PROBLEM
+from obsplan.planning.problem import Horizon
+from obsplan.planning.validation import validate_paths
+from obsplan.planning.verdict import (
+    RUN_METRICS,
+    Comparison,
+    ratio_interval,
+    validate_until_decided,
+    verdict,
+)
+
+
+def test_interval_of_a_clear_win_excludes_one_and_is_seeded():
+    rng = np.random.default_rng(3)
+    b = rng.lognormal(0.0, 0.5, 200)
+    a = 0.5 * b * rng.lognormal(0.0, 0.1, 200)  # paired: the plan halves every run's error
+    lo, hi = ratio_interval(a, b, seed=1)
+    assert lo < a.mean() / b.mean() < hi < 1.0
+    assert ratio_interval(a, b, seed=1) == (lo, hi)
+    assert ratio_interval(a, b, seed=2) != (lo, hi)
+
+
+def test_noise_alone_is_a_tie():
+    """Two independent draws of the same distribution: the interval contains 1."""
+    rng = np.random.default_rng(0)
+    a, b = rng.exponential(1.0, 50), rng.exponential(1.0, 50)
+    lo, hi = ratio_interval(a, b, seed=0)
+    assert lo < 1.0 < hi
+    c = Comparison("ekf.final_pos_err", float(a.mean()), float(b.mean()), ci=(lo, hi))
+    assert not c.decided and c.outcome == "tie"
+
+
+@pytest.mark.parametrize(
+    "planned,baseline,ci,decided,outcome",
+    [
+        (1.0, 2.0, (0.4, 0.6), True, "better"),
+        (1.0, 2.0, (0.4, 1.1), False, "tie"),
+        (2.0, 1.0, (1.5, 2.5), True, "worse"),
+        # the interval of the per-run means disagrees with the reported values: not decided
+        (1.0, 2.0, (1.1, 1.3), False, "tie"),
+        (None, 1.0, None, True, "worse"),  # the plan's filter diverged
+        (1.0, None, None, True, "better"),
+        (1.0, 2.0, None, False, "tie"),  # no interval (e.g. a non-finite run)
+    ],
+)
+def test_decided_means_the_interval_excludes_one_on_the_side_of_better(
+    planned, baseline, ci, decided, outcome
+):
+    c = Comparison("ekf.rmse_pos", planned, baseline, ci=ci)
+    assert c.decided is decided and c.outcome == outcome
+    d = c.to_dict()
+    assert d["decided"] is decided and d["ci"] == (None if ci is None else list(ci))
+
+
+def test_missing_or_unpaired_runs_have_no_interval():
+    a = np.ones(5)
+    assert ratio_interval(None, a) is None
+    assert ratio_interval(a, np.ones(4)) is None
+    assert ratio_interval(a, np.array([1, 1, np.nan, 1, 1.0])) is None
+    assert ratio_interval(a[:1], a[:1]) is None
+
+
+@pytest.fixture(scope="module")
+def short():
+    pb = load_problem(LOCALISE_PROBLEM)
+    pb = replace(pb, horizon=Horizon(duration=120.0, steps=40))
+    bls = baselines(pb)
+    return pb, {"planned": bls["circle"].trajectory, "lawnmower": bls["lawnmower"].trajectory}
+
+
+def test_batches_until_decided_merge_exactly(short):
+    """Runs 2, 4, 8 (doubling) stop when every run-estimated verdict is decided or at the cap;
+    the merged batches are exactly one validation of as many runs."""
+    pb, paths = short
+    val = validate_until_decided(paths, pb, runs=2, max_runs=8)
+    n = val["planned"].result.runs
+    assert n in (2, 4, 8)
+    v = verdict(val, {})
+    assert v.runs == n
+    if n < 8:
+        assert v.all_decided
+    one = validate_paths(paths, pb, runs=n)
+    for name in paths:
+        for f in ("ekf", "kf"):
+            np.testing.assert_array_equal(
+                getattr(val[name].result, f).final_pos_err_runs,
+                getattr(one[name].result, f).final_pos_err_runs,
+            )
+        np.testing.assert_array_equal(
+            val[name].result.truth.closest_range_runs, one[name].result.truth.closest_range_runs
+        )
+    for comps in v.comparisons.values():
+        for key in RUN_METRICS:
+            assert comps[key].ci is not None
+    d = v.to_dict()
+    assert d["confidence"] == 0.95 and d["runs"] == n
+    assert len(d["ties"]) == sum(
+        not c.decided for cs in v.comparisons.values() for c in cs.values()
+    )
+
+
+def test_one_batch_when_the_cap_is_the_first_batch(short):
+    pb, paths = short
+    val = validate_until_decided(paths, pb, runs=3, max_runs=1)
+    assert val["planned"].result.runs == 3
+
+
+def test_rmse_interval_is_about_the_reported_ratio(short):
+    """Every interval contains its verdict's reported ratio (the RMSE's is carried from the ratio
+    of the runs' RMS to the reported time-averaged one)."""
+    pb, paths = short
+    v = verdict(validate_paths(paths, pb, runs=6), {})
+    for comps in v.comparisons.values():
+        for key in RUN_METRICS:
+            c = comps[key]
+            assert c.ci[0] <= c.ratio <= c.ci[1], (key, c)
+
+
+def test_rms_interval_of_squares():
+    rng = np.random.default_rng(5)
+    b = rng.lognormal(0.0, 0.3, 100)
+    a = 0.7 * b
+    lo, hi = ratio_interval(a, b, seed=0, rms=True)
+    assert lo == pytest.approx(0.7) and hi == pytest.approx(0.7)
