@@ -250,9 +250,10 @@ def closed_vs_open(quick: bool) -> list[tuple[str, float, float, float, float]]:
 # ----------------------------------------------------------------------------- 3b. validation
 def validation_case() -> tuple[float, float, int]:
     from obsplan.planning import load_problem, plan
+    from obsplan.planning.parse import LOCALISE_PROBLEM
     from obsplan.planning.validation import validate_paths
 
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     res = plan(pb, validate=False)
     paths = {}
     if res.solve.trajectory is not None:

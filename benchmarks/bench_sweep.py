@@ -5,7 +5,7 @@ Run (a few minutes on 2 cores):
 
     MPLBACKEND=Agg python benchmarks/bench_sweep.py [--workers 2] [--repeat 2] [--quick]
 
-The tasks are the default problem (``problems/default.toml``: 2D range-only, E-optimal, 600 s,
+The tasks are the default problem (``problems/localise.toml``: 2D range-only, E-optimal, 600 s,
 N = 200, 4 starts, 50 Monte Carlo runs per path; ``--steps`` and ``--runs`` shrink it) over 4
 acceleration bounds x 4 beacon positions.
 The serial baseline calls :func:`obsplan.sweeps.run_task` (exactly what a worker runs) on each
@@ -54,7 +54,7 @@ def study(steps: int | None = None, runs: int | None = None) -> dict:
     if runs is not None:
         base["validation"] = {"runs": runs}
     return {
-        "sweep": {"name": "bench", "base": "default.toml", "mode": "plan"},
+        "sweep": {"name": "bench", "base": "localise.toml", "mode": "plan"},
         "base": base,
         "axes": {
             "limits.accel": [0.02, 0.035, 0.05, 0.08],

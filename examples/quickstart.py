@@ -17,13 +17,14 @@ import sys
 from obsplan import analyze
 from obsplan.estimation import monte_carlo
 from obsplan.planning import estimation_config, load_problem, plan
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon, ObjectiveSpec
 from obsplan.trajectory import resample
 
 
 def main(quick: bool = False) -> None:
     # 1. the problem: the default one, on a shorter horizon with fewer planning steps
-    problem = load_problem().with_changes(
+    problem = load_problem(LOCALISE_PROBLEM).with_changes(
         horizon=Horizon(duration=300.0, steps=20 if quick else 50),
         objective=ObjectiveSpec(kind="pcrb-position", starts=1 if quick else 2),
     )

@@ -59,15 +59,20 @@ STAGES: tuple[tuple[str, tuple[str, ...]], ...] = (
 #: The rooms of ``obsplan/planning`` from the bottom up: each imports only rooms before it.
 PLANNING_ORDER: tuple[str, ...] = (
     "schema",  # the problem file declared: fields, units, defaults, objective kinds
+    "mission_spec",  # the [mission]: lines, waypoints, end region, generated lines
+    "mission_schedule",  # the mission's constant-speed schedule: windows, shortest horizon
     "checks",  # cheap checks (on construction) and structural rank checks (before solving)
     "problem",  # the frozen dataclasses
     "parse",  # files and mappings <-> problems (geodetic fields included)
     "validation_setup",  # the validation's filter configuration and epochs
     "feasibility",  # independent numpy check of the limits on the continuous path
+    "mission_check",  # independent numpy check that a path completes the mission
+    "mission_baselines",  # the schedule flown on the planning grid (mission lawn-mowers)
     "baselines",  # lawn-mower, circle, ...
     "grid",  # decision variables in intrinsic units, sample operator, dynamics
     "guesses",  # initial guesses, reference path, coarse grid
     "blocks",  # NLP building blocks and the objective interface
+    "mission_part",  # the mission's constraints (lines, waypoints, end region)
     "windowed_gramian",  # information-weighted windowed Gramians
     "gramian_objectives",
     "lwo_objective",

@@ -15,10 +15,11 @@ from obsplan.planning.baselines import baselines
 from obsplan.planning.estimator_objectives import covariance_stds
 from obsplan.planning.evaluate import objective_value, path_metrics
 from obsplan.planning.feasibility import check_limits
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon
 
 
-@pytest.fixture(scope="module", params=["default", "range3d", "range-dvl-water-current2d"])
+@pytest.fixture(scope="module", params=["localise", "range3d", "range-dvl-water-current2d"])
 def problem(request):
     return load_problem(f"problems/{request.param}.toml")
 
@@ -53,7 +54,7 @@ def test_3d_flat_baselines_are_not_observable_with_range_only():
 
 
 def test_straight_baseline_is_rank_deficient_and_not_radial():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     tr = baselines(pb)["straight"].trajectory
     G = gramian(tr, pb.model, pb.scales)
     assert numerical_rank(G) < G.shape[0]  # Table 1: straight lines are never observable
@@ -64,7 +65,7 @@ def test_straight_baseline_is_rank_deficient_and_not_radial():
 
 
 def test_paper_lawnmower_rescaled_to_a_limit():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     tr = baselines(pb)["paper-lawnmower"].trajectory
     ref = paper_lawnmower(2, dt=0.5)
     speed_ratio = np.linalg.norm(tr.v, axis=1).max() / pb.limits.speed
@@ -79,14 +80,14 @@ def test_paper_lawnmower_rescaled_to_a_limit():
 
 
 def test_circle_is_about_the_beacon():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     tr = baselines(pb)["circle"].trajectory
     r = pb.model.range_to_beacon(tr.p)
     assert np.ptp(r) < 1e-3 * r.mean()
 
 
 def test_metrics_are_computed_the_same_way_for_every_path():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=60))
     for name, b in baselines(pb).items():
         m = path_metrics(b.trajectory, pb)
@@ -124,7 +125,7 @@ def test_unfitted_baselines_are_reported_with_a_reason():
 
 def test_lawnmower_keeps_clear_of_the_beacon():
     # a lawn-mower whose legs would pass over the beacon shifts its legs (slower cruise)
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     pb = replace(pb, limits=replace(pb.limits, min_range=25.0))
     tr = baselines(pb)["lawnmower"].trajectory
     assert check_limits(tr, pb).ok()
@@ -134,7 +135,7 @@ def test_lawnmower_keeps_clear_of_the_beacon():
 def test_a_coarse_grid_still_gets_a_lawnmower_with_gentler_turns():
     # at 150 s per step a turn at the acceleration limit would last under one step; the
     # lawn-mower turns more gently (each turn at least 4 steps) and still keeps every limit
-    pb = replace(load_problem(), horizon=Horizon(duration=600.0, steps=4))
+    pb = replace(load_problem(LOCALISE_PROBLEM), horizon=Horizon(duration=600.0, steps=4))
     bl = baselines(pb)["lawnmower"]
     assert check_limits(bl.trajectory, pb).ok()
     assert "turns of radius" in bl.description

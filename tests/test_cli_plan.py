@@ -13,6 +13,9 @@ from obsplan.outputs import MARKER, write_marker
 from obsplan.trajectory import read_csv
 
 SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--max-runs", "2", "--quiet"]
+PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
+#: The free localisation problem: the small CLI runs (a mission refuses 20 steps).
+LOCALISE = str(PROBLEMS / "localise.toml")
 
 
 def _strict_json(path: Path) -> dict:
@@ -25,11 +28,21 @@ def _strict_json(path: Path) -> dict:
 @pytest.fixture(scope="module")
 def default_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("plan") / "out"
-    code = main(["plan", "--out", str(out), *SMALL])
+    code = main(["plan", LOCALISE, "--out", str(out), *SMALL])
     return code, out
 
 
-def test_default_problem_writes_plan_report_and_figures(default_run, capsys):
+def test_default_survey_plans_and_reports_its_mission(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["plan", "--out", str(out), "--steps", "96", "--runs", "2", "--quiet"]) == 0
+    assert (out / "speed.png").is_file()
+    doc = _strict_json(out / "report.json")
+    assert doc["mission"]["planned"]["complete"] is True
+    assert len(doc["mission"]["lawnmower"]["lines"]) == 3
+    assert "mission" in capsys.readouterr().out
+
+
+def test_a_small_plan_writes_plan_report_and_figures(default_run, capsys):
     code, out = default_run
     assert code == 0
     for name in ("plan.csv", "report.json", "path.png", "gramian.png", "filters.png"):
@@ -39,7 +52,8 @@ def test_default_problem_writes_plan_report_and_figures(default_run, capsys):
     rep = _strict_json(out / "report.json")
     assert set(rep["solver"]) >= {"success", "status", "iterations", "wall_s"}
     assert rep["solver"]["success"] is True
-    assert rep["problem"]["name"] == "default: 2D range-only"  # no PROBLEM: the default file
+    assert rep["problem"]["name"] == "localise: 2D range-only, free localisation"
+    assert rep["mission"] == {}  # no [mission]
     assert {"planned", "lawnmower", "circle", "straight"} <= set(rep["metrics"])
     for m in rep["metrics"].values():
         assert set(m) >= {"min_eig", "log_det", "condition", "kf_final_pos_std"}
@@ -58,16 +72,16 @@ def test_default_problem_writes_plan_report_and_figures(default_run, capsys):
 
 def test_refuses_non_empty_out_without_force(default_run, capsys):
     _, out = default_run
-    code = main(["plan", "--out", str(out), *SMALL])
+    code = main(["plan", LOCALISE, "--out", str(out), *SMALL])
     assert code == 2
     assert "--force" in capsys.readouterr().err
-    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
     rep = _strict_json(out / "report.json")
     assert rep["validation"] == {}
 
 
 def test_summary_table_printed(tmp_path, capsys):
-    code = main(["plan", "--out", str(tmp_path / "o"), "--no-validate", *SMALL])
+    code = main(["plan", LOCALISE, "--out", str(tmp_path / "o"), "--no-validate", *SMALL])
     assert code == 0
     text = capsys.readouterr().out
     assert "planned" in text and "lawnmower" in text and "PCRB avg" in text
@@ -77,7 +91,7 @@ def test_summary_table_printed(tmp_path, capsys):
 
 def test_verdict_in_words_and_in_the_report(tmp_path, capsys):
     out = tmp_path / "o"
-    code = main(["plan", "--out", str(out), "--runs", "3", *SMALL])
+    code = main(["plan", LOCALISE, "--out", str(out), "--runs", "3", *SMALL])
     assert code == 0
     text = capsys.readouterr().out
     rep = _strict_json(out / "report.json")
@@ -121,7 +135,7 @@ def test_bad_problem_file_exit_2_names_field(tmp_path, capsys):
 def test_failed_solve_exits_1(tmp_path, capsys):
     prob = tmp_path / "p.toml"
     prob.write_text(
-        Path("problems/default.toml")
+        Path("problems/localise.toml")
         .read_text()
         .replace("seed = 0\n", "seed = 0\nmax_iter = 1\n", 1)
     )
@@ -134,7 +148,6 @@ def test_failed_solve_exits_1(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- rows of the CLI issue
-PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 
 
 def test_times_are_written_on_the_planning_grid(default_run):
@@ -147,11 +160,11 @@ def test_times_are_written_on_the_planning_grid(default_run):
 def test_simulate_with_the_problem_reproduces_the_plan_validation(tmp_path, capsys):
     """``simulate plan.csv --problem P.toml`` runs exactly the validation of ``plan``."""
     out = tmp_path / "plan"
-    assert main(["plan", str(PROBLEMS / "default.toml"), "--out", str(out), *SMALL]) == 0
+    assert main(["plan", str(PROBLEMS / "localise.toml"), "--out", str(out), *SMALL]) == 0
     capsys.readouterr()
     rep = _strict_json(out / "report.json")["validation"]["planned"]
     figs = tmp_path / "figs"
-    args = ["simulate", str(out / "plan.csv"), "--problem", str(PROBLEMS / "default.toml")]
+    args = ["simulate", str(out / "plan.csv"), "--problem", str(PROBLEMS / "localise.toml")]
     assert main([*args, "--runs", "2", "--json", "--out", str(figs)]) == 0
     sim = json.loads(capsys.readouterr().out)
     assert sim["runs"] == rep["runs"] == 2 and sim["seed"] == rep["seed"]
@@ -170,7 +183,7 @@ def test_force_replaces_the_results_folder_whole(tmp_path, capsys):
     write_marker(out, "plan")  # an earlier obsplan output: --force may replace it
     for name in ("filters.png", "plan.csv", "notes.txt"):
         (out / name).write_text("old")
-    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
     names = {p.name for p in out.iterdir()}
     assert names == {MARKER, "plan.csv", "report.json", "path.png", "gramian.png"}
     assert (out / "plan.csv").read_text() != "old"
@@ -197,7 +210,7 @@ def test_unwritable_out_is_refused_before_planning(tmp_path, capsys, monkeypatch
         if not Path("/sys").is_dir():
             pytest.skip("no /sys")
     try:
-        code = main(["plan", "--out", str(out), *extra, *SMALL])
+        code = main(["plan", LOCALISE, "--out", str(out), *extra, *SMALL])
     finally:
         if case == "read-only-folder":
             out.chmod(0o755)
@@ -221,14 +234,14 @@ def test_interrupt_while_writing_leaves_nothing(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(cli_plan, "save_figure", interrupted)
     out = tmp_path / "o"
-    assert main(["plan", "--out", str(out), "--no-validate", *SMALL]) == 130
+    assert main(["plan", LOCALISE, "--out", str(out), "--no-validate", *SMALL]) == 130
     assert "interrupted" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
     # an existing results folder replaced with --force is left untouched
     out.mkdir()
     write_marker(out, "plan")
     (out / "plan.csv").write_text("old plan")
-    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 130
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 130
     assert [p.name for p in tmp_path.iterdir()] == ["o"]
     assert sorted(p.name for p in out.iterdir()) == [MARKER, "plan.csv"]
     assert (out / "plan.csv").read_text() == "old plan"
@@ -247,9 +260,10 @@ def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing
         write_marker(out, "plan")
         (out / "plan.csv").write_text("old plan")
         extra = ["--force"]
-    # the default problem at N = 1000 (a coarse pass, then 4 fine starts): tens of seconds
+    # the free localisation problem at N = 1000 (a coarse pass, then 4 fine starts): tens of
+    # seconds
     code, err = interrupt_after(
-        ["plan", "--out", str(out), "--steps", "1000", *extra], b"starts", 1.0
+        ["plan", LOCALISE, "--out", str(out), "--steps", "1000", *extra], b"starts", 1.0
     )
     assert code == 130, err
     assert "Traceback" not in err
@@ -285,7 +299,7 @@ def test_force_never_deletes_the_problem_file(tmp_path, capsys):
     res.mkdir()
     write_marker(res, "plan")  # even an obsplan output folder is kept when it holds the input
     prob = res / "p.toml"
-    prob.write_text((PROBLEMS / "default.toml").read_text())
+    prob.write_text((PROBLEMS / "localise.toml").read_text())
     assert main(["plan", str(prob), "--out", str(res), "--force", *SMALL]) == 2
     assert "holds the input" in capsys.readouterr().err
     assert prob.is_file()

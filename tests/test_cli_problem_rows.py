@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "default.toml"
+DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "localise.toml"
 TIMEOUT_S = 60
 
 

@@ -21,7 +21,7 @@ from obsplan.cli import main
 from obsplan.trajectory import Trajectory, read_csv, write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = ROOT / "problems" / "default.toml"
+DEFAULT = ROOT / "problems" / "localise.toml"
 EXAMPLES = ROOT / "examples"
 
 

@@ -25,8 +25,10 @@ from obsplan.outputs import MARKER, write_marker
 from obsplan.trajectory import write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = ROOT / "problems" / "default.toml"
+DEFAULT = ROOT / "problems" / "localise.toml"
 SMALL = ["--steps", "40", "--starts", "1", "--runs", "2", "--quiet"]
+#: The free localisation problem of the small runs (the default survey refuses 40 steps).
+LOCALISE = str(ROOT / "problems" / "localise.toml")
 
 
 def _snapshot(folder: Path) -> dict[str, bytes]:
@@ -65,7 +67,7 @@ def inputs(tmp_path):
 
 def _verbs(inputs: Path, out: str) -> dict[str, list[str]]:
     return {
-        "plan": ["plan", "--out", out, "--force", *SMALL],
+        "plan": ["plan", LOCALISE, "--out", out, "--force", *SMALL],
         "simulate": ["simulate", str(inputs / "traj.csv"), "--runs", "2", "--quiet", "--out", out],
         "paper": ["paper", "--quick", "--no-figures", "--quiet", "--out", out, "--force"],
         "import": ["import", str(inputs / "track.csv"), "--out", out, "--force"],
@@ -129,15 +131,15 @@ def test_force_replaces_only_an_obsplan_output(tmp_path, capsys):
     mine = tmp_path / "mine"
     mine.mkdir()
     (mine / "notes.txt").write_text("keep")
-    assert main(["plan", "--out", str(mine), "--force", "--no-validate", *SMALL]) == 2
+    assert main(["plan", LOCALISE, "--out", str(mine), "--force", "--no-validate", *SMALL]) == 2
     assert "not an obsplan output folder" in capsys.readouterr().err
     assert [p.name for p in mine.iterdir()] == ["notes.txt"]
     # what obsplan wrote carries the marker, and --force replaces it whole
     out = tmp_path / "res"
-    assert main(["plan", "--out", str(out), "--no-validate", *SMALL]) == 0
+    assert main(["plan", LOCALISE, "--out", str(out), "--no-validate", *SMALL]) == 0
     assert (out / MARKER).is_file()
     (out / "stale.txt").write_text("from before")
-    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
     assert not (out / "stale.txt").exists() and (out / "plan.csv").is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine", "res"]
 
@@ -146,7 +148,8 @@ def test_the_default_problem_folder_is_never_replaced(tmp_path, monkeypatch, cap
     """``plan --out problems --force`` (no PROBLEM given: problems/default.toml is read)."""
     monkeypatch.chdir(ROOT)
     before = _snapshot(ROOT / "problems")
-    assert main(["plan", "--out", "problems", "--force", *SMALL]) == 2
+    survey = ["--steps", "96", "--starts", "1", "--runs", "2", "--quiet"]  # the default survey
+    assert main(["plan", "--out", "problems", "--force", *survey]) == 2
     err = capsys.readouterr().err
     assert "problems" in err and "Traceback" not in err
     assert _snapshot(ROOT / "problems") == before
@@ -167,7 +170,7 @@ def test_a_link_is_refused_and_nothing_is_left(tmp_path, capsys):
     (real / "plan.csv").write_text("old")
     link = tmp_path / "LINK"
     link.symlink_to(real, target_is_directory=True)
-    assert main(["plan", "--out", str(link), "--force", "--no-validate", *SMALL]) == 2
+    assert main(["plan", LOCALISE, "--out", str(link), "--force", "--no-validate", *SMALL]) == 2
     err = capsys.readouterr().err
     assert "symbolic link" in err and str(real) in err
     assert link.is_symlink() and (real / "plan.csv").read_text() == "old"
@@ -229,7 +232,7 @@ def test_a_killed_runs_leftovers_are_removed_by_the_next_run(tmp_path, capsys):
     assert dead_leftovers(out) == [staged]
     # a live run's staging folder beside it is not touched
     live = staging_dir(out)
-    assert main(["plan", "--out", str(out), "--no-validate", *SMALL]) == 0
+    assert main(["plan", LOCALISE, "--out", str(out), "--no-validate", *SMALL]) == 0
     assert not staged.exists() and live.is_dir()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["o", live.name])
     os.rmdir(live)
@@ -246,7 +249,7 @@ def test_a_killed_runs_leftovers_are_removed_by_the_next_run(tmp_path, capsys):
 def test_plan_options_beyond_the_limits_exit_2_before_work(
     argv_tail, field, tmp_path, no_work, capsys
 ):
-    assert main(["plan", "--out", str(tmp_path / "o"), *argv_tail]) == 2
+    assert main(["plan", LOCALISE, "--out", str(tmp_path / "o"), *argv_tail]) == 2
     err = capsys.readouterr().err
     assert field in err and "more than the limit of" in err and err.count("\n") == 1, err
 
@@ -340,14 +343,14 @@ def _signal_self(sig):
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_signal_after_the_folder_was_swapped_in_undoes_it(sig, code, tmp_path, monkeypatch):
     out = tmp_path / "o"
-    assert main(["plan", "--out", str(out), "--no-validate", *SMALL]) == 0
+    assert main(["plan", LOCALISE, "--out", str(out), "--no-validate", *SMALL]) == 0
     before = _snapshot(out)
     monkeypatch.setattr("obsplan.cli.plan.summary_table", _signal_self(sig))  # after commit
-    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == code
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == code
     assert _snapshot(out) == before
     assert [p.name for p in tmp_path.iterdir()] == ["o"]
     # a new folder is removed again
-    assert main(["plan", "--out", str(tmp_path / "new"), "--no-validate", *SMALL]) == code
+    assert main(["plan", LOCALISE, "--out", str(tmp_path / "new"), "--no-validate", *SMALL]) == code
     assert [p.name for p in tmp_path.iterdir()] == ["o"]
 
 

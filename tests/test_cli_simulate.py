@@ -172,7 +172,7 @@ def test_filters_option_and_problem_conflicts(csv_2d, capsys):
     assert d["ekf"] is not None and d["kf"] is None
     assert main(["simulate", str(csv_2d), "--filters", "ukf9"]) == 2
     assert "filters" in capsys.readouterr().err
-    prob = str(PROBLEMS / "default.toml")
+    prob = str(PROBLEMS / "localise.toml")
     assert main(["simulate", str(csv_2d), "--problem", prob, "--dt", "0.1"]) == 2
     err = capsys.readouterr().err
     assert "--dt cannot be combined with --problem" in err and "validation.dt" in err
@@ -219,6 +219,6 @@ def test_closed_loop_by_default_open_loop_on_request(csv_2d, capsys):
     assert opened["config"]["process_noise_model"] == "per-step"
     assert main([*base, "--accel-noise", "0.01"]) == 0
     assert json.loads(capsys.readouterr().out)["config"]["accel_noise"] == 0.01
-    prob = str(PROBLEMS / "default.toml")
+    prob = str(PROBLEMS / "localise.toml")
     assert main(["simulate", str(csv_2d), "--problem", prob, "--accel-noise", "0.01"]) == 2
     assert "validation.accel_noise" in capsys.readouterr().err

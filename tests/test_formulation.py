@@ -17,13 +17,16 @@ import pytest
 from obsplan.planning import load_problem
 from obsplan.planning.blocks import ConstraintBlock, FormulationPart, VariableBlock
 from obsplan.planning.formulation import PARTS, build_formulation
+from obsplan.planning.grid import Grid
 from obsplan.planning.guesses import reference_path
+from obsplan.planning.mission_part import mission_part
 from obsplan.planning.objectives import REGISTRY
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon
 
 
 def _problem(kind: str):
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     return replace(
         pb,
         horizon=Horizon(duration=pb.horizon.duration, steps=12),
@@ -48,7 +51,8 @@ def test_a_part_is_appended_after_the_objective(kind):
     pb = _problem(kind)
     plain = build_formulation(pb)
     form = build_formulation(pb, parts=(_part, lambda pb, grid, W: None))
-    assert PARTS == ()  # nothing else is appended by default today
+    assert PARTS == (mission_part,)  # a mission's constraints: None without a [mission]
+    assert mission_part(pb, Grid.from_problem(pb), ca.MX.sym("W", 3 * pb.dim, 4)) is None
     # variables: the path, the objective's lifting, then the part's two
     n_plain = plain.w.numel()
     assert form.w.numel() == n_plain + 2

@@ -62,7 +62,7 @@ def _files() -> dict[str, str]:
     badtoml.write_text("[limits]\naccel = -1\n")
     files["badtoml"] = badtoml
     # encodings: a Latin-1 problem, one with a byte-order mark, a UTF-16 trajectory, a comment
-    default = (ROOT / "problems" / "default.toml").read_text(encoding="utf-8")
+    default = (ROOT / "problems" / "localise.toml").read_text(encoding="utf-8")
     for key, data in (
         ("latin1toml", default.encode("latin-1", errors="replace")),
         ("bomtoml", b"\xef\xbb\xbf" + default.encode("utf-8")),
@@ -75,7 +75,7 @@ def _files() -> dict[str, str]:
     (_TMP / "afile").write_text("x")
     files.update(
         {
-            "default": ROOT / "problems" / "default.toml",
+            "default": ROOT / "problems" / "localise.toml",
             "3d": ROOT / "problems" / "range3d.toml",
             "missing": _TMP / "missing.csv",
             "folder": _TMP,

@@ -34,7 +34,7 @@ FUZZ = settings(
     database=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
-DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "default.toml"
+DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "localise.toml"
 _TMP = Path()  # set per module by the fixture below: pytest's tmp_path, cleaned up by pytest
 
 

@@ -19,7 +19,7 @@ from obsplan.planning.parse import problem_from_dict, resolve_problem_geodetic  
 from obsplan.trajectory import read_csv  # noqa: E402
 
 ORIGIN = GeodeticOrigin(43.7, 10.3)  # off Livorno
-DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "default.toml"
+DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "localise.toml"
 
 
 def test_round_trip_and_the_ned_convention():

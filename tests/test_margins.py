@@ -26,13 +26,13 @@ from obsplan.planning.margins import (
     path_covariance,
     tighten,
 )
-from obsplan.planning.parse import problem_from_dict, problem_to_dict
+from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
 from obsplan.planning.problem import Horizon
 
 
 @pytest.fixture(scope="module")
 def short_problem():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     return replace(pb, horizon=Horizon(duration=120.0, steps=40))
 
 
@@ -124,7 +124,7 @@ def test_keep_out_returns_a_feasible_path_that_keeps_its_margins(short_problem, 
 
 
 def test_keepout_confidence_is_read_written_and_checked():
-    data = problem_to_dict(load_problem())
+    data = problem_to_dict(load_problem(LOCALISE_PROBLEM))
     assert data["limits"]["keepout_confidence"] == 0.999
     data["limits"]["keepout_confidence"] = 0.99
     assert problem_from_dict(data).limits.keepout_confidence == 0.99

@@ -27,7 +27,7 @@ from obsplan.planning.guesses import initial_guesses, random_guess, reference_pa
 from obsplan.planning.ipopt import make_projection
 from obsplan.planning.ipopt import project as _project
 from obsplan.planning.lwo_objective import LWO_BETA, lwo_condition, lwo_conditions, lwo_softmin
-from obsplan.planning.parse import problem_from_dict
+from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict
 from obsplan.planning.problem import Horizon, Limits
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.validation_setup import estimation_config
@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def small(kind: str = "pcrb-position", steps: int = 30, starts: int = 2, pb=None, **obj):
-    pb = load_problem() if pb is None else pb
+    pb = load_problem(LOCALISE_PROBLEM) if pb is None else pb
     return replace(
         pb,
         horizon=Horizon(duration=pb.horizon.duration, steps=steps),
@@ -297,7 +297,7 @@ def test_problem_from_dict_3d_plans_without_area():
 
 
 @pytest.mark.parametrize(
-    "name", ["default", "range3d", "range-dvl3d", "range-dvl-water-current2d", "lowrate-range"]
+    "name", ["localise", "range3d", "range-dvl3d", "range-dvl-water-current2d", "lowrate-range"]
 )
 def test_every_shipped_problem_solves_at_reduced_size(name):
     pb = load_problem(ROOT / "problems" / f"{name}.toml")
@@ -348,7 +348,7 @@ def test_default_problem_beats_the_lawnmower_and_the_circle():
     from obsplan.planning.plan import plan
     from obsplan.planning.verdict import metric_value
 
-    res = plan(load_problem())
+    res = plan(load_problem(LOCALISE_PROBLEM))
     assert res.success
     assert_limits_and_dynamics(res.trajectory, res.problem)
     assert res.verdict.beats_all, res.verdict.losses()

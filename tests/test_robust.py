@@ -15,7 +15,7 @@ from obsplan.planning.estimator_objectives import covariance_value
 from obsplan.planning.evaluate import objective_value
 from obsplan.planning.formulation import build_formulation
 from obsplan.planning.objectives import objective_of
-from obsplan.planning.parse import problem_from_dict, problem_to_dict
+from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
 from obsplan.planning.problem import Horizon
 from obsplan.planning.robust import (
     ROBUST,
@@ -31,7 +31,7 @@ from obsplan.planning.validation import validate_paths
 
 @pytest.fixture(scope="module")
 def short_problem():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     return replace(pb, horizon=Horizon(duration=120.0, steps=40))
 
 
@@ -92,7 +92,7 @@ def test_the_nlp_evaluates_the_same_aggregate(short_problem, aggregate):
 
 
 def test_robust_fields_are_read_written_and_checked():
-    data = problem_to_dict(load_problem())
+    data = problem_to_dict(load_problem(LOCALISE_PROBLEM))
     assert data["objective"]["robust_prior"] == [] and data["objective"]["robust_aggregate"]
     data["objective"]["robust_prior"] = [1, 5]
     assert problem_from_dict(data).objective.robust_prior == (1.0, 5.0)

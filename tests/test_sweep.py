@@ -280,7 +280,7 @@ def test_table_rows_from_stored_reports_and_comparable_columns():
 def write_sweep(tmp_path: Path, axes: str, name: str = "t") -> Path:
     f = tmp_path / f"{name}.toml"
     f.write_text(
-        f'[sweep]\nname = "{name}"\nbase = "{(ROOT / "problems" / "default.toml").as_posix()}"\n'
+        f'[sweep]\nname = "{name}"\nbase = "{(ROOT / "problems" / "localise.toml").as_posix()}"\n'
         f"[axes]\n{axes}\n"
     )
     return f

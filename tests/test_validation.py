@@ -12,6 +12,7 @@ from obsplan.errors import InputError
 from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
 from obsplan.planning.evaluate import kf_final_pos_std
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon, ValidationSpec
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.validation_setup import estimation_config, truth_limits, validation_guidance
@@ -20,7 +21,7 @@ from obsplan.trajectory import resample
 
 @pytest.fixture(scope="module")
 def short_problem():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     return replace(
         pb,
         horizon=Horizon(duration=120.0, steps=40),

@@ -11,6 +11,7 @@ from obsplan.estimation.crlb import posterior_crlb
 from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
 from obsplan.planning.evaluate import path_metrics
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.validation_setup import estimation_config
 from obsplan.trajectory import resample
 
@@ -35,7 +36,7 @@ def _bounds(pb, paths, model: str) -> dict[float, dict[str, tuple[float, float]]
 
 @pytest.fixture(scope="module")
 def default_paths():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     bls = baselines(pb)
     return pb, {
         k: bls[k].trajectory for k in ("lawnmower", "circle", "paper-lawnmower") if k in bls

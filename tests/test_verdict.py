@@ -10,6 +10,7 @@ import pytest
 
 from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.verdict import (
@@ -73,7 +74,7 @@ def test_missing_or_unpaired_runs_have_no_interval():
 
 @pytest.fixture(scope="module")
 def short():
-    pb = load_problem()
+    pb = load_problem(LOCALISE_PROBLEM)
     pb = replace(pb, horizon=Horizon(duration=120.0, steps=40))
     bls = baselines(pb)
     return pb, {"planned": bls["circle"].trajectory, "lawnmower": bls["lawnmower"].trajectory}

@@ -16,16 +16,18 @@ from obsplan.planning.figures import (
     plot_filter_errors,
     plot_gramian_eigs,
     plot_paths,
+    plot_speed,
     save_figure,
 )
 from obsplan.planning.parse import DEFAULT_PROBLEM, load_problem
 from obsplan.planning.plan import PlanResult, plan
 from obsplan.planning.problem import Horizon, PlanningProblem
 from obsplan.planning.replan import ReplanResult, replan_monte_carlo, replan_nodes
+from obsplan.planning.verdict import metric_value
 from obsplan.trajectory import write_csv
 
 DEFAULT_OUT = "obsplan-plan"
-FIGURES = ("path.png", "gramian.png", "filters.png")
+FIGURES = ("path.png", "gramian.png", "filters.png", "speed.png")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -114,6 +116,9 @@ def summary_table(result: PlanResult) -> str:
         f"{'EKF fin':>8} {'KF rmse':>8} {'closest':>8} {'limits':>6} {'true min':>8} "
         f"{'in min_r':>8} {'breaks':>7}"
     )
+    missions = result.missions
+    if missions:
+        head += f" {'EKF lines':>9} {'mission':>8}"
     lines = [head, "-" * len(head)]
     for name, m in result.metrics.items():
         v = result.validation.get(name)
@@ -132,6 +137,11 @@ def summary_table(result: PlanResult) -> str:
             f"{'ok' if m.within_limits else 'NO':>6} "
             f"{_fmt(truth.closest_range_m if truth else None, '.2f'):>8} {inside:>8} {breaks:>7}"
         )
+        if missions:
+            lines_rmse = metric_value(v, "ekf.rmse_pos_lines") if v is not None else None
+            done = missions[name].complete if name in missions else None
+            word = "-" if done is None else ("done" if done else "NOT")
+            lines[-1] += f" {_fmt(lines_rmse):>9} {word:>8}"
     if result.validation:
         r0 = next(iter(result.validation.values())).result
         lines.append(
@@ -179,6 +189,8 @@ def write_outputs(result: PlanResult, out: Path, replan: ReplanResult | None = N
     if result.validation:
         fig = plot_filter_errors(result.validation, problem=pb.name)
         written.append(save_figure(fig, out / FIGURES[2]))
+    if pb.mission is not None:
+        written.append(save_figure(plot_speed(paths, pb), out / FIGURES[3]))
     return written
 
 

@@ -38,6 +38,8 @@ import numpy as np
 from obsplan import generators
 from obsplan.errors import ConfigError, ProblemError
 from obsplan.planning.feasibility import check_limits, range_extremes
+from obsplan.planning.mission_baselines import mission_lawnmower
+from obsplan.planning.mission_check import mission_check
 from obsplan.planning.problem import Area, PlanningProblem
 from obsplan.trajectory import Trajectory
 
@@ -370,10 +372,42 @@ def paper_lawnmower_baseline(pb: PlanningProblem) -> Baseline:
 
 #: Every baseline, in report order.
 BASELINES = ("lawnmower", "circle", "straight", "paper-lawnmower")
+#: The baselines of a problem with a ``[mission]``: they fly the same mission.
+MISSION_BASELINES = ("lawnmower", "lawnmower-accel")
+
+
+def _mission_baseline(pb: PlanningProblem, accelerated: bool) -> Baseline:
+    """The mission's (accelerated) lawn-mower (:mod:`obsplan.planning.mission_baselines`)."""
+    name = "lawnmower-accel" if accelerated else "lawnmower"
+    try:
+        traj, desc = mission_lawnmower(pb, accelerated)
+    except ProblemError as exc:
+        raise BaselineUnfit(f"{name}: {exc}") from None
+    if not check_limits(traj, pb).ok():
+        raise BaselineUnfit(f"{name}: {_violation_words(traj, pb)}")
+    chk = mission_check(traj, pb)
+    if chk is None or not chk.complete:
+        raise BaselineUnfit(f"{name}: its path on the planning grid does not complete the mission")
+    return Baseline(name, _check_grid(traj, pb, name), desc)
+
+
+def _all_mission(pb: PlanningProblem) -> tuple[dict[str, Baseline], dict[str, str]]:
+    fitted: dict[str, Baseline] = {}
+    unfit: dict[str, str] = {}
+    for name in MISSION_BASELINES:
+        try:
+            fitted[name] = _mission_baseline(pb, name == "lawnmower-accel")
+        except BaselineUnfit as exc:
+            unfit[name] = str(exc).split(": ", 1)[-1]
+    for name in BASELINES[1:]:
+        unfit[name] = "does not fly the mission"
+    return fitted, unfit
 
 
 @cache
 def _all(pb: PlanningProblem) -> tuple[dict[str, Baseline], dict[str, str]]:
+    if pb.mission is not None:
+        return _all_mission(pb)
     fitted: dict[str, Baseline] = {}
     unfit: dict[str, str] = {}
     builders = {

@@ -26,6 +26,8 @@ from obsplan.model import VehicleModel, parse_sensors
 from obsplan.observability.gramian import augmented_model, gramian, rank_scales
 from obsplan.observability.lwo import lwo_structural_max_rank
 from obsplan.observability.scaling import numerical_rank
+from obsplan.planning.mission_schedule import check_mission_geometry, mission_fit_error
+from obsplan.planning.mission_spec import MISSION_KINDS, MISSION_ORDERS
 from obsplan.planning.schema import (
     MAX_DURATION_S,
     MAX_MAGNITUDE,
@@ -59,6 +61,121 @@ def check_values(pb: PlanningProblem) -> None:
     _check_objective(pb)
     _check_validation(pb)
     _check_budget(pb)
+    if pb.objective.mode == "lines" and (pb.mission is None or not pb.mission.lines):
+        raise field_error(
+            "objective.mode",
+            '"lines" averages over survey lines: it needs a [mission] with lines',
+        )
+    if pb.mission is not None:
+        _check_mission(pb)
+        mission_fit_error(pb)
+
+
+def _check_mission(pb: PlanningProblem) -> None:
+    """The mission's fields against each other and the limits (the horizon: in
+    :func:`~obsplan.planning.mission_schedule.mission_fit_error`)."""
+    m, n = pb.mission, pb.dim
+    assert m is not None
+    if m.kind not in MISSION_KINDS:
+        raise field_error(
+            "mission.kind", f"must be one of {', '.join(MISSION_KINDS)}, got {m.kind!r}"
+        )
+    if m.order not in MISSION_ORDERS:
+        raise field_error("mission.order", f'must be "given" or "free", got {m.order!r}')
+    if m.order == "free":
+        raise field_error(
+            "mission.order", '"free" (reordering the lines) is not available yet; use "given"'
+        )
+    if m.kind == "survey" and not m.lines:
+        raise field_error("mission.lines", "a survey needs lines (or mission.area + spacing)")
+    if m.kind == "waypoints" and not m.waypoints:
+        raise field_error("mission.waypoints", 'kind = "waypoints" needs mission.waypoints')
+    if m.kind == "survey" and m.waypoints:
+        raise field_error("mission.waypoints", 'waypoints need mission.kind = "waypoints"')
+    if m.windows and len(m.windows) != len(m.waypoints):
+        raise field_error(
+            "mission.windows",
+            f"expected one window per waypoint ({len(m.waypoints)}), got {len(m.windows)}",
+        )
+    for i, (t0, t1) in enumerate(m.windows):
+        if not 0 <= t0 < t1:
+            raise field_error(f"mission.windows[{i}]", f"must be 0 <= t0 < t1 s, got [{t0}, {t1}]")
+    for i, ln in enumerate(m.lines):
+        if len(ln) != 2 * n:
+            raise field_error(
+                f"mission.lines[{i}]", f"expected {2 * n} numbers (vehicle.dim = {n})"
+            )
+    for i, w in enumerate(m.waypoints):
+        if len(w) != n:
+            raise field_error(f"mission.waypoints[{i}]", f"expected {n} numbers")
+    check_mission_geometry(m, n)
+    _check_mission_tolerances(pb)
+
+
+def _check_mission_tolerances(pb: PlanningProblem) -> None:
+    m, lim = pb.mission, pb.limits
+    assert m is not None
+    if not m.cross_track > 0:
+        raise field_error("mission.cross_track", f"must be > 0 m, got {m.cross_track}")
+    if not 0 < m.heading_tol < 90:
+        raise field_error("mission.heading_tol", f"must be in (0, 90) deg, got {m.heading_tol}")
+    if not m.radius > 0:
+        raise field_error("mission.radius", f"must be > 0 m, got {m.radius}")
+    lo, hi = m.speed_band(lim.speed)
+    if not 0 < lo < hi or hi > lim.speed * (1 + 1e-12):
+        raise field_error(
+            "mission.speed",
+            f"[{lo:g}, {hi:g}] m/s must satisfy 0 < lo < hi <= limits.speed = {lim.speed:g}",
+        )
+    if lim.min_speed > lo:
+        raise field_error(
+            "mission.speed", f"lo = {lo:g} m/s is below limits.min_speed = {lim.min_speed:g}"
+        )
+    margin = float(np.linalg.norm(pb.accel)) * pb.horizon.dt**2 / 8.0
+    if margin >= 0.5 * m.cross_track:
+        raise field_error(
+            "horizon.steps",
+            f"between nodes the path may leave a line by |a| h^2 / 8 = {margin:.3g} m at the "
+            f"planning step h = {pb.horizon.dt:.3g} s, too much of mission.cross_track = "
+            f"{m.cross_track:g} m; use more horizon.steps",
+        )
+    if m.end is not None:
+        if len(m.end.position) != pb.dim:
+            raise field_error("mission.end.position", f"expected {pb.dim} numbers")
+        if not m.end.radius > 0:
+            raise field_error("mission.end.radius", f"must be > 0 m, got {m.end.radius}")
+        if m.end.speed is not None and not m.end.speed >= 0:
+            raise field_error("mission.end.speed", f"must be >= 0 m/s, got {m.end.speed}")
+        if m.end.speed is not None and lim.min_speed > m.end.speed:
+            raise field_error(
+                "mission.end.speed", f"is below limits.min_speed = {lim.min_speed:g} m/s"
+            )
+    _check_lines_inside(pb)
+
+
+def _check_lines_inside(pb: PlanningProblem) -> None:
+    """Every line inside the operating area and depth band and clear of the beacon."""
+    m, lim = pb.mission, pb.limits
+    assert m is not None
+    b = np.asarray(pb.beacon, float)
+    for i, (a, e) in enumerate(m.segments(pb.dim)):
+        where = f"mission.lines[{i}]"
+        for pt in (a, e):
+            if lim.area is not None and not (
+                lim.area.x[0] <= pt[0] <= lim.area.x[1] and lim.area.y[0] <= pt[1] <= lim.area.y[1]
+            ):
+                raise field_error(where, f"leaves limits.area at ({pt[0]:g}, {pt[1]:g}) m")
+            if lim.depth is not None and not lim.depth[0] <= pt[2] <= lim.depth[1]:
+                raise field_error(where, f"depth {pt[2]:g} m is outside limits.depth")
+        d = e - a
+        s = float(np.clip((b - a) @ d / (d @ d), 0.0, 1.0))
+        near = float(np.linalg.norm(a + s * d - b))
+        if lim.min_range > 0 and near < lim.min_range + m.cross_track:
+            raise field_error(
+                where,
+                f"passes {near:.3g} m from the beacon: within limits.min_range = "
+                f"{lim.min_range:g} m plus mission.cross_track; move the line",
+            )
 
 
 def _check_vehicle(pb: PlanningProblem) -> None:

@@ -14,9 +14,11 @@ bound uses) on the validation's filter grid (:func:`~obsplan.planning.validation
   ``R = r² σ_r² + ½ σ_r⁴``; no range update at the anchor sample), in the metric scales.
 
 Each has a time mode (:func:`timed_value`): at the end (``final``), averaged over the filter
-samples (``mission-average``) or the sum of the two, each relative to its value on the reference
-path (``average-and-final``). The exact Hessian of a recursion over hundreds of epochs is dense
-and slow to build, so IPOPT runs L-BFGS on them.
+samples (``mission-average``), the sum of the two, each relative to its value on the reference
+path (``average-and-final``), or averaged over the filter samples inside the survey lines'
+windows (``lines``: the schedule's, :mod:`obsplan.planning.mission_schedule`). The exact
+Hessian of a recursion over hundreds of epochs is dense and slow to build, so IPOPT runs L-BFGS
+on them.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from obsplan.observability.gramian import augmented_model
 from obsplan.planning.blocks import NLPContext, Objective, ObjectiveTerm
 from obsplan.planning.grid import Grid, apply_operator
 from obsplan.planning.guesses import reference_path
+from obsplan.planning.mission_schedule import line_sample_mask
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.validation_setup import estimation_config, filter_epochs
 from obsplan.trajectory import Trajectory
@@ -62,30 +65,56 @@ class CovarianceObjective:
     mask: np.ndarray
     scale: float
     rows: Callable  # (grid, W) -> (h, rho): range rows and variances at the epochs
+    #: Boolean mask of the filter samples on the survey lines (None: no lines).
+    lines: np.ndarray | None = None
 
     def evaluate(self, grid: Grid, W):
         """``(mission-average std, final std)`` [m] as CasADi expressions or numbers."""
+        return self.evaluate_all(grid, W)[:2]
+
+    def evaluate_all(self, grid: Grid, W):
+        """``(mission-average, final, average over the lines)`` std [m] (the last None without
+        lines), as CasADi expressions or numbers."""
         h, rho = self.rows(grid, W)
         numeric = isinstance(W, np.ndarray)
         _, D = run_recursion(self.model, self.epochs, self.P0, h, rho, self.mask)
         n = self.model.n
         if numeric:
             std = position_std(np.asarray(D), n, self.epochs)
-            return float(np.mean(std)) * self.scale, float(std[-1]) * self.scale
+            on = None if self.lines is None else float(np.mean(std[self.lines])) * self.scale
+            return float(np.mean(std)) * self.scale, float(std[-1]) * self.scale, on
         total, final = position_std(D, n, self.epochs)
         count = int(self.epochs.gap.sum())
-        return total * (self.scale / count), final * self.scale
+        on = None
+        if self.lines is not None:
+            on = _lines_average(D, n, self.epochs, self.lines) * self.scale
+        return total * (self.scale / count), final * self.scale, on
 
 
-def timed_value(mode: str, average, final, reference: tuple[float, float]):
+def _lines_average(D, n: int, epochs: Epochs, lines: np.ndarray):
+    """The mean of ``sqrt(tr P_pp)`` over the samples ``lines`` (CasADi), in the column layout
+    of :func:`~obsplan.estimation.riccati.position_std` (epoch ``j``, step ``kk < gap_j``)."""
+    K = epochs.max_gap
+    sample = epochs.index[:, None] + np.arange(K)[None, :]
+    keep = np.arange(K)[None, :] < epochs.gap[:, None]
+    on = keep & lines[np.minimum(sample, lines.size - 1)]
+    w = on.reshape(-1).astype(float)
+    std = ca.sqrt(ca.sum1(D[:n, :]) + 1e-30)
+    return ca.dot(std.T, ca.DM(w)) / max(float(w.sum()), 1.0)
+
+
+def timed_value(mode: str, average, final, reference: tuple[float, float], lines=None):
     """The objective of a time ``mode`` from the mission-average and final std [m].
 
     ``average-and-final`` is ``average / a_ref + final / f_ref`` with ``(a_ref, f_ref) =
     reference``, the two values on the reference path
     (:func:`~obsplan.planning.guesses.reference_path`): the survey and its end weigh alike
     whatever their sizes (with a DVL the final std is often 10x smaller than the average, and a
-    plain sum would ignore it). It is dimensionless: 2 on the reference.
+    plain sum would ignore it). It is dimensionless: 2 on the reference. ``lines`` is the
+    average over the survey lines' windows (mode ``lines``).
     """
+    if mode == "lines":
+        return lines
     if mode == "mission-average":
         return average
     if mode == "final":
@@ -111,7 +140,14 @@ def pcrb_objective(pb: PlanningProblem) -> CovarianceObjective:
         rel = apply_operator(Mp, cp, w, n)
         return range_information(rel, sigma)
 
-    return CovarianceObjective(rec, epochs, cov["p0_ekf"], epochs.mask, 1.0, rows)
+    return CovarianceObjective(rec, epochs, cov["p0_ekf"], epochs.mask, 1.0, rows, _lines(pb))
+
+
+def _lines(pb: PlanningProblem) -> np.ndarray | None:
+    """The filter samples inside the mission's line windows (None without survey lines)."""
+    if pb.mission is None or not pb.mission.lines:
+        return None
+    return line_sample_mask(pb, pb.filter_times)
 
 
 def kf_objective(pb: PlanningProblem) -> CovarianceObjective:
@@ -157,7 +193,7 @@ def kf_objective(pb: PlanningProblem) -> CovarianceObjective:
     mask[0, model.sensors.index("range")] = 0.0  # ȳ_0 ≡ 0: the anchor carries no information
     extra = (var0 / L**4) if cfg.y0_mode == "inflate" else 0.0
     rows = _kf_range_rows(pb, pb.filter_times[epochs.index], cfg.noise["range"], extra)
-    return CovarianceObjective(rec, epochs, S @ P0 @ S, mask, L, rows)
+    return CovarianceObjective(rec, epochs, S @ P0 @ S, mask, L, rows, _lines(pb))
 
 
 def _kf_prior(pb: PlanningProblem, cfg, cov: dict, m: int, kc: int) -> tuple[np.ndarray, float]:
@@ -315,16 +351,17 @@ def _reference_stds(pb: PlanningProblem, kind: str) -> tuple[float, float]:
 def covariance_value(traj: Trajectory, pb: PlanningProblem) -> float:
     """The problem's covariance objective (its kind and time mode) on ``traj`` [m or -]."""
     kind = pb.objective.kind
-    avg, final = covariance_stds(traj, pb, kind)
-    return timed_value(pb.objective_mode, avg, final, _reference_stds(pb, kind))
+    grid = Grid.from_problem(pb)
+    avg, final, on = _covariance(pb, kind).evaluate_all(grid, grid.from_trajectory(traj))
+    return timed_value(pb.objective_mode, avg, final, _reference_stds(pb, kind), on)
 
 
 def covariance_term(ctx: NLPContext) -> ObjectiveTerm:
     """The recursion of the problem's kind on ``ctx.W``, divided by its value on the reference."""
     pb, grid = ctx.problem, ctx.grid
     cobj = covariance_objective(pb)
-    avg, final = cobj.evaluate(grid, ctx.W)
-    value = timed_value(pb.objective_mode, avg, final, cobj.evaluate(grid, ctx.W_ref))
+    avg, final, on = cobj.evaluate_all(grid, ctx.W)
+    value = timed_value(pb.objective_mode, avg, final, cobj.evaluate(grid, ctx.W_ref), on)
     ref = max(covariance_value(ctx.reference, pb), 1e-12)
     return ObjectiveTerm(
         f=value / ref,

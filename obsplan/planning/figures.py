@@ -1,4 +1,5 @@
-"""Figures of a plan: the path beside the baselines, Gramian eigenvalues, filter errors.
+"""Figures of a plan: the path beside the baselines (with the mission's lines, tolerance bands,
+waypoints and end region), the speed along the path, Gramian eigenvalues, filter errors.
 
 Functions take ``ax=None`` and return the Figure (Agg backend in scripts and tests).
 """
@@ -13,6 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from obsplan.observability.gramian import cumulative_gramians
+from obsplan.planning.mission_schedule import mission_schedule
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.validation import PathValidation
 from obsplan.trajectory import Trajectory
@@ -23,6 +25,7 @@ _STYLE = {
     "circle": {"color": "tab:purple", "lw": 1.0},
     "straight": {"color": "tab:gray", "lw": 1.0},
     "paper-lawnmower": {"color": "tab:brown", "lw": 1.0},
+    "lawnmower-accel": {"color": "tab:red", "lw": 1.0},
 }
 
 
@@ -63,6 +66,7 @@ def plot_paths(
         ax.add_patch(
             plt.Rectangle(lo, w, h, fill=False, ls="--", color="0.5", label="operating area")
         )
+    _draw_mission(ax, pb, ix, iy)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("y = east [m]" if geo else "x [m]")
     ax.set_ylabel("x = north [m]" if geo else "y [m]")
@@ -90,6 +94,62 @@ def plot_paths(
         az.grid(True, alpha=0.3)
         az.legend(fontsize=7)
         fig.tight_layout()
+    return fig
+
+
+def _draw_mission(ax, pb: PlanningProblem, ix: int, iy: int) -> None:
+    """The mission's lines with their cross-track bands, waypoints and end region."""
+    m = pb.mission
+    if m is None:
+        return
+    for i, (a, b) in enumerate(m.segments(pb.dim)):
+        e = (b - a)[:2] / np.linalg.norm((b - a)[:2])
+        off = np.array([-e[1], e[0]]) * m.cross_track
+        band = np.array([a[:2] + off, b[:2] + off, b[:2] - off, a[:2] - off])
+        label = f"survey line +-{m.cross_track:g} m" if i == 0 else None
+        ax.add_patch(plt.Polygon(band[:, [ix, iy]], color="tab:blue", alpha=0.25, label=label))
+        ax.annotate(
+            "",
+            xy=(b[ix], b[iy]),
+            xytext=(a[ix], a[iy]),
+            arrowprops={"arrowstyle": "->", "color": "tab:blue", "lw": 0.8},
+        )
+    for i, w in enumerate(m.waypoints):
+        label = f"waypoint (r = {m.radius:g} m)" if i == 0 else None
+        ax.add_patch(
+            plt.Circle((w[ix], w[iy]), m.radius, fill=False, color="tab:blue", label=label)
+        )
+    if m.end is not None:
+        c = m.end.position
+        ax.add_patch(
+            plt.Circle((c[ix], c[iy]), m.end.radius, fill=False, ls=":", color="k", label="end")
+        )
+
+
+def plot_speed(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None) -> Figure:
+    """Speed ``|v(t)|`` [m/s] of each path, with the speed limit and, with a survey, the band
+    ``mission.speed`` over the lines' windows (the schedule's, shaded)."""
+    fig, ax = _ax(ax)
+    for name, tr in paths.items():
+        ax.plot(tr.t, np.linalg.norm(tr.v, axis=1), label=name, **_STYLE.get(name, {"lw": 1.0}))
+    ax.axhline(pb.limits.speed, color="k", ls="--", lw=1, label="limits.speed")
+    m = pb.mission
+    if m is not None and m.lines:
+        lo, hi = m.speed_band(pb.limits.speed)
+        for k, (t0, t1) in enumerate(mission_schedule(pb).line_windows):
+            ax.fill_between(
+                [t0, t1],
+                lo,
+                hi,
+                color="tab:blue",
+                alpha=0.15,
+                label="mission.speed on the lines" if k == 0 else None,
+            )
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("speed [m/s]")
+    ax.set_title("speed along the path", fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
     return fig
 
 

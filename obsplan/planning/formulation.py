@@ -37,6 +37,7 @@ from obsplan.planning.blocks import (
 )
 from obsplan.planning.grid import Grid, dynamics_residual, midpoints
 from obsplan.planning.guesses import reference_path
+from obsplan.planning.mission_part import mission_part
 from obsplan.planning.objectives import objective_of
 from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
@@ -46,7 +47,7 @@ from obsplan.trajectory import Trajectory
 _SPEED_EPS = 1e-8
 #: Builders of the parts appended to every NLP after the objective, in order (each returns None
 #: for a problem it does not apply to); e.g. a mission's survey lines with their timing variables.
-PARTS: tuple[PartBuilder, ...] = ()
+PARTS: tuple[PartBuilder, ...] = (mission_part,)
 
 
 @dataclass(frozen=True, eq=False)

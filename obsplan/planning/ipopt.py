@@ -4,8 +4,8 @@
   (MUMPS; the exact Hessian or L-BFGS as the objective asks; warm-start options);
 * :func:`make_projection` / :func:`project`: the nearest flyable path to one that violates a limit
   by a little (e.g. by 0.02 % when IPOPT stops at its iteration limit): least squares in the NLP's
-  intrinsic units on the inputs, subject to every path constraint, by a second small IPOPT
-  problem;
+  intrinsic units on the inputs, subject to every path constraint and the mission's, by a second
+  small IPOPT problem;
 * :func:`_call`: one call of an ``nlpsol`` returning ``(solution or None, stats, error)``, with
   Ctrl-C (:func:`_interrupt_guard`) surfacing as ``KeyboardInterrupt``.
 """
@@ -22,6 +22,7 @@ import numpy as np
 
 from obsplan import interrupts
 from obsplan.planning.formulation import Formulation, path_constraints
+from obsplan.planning.mission_part import mission_part
 from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
 
@@ -72,6 +73,7 @@ def make_solver(
         ipopt["limited_memory_max_history"] = 6
     if warm:
         ipopt.update(WARM_START_LBFGS if form.hessian == "limited-memory" else WARM_START)
+
     ipopt.update(ipopt_options or {})
     opts = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
     nlp = {"x": form.w, "p": form.parameters, "f": form.f, "g": form.g}
@@ -89,7 +91,7 @@ def make_projection(pb: PlanningProblem, form: Formulation) -> ca.Function:
     n = grid.n
     W = ca.MX.sym("W", 3 * n, grid.N)
     Wbar = ca.MX.sym("Wbar", 3 * n, grid.N)
-    g = [c.g for c in path_constraints(grid, pb, W)]
+    g = [c.g for c in _projected_constraints(grid, pb, W)]
     f = 0.5 * ca.sumsqr(W[:n, :] - Wbar[:n, :])
     nlp: dict[str, Any] = {"x": ca.vec(W), "p": ca.vec(Wbar), "f": f, "g": ca.vertcat(*g)}
     ipopt: dict[str, Any] = {
@@ -109,6 +111,13 @@ def make_projection(pb: PlanningProblem, form: Formulation) -> ca.Function:
     return ca.nlpsol(
         "obsplan_projection", "ipopt", nlp, {"expand": True, "print_time": False, "ipopt": ipopt}
     )
+
+
+def _projected_constraints(grid, pb: PlanningProblem, W) -> list:
+    """The constraints a projected path satisfies: the path's, then the mission's (they are on
+    ``W`` only)."""
+    part = mission_part(pb, grid, W)
+    return [*path_constraints(grid, pb, W), *(part.constraints if part is not None else ())]
 
 
 @contextmanager
@@ -162,14 +171,19 @@ def project(
     grid = form.grid
     wbar = grid.from_trajectory(traj).reshape(-1, order="F")
     k, nw = form.n_path_constraints, form.n_w  # path constraints come first in g and x
+    lbg, ubg = [form.lbg[:k]], [form.ubg[:k]]
+    part = mission_part(form.problem, grid, ca.MX.sym("W", 3 * grid.n, grid.N))
+    for c in part.constraints if part is not None else ():
+        lbg.append(c.lb)
+        ubg.append(c.ub)
     sol, stats, err = _call(
         projection,
         x0=wbar,
         p=wbar,
         lbx=form.lbx[:nw],
         ubx=form.ubx[:nw],
-        lbg=form.lbg[:k],
-        ubg=form.ubg[:k],
+        lbg=np.concatenate(lbg),
+        ubg=np.concatenate(ubg),
     )
     status = err or str(stats.get("return_status", "unknown"))
     if sol is None:

@@ -15,11 +15,14 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from obsplan.errors import ConfigError, InputError, ProblemError
 from obsplan.geodesy import GeodeticOrigin, check_lat_lon, geodetic_to_local
 from obsplan.model import parse_sensors
 from obsplan.observability.scaling import Scales
 from obsplan.planning.checks import check_structure
+from obsplan.planning.mission_spec import EndRegion, LineArea, Mission, generate_lines
 from obsplan.planning.problem import (
     Area,
     Horizon,
@@ -35,6 +38,8 @@ from obsplan.textfiles import read_toml
 #: Where ``obsplan plan`` looks when no problem file is given.
 PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
 DEFAULT_PROBLEM = PROBLEMS_DIR / "default.toml"
+#: The free localisation problem (no ``[mission]``): the default before missions.
+LOCALISE_PROBLEM = PROBLEMS_DIR / "localise.toml"
 
 
 def _is_number(x: Any) -> bool:
@@ -118,7 +123,118 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
                 raise field_error(f"{where}.{ax}", "missing; give [min, max] in m")
             axes[ax] = _parse_value(where, FieldSpec(ax, "range", None, "m", ""), raw[ax], dim)
         return Area(x=axes["x"], y=axes["y"])
+    if k in ("lines", "points", "windows", "line-area", "end"):
+        return _parse_mission_value(where, spec, raw, dim)
     raise AssertionError(k)  # pragma: no cover
+
+
+def _parse_mission_value(where: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
+    """The mission's kinds of :func:`_parse_value`: lines, points, windows, an area, an end."""
+    k = spec.kind
+    if k in ("lines", "points", "windows"):
+        width = {"lines": 2 * dim, "points": dim, "windows": 2}[k]
+        form = {
+            "lines": "[[x0, y0, x1, y1], ...]" if dim == 2 else "[[x0, y0, z0, x1, y1, z1], ...]",
+            "points": "[[x, y], ...]" if dim == 2 else "[[x, y, z], ...]",
+            "windows": "[[t0, t1], ...]",
+        }[k]
+        ok = (
+            isinstance(raw, list)
+            and len(raw) > 0
+            and all(
+                isinstance(r, list)
+                and len(r) == width
+                and all(_is_number(x) and math.isfinite(x) for x in r)
+                for r in raw
+            )
+        )
+        if not ok:
+            raise field_error(
+                where, f"expected {form} in {spec.unit} (vehicle.dim = {dim}), got {raw!r}"
+            )
+        return tuple(tuple(float(x) for x in r) for r in raw)
+    if k == "line-area":
+        return _line_area(where, raw, dim)
+    return _end_region(where, raw, dim)
+
+
+def _line_area(where: str, raw: Any, dim: int) -> LineArea:
+    if not isinstance(raw, dict) or not raw:
+        raise field_error(
+            where,
+            f"expected {{x = [min, max], y = [min, max]}} or {{polygon = [[x, y], ...]}}, "
+            f"got {raw!r}",
+        )
+    if "polygon" in raw:
+        if set(raw) != {"polygon"}:
+            raise field_error(where, "give either polygon or x and y, not both")
+        pts = _parse_value(where, FieldSpec("polygon", "points", None, "m", ""), raw["polygon"], 2)
+        if len(pts) < 3:
+            raise field_error(f"{where}.polygon", f"needs at least 3 corners, got {len(pts)}")
+        return LineArea(polygon=tuple((p[0], p[1]) for p in pts))
+    box = _parse_value(where.rpartition(".")[0], FieldSpec("area", "area", None, "m", ""), raw, dim)
+    return LineArea(x=box.x, y=box.y)
+
+
+def _end_region(where: str, raw: Any, dim: int) -> EndRegion:
+    if not isinstance(raw, dict):
+        raise field_error(where, f"expected {{position = [...], radius = r}}, got {raw!r}")
+    unknown = sorted(set(raw) - {"position", "radius", "speed"})
+    if unknown:
+        raise field_error(
+            f"{where}.{unknown[0]}", "unknown key; an end has position, radius, speed"
+        )
+    for key in ("position", "radius"):
+        if key not in raw:
+            raise field_error(f"{where}.{key}", "missing")
+    pos = _parse_value(where, FieldSpec("position", "vec", None, "m", ""), raw["position"], dim)
+    radius = _parse_value(where, FieldSpec("radius", "float", None, "m", ""), raw["radius"], dim)
+    speed = None
+    if "speed" in raw:
+        speed = _parse_value(where, FieldSpec("speed", "float", None, "m/s", ""), raw["speed"], dim)
+    return EndRegion(position=pos, radius=radius, speed=speed)
+
+
+def _mission(data: Mapping[str, Any], vals: dict[str, Any], dim: int, start) -> Mission | None:
+    """The ``[mission]`` (None without one): lines given or generated from an area."""
+    if "mission" not in data:
+        return None
+    given = set(data["mission"])
+    lines = vals["lines"]
+    area = vals["area"]
+    if area is not None:
+        if lines is not None:
+            raise field_error("mission.area", "give either mission.lines or mission.area, not both")
+        if vals["spacing"] is None:
+            raise field_error(
+                "mission.spacing", "missing; the distance between generated lines [m]"
+            )
+        if not vals["spacing"] > 0:
+            raise field_error("mission.spacing", f"must be > 0 m, got {vals['spacing']}")
+        depth = None
+        if dim == 3:
+            depth = float(start[2]) if vals["depth"] is None else vals["depth"]
+        lines = generate_lines(area, vals["spacing"], vals["heading"], np.asarray(start[:2]), depth)
+    else:
+        for key in ("spacing", "heading", "depth"):
+            if key in given:
+                raise field_error(f"mission.{key}", "is for generated lines; give mission.area")
+    return Mission(
+        kind=vals["kind"],
+        lines=lines or (),
+        cross_track=vals["cross_track"],
+        heading_tol=vals["heading_tol"],
+        speed=vals["speed"],
+        order=vals["order"],
+        waypoints=vals["waypoints"] or (),
+        radius=vals["radius"],
+        windows=vals["windows"] or (),
+        end=vals["end"],
+        area=area,
+        spacing=vals["spacing"] if area is not None else None,
+        heading=vals["heading"] if area is not None else None,
+        depth=vals["depth"] if area is not None else None,
+    )
 
 
 def _section_values(data: Mapping[str, Any], section: str, dim: int) -> dict[str, Any]:
@@ -195,6 +311,7 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
         scales=_scales(s["scales"]),
         validation=ValidationSpec(**s["validation"]),
         origin=origin,
+        mission=_mission(data, s["mission"], dim, s["start"]["position"]),
     )
     check_structure(pb)
     return pb
@@ -239,9 +356,44 @@ def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
         "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
         "validation": {f: getattr(val, f) for f in val.__dataclass_fields__},
     }
+    if pb.mission is not None:
+        out["mission"] = _mission_to_dict(pb.mission)
     if pb.origin is not None:
         o = pb.origin
         out["origin"] = {"latitude": o.latitude, "longitude": o.longitude, "altitude": o.altitude}
+    return out
+
+
+def _mission_to_dict(m: Mission) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "kind": m.kind,
+        "cross_track": m.cross_track,
+        "heading_tol": m.heading_tol,
+        "order": m.order,
+        "radius": m.radius,
+    }
+    if m.area is not None:
+        if m.area.polygon:
+            out["area"] = {"polygon": [list(p) for p in m.area.polygon]}
+        else:
+            out["area"] = {"x": list(m.area.x or ()), "y": list(m.area.y or ())}
+        out["spacing"] = m.spacing
+        out["heading"] = m.heading
+        if m.depth is not None:
+            out["depth"] = m.depth
+    elif m.lines:
+        out["lines"] = [list(ln) for ln in m.lines]
+    if m.speed is not None:
+        out["speed"] = list(m.speed)
+    if m.waypoints:
+        out["waypoints"] = [list(w) for w in m.waypoints]
+    if m.windows:
+        out["windows"] = [list(w) for w in m.windows]
+    if m.end is not None:
+        end: dict[str, Any] = {"position": list(m.end.position), "radius": m.end.radius}
+        if m.end.speed is not None:
+            end["speed"] = m.end.speed
+        out["end"] = end
     return out
 
 

@@ -10,6 +10,7 @@ from obsplan.estimation.runs import DEFAULT_FILTERS
 from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.evaluate import PathMetrics, path_metrics
 from obsplan.planning.margins import KeepoutReport, solve_with_keepout
+from obsplan.planning.mission_check import MissionCheck, mission_check
 from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult
@@ -53,11 +54,21 @@ class PlanResult:
     not_fitted: dict[str, str] = field(default_factory=dict)
     keepout: KeepoutReport | None = None
     robustness: Robustness | None = None
+    #: Per path, the independent mission check (empty without a ``[mission]``).
+    missions: dict[str, MissionCheck] = field(default_factory=dict)
 
     @property
     def verdict(self) -> Verdict:
-        """The plan against every validated baseline (:mod:`obsplan.planning.verdict`)."""
-        return verdict(self.validation, self.not_fitted, self.problem.objective.kind)
+        """The plan against every validated baseline (:mod:`obsplan.planning.verdict`); with a
+        mission, only against the paths that complete it."""
+        val = dict(self.validation)
+        not_fitted = dict(self.not_fitted)
+        for name, chk in self.missions.items():
+            if not chk.complete and name in val and name != "planned":
+                del val[name]
+                not_fitted[name] = "does not complete the mission (not compared)"
+        survey = self.problem.mission is not None and bool(self.problem.mission.lines)
+        return verdict(val, not_fitted, self.problem.objective.kind, lines=survey)
 
     @property
     def success(self) -> bool:
@@ -107,6 +118,7 @@ class PlanResult:
             },
             "baselines": {k: b.description for k, b in self.baselines.items()},
             "baselines_not_fitted": dict(self.not_fitted),
+            "mission": {k: c.to_dict() for k, c in self.missions.items()},
             "problem_file": problem_to_dict(pb),
             "keepout": None if self.keepout is None else self.keepout.to_dict(),
             "robustness": None if self.robustness is None else self.robustness.to_dict(),
@@ -178,10 +190,12 @@ def plan(
         paths["planned"] = res.trajectory
     paths.update({k: b.trajectory for k, b in bls.items()})
     metrics = {k: path_metrics(tr, pb) for k, tr in paths.items()}
+    missions = {k: c for k, tr in paths.items() if (c := mission_check(tr, pb)) is not None}
+    lines = {k: c.line_mask(pb.filter_times) for k, c in missions.items() if c.lines}
     validation: dict[str, PathValidation] = {}
     if validate:
         validation = validate_until_decided(
-            paths, pb, runs=runs, max_runs=max_runs, progress=progress
+            paths, pb, runs=runs, max_runs=max_runs, progress=progress, lines=lines or None
         )
         if "planned" in validation and ekf_diverges(validation["planned"]):
             # the EKF is lost on the plan while the KF is not: validate the Gaussian-sum filter
@@ -190,7 +204,13 @@ def plan(
             n = int(validation["planned"].result.runs)
             filters = (*DEFAULT_FILTERS, "gsf")
             validation = validate_until_decided(
-                paths, pb, runs=n, max_runs=n, progress=progress, filters=filters
+                paths,
+                pb,
+                runs=n,
+                max_runs=n,
+                progress=progress,
+                filters=filters,
+                lines=lines or None,
             )
     robustness = None
     if validate and stress_active(pb):
@@ -205,4 +225,5 @@ def plan(
         not_fitted=unfitted_baselines(pb),
         keepout=keepout,
         robustness=robustness,
+        missions=missions,
     )

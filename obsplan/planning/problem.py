@@ -20,6 +20,7 @@ from obsplan.geodesy import GeodeticOrigin
 from obsplan.model import VehicleModel
 from obsplan.observability.scaling import Scales
 from obsplan.planning.checks import check_values
+from obsplan.planning.mission_spec import Mission
 from obsplan.planning.schema import OBJECTIVE_KINDS
 
 
@@ -161,6 +162,8 @@ class PlanningProblem:
     name: str = ""
     #: Origin of the local north-east-down frame when the problem was given geodetically.
     origin: GeodeticOrigin | None = None
+    #: What the vehicle must do besides localising (None: free localisation).
+    mission: Mission | None = None
 
     def __post_init__(self) -> None:
         check_values(self)

@@ -89,7 +89,7 @@ VALIDATION_MODES: tuple[str, ...] = ("closed-loop", "open-loop")
 PROCESS_NOISE_MODELS: tuple[str, ...] = ("physical", "paper-per-step")
 #: ``objective.mode`` values; ``auto`` is ``final`` for kf-position-std (its historical meaning)
 #: and ``average-and-final`` for pcrb-position (:attr:`ObjectiveKind.auto_mode`).
-MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final")
+MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final", "lines")
 
 
 def field_error(where: str, msg: str) -> ProblemError:
@@ -104,7 +104,8 @@ class FieldSpec:
 
     name: str
     # "int", "float", "float-or-str", "bool", "str", "str-list", "float-list", "vec",
-    # "vec-or-float", "range", "area"
+    # "vec-or-float", "range", "area"; the mission's "lines", "line-area", "points", "windows",
+    # "end"
     kind: str
     default: Any
     unit: str
@@ -287,9 +288,11 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "auto",
             "-",
             'For pcrb-position and kf-position-std: "final" (position std at the end), '
-            '"mission-average" (its time average over the mission) or "average-and-final" (the '
-            'sum of the two, each relative to its value on the lawn-mower); "auto" is '
-            "average-and-final for pcrb-position and final for kf-position-std.",
+            '"mission-average" (its time average over the mission), "average-and-final" (the '
+            'sum of the two, each relative to its value on the lawn-mower) or "lines" (its '
+            "average over the survey lines' windows: what the sonar data needs; needs a survey "
+            '[mission]); "auto" is average-and-final for pcrb-position and final for '
+            "kf-position-std.",
         ),
         FieldSpec(
             "starts",
@@ -383,6 +386,101 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "Length scale L of the Gramian metrics and objectives (obsplan.observability.scaling).",
         ),
         FieldSpec("time_s", "float", 100.0, "s", "Time scale T of the Gramian metrics."),
+    ),
+    "mission": (
+        FieldSpec(
+            "kind",
+            "str",
+            "survey",
+            "-",
+            'What the vehicle must do besides localising: "survey" (fly lines) or "waypoints" '
+            "(pass points in order); any kind may add an end region. Without a [mission] the "
+            "problem is free localisation.",
+        ),
+        FieldSpec(
+            "lines",
+            "lines",
+            _NONE,
+            "m",
+            "Survey lines [[x0, y0, x1, y1], ...] (2D) or [[x0, y0, z0, x1, y1, z1], ...] (3D, "
+            "level: z0 = z1), each flown from its first point to its second, in this order.",
+        ),
+        FieldSpec(
+            "area",
+            "line-area",
+            _NONE,
+            "m",
+            "Instead of lines: generate them over {x = [min, max], y = [min, max]} or "
+            "{polygon = [[x, y], ...]} with spacing and heading (rule in docs/problem-files.md).",
+        ),
+        FieldSpec("spacing", "float", _NONE, "m", "Distance between generated lines."),
+        FieldSpec(
+            "heading",
+            "float",
+            0.0,
+            "deg",
+            "Direction of generated lines, clockwise from north (x) to east (y): 90 flies east.",
+        ),
+        FieldSpec(
+            "depth",
+            "float",
+            _NONE,
+            "m",
+            "3D only: depth z of generated lines; default the start depth.",
+        ),
+        FieldSpec(
+            "cross_track",
+            "float",
+            2.0,
+            "m",
+            "Largest distance from a line while flying it, on the continuous path.",
+        ),
+        FieldSpec(
+            "heading_tol",
+            "float",
+            10.0,
+            "deg",
+            "Largest angle between the velocity and the line's direction while flying it.",
+        ),
+        FieldSpec(
+            "speed",
+            "range",
+            _NONE,
+            "m/s",
+            "[lo, hi] band of the speed on the lines (and of the lawn-mower's constant speed); "
+            "default [0.3, 1] * limits.speed; hi <= limits.speed.",
+        ),
+        FieldSpec(
+            "order",
+            "str",
+            "given",
+            "-",
+            '"given" (lines in the order given) or "free" (the planner may reorder and reverse '
+            "lines: not available yet, refused).",
+        ),
+        FieldSpec(
+            "waypoints",
+            "points",
+            _NONE,
+            "m",
+            'kind = "waypoints": points [[x, y(, z)], ...] passed in order.',
+        ),
+        FieldSpec("radius", "float", 5.0, "m", "Each waypoint is passed within this distance."),
+        FieldSpec(
+            "windows",
+            "windows",
+            _NONE,
+            "s",
+            "Optional time windows [[t0, t1], ...], one per waypoint.",
+        ),
+        FieldSpec(
+            "end",
+            "end",
+            _NONE,
+            "m, m/s",
+            "End region {position = [x, y(, z)], radius = r, speed = s}: |p(T) - position| <= r "
+            "at the horizon's end and, if speed is given, |v(T)| <= s.",
+        ),
     ),
     "validation": (
         FieldSpec("runs", "int", 50, "-", "Monte Carlo runs per trajectory (EKF and KF)."),

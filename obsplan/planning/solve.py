@@ -37,6 +37,7 @@ from obsplan.planning.evaluate import better, objective_value
 from obsplan.planning.feasibility import check_limits
 from obsplan.planning.formulation import build_formulation
 from obsplan.planning.guesses import COARSE_STEPS, coarse_problem, initial_guesses, refine
+from obsplan.planning.mission_check import completes_mission
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.starts import (
     Progress,
@@ -211,7 +212,11 @@ def _candidates(
         if tr is not None and o.feasible and o.objective is not None:
             cands.append(_Candidate(o.label, tr, o.objective, o))
     for label, tr in extra:
-        if tr.n_samples == pb.horizon.steps + 1 and check_limits(tr, pb).ok():
+        if (
+            tr.n_samples == pb.horizon.steps + 1
+            and check_limits(tr, pb).ok()
+            and completes_mission(tr, pb)
+        ):
             cands.append(_Candidate(label, tr, objective_value(tr, pb), None))
     return cands
 

@@ -26,6 +26,7 @@ from obsplan.planning.evaluate import objective_value
 from obsplan.planning.feasibility import LimitCheck, check_limits
 from obsplan.planning.formulation import Formulation
 from obsplan.planning.ipopt import SUCCESS_STATUS, _call, make_projection, make_solver, project
+from obsplan.planning.mission_check import completes_mission
 from obsplan.trajectory import Trajectory
 
 #: A progress callback: ``(index, label, outcome)`` after each start.
@@ -76,10 +77,13 @@ class StartOutcome:
     initial_objective: float | None
     limits: LimitCheck
     projected: bool = False
+    #: The path completes the problem's mission (True without one):
+    #: :func:`~obsplan.planning.mission_check.mission_check`.
+    mission_complete: bool = True
 
     @property
     def feasible(self) -> bool:
-        return self.limits.ok()
+        return self.limits.ok() and self.mission_complete
 
     def to_dict(self) -> dict:
         return {
@@ -93,6 +97,7 @@ class StartOutcome:
             "initial_objective": _num(self.initial_objective),
             "feasible": bool(self.feasible),
             "projected": bool(self.projected),
+            "mission_complete": bool(self.mission_complete),
         }
 
 
@@ -158,7 +163,7 @@ def run_start(
     lifted = form.lifted_value(float(sol["f"]))
     limits = check_limits(traj, pb)
     projected = False
-    if not limits.ok():
+    if not (limits.ok() and completes_mission(traj, pb)):
         proj, _ = project(form, ctx.projection(), traj)
         projected = True
         if proj is not None:
@@ -176,6 +181,7 @@ def run_start(
         initial_objective=_num(init_obj),
         limits=limits,
         projected=projected,
+        mission_complete=completes_mission(traj, pb),
     )
     return outcome, traj
 

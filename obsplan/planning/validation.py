@@ -78,6 +78,7 @@ def validate_paths(
     progress: bool = False,
     filters: Sequence[str] = DEFAULT_FILTERS,
     run_start: int = 0,
+    lines: Mapping[str, np.ndarray] | None = None,
 ) -> dict[str, PathValidation]:
     """Monte Carlo of the filters on each path under the problem's ``[validation]`` settings.
 
@@ -96,6 +97,9 @@ def validate_paths(
     run_start
         First run of the seed's streams (runs ``run_start .. run_start + runs - 1``; the same
         runs on every path, so that results of several calls merge exactly).
+    lines
+        Name -> boolean mask of the filter samples (``pb.filter_times``) flown on survey lines:
+        the samples of that path's ``rmse_pos_lines``; default none.
     """
     val = pb.validation
     config = estimation_config(pb)
@@ -103,6 +107,7 @@ def validate_paths(
     if not paths:
         return {}
     fine = [resample(traj, val.dt) for traj in paths.values()]
+    masks = [None if lines is None else lines.get(name) for name in paths]
     results = monte_carlo_paths(
         fine,
         config,
@@ -113,6 +118,7 @@ def validate_paths(
         run_start=run_start,
         guidance=validation_guidance(pb),
         limits=truth_limits(pb),
+        lines=masks if any(m is not None for m in masks) else None,
     )
     return {name: PathValidation(name, res) for name, res in zip(paths, results, strict=True)}
 

@@ -50,6 +50,11 @@ METRICS: tuple[tuple[str, str], ...] = (
     ("crlb.mean_pos_std", "mission-average position bound (PCRB)"),
     ("crlb.final_pos_std", "final position bound (PCRB)"),
 )
+#: Compared too when the problem has survey lines: the RMSE over the samples flown on them.
+LINES_METRICS: tuple[tuple[str, str], ...] = (
+    ("ekf.rmse_pos_lines", "EKF position RMSE on the survey lines"),
+    ("kf.rmse_pos_lines", "KF position RMSE on the survey lines"),
+)
 #: The metrics a plan must win on against every baseline to be called a win.
 HEADLINE = ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos")
 #: The EKF "diverges" on a path when the divergence monitor flags at least this fraction of its
@@ -63,6 +68,8 @@ RUN_METRICS: dict[str, str] = {
     "ekf.final_pos_err": "final_pos_err_runs",
     "kf.rmse_pos": "rmse_pos_runs",
     "kf.final_pos_err": "final_pos_err_runs",
+    "ekf.rmse_pos_lines": "rmse_pos_lines_runs",
+    "kf.rmse_pos_lines": "rmse_pos_lines_runs",
 }
 #: Confidence of the intervals, and the bootstrap resamples that estimate them.
 CONFIDENCE = 0.95
@@ -75,6 +82,11 @@ def metric_value(v: PathValidation, key: str) -> float | None:
     group, name = key.split(".")
     if group == "crlb":
         val = getattr(r.crlb, name, None)
+    elif name == "rmse_pos_lines":
+        # RMS over the runs of each run's RMSE on the lines (as report.json's rmse_pos_lines)
+        runs = getattr(getattr(r, group, None), "rmse_pos_lines_runs", None)
+        x = np.asarray([] if runs is None else runs, float)
+        val = float(np.sqrt(np.mean(x**2))) if x.size and np.all(np.isfinite(x)) else None
     else:
         stats = getattr(r, group, None)
         val = None if stats is None else getattr(stats, name, None)
@@ -198,7 +210,7 @@ class Verdict:
         if ratio and c.ci is not None and c.ci[0] != c.ci[1]:
             ratio += f", {100 * CONFIDENCE:.0f} % interval [{c.ci[0]:.2f}, {c.ci[1]:.2f}]"
         ratio += ")" if ratio else ""
-        return f"against the {name}: {dict(METRICS)[key]} {pv} vs {bv}{ratio}"
+        return f"against the {name}: {dict((*METRICS, *LINES_METRICS))[key]} {pv} vs {bv}{ratio}"
 
     def losses(self) -> list[str]:
         """One sentence per (baseline, metric) the plan does not win."""
@@ -286,9 +298,12 @@ def verdict(
     validation: Mapping[str, PathValidation],
     not_fitted: Mapping[str, str],
     objective: str | None = None,
+    lines: bool = False,
 ) -> Verdict:
     """Compare ``validation["planned"]`` with every other validated path (intervals seeded by the
-    validation's seed; ``objective``: the problem's ``objective.kind``, for the notes)."""
+    validation's seed; ``objective``: the problem's ``objective.kind``, for the notes;
+    ``lines``: also on :data:`LINES_METRICS`, for a survey)."""
+    metrics = (*METRICS, *LINES_METRICS) if lines else METRICS
     comps: dict[str, dict[str, Comparison]] = {}
     plan = validation.get("planned")
     notes = (LWO_NOTE,) if objective == "lwo-condition" else ()
@@ -298,7 +313,7 @@ def verdict(
         if name == "planned":
             continue
         comps[name] = {}
-        for m, (key, _) in enumerate(METRICS):
+        for m, (key, _) in enumerate(metrics):
             pv, bv = metric_value(plan, key), metric_value(v, key)
             if key in RUN_METRICS:
                 ci = _interval(plan, v, key, (int(plan.result.seed), b, m), pv, bv)
@@ -353,7 +368,7 @@ def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
 def _interval(plan, v, key, seed, pv, bv) -> tuple[float, float] | None:
     """The interval of the ratio ``pv / bv`` of a run-estimated metric (module docstring)."""
     a, b = _runs(plan, key), _runs(v, key)
-    rms = key.endswith("rmse_pos")
+    rms = key.endswith(("rmse_pos", "rmse_pos_lines"))
     ci = ratio_interval(a, b, seed, rms=rms)
     if ci is None or not rms or pv is None or not bv:
         return ci
@@ -430,8 +445,10 @@ def validate_until_decided(
     max_runs: int | None = None,
     progress: bool = False,
     filters: Sequence[str] = DEFAULT_FILTERS,
+    lines: Mapping[str, np.ndarray] | None = None,
 ) -> dict[str, PathValidation]:
-    """:func:`~obsplan.planning.validation.validate_paths` in batches until decided.
+    """:func:`~obsplan.planning.validation.validate_paths` in batches until decided (``lines``:
+    each path's samples on the survey lines, for its ``rmse_pos_lines``).
 
     The first batch has ``runs`` (default ``validation.runs``) runs. While a run-estimated
     verdict of ``paths["planned"]`` against a baseline is undecided, a batch as large as all the
@@ -441,12 +458,14 @@ def validate_until_decided(
     """
     done = pb.validation.runs if runs is None else int(runs)
     cap = max(done, pb.validation.max_runs if max_runs is None else int(max_runs))
-    parts = [validate_paths(paths, pb, runs=done, progress=progress, filters=filters)]
+    parts = [validate_paths(paths, pb, runs=done, progress=progress, filters=filters, lines=lines)]
     merged = parts[0]
     while done < cap and "planned" in paths and not verdict(merged, {}).all_decided:
         k = min(done, cap - done)
         parts.append(
-            validate_paths(paths, pb, runs=k, progress=progress, filters=filters, run_start=done)
+            validate_paths(
+                paths, pb, runs=k, progress=progress, filters=filters, run_start=done, lines=lines
+            )
         )
         done += k
         merged = merge_validations(parts)
