@@ -220,7 +220,11 @@ def mission_check(traj: Trajectory, pb: PlanningProblem) -> MissionCheck | None:
         end = PointCheck(float(d[-1]), arrive if ok else float(t[-1]), speed, bool(ok))
         last_t = max(last_t, end.time_s)
     steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    complete = all(x.complete for x in (*lines, *points)) and (end is None or end.complete)
+    complete = (
+        all(x.complete for x in lines)
+        and all(x.complete for x in points)
+        and (end is None or end.complete)
+    )
     return MissionCheck(
         complete=bool(complete),
         lines=tuple(lines),

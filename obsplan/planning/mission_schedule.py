@@ -176,7 +176,7 @@ def _dubins_words(alpha: float, beta: float, d: float) -> list[tuple[str, tuple[
     """Candidate Dubins words (normalised: unit radius) and their three segment lengths."""
     sa, sb, ca_, cb = math.sin(alpha), math.sin(beta), math.cos(alpha), math.cos(beta)
     cab = math.cos(alpha - beta)
-    out = []
+    out: list[tuple[str, tuple[float, ...]]] = []
     p2 = 2 + d * d - 2 * cab + 2 * d * (sa - sb)
     if p2 >= 0:
         tmp = math.atan2(cb - ca_, d + sa - sb)
@@ -264,8 +264,8 @@ def _targets(pb: PlanningProblem, lead: float) -> list[tuple[str, np.ndarray, np
             out.append(("line", a - lead * e, e, float(np.linalg.norm(b - a)) + 2 * lead))
     else:
         prev = pb.p0
-        for w in m.waypoints:
-            w = np.asarray(w, float)
+        for wp in m.waypoints:
+            w = np.asarray(wp, float)
             d = w - prev
             d[2:] = 0.0
             if np.linalg.norm(d) < 1e-9:

@@ -167,7 +167,7 @@ def generate_lines(
     offsets = [first + j * spacing for j in range(count)]
     if abs(float(start_xy @ n) - offsets[-1]) < abs(float(start_xy @ n) - offsets[0]):
         offsets.reverse()
-    lines = []
+    lines: list[tuple[float, ...]] = []
     sign = 1.0
     for o in offsets:
         chord = _chord(corners, o * n, e)

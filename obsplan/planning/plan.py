@@ -192,26 +192,7 @@ def plan(
     metrics = {k: path_metrics(tr, pb) for k, tr in paths.items()}
     missions = {k: c for k, tr in paths.items() if (c := mission_check(tr, pb)) is not None}
     lines = {k: c.line_mask(pb.filter_times) for k, c in missions.items() if c.lines}
-    validation: dict[str, PathValidation] = {}
-    if validate:
-        validation = validate_until_decided(
-            paths, pb, runs=runs, max_runs=max_runs, progress=progress, lines=lines or None
-        )
-        if "planned" in validation and ekf_diverges(validation["planned"]):
-            # the EKF is lost on the plan while the KF is not: validate the Gaussian-sum filter
-            # beside them on every path (same seeds and runs), so the report says what a robust
-            # filter does there
-            n = int(validation["planned"].result.runs)
-            filters = (*DEFAULT_FILTERS, "gsf")
-            validation = validate_until_decided(
-                paths,
-                pb,
-                runs=n,
-                max_runs=n,
-                progress=progress,
-                filters=filters,
-                lines=lines or None,
-            )
+    validation = _validate(paths, pb, runs, max_runs, progress, lines) if validate else {}
     robustness = None
     if validate and stress_active(pb):
         robustness = stress_validate(paths, pb, runs=runs, progress=progress)
@@ -227,3 +208,33 @@ def plan(
         robustness=robustness,
         missions=missions,
     )
+
+
+def _validate(
+    paths: dict[str, Trajectory],
+    pb: PlanningProblem,
+    runs: int | None,
+    max_runs: int | None,
+    progress: bool,
+    lines: dict,
+) -> dict[str, PathValidation]:
+    """The validation of :func:`plan`: batches until decided, with the Gaussian-sum filter beside
+    the EKF and KF on every path when the EKF is lost on the plan."""
+    validation = validate_until_decided(
+        paths, pb, runs=runs, max_runs=max_runs, progress=progress, lines=lines or None
+    )
+    if "planned" in validation and ekf_diverges(validation["planned"]):
+        # the EKF is lost on the plan while the KF is not: validate the Gaussian-sum filter
+        # beside them on every path (same seeds and runs), so the report says what a robust
+        # filter does there
+        n = int(validation["planned"].result.runs)
+        validation = validate_until_decided(
+            paths,
+            pb,
+            runs=n,
+            max_runs=n,
+            progress=progress,
+            filters=(*DEFAULT_FILTERS, "gsf"),
+            lines=lines or None,
+        )
+    return validation
