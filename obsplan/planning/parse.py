@@ -415,9 +415,9 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
     Examples
     --------
     >>> from obsplan import load_problem
-    >>> pb = load_problem()  # the default problem (problems/default.toml)
-    >>> pb.model.dim, pb.objective.kind, pb.horizon.steps
-    (2, 'pcrb-position', 200)
+    >>> pb = load_problem()  # the default problem (problems/default.toml): a survey
+    >>> pb.model.dim, pb.objective.kind, pb.mission.kind, len(pb.mission.lines)
+    (2, 'pcrb-position', 'survey', 3)
     """
     if path is None:
         # problems/ sits beside the package in a clone (editable install); a copied-out

@@ -167,12 +167,14 @@ def plan(
 
     Examples
     --------
-    The default problem on a coarse horizon, one start, without the Monte Carlo validation:
+    The free localisation problem on a coarse horizon, one start, without the Monte Carlo
+    validation:
 
     >>> from dataclasses import replace
     >>> from obsplan import load_problem, plan
+    >>> from obsplan.planning.parse import LOCALISE_PROBLEM
     >>> from obsplan.planning.problem import Horizon
-    >>> pb = load_problem()
+    >>> pb = load_problem(LOCALISE_PROBLEM)
     >>> pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=20),
     ...              objective=replace(pb.objective, starts=1))
     >>> result = plan(pb, validate=False)

@@ -301,7 +301,7 @@ def sweep(
     >>> import tempfile
     >>> from obsplan import sweep
     >>> from obsplan.planning.parse import PROBLEMS_DIR
-    >>> base = str(PROBLEMS_DIR / "default.toml")
+    >>> base = str(PROBLEMS_DIR / "localise.toml")
     >>> spec = {"sweep": {"name": "doc", "base": base, "mode": "baselines"},
     ...         "base": {"horizon": {"steps": 20}, "validation": {"runs": 2}},
     ...         "axes": {"beacon.position": [[0.0, 0.0], [50.0, 0.0]]}}
