@@ -85,6 +85,13 @@ def uninstall(previous: dict[Any, Any] | None) -> None:
     _installed = False
 
 
+def ignore_all() -> None:
+    """Ignore SIGINT and SIGTERM from now on (a finished command about to exit)."""
+    if threading.current_thread() is threading.main_thread():
+        for s in SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+
+
 def installed() -> bool:
     """Whether :func:`install` ran in this process."""
     return _installed

@@ -69,7 +69,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         signalled = interrupts.exit_code()
         outputs.finish(undo=signalled is not None)
-        interrupts.uninstall(previous)
+        if argv is None:
+            # the console script: the work is done and whole; a signal while the interpreter
+            # shuts down (seconds on a loaded machine) must not turn it into a kill
+            interrupts.ignore_all()
+        else:
+            interrupts.uninstall(previous)
     return code if signalled is None else signalled
 
 
