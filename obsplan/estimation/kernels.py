@@ -818,10 +818,11 @@ def kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple):
 
 
 @inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
-def kf_predict(X, P, Q, kw, ws, mdl, e, cor):
+def kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp):
     """The augmented KF's prediction of every run to epoch ``e`` (``e > 0``) over segment ``e``:
     the coupling's gains at the segment's start, the composed noise (kinematic terms, then the
-    chain's, :func:`kf_chain_noise`), the transition and each run's input correction."""
+    chain's, :func:`kf_chain_noise`), the transition and each run's input correction. ``Sp``
+    (3,): the noise sums of the last segment (its kinematic terms are kept when they repeat)."""
     n, cur, ep_d, ce = mdl.n, mdl.cur, mdl.ep_d, cor.ce
     mx = X.shape[0] - 3
     B = X.shape[1]
@@ -836,7 +837,10 @@ def kf_predict(X, P, Q, kw, ws, mdl, e, cor):
             kw[0, i, b] = X[i, b] - dp  # c_p at the segment's start
             kw[1, i, b] = nu_i - dv  # c_v
     tab = mdl.tab
-    noise_terms(Q, mdl.qt, tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2], mx)
+    S0, S1, S2 = tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2]
+    if S0 != Sp[0] or S1 != Sp[1] or S2 != Sp[2]:  # equal segments repeat on uniform grids
+        Sp[0], Sp[1], Sp[2] = S0, S1, S2
+        noise_terms(Q, mdl.qt, S0, S1, S2, mx)
     kf_chain_noise(Q, kw, mdl.qk, mdl.rule, tab, e, mx, n, cur, mdl.qdiag, mdl.couple)
     predict(X, P, tab, e, n, mdl.tr, Q, ws)
     if corr:
@@ -915,9 +919,10 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     run_cnt = np.zeros(B)
     ri = 0
     n_rec = rec_base.shape[0]
+    Sp = np.full(3, -1.0)
     for e in range(E):
         if e > 0:
-            kf_predict(X, P, Q, kw, ws, mdl, e, cor)
+            kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp)
         kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt)
         while ri < n_rec and rec_base[ri] == e:
             record_batch(X, P, lw, 1, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)

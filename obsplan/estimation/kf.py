@@ -235,6 +235,7 @@ class AugmentedKalmanFilter(Filter):
             "cor": bundles.corrections(ctx, corrections),
             "Q": np.zeros((m, m, B)),
             "kw": np.zeros((8, self.q.shape[0], B)),
+            "Sp": np.full(3, -1.0),
             "ws": ws,
             "iw": iw,
         }
@@ -254,7 +255,7 @@ class AugmentedKalmanFilter(Filter):
         from obsplan.estimation import kernels
 
         p, e = run.parts, run.epoch + 1
-        kernels.kf_predict(run.X, run.P, p["Q"], p["kw"], p["ws"], p["mdl"], e, p["cor"])
+        kernels.kf_predict(run.X, run.P, p["Q"], p["kw"], p["ws"], p["mdl"], e, p["cor"], p["Sp"])
         run.epoch, run.updated = e, False
 
     def update(self, run: FilterRun) -> None:
