@@ -291,8 +291,16 @@ def _remove_created(created: list[Path]) -> None:
             folder.rmdir()
 
 
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            path.unlink()
+
+
 def finish(undo: bool) -> None:
-    """End this command's swaps: delete the old folders, or (``undo``) put them back.
+    """End this command's swaps: delete the old folders and files, or (``undo``) put them back.
 
     Called by the command line last, with signals ignored; ``undo`` when a signal arrived.
     """
@@ -301,14 +309,14 @@ def finish(undo: bool) -> None:
             target, old, created = _SWAPPED.pop()
             if not undo:
                 if old is not None:
-                    shutil.rmtree(old, ignore_errors=True)
+                    _remove(old)
                 continue
             trash = _tmp_name(target, "old")
             with contextlib.suppress(OSError):
                 os.rename(target, trash)
                 if old is not None:
                     os.rename(old, target)
-            shutil.rmtree(trash, ignore_errors=True)
+            _remove(trash)
             _remove_created(created)
 
 
@@ -345,7 +353,37 @@ class OutputFile:
 
     @contextlib.contextmanager
     def writing(self) -> Iterator[Path]:
-        """Yield a temporary path; it becomes ``path`` when the block succeeds."""
+        """Yield a temporary path; it becomes ``path`` when the block succeeds.
+
+        With :mod:`obsplan.interrupts` installed, an old file is kept aside until
+        :func:`finish`, so that a signal after the rename still undoes it.
+        """
+        parent = Path(os.path.abspath(self.path.parent))
+        created = []
+        while not parent.exists():
+            created.append(parent)
+            parent = parent.parent
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_file(self.path) as tmp:
+        if not interrupts.installed():
+            with atomic_file(self.path) as tmp:
+                yield tmp
+            return
+        tmp = _tmp_name(self.path)
+        try:
             yield tmp
+            interrupts.check()
+            with interrupts.deferred():
+                old = None
+                if self.path.exists():
+                    old = _tmp_name(self.path, "old")
+                    try:  # the old file stays whole under a second name
+                        os.link(self.path, old)
+                    except OSError:  # no hard links here
+                        shutil.copy2(self.path, old)
+                os.replace(tmp, self.path)
+                _SWAPPED.append((self.path, old, list(reversed(created))))
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+            if not self.path.exists():
+                _remove_created(list(reversed(created)))

@@ -2,7 +2,7 @@
 
 A :class:`Trajectory` holds times ``t`` (N,), positions ``p`` (N, n), inertial velocities ``v``
 (N, n) and accelerations ``u`` (N, n), where ``u[k]`` is held constant on ``[t_k, t_{k+1})`` (the
-CSV convention of PRODUCT.md). Generators of the motion classes of Tables 1–3 are in
+CSV convention of the README). Generators of the motion classes of Tables 1–3 are in
 :mod:`obsplan.generators`.
 """
 
@@ -274,7 +274,7 @@ def grid_times(t: np.ndarray) -> np.ndarray:
 
 
 def write_csv(traj: Trajectory, path: str | Path, overwrite: bool = True) -> Path:
-    """Write the trajectory CSV of PRODUCT.md (one header row, SI units), atomically.
+    """Write the trajectory CSV (one header row, SI units), atomically.
 
     Positions, velocities and inputs are written with ``repr`` (exact round trip); times are
     written on their grid (:func:`grid_times`: ``57.0``, not ``56.99999999999999``), other

@@ -331,7 +331,7 @@ def _fake_validation(end: float, runs: int = 5):
     t = np.linspace(0.0, 600.0, 61)
     ekf = SimpleNamespace(
         rmse_pos_t=np.linspace(1.0, end, t.size), rmse_pos=float(np.mean([1.0, end])),
-        final_pos_err=end,
+        final_pos_err=end, flagged_runs=3,
     )  # fmt: skip
     return SimpleNamespace(
         result=SimpleNamespace(
@@ -371,6 +371,7 @@ def test_row34_path_figure_draws_the_min_range_and_zooms_on_loops_at_the_beacon(
     fig = plot_filter_errors(val, problem=pb.name)
     title = fig.axes[0].get_title()
     assert title.startswith(pb.name) and "at the end: plan 0.3 m > lawn-mower 0.2 m" in title
+    assert "led by its 3 flagged runs" in title and "mean final error, 0.3 vs 0.2 m" in title
     plt.close(fig)
     val["planned"] = _fake_validation(0.1)
     fig = plot_filter_errors(val, problem=pb.name)

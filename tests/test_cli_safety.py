@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -324,3 +325,42 @@ def test_the_memory_and_time_limits_are_read_from_the_environment(monkeypatch):
         budget.check_monte_carlo(1000, 100_000, 2, "--runs")
     monkeypatch.delenv("OBSPLAN_MAX_HOURS")
     budget.check_monte_carlo(1000, 100_000, 2, "--runs")  # within the defaults
+
+
+# ------------------------------------------------------------------------------ late signals
+def _signal_self(sig):
+    def fake(*a, **k):
+        os.kill(os.getpid(), sig)  # main's handler turns it into an interruption
+        time.sleep(1.0)  # the handler runs at the next bytecode
+        return ""
+
+    return fake
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_after_the_folder_was_swapped_in_undoes_it(sig, code, tmp_path, monkeypatch):
+    out = tmp_path / "o"
+    assert main(["plan", "--out", str(out), "--no-validate", *SMALL]) == 0
+    before = _snapshot(out)
+    monkeypatch.setattr("obsplan.cli.plan.summary_table", _signal_self(sig))  # after commit
+    assert main(["plan", "--out", str(out), "--force", "--no-validate", *SMALL]) == code
+    assert _snapshot(out) == before
+    assert [p.name for p in tmp_path.iterdir()] == ["o"]
+    # a new folder is removed again
+    assert main(["plan", "--out", str(tmp_path / "new"), "--no-validate", *SMALL]) == code
+    assert [p.name for p in tmp_path.iterdir()] == ["o"]
+
+
+def test_a_signal_after_a_file_was_written_undoes_it(tmp_path, monkeypatch):
+    traj = tmp_path / "t.csv"
+    write_csv(gen.circle(30.0, 1.5, 20.0, 0.5), traj)
+    wp = tmp_path / "wp.csv"
+    wp.write_text("the old waypoints")
+    monkeypatch.setattr("obsplan.cli.export.json.dumps", _signal_self(signal.SIGTERM))
+    argv = ["export", str(traj), "--waypoints", str(wp), "--force", "--json"]
+    assert main(argv) == 143
+    assert wp.read_text() == "the old waypoints"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv", "wp.csv"]
+    wp.unlink()
+    assert main(argv) == 143
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]

@@ -1,4 +1,4 @@
-"""A newcomer's first ten minutes, through the installed ``obsplan`` command (issue #5).
+"""A newcomer's first ten minutes, through the installed ``obsplan`` command.
 
 ``obsplan plan --out DIR`` with no problem file must produce ``plan.csv``, ``report.json`` and the
 figures, and ``obsplan analyze DIR/plan.csv --json`` must read the plan back. Run through the

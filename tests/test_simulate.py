@@ -251,15 +251,34 @@ def test_gaussian_sum_copes_better_with_the_straight_line(straight_line):
 
 
 def test_gaussian_sum_of_one_component_is_the_ekf(short):
-    from obsplan.estimation.ekf import ExtendedKalmanFilter
+    """Both filters run on the same readings: one component is the EKF (to 1e-12)."""
     from obsplan.estimation.gsf import GaussianSumFilter
+    from obsplan.estimation.runs import PathSetup, draw_run, nav_of, start_of
+    from obsplan.estimation.stats import N_INFO
+    from obsplan.estimation.truth import noisy_readings
 
     traj, cfg = short
-    cov = cfg.covariances(0.1)
-    g = GaussianSumFilter(cfg.model, cov["q_ekf"], cov["p0_ekf"], dict(cfg.noise), split=(1, 0.5))
-    e = ExtendedKalmanFilter(cfg.model, cov["q_ekf"], cov["p0_ekf"], dict(cfg.noise))
+    setup = PathSetup(traj, cfg, ("ekf",), None, 2)
+    plan, model, noise = setup.plan, cfg.model, dict(cfg.noise)
+    Y, truth, starts = [], [], []
+    for r in range(2):
+        dr = draw_run(setup, 3, r)
+        x = setup.nominal
+        Y.append(noisy_readings(model, x[plan.epoch_pt], plan.reports, noise, dr.readings))
+        truth.append(nav_of(model, x[plan.rec_pt]))
+        starts.append(start_of(model, x[0], dr, Y[-1][0, 0]))
+    Y, truth = np.stack(Y, axis=2), np.stack(truth)
+    g = GaussianSumFilter(model, setup.noise.q_ekf, setup.cov["p0_ekf"], noise, split=(1, 0.5))
     assert g.components == 1
-    np.testing.assert_array_equal(g.component_cov, e.p0)
+    out = []
+    for f in (setup.filters["ekf"], g):
+        Nr, n2 = setup.records.size, 2 * model.dim
+        sums, info, ex = np.zeros((2, Nr, 3 + n2)), np.zeros((2, N_INFO)), np.zeros((2, Nr, n2))
+        f.run(setup.ctx, [f.start(*st) for st in starts], Y, truth, sums, info, 0, ex)
+        out.append((sums, info, ex))
+    assert np.any(out[0][2][1] > 0)  # the history was recorded
+    for a, b in zip(out[0], out[1], strict=True):
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * np.nanmax(np.abs(a)))
 
 
 def test_a_path_from_the_beacon_is_finite():

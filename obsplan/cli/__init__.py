@@ -65,7 +65,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if interrupts.pending() is None:
             raise
         with interrupts.ignored():
-            print(_interrupted_message("?", exc), file=sys.stderr)
+            print(_interrupted_message("", exc), file=sys.stderr)
     finally:
         signalled = interrupts.exit_code()
         outputs.finish(undo=signalled is not None)
@@ -77,11 +77,15 @@ def _interrupted_message(verb: str, exc: BaseException) -> str:
     signum = interrupts.pending()
     by = f" by {signal.Signals(signum).name}" if signum not in (None, signal.SIGINT) else ""
     kept = getattr(exc, "kept", None) or "nothing was written"
-    return f"obsplan {verb}: interrupted{by}; {kept}"
+    return f"{_who(verb)}: interrupted{by}; {kept}"
+
+
+def _who(verb: str) -> str:
+    return f"obsplan {verb}" if verb else "obsplan"
 
 
 def _run(argv: Sequence[str] | None) -> int:
-    verb = "?"
+    verb = ""
     try:
         parser = build_parser()
         args = parser.parse_args(
@@ -92,13 +96,13 @@ def _run(argv: Sequence[str] | None) -> int:
         interrupts.check()  # a swallowed signal: the exit code says so (outputs are undone)
         return code
     except InputError as exc:
-        print(f"obsplan {verb}: error: {exc}", file=sys.stderr)
+        print(f"{_who(verb)}: error: {exc}", file=sys.stderr)
         return 2
     except FileExistsError as exc:
-        print(f"obsplan {verb}: error: {exc}", file=sys.stderr)
+        print(f"{_who(verb)}: error: {exc}", file=sys.stderr)
         return 2
     except ObsplanError as exc:
-        print(f"obsplan {verb}: failed: {exc}", file=sys.stderr)
+        print(f"{_who(verb)}: failed: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as exc:
         with interrupts.ignored():
@@ -106,7 +110,7 @@ def _run(argv: Sequence[str] | None) -> int:
         return exc.exit_code if isinstance(exc, interrupts.Interrupted) else 130
     except OSError as exc:  # e.g. the disk filled up while writing results
         where = f" ({exc.filename})" if exc.filename else ""
-        print(f"obsplan {verb}: failed: {exc.strerror or exc}{where}", file=sys.stderr)
+        print(f"{_who(verb)}: failed: {exc.strerror or exc}{where}", file=sys.stderr)
         return 1
 
 

@@ -15,13 +15,16 @@ import sys
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from obsplan.budget import check_file_rows
 from obsplan.csvtable import COLUMN_LIMITS
 from obsplan.errors import InputError
 from obsplan.outputs import OutputDir, OutputFile, write_marker
 from obsplan.textfiles import check_magnitude
-from obsplan.trajectory import InconsistentTrajectoryWarning, Trajectory
+
+if TYPE_CHECKING:
+    from obsplan.trajectory import Trajectory
 
 
 # ------------------------------------------------------------------------------ arguments
@@ -151,7 +154,9 @@ def read_trajectory(path: str, verb: str) -> Trajectory:
 
     A consistency warning is printed as one line, not a traceback.
     """
+    # imported here: `obsplan` installs its signal handlers before numpy and the rest load
     from obsplan.io.tracks import load_trajectory
+    from obsplan.trajectory import InconsistentTrajectoryWarning
 
     check_file_rows(path, "the trajectory")  # a huge file is refused before it is read
     with warnings.catch_warnings(record=True) as caught:

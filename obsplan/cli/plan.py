@@ -21,6 +21,7 @@ from obsplan.planning.figures import (
 from obsplan.planning.parse import DEFAULT_PROBLEM, load_problem
 from obsplan.planning.plan import PlanResult, plan
 from obsplan.planning.problem import Horizon, PlanningProblem
+from obsplan.planning.replan import ReplanResult, replan_monte_carlo, replan_nodes
 from obsplan.trajectory import write_csv
 
 DEFAULT_OUT = "obsplan-plan"
@@ -65,6 +66,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("--steps", type=int, metavar="N", help="override horizon.steps")
     p.add_argument("--starts", type=int, metavar="N", help="override objective.starts")
     p.add_argument("--no-validate", action="store_true", help="skip the Monte Carlo validation")
+    p.add_argument(
+        "--replan",
+        type=float,
+        metavar="EVERY",
+        help="also validate with receding-horizon replanning: every EVERY s (a multiple of the "
+        "planning step) each run re-solves from its EKF estimate (report.json key 'replan')",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     return p
@@ -84,6 +92,10 @@ def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningP
     if args.runs is not None and not args.no_validate:
         samples = pb.horizon.duration / pb.validation.dt + 1
         budget.check_monte_carlo(args.runs, samples, pb.dim, "--runs", "a longer validation.dt")
+    if args.replan is not None:
+        if args.no_validate:
+            raise InputError("--replan runs inside the validation: drop --no-validate")
+        replan_nodes(pb, args.replan)  # a bad EVERY is an input error before any work
     return pb
 
 
@@ -134,8 +146,9 @@ def summary_table(result: PlanResult) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(result: PlanResult, out: Path) -> list[Path]:
-    """Write plan.csv (if a path was found), report.json and the figures into ``out``.
+def write_outputs(result: PlanResult, out: Path, replan: ReplanResult | None = None) -> list[Path]:
+    """Write plan.csv (if a path was found), report.json and the figures into ``out``
+    (``replan``: its :meth:`~obsplan.planning.replan.ReplanResult.to_dict` under ``replan``).
 
     With a geodetic problem (an ``[origin]``) report.json carries the origin and
     ``plan-geodetic.csv`` has the plan as time, latitude, longitude[, depth].
@@ -154,6 +167,8 @@ def write_outputs(result: PlanResult, out: Path) -> list[Path]:
             )
     report = out / "report.json"
     doc = result.to_dict()
+    if replan is not None:
+        doc["replan"] = replan.to_dict()
     if origin is not None:
         doc["origin"] = origin.to_dict()
     report.write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
@@ -181,7 +196,18 @@ def run(args: argparse.Namespace) -> int:
             progress=not args.quiet,
             verbose=args.verbose,
         )
-        staged = write_outputs(result, out.stage())
+        rep = None
+        if args.replan is not None and result.trajectory is not None:
+            rep = replan_monte_carlo(
+                pb,
+                result.trajectory,
+                args.replan,
+                baselines={k: b.trajectory for k, b in result.baselines.items()},
+                runs=args.runs,
+                processes=None,
+                progress=not args.quiet,
+            )
+        staged = write_outputs(result, out.stage(), rep)
         written = [out.final(p) for p in staged]
         out.commit()  # DIR replaced whole: no stale file of an earlier run survives
     s = result.solve
@@ -193,9 +219,26 @@ def run(args: argparse.Namespace) -> int:
     )
     if s.note:
         print(f"note: {s.note}")
+    k = result.keepout
+    if k is not None and k.k > 0:
+        print(
+            f"keep-out at {k.confidence:.4g} confidence: margins up to "
+            f"{k.max_range_margin_m:.2f} m "
+            f"(range), {k.max_box_margin_m:.2f} m (area/depth), up to {k.max_accel_reserve:.0%} "
+            f"of the acceleration kept for the guidance; {k.rounds} re-solve(s), "
+            + ("held" if k.held else f"NOT held: {k.note}")
+        )
     print(summary_table(result))
     for line in result.verdict.summary():
         print(line)
+    if result.robustness is not None:
+        r = result.robustness
+        print(f"robustness (prior x{r.prior:g}, range noise x{r.range_noise:g}, not replanned):")
+        for line in r.verdict.summary():
+            print(f"  {line}")
+    if rep is not None:
+        for line in rep.summary():
+            print(line)
     print(f"wrote {', '.join(str(p) for p in written)}")
     if not result.success:
         print(

@@ -17,12 +17,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from obsplan.estimation import kalman
+from obsplan.errors import ConfigError
+from obsplan.estimation import bundles, kalman
+from obsplan.estimation.config import EstimationConfig, ProcessNoise
 from obsplan.estimation.epochs import RunContext
+from obsplan.estimation.filters import Filter, FilterRun, register
 from obsplan.model import VehicleModel
 
 
-class ExtendedKalmanFilter:
+@register
+class ExtendedKalmanFilter(Filter):
     """EKF of one vehicle model with per-step process noise ``q`` and sensor noises.
 
     Parameters
@@ -38,6 +42,7 @@ class ExtendedKalmanFilter:
     """
 
     name = "ekf"
+    description = "extended Kalman filter on the nonlinear model"
 
     def __init__(
         self, model: VehicleModel, q: np.ndarray, p0: np.ndarray, noise: dict[str, float]
@@ -53,6 +58,12 @@ class ExtendedKalmanFilter:
         self.transition = kalman.Transition.build(kalman.kinematic_entries(n, model.current))
         self.rows = kalman.linear_rows(model, self.noise, 0.0)
         self._tr, self._lin = self.transition.packed(), self.rows.packed()
+
+    @classmethod
+    def from_config(
+        cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
+    ) -> ExtendedKalmanFilter:
+        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise))
 
     def start(
         self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
@@ -83,57 +94,110 @@ class ExtendedKalmanFilter:
         corrections at the epochs and records (closed loop: the inputs it applied are the
         plan's plus corrections); ``None``: the plan's inputs.
         """
+        X0, P0, lw0 = self._members(states)
+        self._batch(ctx, X0, P0, lw0, 1, Y, truth_rec, sums, info, ex_run, example, corrections)
+
+    def _members(self, states: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``X0`` (m, R), ``P0`` (m, m, R), ``lw0`` (R,) of the runs' starts."""
         X0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
         P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
-        self._batch(
-            ctx,
-            X0,
-            P0,
-            np.zeros(len(states)),
-            1,
-            Y,
-            truth_rec,
-            sums,
-            info,
-            ex_run,
-            example,
-            corrections,
-        )
+        return X0, P0, np.zeros(len(states))
 
     def _batch(
-        self, ctx, X0, P0, lw0, G, Y, truth_rec, sums, info, ex_run, example, corrections
+        self,
+        ctx: RunContext,
+        X0: np.ndarray,
+        P0: np.ndarray,
+        lw0: np.ndarray,
+        G: int,
+        Y: np.ndarray,
+        truth_rec: np.ndarray,
+        sums: np.ndarray,
+        info: np.ndarray,
+        ex_run: int,
+        example: np.ndarray | None,
+        corrections: tuple[np.ndarray, np.ndarray] | None,
     ) -> None:
-        from obsplan.estimation import kernels
+        from obsplan.estimation import kernels  # numba is loaded on first use
 
-        m, plan = self.model, ctx.plan
-        ce, cr = ctx.corrections(*(corrections or (None, None)))
         kernels.ekf_batch(
             X0,
             P0,
             lw0,
             G,
-            plan.seg_tab,
-            self.q_terms,
-            self._tr,
             np.ascontiguousarray(Y),
-            m.dim,
-            m.current,
-            m.beacon_array,
-            m.range_form == "half-squared",
-            float(self.noise["range"]),
-            self._lin,
-            plan.rec_base,
-            ctx.records_with_truth(truth_rec),
-            self.q_nav,
-            ctx.t_rec,
-            ctx.threshold_m,
-            ctx.nees_bound,
-            ctx.window_s,
-            sums,
-            info,
-            ex_run if example is not None else -1,
-            ctx.no_example if example is None else example,
-            ce,
-            cr,
-            ctx.rec_w,
+            mdl=bundles.ekf_model(self.model, ctx, self),
+            rcd=bundles.records(ctx, truth_rec, self.q_nav),
+            out=bundles.outputs(ctx, sums, info, ex_run, example),
+            cor=bundles.corrections(ctx, corrections),
         )
+
+    # ------------------------------------------------------------------ epoch by epoch
+    def begin(
+        self,
+        ctx: RunContext,
+        states: list,
+        Y: np.ndarray,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> FilterRun:
+        X0, P0, lw0 = self._members(states)
+        return self._begin(ctx, X0, P0, lw0, 1, Y, corrections)
+
+    def _begin(self, ctx, X0, P0, lw0, G, Y, corrections) -> FilterRun:
+        from obsplan.estimation import kernels
+
+        m, B = X0.shape
+        ws, iw, _ = kernels.workspaces(m, B, self.model.dim, np.zeros(self.model.dim), self.q_nav)
+        parts = {
+            "mdl": bundles.ekf_model(self.model, ctx, self),
+            "cor": bundles.corrections(ctx, corrections),
+            "Q": np.zeros((m, m, B)),
+            "ws": ws,
+            "iw": iw,
+            "w": np.ones(B),
+        }
+        R = B // G
+        return FilterRun(
+            ctx=ctx,
+            Y=np.ascontiguousarray(Y),
+            X=X0.copy(),
+            P=P0.copy(),
+            lw=np.array(lw0, dtype=float),
+            G=G,
+            parts=parts,
+            run_nis=np.zeros(R),
+            run_cnt=np.zeros(R),
+        )
+
+    def predict(self, run: FilterRun) -> None:
+        from obsplan.estimation import kernels
+
+        p, e = run.parts, run.epoch + 1
+        kernels.ekf_predict(run.X, run.P, p["Q"], p["ws"], p["mdl"], e, p["cor"], run.G)
+        run.epoch, run.updated = e, False
+
+    def update(self, run: FilterRun) -> None:
+        from obsplan.estimation import kernels
+
+        p, mdl = run.parts, run.parts["mdl"]
+        if run.updated:
+            raise ConfigError(f"epoch {run.epoch} is updated already; predict to the next first")
+        kernels.ekf_measure(
+            run.X,
+            run.P,
+            run.Y,
+            run.epoch,
+            run.lw,
+            p["w"],
+            run.G,
+            p["iw"],
+            p["ws"],
+            mdl.n,
+            mdl.beacon,
+            mdl.half_sq,
+            mdl.sig_r * mdl.sig_r,
+            mdl.lin,
+            run.run_nis,
+            run.run_cnt,
+        )
+        run.updated = True

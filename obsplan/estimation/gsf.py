@@ -31,8 +31,10 @@ import itertools
 import numpy as np
 
 from obsplan.errors import ConfigError
+from obsplan.estimation.config import EstimationConfig, ProcessNoise
 from obsplan.estimation.ekf import ExtendedKalmanFilter
 from obsplan.estimation.epochs import RunContext
+from obsplan.estimation.filters import Filter, FilterRun, register
 from obsplan.model import VehicleModel
 
 #: Points per velocity axis and component std (whitened) by dimension: 25 components in 2D,
@@ -55,7 +57,8 @@ def split_1d(k: int, s: float) -> tuple[np.ndarray, np.ndarray]:
     return w, mu
 
 
-class GaussianSumFilter:
+@register
+class GaussianSumFilter(Filter):
     """Gaussian-sum EKF (module docstring).
 
     Parameters
@@ -67,6 +70,7 @@ class GaussianSumFilter:
     """
 
     name = "gsf"
+    description = "Gaussian-sum EKF, prior split over the velocity (range-only geometry)"
 
     def __init__(
         self,
@@ -92,6 +96,12 @@ class GaussianSumFilter:
         self.log_weights = np.log(np.array(weights))
         shrink = 0.0 if len(w1) == 1 else 1.0 - s * s
         self.component_cov = np.asarray(p0, float) - shrink * (D @ D.T)
+
+    @classmethod
+    def from_config(
+        cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
+    ) -> GaussianSumFilter:
+        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise))
 
     @property
     def components(self) -> int:
@@ -122,11 +132,7 @@ class GaussianSumFilter:
     ) -> None:
         """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`): the EKF's kernel on
         every run's components, which it mixes by their weights."""
-        X0 = np.ascontiguousarray(np.concatenate([st[0] for st in states], axis=0).T)
-        P0 = np.ascontiguousarray(
-            np.concatenate([st[1] for st in states], axis=0).transpose(1, 2, 0)
-        )
-        lw0 = np.concatenate([st[2] for st in states])
+        X0, P0, lw0 = self._members(states)
         self.ekf._batch(
             ctx,
             X0,
@@ -141,3 +147,28 @@ class GaussianSumFilter:
             example,
             corrections,
         )
+
+    def _members(self, states: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The runs' components side by side: ``X0`` (m, R C), ``P0`` (m, m, R C), ``lw0``."""
+        X0 = np.ascontiguousarray(np.concatenate([st[0] for st in states], axis=0).T)
+        P0 = np.ascontiguousarray(
+            np.concatenate([st[1] for st in states], axis=0).transpose(1, 2, 0)
+        )
+        return X0, P0, np.concatenate([st[2] for st in states])
+
+    # ------------------------------------------------------------------ epoch by epoch
+    def begin(
+        self,
+        ctx: RunContext,
+        states: list,
+        Y: np.ndarray,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> FilterRun:
+        X0, P0, lw0 = self._members(states)
+        return self.ekf._begin(ctx, X0, P0, lw0, self.components, Y, corrections)
+
+    def predict(self, run: FilterRun) -> None:
+        self.ekf.predict(run)
+
+    def update(self, run: FilterRun) -> None:
+        self.ekf.update(run)

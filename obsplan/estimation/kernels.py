@@ -648,46 +648,35 @@ def ekf_measure(X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, var_r, lin, ru
 
 
 @jit
-def ekf_batch(
-    X0,
-    P0,
-    lw0,
-    G,
-    tab,
-    qt,
-    tr,
-    Y,
-    n,
-    cur,
-    beacon,
-    half_sq,
-    sig_r,
-    lin,
-    rec_base,
-    rec,
-    qz,
-    t_rec,
-    thr,
-    bound,
-    window,
-    sums,
-    info,
-    ex_run,
-    ex,
-    ce,
-    cr,
-    rec_w,
-):
+def ekf_predict(X, P, Q, ws, mdl, e, cor, G):
+    """The EKF's prediction of every member to epoch ``e`` (``e > 0``) over segment ``e``, with
+    each run's input correction (``cor``, :data:`~obsplan.estimation.bundles.Corrections`)."""
+    m = X.shape[0]
+    tab = mdl.tab
+    noise_terms(Q, mdl.qt, tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2], m)
+    predict(X, P, tab, e, mdl.n, mdl.tr, Q, ws)
+    if cor.ce.shape[0] > 0:
+        correct_inputs(X, cor.ce, e, tab[e, TAB_T], mdl.n, G)
+
+
+@jit
+def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
     """EKF runs over the epochs, batched (see :mod:`obsplan.estimation.ekf`).
 
     ``X0`` (m, B), ``P0`` (m, m, B): the members; run ``g`` of the batch owns members
     ``g G .. g G + G - 1`` (``G = 1``: the EKF; ``G > 1``: the components of a Gaussian sum,
     :mod:`obsplan.estimation.gsf`, whose log weights ``lw0`` grow by their innovations'
-    log-likelihoods and whose mixture is recorded). ``Y`` (E, outputs, runs), ``rec`` (runs, Nr,
-    cols), ``info`` (runs, N_INFO); ``ex`` receives run ``ex_run``'s history; ``ce``, ``cr`` the
-    runs' input corrections (closed loop; empty: none), ``rec_w`` (Nr,) the records' weights of
-    the subset RMSE.
+    log-likelihoods and whose mixture is recorded). ``Y`` (E, outputs, runs) the readings; the
+    bundles (:mod:`obsplan.estimation.bundles`): ``mdl`` an ``EkfModel``, ``rcd`` the
+    ``Records``, ``out`` the ``Outputs`` (``ex`` receives run ``ex_run``'s history), ``cor``
+    the runs' input ``Corrections`` (closed loop; empty: none).
     """
+    tab, qt, tr, lin, n, cur = mdl.tab, mdl.qt, mdl.tr, mdl.lin, mdl.n, mdl.cur
+    beacon, half_sq, sig_r = mdl.beacon, mdl.half_sq, mdl.sig_r
+    rec_base, rec, qz, t_rec = rcd.rec_base, rcd.rec, rcd.qz, rcd.t_rec
+    thr, bound, window, rec_w = rcd.thr, rcd.bound, rcd.window, rcd.rec_w
+    sums, info, ex_run, ex = out.sums, out.info, out.ex_run, out.ex
+    ce, cr = cor.ce, cor.cr
     m, B = X0.shape
     R = B // G
     E = tab.shape[0]
@@ -825,124 +814,120 @@ def kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple):
 
 
 @jit
-def kf_batch(
-    Z0,
-    P0,
-    tab,
-    rule,
-    ep_d,
-    qt,
-    qk,
-    qdiag,
-    couple,
-    tr,
-    Y,
-    n,
-    cur,
-    beacon,
-    sig_r,
-    y0,
-    var0,
-    inflate,
-    lin,
-    rec_base,
-    rec,
-    qz,
-    t_rec,
-    thr,
-    bound,
-    window,
-    sums,
-    info,
-    ex_run,
-    ex,
-    ce,
-    cr,
-    rec_w,
-):
+def kf_predict(X, P, Q, kw, ws, mdl, e, cor):
+    """The augmented KF's prediction of every run to epoch ``e`` (``e > 0``) over segment ``e``:
+    the coupling's gains at the segment's start, the composed noise (kinematic terms, then the
+    chain's, :func:`kf_chain_noise`), the transition and each run's input correction."""
+    n, cur, ep_d, ce = mdl.n, mdl.cur, mdl.ep_d, cor.ce
+    mx = X.shape[0] - 3
+    B = X.shape[1]
+    corr = ce.shape[0] > 0
+    for i in range(n):
+        for b in range(B):
+            dp, dv = ep_d[e - 1, i], ep_d[e - 1, n + i]
+            if corr:
+                dp += ce[e - 1, i, b]
+                dv += ce[e - 1, n + i, b]
+            nu_i = X[n + i, b] + (X[2 * n + i, b] if cur else 0.0)
+            kw[0, i, b] = X[i, b] - dp  # c_p at the segment's start
+            kw[1, i, b] = nu_i - dv  # c_v
+    tab = mdl.tab
+    noise_terms(Q, mdl.qt, tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2], mx)
+    kf_chain_noise(Q, kw, mdl.qk, mdl.rule, tab, e, mx, n, cur, mdl.qdiag, mdl.couple)
+    predict(X, P, tab, e, n, mdl.tr, Q, ws)
+    if corr:
+        correct_inputs(X, ce, e, tab[e, TAB_T], n, 1)
+
+
+@jit
+def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
+    """The augmented KF's updates at epoch ``e`` (the linear range row ``ȳ``, then the linear
+    rows) of every run, and their NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``)."""
+    n, ep_d, ce, y0, var0 = mdl.n, mdl.ep_d, cor.ce, anc.y0, anc.var0
+    var_r = mdl.sig_r * mdl.sig_r
+    kc = X.shape[0] - 3
+    B = X.shape[1]
+    corr = ce.shape[0] > 0
+    for b in range(B):
+        ws[WS_SC, SC_NIS, b] = 0.0
+        ws[WS_SC, SC_CNT, b] = 0.0
+    if e > 0:
+        # ȳ = y - y0 + ½|d|² = dᵀp + κ (+ noise): linear
+        for i in range(n):
+            iw[i] = i
+        iw[n] = kc
+        any_ok = False
+        for b in range(B):
+            rm = Y[e, 0, b]
+            ok = math.isfinite(rm)
+            pred = X[kc, b]
+            d2 = 0.0
+            for i in range(n):
+                di = ep_d[e, i] + (ce[e, i, b] if corr else 0.0)
+                d2 += di * di
+                ws[WS_VAL, i, b] = di
+                pred += di * X[i, b]
+            ws[WS_VAL, n, b] = 1.0
+            r = rm * rm * var_r + 0.5 * var_r * var_r + (var0[b] if mdl.inflate else 0.0)
+            nu = 0.5 * rm * rm - 0.5 * var_r - y0[b] + 0.5 * d2 - pred
+            ws[WS_SC, SC_NU, b] = nu if ok else 0.0
+            ws[WS_SC, SC_R, b] = r if ok else 1.0
+            ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
+            any_ok = any_ok or ok
+        if any_ok:
+            update_rows(X, P, iw, ws, n + 1)
+    if Y.shape[1] > 1:
+        linear_updates(X, P, Y, e, mdl.lin, iw, ws, 1)
+    for b in range(B):
+        run_nis[b] += ws[WS_SC, SC_NIS, b]
+        run_cnt[b] += ws[WS_SC, SC_CNT, b]
+
+
+@jit
+def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     """Augmented-KF runs over the epochs, batched over runs (see :mod:`obsplan.estimation.kf`).
 
-    ``Z0`` (m, R), ``P0`` (m, m, R), anchors ``y0``, ``var0`` (R,); ``ep_d`` (E, 2n) holds the
-    input displacement ``d`` and its rate ``ḋ`` of the plan's inputs at the epochs (a run's
-    own is ``ep_d + ce``: the displacement of its input corrections is ``c``); other arrays as
-    :func:`ekf_batch`.
+    ``Z0`` (m, R), ``P0`` (m, m, R); ``anc`` the runs' ``Anchors``; ``mdl`` a ``KfModel`` whose
+    ``ep_d`` (E, 2n) holds the input displacement ``d`` and its rate ``ḋ`` of the plan's inputs
+    at the epochs (a run's own is ``ep_d + ce``: the displacement of its input corrections is
+    ``c``); other arguments as :func:`ekf_batch`.
     """
+    n, cur = mdl.n, mdl.cur
+    rec_base, rec, t_rec = rcd.rec_base, rcd.rec, rcd.t_rec
+    sums, info, ex_run, ex = out.sums, out.info, out.ex_run, out.ex
+    ce, cr = cor.ce, cor.cr
     m, B = Z0.shape
-    mx = m - 3
-    kc = mx
-    E = tab.shape[0]
+    E = mdl.tab.shape[0]
     X = Z0.copy()
     P = P0.copy()
     Q = np.zeros((m, m, B))
-    ws, iw, nw = workspaces(m, B, n, beacon, qz)
-    kw = np.zeros((8, qk.shape[0], B))
+    ws, iw, nw = workspaces(m, B, n, mdl.beacon, rcd.qz)
+    kw = np.zeros((8, mdl.qk.shape[0], B))
     lw = np.zeros(B)
     xm = np.empty(m)
     Pm = np.empty((m, m))
     buf = np.zeros((B, rec_base.shape[0], COL_AXES + 2 * n))
     run_nis = np.zeros(B)
     run_cnt = np.zeros(B)
-    var_r = sig_r * sig_r
     ri = 0
     n_rec = rec_base.shape[0]
-    n_lin = Y.shape[1] > 1
-    corr = ce.shape[0] > 0
-    Sp = (-1.0, -1.0, -1.0)
     for e in range(E):
         if e > 0:
-            for i in range(n):
-                for b in range(B):
-                    dp, dv = ep_d[e - 1, i], ep_d[e - 1, n + i]
-                    if corr:
-                        dp += ce[e - 1, i, b]
-                        dv += ce[e - 1, n + i, b]
-                    nu_i = X[n + i, b] + (X[2 * n + i, b] if cur else 0.0)
-                    kw[0, i, b] = X[i, b] - dp  # c_p at the segment's start
-                    kw[1, i, b] = nu_i - dv  # c_v
-            S = (tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2])
-            if S != Sp:  # equal segments repeat on uniform grids
-                Sp = S
-                noise_terms(Q, qt, S[0], S[1], S[2], mx)
-            kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple)
-            predict(X, P, tab, e, n, tr, Q, ws)
-            if corr:
-                correct_inputs(X, ce, e, tab[e, TAB_T], n, 1)
-        for b in range(B):
-            ws[WS_SC, SC_NIS, b] = 0.0
-            ws[WS_SC, SC_CNT, b] = 0.0
-        if e > 0:  # epoch 0 is the anchor y0: ȳ_0 ≡ 0
-            # ȳ = y - y0 + ½|d|² = dᵀp + κ (+ noise): linear
-            for i in range(n):
-                iw[i] = i
-            iw[n] = kc
-            any_ok = False
-            for b in range(B):
-                rm = Y[e, 0, b]
-                ok = math.isfinite(rm)
-                pred = X[kc, b]
-                d2 = 0.0
-                for i in range(n):
-                    di = ep_d[e, i] + (ce[e, i, b] if corr else 0.0)
-                    d2 += di * di
-                    ws[WS_VAL, i, b] = di
-                    pred += di * X[i, b]
-                ws[WS_VAL, n, b] = 1.0
-                r = rm * rm * var_r + 0.5 * var_r * var_r + (var0[b] if inflate else 0.0)
-                ws[WS_SC, SC_NU, b] = (
-                    0.5 * rm * rm - 0.5 * var_r - y0[b] + 0.5 * d2 - pred if ok else 0.0
-                )
-                ws[WS_SC, SC_R, b] = r if ok else 1.0
-                ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
-                any_ok = any_ok or ok
-            if any_ok:
-                update_rows(X, P, iw, ws, n + 1)
-        if n_lin:
-            linear_updates(X, P, Y, e, lin, iw, ws, 1)
-        for b in range(B):
-            run_nis[b] += ws[WS_SC, SC_NIS, b]
-            run_cnt[b] += ws[WS_SC, SC_CNT, b]
+            kf_predict(X, P, Q, kw, ws, mdl, e, cor)
+        kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt)
         while ri < n_rec and rec_base[ri] == e:
             record_batch(X, P, lw, 1, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
             ri += 1
     for g in range(B):
-        finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g], rec_w)
+        finish_run(
+            buf[g],
+            t_rec,
+            rcd.thr,
+            rcd.bound,
+            rcd.window,
+            run_nis[g],
+            run_cnt[g],
+            sums,
+            info[g],
+            rcd.rec_w,
+        )

@@ -52,9 +52,10 @@ from __future__ import annotations
 import numpy as np
 
 from obsplan.errors import ConfigError
-from obsplan.estimation import kalman
-from obsplan.estimation.config import Y0Mode
+from obsplan.estimation import bundles, kalman
+from obsplan.estimation.config import EstimationConfig, ProcessNoise, Y0Mode
 from obsplan.estimation.epochs import RunContext
+from obsplan.estimation.filters import Filter, FilterRun, register
 from obsplan.model import VehicleModel
 from obsplan.observability.gramian import augmented_model
 
@@ -65,7 +66,8 @@ def anchor(r0: np.ndarray | float, sigma_r: float) -> tuple[np.ndarray, np.ndarr
     return 0.5 * r0**2 - 0.5 * sigma_r**2, r0**2 * sigma_r**2 + 0.5 * sigma_r**4
 
 
-class AugmentedKalmanFilter:
+@register
+class AugmentedKalmanFilter(Filter):
     """Augmented KF of one vehicle model (module docstring).
 
     Parameters
@@ -85,6 +87,7 @@ class AugmentedKalmanFilter:
     """
 
     name = "kf"
+    description = "Kalman filter on the augmented linear model (process-noise coupling modelled)"
 
     def __init__(
         self,
@@ -116,6 +119,19 @@ class AugmentedKalmanFilter:
         bz = model.beacon_array[2] if model.dim == 3 else 0.0
         self.rows = kalman.linear_rows(model, self.noise, bz)
         self._tr, self._lin = self.transition.packed(), self.rows.packed()
+
+    @classmethod
+    def from_config(
+        cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
+    ) -> AugmentedKalmanFilter:
+        return cls(
+            config.model,
+            pn.q_kf,
+            cov["p0_kf"],
+            dict(config.noise),
+            config.y0_mode,
+            config.kf_coupling,
+        )
 
     def to_chain(self, mz: int) -> np.ndarray:
         """``M`` with ``z_chain(t0) = M (p - b, v[, v_f], α, β)``: ``φ = α``, ``γ = ½β``, ``κ = 0``
@@ -177,46 +193,87 @@ class AugmentedKalmanFilter:
     ) -> None:
         """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`; ``states`` from
         :meth:`start`)."""
-        from obsplan.estimation import kernels
+        from obsplan.estimation import kernels  # numba is loaded on first use
 
-        m, plan = self.model, ctx.plan
-        ce, cr = ctx.corrections(*(corrections or (None, None)))
-        Z0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
-        P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
-        y0 = np.array([st[2] for st in states])
-        var0 = np.array([st[3] for st in states])
+        Z0, P0, anc = self._members(states)
         kernels.kf_batch(
             Z0,
             P0,
-            plan.seg_tab,
-            plan.seg_rule,
-            ctx.d_epochs,
-            self.q_terms,
-            self.q,
-            self.q_diag,
-            self.coupling,
-            self._tr,
             np.ascontiguousarray(Y),
-            m.dim,
-            m.current,
-            m.beacon_array,
-            float(self.noise["range"]),
-            y0,
-            var0,
-            self.y0_mode == "inflate",
-            self._lin,
-            plan.rec_base,
-            ctx.records_with_truth(truth_rec),
-            self.q_nav,
-            ctx.t_rec,
-            ctx.threshold_m,
-            ctx.nees_bound,
-            ctx.window_s,
-            sums,
-            info,
-            ex_run if example is not None else -1,
-            ctx.no_example if example is None else example,
-            ce,
-            cr,
-            ctx.rec_w,
+            mdl=bundles.kf_model(self.model, ctx, self),
+            anc=anc,
+            rcd=bundles.records(ctx, truth_rec, self.q_nav),
+            out=bundles.outputs(ctx, sums, info, ex_run, example),
+            cor=bundles.corrections(ctx, corrections),
         )
+
+    def _members(self, states: list) -> tuple[np.ndarray, np.ndarray, bundles.Anchors]:
+        """``Z0`` (m, R), ``P0`` (m, m, R) and the anchors of the runs' starts."""
+        Z0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
+        P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
+        y0 = np.array([st[2] for st in states], dtype=float)
+        var0 = np.array([st[3] for st in states], dtype=float)
+        return Z0, P0, bundles.Anchors(y0=y0, var0=var0)
+
+    # ------------------------------------------------------------------ epoch by epoch
+    def begin(
+        self,
+        ctx: RunContext,
+        states: list,
+        Y: np.ndarray,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> FilterRun:
+        from obsplan.estimation import kernels
+
+        Z0, P0, anc = self._members(states)
+        m, B = Z0.shape
+        n = self.model.dim
+        ws, iw, _ = kernels.workspaces(m, B, n, self.model.beacon_array, self.q_nav)
+        parts = {
+            "mdl": bundles.kf_model(self.model, ctx, self),
+            "anc": anc,
+            "cor": bundles.corrections(ctx, corrections),
+            "Q": np.zeros((m, m, B)),
+            "kw": np.zeros((8, self.q.shape[0], B)),
+            "ws": ws,
+            "iw": iw,
+        }
+        return FilterRun(
+            ctx=ctx,
+            Y=np.ascontiguousarray(Y),
+            X=Z0.copy(),
+            P=P0.copy(),
+            lw=np.zeros(B),
+            G=1,
+            parts=parts,
+            run_nis=np.zeros(B),
+            run_cnt=np.zeros(B),
+        )
+
+    def predict(self, run: FilterRun) -> None:
+        from obsplan.estimation import kernels
+
+        p, e = run.parts, run.epoch + 1
+        kernels.kf_predict(run.X, run.P, p["Q"], p["kw"], p["ws"], p["mdl"], e, p["cor"])
+        run.epoch, run.updated = e, False
+
+    def update(self, run: FilterRun) -> None:
+        from obsplan.estimation import kernels
+
+        if run.updated:
+            raise ConfigError(f"epoch {run.epoch} is updated already; predict to the next first")
+        p = run.parts
+        kernels.kf_measure(
+            run.X,
+            run.P,
+            run.Y,
+            run.epoch,
+            p["iw"],
+            p["ws"],
+            p["mdl"],
+            p["anc"],
+            p["cor"],
+            run.run_nis,
+            run.run_cnt,
+        )
+        run.updated = True

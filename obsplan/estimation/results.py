@@ -112,7 +112,7 @@ class MonteCarloResult:
         return s
 
     def to_dict(self) -> dict:
-        """The stable keys of PRODUCT.md ``obsplan simulate --json``, then extras."""
+        """The stable keys of ``obsplan simulate --json``, then extras."""
         crlb = float(self.crlb_final_pos_std)
         out = {
             "runs": int(self.runs),

@@ -254,20 +254,51 @@ def _recursion_step_impl(model: RecursionModel, K: int) -> ca.Function:
     # Written entry by entry on the lower triangle, exploiting the symmetry of P and the sparsity
     # of A, of the constant rows and of the range row: the planner expands this function at
     # every epoch, so each flop saved here is saved thousands of times.
-    m, S = model.m, model.n_sensors
-    A = np.asarray(model.A, float)
-    A2 = A @ A
-    Arows, A2rows = _nonzeros(A), _nonzeros(A2)
-    support = model.range_support
+    m = model.m
     P = ca.SX.sym("P", m, m)
-    h = ca.SX.sym("h", len(support))
+    h = ca.SX.sym("h", len(model.range_support))
     rho = ca.SX.sym("rho")
-    mask = ca.SX.sym("mask", S)
+    mask = ca.SX.sym("mask", model.n_sensors)
     k = ca.SX.sym("k")
     dt = ca.SX.sym("dt")
     tau = ca.SX.sym("tau")
-    zero = ca.SX(0)
     Pl = [[P[max(i, j), min(i, j)] for j in range(m)] for i in range(m)]  # symmetric view
+    Pu = _updates(model, Pl, h, rho, mask)
+    propagate = _propagator(model, Pu, dt)
+
+    P_next = ca.SX(m, m)
+    for i in range(m):
+        for j in range(i + 1):
+            P_next[i, j] = propagate(i, j, k, tau + k * dt)
+            P_next[j, i] = P_next[i, j]
+
+    # per-sample diagonals of nav P navᵀ, polynomial in the sample index i of the gap
+    nav = _nonzeros(np.asarray(model.nav, float))
+    zero = ca.SX(0)
+    cols = []
+    for i in range(K):
+        col = []
+        for row in nav:
+            v = zero
+            for a, wa in row:
+                for b, wb in row:
+                    v = v + wa * wb * propagate(a, b, float(i), tau + i * dt)
+            col.append(v)
+        cols.append(ca.if_else(i < k, ca.vertcat(*col), ca.SX.zeros(len(col))))
+    D = ca.horzcat(*cols)
+    return ca.Function(
+        "riccati_epoch",
+        [P, h, rho, mask, k, dt, tau],
+        [P_next, D],
+        ["P", "h", "rho", "mask", "k", "dt", "tau"],
+        ["P_next", "D"],
+    )
+
+
+def _updates(model: RecursionModel, Pl: list, h, rho, mask) -> list:
+    """The epoch's scalar updates of the symmetric view ``Pl``: the range row ``h`` on its
+    support (variance ``rho``), then the constant rows, each weighted by its sensor's mask."""
+    m, zero = model.m, ca.SX(0)
 
     def update(Pl, row: list[tuple[int, object]], var, w):
         ph = [sum((Pl[i][j] * r for j, r in row), zero) for i in range(m)]
@@ -279,9 +310,20 @@ def _recursion_step_impl(model: RecursionModel, K: int) -> ca.Function:
                 out[i][j] = out[j][i] = Pl[i][j] - cph[i] * ph[j]
         return out
 
+    support = model.range_support
     Pu = update(Pl, [(j, h[i]) for i, j in enumerate(support)], rho, mask[model.range_sensor])
     for r, v, sen in zip(model.rows, model.row_var, model.row_sensor, strict=True):
         Pu = update(Pu, [(j, float(r[j])) for j in np.flatnonzero(r)], float(v), mask[sen])
+    return Pu
+
+
+def _propagator(model: RecursionModel, Pu: list, dt):
+    """``propagate(i, j, kk, c)``: entry ``(i, j)`` of ``F(kkΔ) Pu F(kkΔ)ᵀ`` plus the noise of
+    ``kk`` steps ending at time ``c`` (module docstring), on the moments of ``Pu``."""
+    m, zero = model.m, ca.SX(0)
+    A = np.asarray(model.A, float)
+    A2 = A @ A
+    Arows, A2rows = _nonzeros(A), _nonzeros(A2)
 
     def left(rows, X):  # (rows X)[i][j] for a sparse numeric left factor
         return [[sum((a * X[l][j] for l, a in rows[i]), zero) for j in range(m)] for i in range(m)]
@@ -333,39 +375,13 @@ def _recursion_step_impl(model: RecursionModel, K: int) -> ca.Function:
         return e
 
     def propagate(i, j, kk, c):
-        """Entry (i, j) of F(kkΔ) Pu F(kkΔ)ᵀ + the noise of kk steps ending at time c."""
         t = kk * dt
         e = zero
         for p in range(top_p + 1):
             e = e + t**p * moment(p, i, j)
         return e + noise(i, j, kk, c)
 
-    P_next = ca.SX(m, m)
-    for i in range(m):
-        for j in range(i + 1):
-            P_next[i, j] = propagate(i, j, k, tau + k * dt)
-            P_next[j, i] = P_next[i, j]
-
-    # per-sample diagonals of nav P navᵀ, polynomial in the sample index i of the gap
-    nav = _nonzeros(np.asarray(model.nav, float))
-    cols = []
-    for i in range(K):
-        col = []
-        for row in nav:
-            v = zero
-            for a, wa in row:
-                for b, wb in row:
-                    v = v + wa * wb * propagate(a, b, float(i), tau + i * dt)
-            col.append(v)
-        cols.append(ca.if_else(i < k, ca.vertcat(*col), ca.SX.zeros(len(col))))
-    D = ca.horzcat(*cols)
-    return ca.Function(
-        "riccati_epoch",
-        [P, h, rho, mask, k, dt, tau],
-        [P_next, D],
-        ["P", "h", "rho", "mask", "k", "dt", "tau"],
-        ["P_next", "D"],
-    )
+    return propagate
 
 
 def run_recursion(

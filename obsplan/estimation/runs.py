@@ -15,12 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from obsplan.errors import ConfigError
-from obsplan.estimation.config import EstimationConfig, ProcessNoise
-from obsplan.estimation.ekf import ExtendedKalmanFilter
+from obsplan.estimation import ekf, gsf, kf  # noqa: F401  (they register their filters)
 from obsplan.estimation.epochs import RunContext, epoch_plan, input_displacement, record_samples
-from obsplan.estimation.gsf import GaussianSumFilter
+from obsplan.estimation.filters import REGISTRY, make_filter
 from obsplan.estimation.guidance import TruthLimits
-from obsplan.estimation.kf import AugmentedKalmanFilter
 from obsplan.estimation.schedule import make_schedule, sample_rate
 from obsplan.estimation.stats import MONITOR_LEVEL, MONITOR_WINDOW_FRACTION, N_INFO, chi2_quantile
 from obsplan.estimation.truth import (
@@ -31,32 +29,14 @@ from obsplan.estimation.truth import (
     truth_factor,
 )
 
-#: The estimators the Monte Carlo can run, by name.
-FILTERS: dict[str, str] = {
-    "ekf": "extended Kalman filter on the nonlinear model",
-    "kf": "Kalman filter on the augmented linear model (process-noise coupling modelled)",
-    "gsf": "Gaussian-sum EKF, prior split over the velocity (range-only geometry)",
-}
+#: The estimators the Monte Carlo can run, by name: their one-line descriptions
+#: (:data:`obsplan.estimation.filters.REGISTRY` holds the classes).
+FILTERS: dict[str, str] = {name: cls.description for name, cls in REGISTRY.items()}
 #: What the Monte Carlo runs unless told otherwise.
 DEFAULT_FILTERS: tuple[str, ...] = ("ekf", "kf")
 #: Runs per kernel call: the kernels vectorise over the runs of a batch; Ctrl-C is honoured
 #: between batches.
 BATCH = 32
-
-
-def make_filter(name: str, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise):
-    """The estimator ``name`` of :data:`FILTERS` for ``config`` (priors in ``cov``, process
-    noise ``pn``: per-step covariances or intensities, as the epoch plan it runs on)."""
-    noise = dict(config.noise)
-    if name == "ekf":
-        return ExtendedKalmanFilter(config.model, pn.q_ekf, cov["p0_ekf"], noise)
-    if name == "kf":
-        return AugmentedKalmanFilter(
-            config.model, pn.q_kf, cov["p0_kf"], noise, config.y0_mode, config.kf_coupling
-        )
-    if name == "gsf":
-        return GaussianSumFilter(config.model, pn.q_ekf, cov["p0_ekf"], noise)
-    raise ConfigError(f"unknown filter {name!r}; choose from {', '.join(FILTERS)}")
 
 
 def check_filters(filters: Sequence[str]) -> tuple[str, ...]:
@@ -200,7 +180,8 @@ def draw_run(setup: PathSetup, seed: int, run: int) -> RunDraws:
 
 def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float):
     """``(x̂0, extra0, r0)`` of a run that starts at the true state ``x0`` with first range
-    reading ``r0``: the filters' common start (:meth:`ExtendedKalmanFilter.start`)."""
+    reading ``r0``: the filters' common start
+    (:meth:`~obsplan.estimation.ekf.ExtendedKalmanFilter.start`)."""
     n = model.dim
     extra0 = None
     if draws.extra_err is not None:

@@ -48,6 +48,7 @@ import numpy as np
 
 from obsplan.csvtable import CsvTable, read_table
 from obsplan.errors import InputError, TrajectoryFormatError
+from obsplan.estimation import linear
 from obsplan.geodesy import GeodeticOrigin, geodetic_to_local
 from obsplan.trajectory import Trajectory, check_samples, csv_columns, trajectory_from_table
 
@@ -666,9 +667,7 @@ def _kalman(
     for k in range(M):
         if k > 0:
             hk = h_all[k - 1]
-            F = np.array([[1.0, hk, 0.5 * hk * hk], [0.0, 1.0, hk], [0.0, 0.0, 1.0]])
-            x = x @ F.T
-            P = F @ P @ F.T
+            x, P = linear.predict(x, P, _transition(hk))
             if nodes.jump_dt[k] > 0:
                 P[:, 2, 2] += q * nodes.jump_dt[k]
         if store:
@@ -679,14 +678,9 @@ def _kalman(
             if w is not None:
                 meas.append((1, w[i, axis], sv**2))
             for comp, val, r in meas:
-                S = P[:, comp, comp] + r
-                e = val - x[:, comp]
-                K = P[:, :, comp] / S[:, None]
-                x = x + K * e[:, None]
-                P = P - K[:, :, None] * K[:, None, :] * S[:, None, None]
-                P = 0.5 * (P + np.swapaxes(P, 1, 2))
+                x, P, S, e = linear.update_component(x, P, comp, val, r)
                 if count >= _DIFFUSE:
-                    loglik -= 0.5 * (np.log(2 * np.pi * S) + e * e / S)
+                    loglik += linear.log_likelihood(S, e)
                 count += 1
         if store:
             xf[k], Pf[k] = x, P
@@ -695,20 +689,17 @@ def _kalman(
     return loglik, None
 
 
+def _transition(h: float) -> np.ndarray:
+    """``F`` of the constant-acceleration model ``(p, v, u)`` over a step ``h``."""
+    return np.array([[1.0, h, 0.5 * h * h], [0.0, 1.0, h], [0.0, 0.0, 1.0]])
+
+
 def _rts(nodes: _Nodes, moments) -> tuple[np.ndarray, np.ndarray]:
-    """Rauch–Tung–Striebel smoother: smoothed means (M, B, 3) and u variances (M, B)."""
+    """Rauch–Tung–Striebel smoother (:func:`obsplan.estimation.linear.rts_smooth`): smoothed
+    means (M, B, 3) and u variances (M, B)."""
     xf, Pf, xp, Pp = moments
-    M = xf.shape[0]
-    xs = xf.copy()
-    Ps = Pf.copy()
-    h_all = np.diff(nodes.t)
-    for k in range(M - 2, -1, -1):
-        hk = h_all[k]
-        F = np.array([[1.0, hk, 0.5 * hk * hk], [0.0, 1.0, hk], [0.0, 0.0, 1.0]])
-        # C = Pf F^T Pp^-1, by a solve with the symmetric Pp
-        C = np.swapaxes(np.linalg.solve(Pp[k + 1], (Pf[k] @ F.T).swapaxes(1, 2)), 1, 2)
-        xs[k] = xf[k] + np.einsum("bij,bj->bi", C, xs[k + 1] - xp[k + 1])
-        Ps[k] = Pf[k] + C @ (Ps[k + 1] - Pp[k + 1]) @ np.swapaxes(C, 1, 2)
+    F = np.array([_transition(h) for h in np.diff(nodes.t)]).reshape(-1, 3, 3)
+    xs, Ps = linear.rts_smooth(xf, Pf, xp, Pp, F)
     return xs, Ps[:, :, 2, 2]
 
 

@@ -72,7 +72,7 @@ class ObservabilityReport:
     rank_tol: float = RANK_TOL
 
     def to_dict(self) -> dict:
-        """The keys of ``obsplan analyze --json`` (PRODUCT.md), JSON-serialisable.
+        """The stable keys of ``obsplan analyze --json``, JSON-serialisable.
 
         The ``gramian`` dict carries the stable keys plus ``rank_tol``, ``rank_exact``,
         ``full_rank_interval_exact`` and ``full_rank_from_t_exact`` (module docstring).

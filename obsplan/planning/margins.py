@@ -67,7 +67,7 @@ from obsplan.planning.grid import Grid
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult, solve
 from obsplan.planning.starts import StartOutcome, run_start, start_context
-from obsplan.planning.validation_setup import estimation_config
+from obsplan.planning.validation_setup import estimation_config, validation_guidance
 from obsplan.trajectory import Trajectory
 
 #: Re-solves with tightened limits at most (module docstring, "Fixed point").
@@ -89,14 +89,14 @@ BOX_SHARE = 0.45
 
 
 def guidance_of(pb: PlanningProblem) -> Guidance:
-    """The guidance law the closed-loop validation flies ``pb``'s paths with.
-
-    Critically damped gains from the acceleration bound, the speed bound and the prior position
-    std ``validation.init_pos_error`` (:meth:`Guidance.from_limits`).
-    """
-    return Guidance.from_limits(
-        tuple(pb.accel), pb.limits.speed, error_scale_m=pb.validation.init_pos_error
-    )
+    """The guidance law the vehicle flies ``pb``'s paths with: the closed-loop validation's
+    (:func:`~obsplan.planning.validation_setup.validation_guidance`), also when the validation
+    runs open loop (the margins are for the vehicle at sea, which steers its estimate)."""
+    g = validation_guidance(pb)
+    if g is None:
+        g = validation_guidance(replace(pb, validation=replace(pb.validation, mode="closed-loop")))
+    assert g is not None
+    return g
 
 
 def confidence_quantile(confidence: float) -> float:

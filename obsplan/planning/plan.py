@@ -87,7 +87,7 @@ class PlanResult:
         return out
 
     def to_dict(self) -> dict:
-        """``report.json`` (PRODUCT.md stable keys ``solver``, ``metrics``, ``validation``)."""
+        """``report.json`` (stable keys ``solver``, ``metrics``, ``validation``)."""
         pb = self.problem
         return {
             "solver": self.solve.to_dict(),

@@ -1,0 +1,148 @@
+"""Receding-horizon replanning: re-solve times, and the replanned plan against the one-shot plan.
+
+Run (minutes):
+
+    MPLBACKEND=Agg python benchmarks/bench_replan.py [--problem FILE] [--runs 20] [--every 60]
+                                                     [--processes 2] [--json out.json]
+
+The problem defaults to the *median suite problem*: ``problems/suite/*.toml`` sorted by
+``(horizon.steps, horizon.duration, file name)``, the middle one (``moving-start``: 2D range-only,
+600 s, N = 200, the size of the speed requirement). The script
+
+1. plans it one-shot (:func:`obsplan.planning.solve.solve`) and builds the replanning NLP once;
+2. flies the replanned closed-loop Monte Carlo (:func:`~obsplan.planning.replan
+   .replan_monte_carlo`): every ``--every`` s each run re-solves from its EKF estimate;
+3. prints the re-solve times (wall and CPU: the machine is shared, CPU time is what one solve
+   costs on an idle core), iterations and failures, then the EKF/KF errors of the replanned plan,
+   the one-shot plan and every baseline (same runs and seed, all in closed loop), the paired
+   difference of the EKF final error (replanned - one-shot, with two standard errors), and the
+   verdict in words.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from obsplan.planning import load_problem  # noqa: E402
+from obsplan.planning.baselines import baselines  # noqa: E402
+from obsplan.planning.replan import Replanner, replan_monte_carlo  # noqa: E402
+from obsplan.planning.solve import solve  # noqa: E402
+from obsplan.planning.verdict import metric_value, paired_noise  # noqa: E402
+
+COLUMNS = (
+    ("EKF rmse", "ekf.rmse_pos"),
+    ("EKF final", "ekf.final_pos_err"),
+    ("KF rmse", "kf.rmse_pos"),
+    ("KF final", "kf.final_pos_err"),
+)
+
+
+def median_suite_problem() -> Path:
+    """The middle of ``problems/suite`` sorted by (steps, duration, name)."""
+    files = sorted((ROOT / "problems" / "suite").glob("*.toml"))
+    keyed = []
+    for f in files:
+        pb = load_problem(f)
+        keyed.append((pb.horizon.steps, pb.horizon.duration, f.name, f))
+    keyed.sort()
+    return keyed[len(keyed) // 2][3]
+
+
+def _q(x: np.ndarray, q: float) -> float:
+    return float(np.quantile(x, q)) if x.size else float("nan")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--problem", type=Path, default=None)
+    ap.add_argument("--runs", type=int, default=20)
+    ap.add_argument("--every", type=float, default=60.0)
+    ap.add_argument("--processes", type=int, default=2)
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args()
+    path = args.problem or median_suite_problem()
+    pb = load_problem(path)
+    print(
+        f"problem {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}: "
+        f"{pb.dim}D {'+'.join(pb.vehicle.sensors)}, {pb.horizon.duration:g} s, "
+        f"N = {pb.horizon.steps}, objective {pb.objective.kind}; runs {args.runs}, "
+        f"replan every {args.every:g} s; load average {os.getloadavg()[0]:.1f} "
+        f"on {os.cpu_count()} cores"
+    )
+    t0 = time.perf_counter()
+    bls = baselines(pb)
+    res = solve(pb, baselines=bls, processes=args.processes)
+    print(f"one-shot solve: {res.status}, {time.perf_counter() - t0:.1f} s wall")
+    if res.trajectory is None:
+        print("no one-shot plan: nothing to replan")
+        return 1
+    rp = Replanner(pb)
+    out = replan_monte_carlo(
+        pb,
+        res.trajectory,
+        args.every,
+        baselines={k: b.trajectory for k, b in bls.items()},
+        runs=args.runs,
+        processes=args.processes,
+        replanner=rp,
+    )
+    wall, cpu = out.solve_times(), out.solve_times(cpu=True)
+    iters = np.array([s.iterations for s in out.solves], float)
+    print()
+    print(f"{'re-solves':<22} {'median':>8} {'p90':>8} {'max':>8}")
+    print(f"{'wall [s]':<22} {_q(wall, 0.5):>8.3f} {_q(wall, 0.9):>8.3f} {wall.max():>8.3f}")
+    print(f"{'CPU [s]':<22} {_q(cpu, 0.5):>8.3f} {_q(cpu, 0.9):>8.3f} {cpu.max():>8.3f}")
+    it = (_q(iters, 0.5), _q(iters, 0.9), iters.max())
+    print(f"{'IPOPT iterations':<22} {it[0]:>8.0f} {it[1]:>8.0f} {it[2]:>8.0f}")
+    kept = sum(s.kept_warm_start for s in out.solves)
+    print(
+        f"{len(out.solves)} re-solves, {out.failures} failed (plan in force kept), "
+        f"{kept} kept the warm start; NLP + solver built once in {out.build_s:.2f} s; "
+        f"replanned Monte Carlo {out.wall_s:.1f} s"
+    )
+    statuses: dict[str, int] = {}
+    for s in out.solves:
+        statuses[s.status] = statuses.get(s.status, 0) + 1
+    print("statuses:", ", ".join(f"{k} {v}" for k, v in sorted(statuses.items())))
+    print()
+    head = f"{'path':<12}" + "".join(f" {c:>10}" for c, _ in COLUMNS) + f" {'closest':>8}"
+    print(head)
+    print("-" * len(head))
+    for name, v in out.validation.items():
+        vals = [metric_value(v, key) for _, key in COLUMNS]
+        truth = v.result.truth
+        closest = float(np.min(truth.closest_range_runs)) if truth is not None else float("nan")
+        cells = "".join(f" {'-' if x is None else format(x, '.4g'):>10}" for x in vals)
+        print(f"{name:<12}{cells} {closest:>8.2f}")
+    a, b = out.validation["replanned"], out.validation["one-shot"]
+    ea, eb = metric_value(a, "ekf.final_pos_err"), metric_value(b, "ekf.final_pos_err")
+    noise = paired_noise(a, b, "ekf.final_pos_err")
+    print()
+    if ea is not None and eb is not None:
+        verdict = "beats" if ea < eb else "does NOT beat"
+        print(
+            f"EKF final error: replanned {ea:.4g} m vs one-shot {eb:.4g} m "
+            f"(ratio {ea / eb:.3f}, paired difference {ea - eb:+.3g} m, two standard errors "
+            f"{'-' if noise is None else format(noise, '.2g')} m): replanning {verdict} the "
+            "one-shot plan"
+        )
+    for line in out.verdict.summary():
+        print(line)
+    if args.json is not None:
+        doc = {"problem": str(path), "runs": args.runs, **out.to_dict()}
+        args.json.write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,324 @@
+"""Every filter against the same cases: an independent numpy recursion per filter, and the
+agreements theory requires between filters.
+
+Each case is a path with readings at every sample (so every sample is an epoch and every
+segment one step), drawn once and given to all filters. For each filter a plain numpy
+recursion written from the equations (nothing of the library's filters; joint updates, one
+step at a time) must reproduce:
+
+* the compiled batch run (:meth:`Filter.run`): the history of run 0 at the records (estimate
+  and std of ``(p, p')``);
+* the epoch-by-epoch interface (:meth:`Filter.begin`, :meth:`Filter.predict`,
+  :meth:`Filter.update`, :meth:`Filter.state`, :meth:`Filter.covariance`): every run's state
+  and covariance at the last epoch.
+
+The references: the EKF of ``(p, v)`` with the half-squared range linearised at the prior;
+the augmented KF in its chain coordinates ``(p - b, v, κ, φ, γ)`` with ``ȳ = dᵀ p + κ``
+(the uncoupled output model: without noise on ``(α, β)`` its chain has no noise); the Gaussian
+sum as independent EKFs from the filter's own split, weighted by their innovations'
+likelihoods and mixed. Tolerance 1e-9 relative to each array's magnitude (the compiled
+filters run sequential scalar Joseph updates and composed predictions: the same equations in
+a different order, measured ~1e-13 here).
+
+Theory: a Gaussian sum of one component is the EKF (to 1e-12, the same arithmetic).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from obsplan import generators as gen
+from obsplan.errors import ConfigError
+from obsplan.estimation import EstimationConfig
+from obsplan.estimation.filters import REGISTRY, Filter, make_filter
+from obsplan.estimation.gsf import GaussianSumFilter
+from obsplan.estimation.runs import PathSetup, draw_run, nav_of, start_of
+from obsplan.estimation.simulate import FILTERS
+from obsplan.estimation.stats import N_INFO
+from obsplan.estimation.truth import noisy_readings
+from obsplan.model import make_model
+
+TOL = 1e-9
+RUNS = 3
+
+
+def _case(name: str):
+    if name == "circle-2d-range":
+        traj = gen.circle(30.0, 1.5, 12.0, 0.1, center=(4.0, -2.0))
+        model = make_model(2, "range", beacon=(1.0, 3.0))
+    else:  # a climbing turn in 3D with DVL and depth, beacon off the origin and above
+        traj = gen.circle_z(25.0, 1.0, 10.0, 0.1, z0=10.0, z_amp=2.0, z_period=20.0)
+        model = make_model(3, "range,dvl,depth", beacon=(5.0, -3.0, 2.0))
+    cfg = replace(EstimationConfig.paper(model, 0.1), kf_coupling=False, process_noise=False)
+    setup = PathSetup(traj, cfg, tuple(REGISTRY), None, RUNS)
+    plan = setup.plan
+    assert plan.n_epochs == traj.n_samples  # readings at every sample: one step per segment
+    Ys, truths, starts = [], [], []
+    for r in range(RUNS):
+        dr = draw_run(setup, seed=5, run=r)
+        x = setup.nominal  # no process noise in the truth: the nominal path
+        Ys.append(
+            noisy_readings(cfg.model, x[plan.epoch_pt], plan.reports, dict(cfg.noise), dr.readings)
+        )
+        truths.append(nav_of(cfg.model, x[plan.rec_pt]))
+        starts.append(start_of(cfg.model, x[0], dr, Ys[-1][0, 0]))
+    return traj, cfg, setup, np.stack(Ys, axis=2), np.stack(truths), starts
+
+
+CASES = ("circle-2d-range", "turn-3d-dvl-depth")
+
+
+@pytest.fixture(scope="module", params=CASES)
+def case(request):
+    return _case(request.param)
+
+
+# ----------------------------------------------------------------------------- references
+def _step(x, h, u, n):
+    """Exact ZOH step of ``(p, v, ...)`` with input ``u`` held over ``h``: F x + B u."""
+    x = x.copy()
+    x[:n] += h * x[n : 2 * n] + 0.5 * h * h * u
+    x[n : 2 * n] += h * u
+    return x
+
+
+def _F(m, n, h):
+    F = np.eye(m)
+    F[:n, n : 2 * n] = h * np.eye(n)
+    return F
+
+
+def _linear_rows(model, m, bz=0.0):
+    """Rows after the range: DVL on ``v`` then depth on ``p_z`` (``bz``: the state's offset)."""
+    n, rows = model.dim, []
+    for s in model.sensors:
+        if s.startswith("dvl"):
+            for i in range(n):
+                H = np.zeros(m)
+                H[n + i] = 1.0
+                rows.append((H, 0.0, s))
+        elif s == "depth":
+            H = np.zeros(m)
+            H[n - 1] = 1.0
+            rows.append((H, bz, s))
+    return rows
+
+
+def _joint(x, P, H, nu, R):
+    S = H @ P @ H.T + R
+    K = np.linalg.solve(S, H @ P).T
+    IKH = np.eye(x.size) - K @ H
+    ll = -0.5 * (nu @ np.linalg.solve(S, nu) + np.log(np.linalg.det(S)))
+    return x + K @ nu, IKH @ P @ IKH.T + K @ R @ K.T, ll
+
+
+def _ekf_update(model, cfg, x, P, y):
+    n, m, s = model.dim, x.size, cfg.noise["range"]
+    rows, nus, Rs = [], [], []
+    if np.isfinite(y[0]):
+        rel = x[:n] - model.beacon_array
+        H = np.zeros(m)
+        H[:n] = rel
+        rows.append(H)
+        nus.append(0.5 * y[0] ** 2 - 0.5 * s * s - 0.5 * rel @ rel)
+        Rs.append(y[0] ** 2 * s * s + 0.5 * s**4)
+    for o, (H, off, sensor) in enumerate(_linear_rows(model, m), start=1):
+        if np.isfinite(y[o]):
+            rows.append(H)
+            nus.append(y[o] - H @ x - off)
+            Rs.append(cfg.noise[sensor] ** 2)
+    if not rows:
+        return x, P, 0.0
+    return _joint(x, P, np.array(rows), np.array(nus), np.diag(Rs))
+
+
+def _ekf_ref(traj, cfg, setup, starts_x):
+    """Members (x, P, readings (E, outputs)) -> their histories: per sample (x, P, summed
+    log-likelihood)."""
+    model, n = cfg.model, cfg.model.dim
+    q = setup.noise.q_ekf
+    out = []
+    for x, P, Yr in starts_x:
+        ll, hist = 0.0, []
+        for k in range(traj.n_samples):
+            if k:
+                h = traj.t[k] - traj.t[k - 1]
+                x = _step(x, h, traj.u[k - 1], n)
+                F = _F(x.size, n, h)
+                P = F @ P @ F.T + q
+            x, P, dl = _ekf_update(model, cfg, x, P, Yr[k])
+            ll += dl
+            hist.append((x, P, ll))
+        out.append(hist)
+    return out
+
+
+def _nav(model, x, P, off):
+    n = model.dim
+    assert not model.current  # the cases have no current: (p, p') = (p, v)
+    return x[: 2 * n] + np.r_[np.broadcast_to(off, (n,)), np.zeros(n)], P[: 2 * n, : 2 * n]
+
+
+def ref_ekf(filt, traj, cfg, setup, Y, states):
+    hist = _ekf_ref(traj, cfg, setup, [(s[0], s[1], Y[:, :, r]) for r, s in enumerate(states)])
+    return [[_nav(cfg.model, x, P, 0.0) for x, P, _ in h] for h in hist], [
+        (h[-1][0], h[-1][1]) for h in hist
+    ]
+
+
+def ref_gsf(filt, traj, cfg, setup, Y, states):
+    hists, finals = [], []
+    for r, (X0, P0, lw0) in enumerate(states):
+        C = len(lw0)
+        comps = _ekf_ref(traj, cfg, setup, [(X0[c], P0[c], Y[:, :, r]) for c in range(C)])
+        run = []
+        for k in range(traj.n_samples):
+            lw = np.array([lw0[c] + comps[c][k][2] for c in range(len(lw0))])
+            w = np.exp(lw - lw.max())
+            w /= w.sum()
+            xs = np.array([comps[c][k][0] for c in range(len(lw0))])
+            mean = w @ xs
+            cov = sum(
+                w[c] * (comps[c][k][1] + np.outer(xs[c] - mean, xs[c] - mean))
+                for c in range(len(lw0))
+            )
+            run.append((mean, cov))
+        hists.append([_nav(cfg.model, x, P, 0.0) for x, P in run])
+        finals.append(run[-1])
+    return hists, finals
+
+
+def ref_kf(filt, traj, cfg, setup, Y, states):
+    model, n = cfg.model, cfg.model.dim
+    mx = model.state_dim
+    s = cfg.noise["range"]
+    qk = setup.noise.q_kf
+    assert not np.any(qk[mx:]) and not np.any(qk[:, mx:])  # no noise on (α, β): none on the chain
+    Q = np.zeros((mx + 3, mx + 3))
+    Q[:mx, :mx] = qk[:mx, :mx]
+    bz = model.beacon_array[-1] if n == 3 else 0.0
+    hists, finals = [], []
+    for r, (z, P, y0, _) in enumerate(states):
+        Yr = Y[:, :, r]
+        d, dd = np.zeros(n), np.zeros(n)
+        run = []
+        for k in range(traj.n_samples):
+            if k:
+                h = traj.t[k] - traj.t[k - 1]
+                u = traj.u[k - 1]
+                z = _step(z, h, u, n)
+                d, dd = d + h * dd + 0.5 * h * h * u, dd + h * u
+                F = _F(mx + 3, n, h)
+                F[mx, mx + 1], F[mx, mx + 2], F[mx + 1, mx + 2] = h, h * h, 2 * h
+                z = np.r_[z[:mx], F[mx:, mx:] @ z[mx:]]
+                P = F @ P @ F.T + Q
+            rows, nus, Rs = [], [], []
+            if k and np.isfinite(Yr[k, 0]):
+                H = np.zeros(mx + 3)
+                H[:n], H[mx] = d, 1.0
+                rows.append(H)
+                nus.append(0.5 * Yr[k, 0] ** 2 - 0.5 * s * s - y0 + 0.5 * d @ d - H @ z)
+                Rs.append(Yr[k, 0] ** 2 * s * s + 0.5 * s**4)
+            for o, (H, off, sensor) in enumerate(_linear_rows(model, mx + 3, bz), start=1):
+                if np.isfinite(Yr[k, o]):
+                    rows.append(H)
+                    nus.append(Yr[k, o] - H @ z - off)
+                    Rs.append(cfg.noise[sensor] ** 2)
+            if rows:
+                z, P, _ = _joint(z, P, np.array(rows), np.array(nus), np.diag(Rs))
+            run.append(_nav(model, z, P, model.beacon_array))
+            last = (z, P)
+        hists.append(run)
+        finals.append(last)
+    return hists, finals
+
+
+REFERENCES = {"ekf": ref_ekf, "kf": ref_kf, "gsf": ref_gsf}
+
+
+def close(a, b, what):
+    a, b = np.asarray(a), np.asarray(b)
+    scale = max(float(np.max(np.abs(b))), 1e-300)
+    err = float(np.max(np.abs(a - b))) / scale
+    assert err <= TOL, f"{what}: relative difference {err:.2e} > {TOL:g}"
+
+
+# ----------------------------------------------------------------------------- tests
+def test_every_registered_filter_has_a_reference_and_a_description():
+    assert set(REFERENCES) == set(REGISTRY) == set(FILTERS)
+    for name, cls in REGISTRY.items():
+        assert issubclass(cls, Filter) and cls.name == name and FILTERS[name] == cls.description
+
+
+def test_unknown_filter_names_the_choices():
+    cfg = EstimationConfig.paper(make_model(2, "range"), 0.1)
+    with pytest.raises(ConfigError, match="unknown filter 'ukf'; choose from ekf"):
+        make_filter("ukf", cfg, cfg.covariances(0.1), cfg.process_noise_model())
+
+
+@pytest.mark.parametrize("name", list(REGISTRY))
+def test_filter_matches_its_reference(case, name):
+    traj, cfg, setup, Y, truth, starts = case
+    f = setup.filters[name]
+    states = [f.start(*st) for st in starts]
+    hists, finals = REFERENCES[name](f, traj, cfg, setup, Y, states)
+    rec = setup.records
+
+    # the compiled batch: run 0's history at the records
+    n2 = 2 * cfg.model.dim
+    sums = np.zeros((2, rec.size, 3 + n2))
+    info = np.zeros((RUNS, N_INFO))
+    ex = np.zeros((2, rec.size, n2))
+    f.run(setup.ctx, states, Y, truth, sums, info, 0, ex)
+    est = np.array([hists[0][k][0] for k in rec])
+    std = np.array([np.sqrt(np.diag(hists[0][k][1])) for k in rec])
+    close(ex[0], est, f"{name} batch estimate")
+    close(ex[1], std, f"{name} batch std")
+    err2 = np.array(
+        [[(hists[r][k][0] - truth[r, j]) ** 2 for j, k in enumerate(rec)] for r in range(RUNS)]
+    )
+    close(
+        sums[0, :, 3 : 3 + cfg.model.dim].sum(axis=1)
+        + sums[1, :, 3 : 3 + cfg.model.dim].sum(axis=1),
+        err2[:, :, : cfg.model.dim].sum(axis=(0, 2)),
+        f"{name} squared position errors",
+    )
+
+    # epoch by epoch: every run's state and covariance at the last epoch
+    run = f.filter_all(f.begin(setup.ctx, states, Y))
+    assert run.epoch == traj.n_samples - 1
+    X, P = f.state(run), f.covariance(run)
+    assert X.shape == (f.state_dim, RUNS) and P.shape == (f.state_dim, f.state_dim, RUNS)
+    for r, (x_ref, P_ref) in enumerate(finals):
+        close(X[:, r], x_ref, f"{name} state, run {r}")
+        close(P[:, :, r], P_ref, f"{name} covariance, run {r}")
+
+
+def test_predict_then_update_is_checked():
+    traj, cfg, setup, Y, truth, starts = _case(CASES[0])
+    f = setup.filters["ekf"]
+    run = f.begin(setup.ctx, [f.start(*st) for st in starts], Y)
+    f.update(run)
+    with pytest.raises(ConfigError, match="updated already"):
+        f.update(run)
+
+
+def test_gaussian_sum_of_one_component_is_the_ekf(case):
+    traj, cfg, setup, Y, truth, starts = case
+    cov = setup.cov
+    e = setup.filters["ekf"]
+    g = GaussianSumFilter(cfg.model, setup.noise.q_ekf, cov["p0_ekf"], dict(cfg.noise), (1, 0.5))
+    assert g.components == 1
+    out = {}
+    for f in (e, g):
+        Nr, n2 = setup.records.size, 2 * cfg.model.dim
+        sums, info, ex = np.zeros((2, Nr, 3 + n2)), np.zeros((RUNS, N_INFO)), np.zeros((2, Nr, n2))
+        f.run(setup.ctx, [f.start(*st) for st in starts], Y, truth, sums, info, 1, ex)
+        out[f.name] = (sums, info, ex)
+    for a, b, what in zip(out["gsf"], out["ekf"], ("sums", "info", "history"), strict=True):
+        np.testing.assert_allclose(
+            a, b, rtol=1e-12, atol=1e-12 * np.nanmax(np.abs(b)), err_msg=what
+        )

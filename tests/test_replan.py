@@ -1,0 +1,152 @@
+"""Receding-horizon replanning: the shrinking-horizon re-solve, the replanned Monte Carlo, CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from obsplan.cli import main
+from obsplan.errors import ConfigError
+from obsplan.planning.evaluate import better
+from obsplan.planning.feasibility import check_limits
+from obsplan.planning.parse import load_problem
+from obsplan.planning.problem import Horizon
+from obsplan.planning.replan import (
+    Replanner,
+    recovery_steps,
+    replan_monte_carlo,
+    replan_nodes,
+    state_for_planner,
+)
+from obsplan.planning.solve import solve
+
+SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def small():
+    """The default problem on a coarse grid (N = 40, 15 s steps), its one-shot plan, and the
+    replanner built once."""
+    pb = load_problem(None)
+    pb = replace(pb, horizon=Horizon(duration=600.0, steps=40))
+    pb = replace(pb, objective=replace(pb.objective, starts=1))
+    res = solve(pb, processes=1)
+    assert res.trajectory is not None and res.success
+    return pb, res, Replanner(pb)
+
+
+@pytest.mark.parametrize("every", [7.0, 0.0, -60.0, math.nan, math.inf, 600.0, 900.0])
+def test_bad_every_is_an_input_error_naming_the_option(small, every):
+    pb, _, _ = small
+    with pytest.raises(ConfigError, match="--replan"):
+        replan_nodes(pb, every)
+
+
+def test_replan_nodes_are_multiples_of_every_before_the_end(small):
+    pb, _, _ = small
+    k = replan_nodes(pb, 120.0)  # 15 s steps: every 8 nodes
+    assert list(k) == [8, 16, 24, 32]
+
+
+def test_resolve_from_the_exact_plan_state_reproduces_the_plan(small):
+    pb, res, rp = small
+    plan = res.trajectory
+    for k in (8, 20, 32):
+        state = np.concatenate([plan.p[k], plan.v[k]])
+        out, new = rp.resolve(plan, k, state)
+        assert out.success, out.status
+        np.testing.assert_allclose(new.p[: k + 1], plan.p[: k + 1], atol=1e-9)
+        # never worse than the plan in force; the one-shot plan's remaining part is kept
+        # unless the re-solve found a strictly better one (then within its tolerance of it)
+        assert not better(res.objective, out.objective, pb)
+        if out.kept_warm_start:
+            np.testing.assert_allclose(new.p, plan.p, atol=1e-9)
+        else:
+            assert out.objective == pytest.approx(res.objective, rel=1e-3)
+
+
+def test_resolve_from_a_perturbed_estimate_keeps_the_past_and_the_limits(small):
+    pb, res, rp = small
+    plan = res.trajectory
+    rng = np.random.default_rng(3)
+    n = pb.dim
+    for k in (4, 12, 24, 36):
+        state = np.concatenate([plan.p[k], plan.v[k]])
+        state[:n] += rng.normal(0.0, 1.0, n)
+        state[n:] += rng.normal(0.0, 0.02, n)
+        out, new = rp.resolve(plan, k, state)
+        assert out.success, out.status
+        np.testing.assert_allclose(new.u[:k], plan.u[:k], atol=1e-12)  # the past is not redone
+        np.testing.assert_allclose(new.p[k], state[:n], atol=1e-9)  # it starts at the estimate
+        np.testing.assert_allclose(new.v[k], state[n:], atol=1e-9)
+        assert np.all(np.abs(new.u[k:-1]) <= pb.accel * (1 + 1e-6))
+        after = min(k + recovery_steps(pb) + 1, pb.horizon.steps - 1)
+        assert replace(check_limits(new.window(after), pb), start=0.0).ok()
+        # the remaining path is dynamically consistent (exact double integrator)
+        assert max(new.window(k).consistency_error()) < 1e-6
+
+
+def test_state_for_planner_adds_the_current_to_the_water_velocity():
+    pb = load_problem("problems/range-dvl-water-current2d.toml")
+    est = np.array([1.0, 2.0, 0.3, -0.1, 0.05, 0.02])
+    np.testing.assert_allclose(state_for_planner(pb, est), [1.0, 2.0, 0.35, -0.08])
+
+
+def test_replanned_monte_carlo_is_paired_and_reported(small):
+    pb, res, rp = small
+    out = replan_monte_carlo(pb, res.trajectory, 150.0, runs=2, replanner=rp, processes=1)
+    assert len(out.solves) == 2 * 3  # runs x replans at 150, 300, 450 s
+    assert out.times == (150.0, 300.0, 450.0)
+    assert set(out.validation) == {"replanned", "one-shot"}
+    for v in out.validation.values():
+        assert v.result.runs == 2 and v.result.seed == pb.validation.seed
+        # the guidance saturates the applied inputs at the acceleration limit
+        assert np.all(v.result.truth.accel_ratio_runs <= 1 + 1e-9)
+    doc = json.loads(json.dumps(out.to_dict(), allow_nan=False))
+    assert doc["solves"] == 6 and doc["failures"] == out.failures
+    assert doc["solve_s"]["max"] >= doc["solve_s"]["median"] > 0
+    assert "one-shot" in doc["verdict"]["baselines"]
+    assert set(doc["verdict"]["baselines"]["one-shot"]) == {
+        "ekf.rmse_pos",
+        "ekf.final_pos_err",
+        "kf.rmse_pos",
+        "kf.final_pos_err",
+    }
+    assert out.summary()[0].startswith("replanning every 150 s: 6 re-solves")
+
+
+def test_cli_replan_flag_writes_the_replan_report(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["plan", "--out", str(out), *SMALL, "--replan", "120"]) == 0
+    rep = json.loads((out / "report.json").read_text())
+    r = rep["replan"]
+    assert r["every_s"] == 120.0 and r["solves"] == 2 * 4
+    assert {"replanned", "one-shot", "lawnmower", "circle"} <= set(r["validation"])
+    assert "replanning every 120 s" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ["--replan", "7"],
+        ["--replan", "-30"],
+        ["--replan", "600"],
+        ["--replan", "60", "--no-validate"],
+    ],
+)
+def test_cli_bad_replan_exits_2(tmp_path, capsys, extra):
+    code = main(["plan", "--out", str(tmp_path / "o"), *SMALL, *extra])
+    assert code == 2
+    assert "--replan" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_replan_not_a_number_is_a_usage_error(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:  # argparse's own usage error
+        main(["plan", "--out", str(tmp_path / "o"), *SMALL, "--replan", "x"])
+    assert exc.value.code == 2
+    assert "--replan" in capsys.readouterr().err
