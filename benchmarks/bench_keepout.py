@@ -20,26 +20,15 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from obsplan.estimation.guidance import TruthLimits
 from obsplan.estimation.simulate import monte_carlo_paths
 from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
 from obsplan.planning.margins import guidance_of, keep_out
 from obsplan.planning.solve import solve
-from obsplan.planning.validation_setup import estimation_config
+from obsplan.planning.validation_setup import estimation_config, truth_limits
 from obsplan.trajectory import resample
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def truth_limits(pb) -> TruthLimits:
-    lim = pb.limits
-    return TruthLimits(
-        min_range=lim.min_range or None,
-        max_range=lim.max_range,
-        area=None if lim.area is None else (lim.area.x, lim.area.y),
-        depth=lim.depth,
-    )
 
 
 def nominal_plan(pb, path: Path, cache: Path | None):
@@ -60,8 +49,10 @@ def main() -> None:
     ap.add_argument("--problems", nargs="*")
     ap.add_argument("--cache", type=Path)
     args = ap.parse_args()
-    files = [Path(p) for p in args.problems] if args.problems else sorted(
-        [*ROOT.glob("problems/*.toml"), *ROOT.glob("problems/suite/*.toml")]
+    files = (
+        [Path(p) for p in args.problems]
+        if args.problems
+        else sorted([*ROOT.glob("problems/*.toml"), *ROOT.glob("problems/suite/*.toml")])
     )
     if args.cache:
         args.cache.mkdir(parents=True, exist_ok=True)
