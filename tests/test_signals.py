@@ -57,7 +57,11 @@ def _inputs(folder: Path) -> dict[str, list[str]]:
         '[axes]\n"horizon.steps" = [20, 24]\n"objective.starts" = [1]\n"validation.runs" = [2]\n'
     )
     return {
-        "plan": ["plan", "--steps", "20", "--starts", "2", "--runs", "2", "--quiet", "--out"],
+        "plan": [
+            "plan",
+            str(ROOT / "problems" / "localise.toml"),
+            *("--steps", "20", "--starts", "2", "--runs", "2", "--quiet", "--out"),
+        ],
         "simulate": ["simulate", str(folder / "traj.csv"), "--runs", "2", "--quiet", "--out"],
         "paper": ["paper", "--quick", "--quiet", "--out"],
         "sweep": ["sweep", str(folder / "s.toml"), "--workers", "1", "--quiet", "--out"],

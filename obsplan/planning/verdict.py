@@ -68,6 +68,9 @@ RUN_METRICS: dict[str, str] = {
     "ekf.final_pos_err": "final_pos_err_runs",
     "kf.rmse_pos": "rmse_pos_runs",
     "kf.final_pos_err": "final_pos_err_runs",
+}
+#: The per-run values of :data:`LINES_METRICS` (their intervals; they do not add batches).
+LINES_RUN_METRICS: dict[str, str] = {
     "ekf.rmse_pos_lines": "rmse_pos_lines_runs",
     "kf.rmse_pos_lines": "rmse_pos_lines_runs",
 }
@@ -315,7 +318,7 @@ def verdict(
         comps[name] = {}
         for m, (key, _) in enumerate(metrics):
             pv, bv = metric_value(plan, key), metric_value(v, key)
-            if key in RUN_METRICS:
+            if key in RUN_METRICS or key in LINES_RUN_METRICS:
                 ci = _interval(plan, v, key, (int(plan.result.seed), b, m), pv, bv)
             else:  # a computed bound: no sampling noise
                 ci = None if pv is None or bv is None or bv == 0 else (pv / bv, pv / bv)
@@ -384,7 +387,8 @@ def _interval(plan, v, key, seed, pv, bv) -> tuple[float, float] | None:
 def _runs(v: PathValidation, key: str) -> np.ndarray | None:
     group, _ = key.split(".")
     stats = getattr(v.result, group, None)
-    return None if stats is None else getattr(stats, RUN_METRICS[key], None)
+    field = {**RUN_METRICS, **LINES_RUN_METRICS}[key]
+    return None if stats is None else getattr(stats, field, None)
 
 
 def ratio_interval(
