@@ -286,16 +286,10 @@ def test_a_plan_completes_a_small_survey_and_beats_its_lawnmower():
     line = doc["mission"]["planned"]["lines"][0]
     assert set(line) >= {"coverage", "max_cross_track_m", "max_heading_err_deg", "speed_range_mps"}
     assert doc["mission"]["planned"]["complete"] is True
-<<<<<<< HEAD
-    for name in res.validation:  # doc["validation"] also holds its "mode"
-        assert doc["validation"][name]["ekf"]["rmse_pos_lines"] is not None
-        assert doc["validation"][name]["kf"]["rmse_pos_lines"] is not None
-=======
     for name in ("planned", "lawnmower", "lawnmower-accel"):
         path = doc["validation"][name]
         assert path["ekf"]["rmse_pos_lines"] is not None
         assert path["kf"]["rmse_pos_lines"] is not None
->>>>>>> missions
     assert "ekf.rmse_pos_lines" in doc["verdict"]["baselines"]["lawnmower"]
 
 
