@@ -13,7 +13,7 @@ from obsplan.cli import main
 from obsplan.errors import ConfigError
 from obsplan.planning.evaluate import better
 from obsplan.planning.feasibility import check_limits
-from obsplan.planning.parse import load_problem
+from obsplan.planning.parse import LOCALISE_PROBLEM, load_problem
 from obsplan.planning.problem import Horizon
 from obsplan.planning.replan import (
     Replanner,
@@ -29,9 +29,9 @@ SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--quiet"]
 
 @pytest.fixture(scope="module")
 def small():
-    """The default problem on a coarse grid (N = 40, 15 s steps), its one-shot plan, and the
-    replanner built once."""
-    pb = load_problem(None)
+    """The free localisation problem on a coarse grid (N = 40, 15 s steps), its one-shot plan,
+    and the replanner built once."""
+    pb = load_problem(LOCALISE_PROBLEM)
     pb = replace(pb, horizon=Horizon(duration=600.0, steps=40))
     pb = replace(pb, objective=replace(pb.objective, starts=1))
     res = solve(pb, processes=1)
@@ -121,7 +121,7 @@ def test_replanned_monte_carlo_is_paired_and_reported(small):
 
 def test_cli_replan_flag_writes_the_replan_report(tmp_path, capsys):
     out = tmp_path / "o"
-    assert main(["plan", "--out", str(out), *SMALL, "--replan", "120"]) == 0
+    assert main(["plan", str(LOCALISE_PROBLEM), "--out", str(out), *SMALL, "--replan", "120"]) == 0
     rep = json.loads((out / "report.json").read_text())
     r = rep["replan"]
     assert r["every_s"] == 120.0 and r["solves"] == 2 * 4
@@ -139,7 +139,7 @@ def test_cli_replan_flag_writes_the_replan_report(tmp_path, capsys):
     ],
 )
 def test_cli_bad_replan_exits_2(tmp_path, capsys, extra):
-    code = main(["plan", "--out", str(tmp_path / "o"), *SMALL, *extra])
+    code = main(["plan", str(LOCALISE_PROBLEM), "--out", str(tmp_path / "o"), *SMALL, *extra])
     assert code == 2
     assert "--replan" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
@@ -147,6 +147,6 @@ def test_cli_bad_replan_exits_2(tmp_path, capsys, extra):
 
 def test_cli_replan_not_a_number_is_a_usage_error(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:  # argparse's own usage error
-        main(["plan", "--out", str(tmp_path / "o"), *SMALL, "--replan", "x"])
+        main(["plan", str(LOCALISE_PROBLEM), "--out", str(tmp_path / "o"), *SMALL, "--replan", "x"])
     assert exc.value.code == 2
     assert "--replan" in capsys.readouterr().err
