@@ -7,6 +7,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -365,3 +369,19 @@ def test_invalid_toml_is_named(tmp_path):
     ok.write_text('[sweep]\nbase = "broken.toml"\n[axes]\n"limits.speed" = [1.0]\n')
     with pytest.raises(SweepFileError, match=r"sweep\.base: .*broken\.toml: not valid TOML"):
         load_sweep(ok)
+
+
+def test_default_workers_follow_the_cpu_affinity():
+    """A sweep pinned to one core (``taskset``, a batch allocation) starts one worker, not one per
+    core of the machine."""
+    if shutil.which("taskset") is None or len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("needs taskset and two cores")
+    code = "from obsplan.sweeps.run import default_workers; print(default_workers())"
+    out = subprocess.run(
+        ["taskset", "-c", "0", sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    )
+    assert out.stdout.strip() == "1"

@@ -97,6 +97,15 @@ class SweepStart:
     worker_threads: tuple[int, ...] = ()
 
 
+def default_workers() -> int:
+    """Worker processes of a local cluster: one per core this process may run on
+    (``dask.system.CPU_COUNT`` honours CPU affinity, e.g. ``taskset``, and cgroup quotas, e.g.
+    a SLURM allocation or a container, where ``os.cpu_count()`` counts the whole machine)."""
+    import dask.system
+
+    return max(1, int(dask.system.CPU_COUNT))
+
+
 def local_cluster(workers: int | None = None, **kwargs: Any):
     """A :class:`distributed.LocalCluster` of ``workers`` one-thread worker processes (default:
     one per core), BLAS/OpenMP pinned to one thread, no scheduler-side re-runs of a task whose
@@ -104,7 +113,7 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
     import dask
     from distributed import LocalCluster
 
-    n = workers if workers is not None else (os.cpu_count() or 1)
+    n = workers if workers is not None else default_workers()
     if n < 1:
         raise InputError(f"--workers must be at least 1, got {n}")
     environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
