@@ -194,7 +194,17 @@ def test_the_starts_processes_end_with_their_parent(sig, tmp_path):
     """A batch scheduler's SIGTERM (or a SIGKILL) to the parent alone, while the starts run in
     worker processes: no worker runs on (exit 143 for SIGTERM, nothing written)."""
     out = tmp_path / "o"
-    argv = ["plan", "--steps", "400", "--starts", "4", "--no-validate", "--out", str(out)]
+    argv = [
+        "plan",
+        str(ROOT / "problems" / "localise.toml"),
+        "--steps",
+        "400",
+        "--starts",
+        "4",
+        "--no-validate",
+        "--out",
+        str(out),
+    ]
     proc = _start(argv, tmp_path)
     seen = b""
     deadline = time.monotonic() + 300
