@@ -5,8 +5,11 @@ The command line calls :func:`install` first. From then on both signals raise
 ``finally`` that cleans up after Ctrl-C also runs on a batch scheduler's SIGTERM), and the
 signal is remembered:
 
-* a native library may swallow the exception (CasADi turns it into a solver status, a
-  ``__del__`` prints "Exception ignored"); :func:`check` raises it again at the next checkpoint
+* Python cannot raise it inside a ``__del__`` or a weakref callback: an unraisable-exception
+  hook delivers the signal again instead of printing "Exception ignored", so it is raised in the
+  code that was running;
+* a native library may swallow the exception (CasADi turns it into a solver status);
+  :func:`check` raises it again at the next checkpoint
   (after each solve, before an output is committed) and :func:`exit_code` gives 130 / 143 even
   if the verb then returned normally or failed with another exception;
 * a second signal while the first unwinds is ignored, so that cleanup (removing a staging
@@ -18,11 +21,14 @@ and only the parent decides; a child dies with its parent even if the parent is 
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import ctypes
 import os
 import signal
+import sys
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -33,6 +39,9 @@ _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 _pending: int | None = None
 _installed = False
+_redeliver = False
+_in_hook = False
+_previous_unraisablehook: Any = None
 
 
 class Interrupted(KeyboardInterrupt):
@@ -55,11 +64,50 @@ class Interrupted(KeyboardInterrupt):
 
 
 def _handler(signum: int, frame: object) -> None:
-    global _pending
+    global _pending, _redeliver
+    if _redeliver:  # our re-delivery of an Interrupted that Python could not raise
+        if _in_hook:  # still inside the hook, where it would be lost again: once more, later
+            _redeliver_later()
+            return
+        _redeliver = False
+        raise Interrupted(_pending if _pending is not None else signum)
     if _pending is not None:  # already unwinding: let the cleanup finish
         return
     _pending = signum
     raise Interrupted(signum)
+
+
+def _redeliver_later() -> None:
+    # from another thread, so that the handler runs in the main thread's own code, after the
+    # ``__del__`` or callback that swallowed it has returned (``signal.raise_signal`` would run
+    # it at once, inside that callback again)
+    main = threading.main_thread().ident
+    signum = _pending if _pending is not None else signal.SIGINT
+
+    def send() -> None:
+        time.sleep(0.001)  # long enough for the callback to return (a few bytecodes)
+        signal.pthread_kill(main, signum)  # type: ignore[arg-type]
+
+    if main is not None:
+        _thread.start_new_thread(send, ())  # does not wait for the thread, unlike Thread.start
+
+
+def _unraisablehook(unraisable: Any) -> None:
+    """Keep an :class:`Interrupted` that Python could not raise (it came inside a ``__del__`` or a
+    weakref callback) from printing "Exception ignored" and from being lost: deliver the signal
+    again, so that it is raised in the code that was running."""
+    global _redeliver, _in_hook
+    exc = getattr(unraisable, "exc_value", None)
+    if isinstance(exc, Interrupted) and _installed:
+        _in_hook = True
+        try:
+            _redeliver = True
+            _redeliver_later()
+        finally:
+            _in_hook = False
+        return
+    hook = _previous_unraisablehook or sys.__unraisablehook__
+    hook(unraisable)
 
 
 def install() -> dict[Any, Any] | None:
@@ -67,10 +115,13 @@ def install() -> dict[Any, Any] | None:
 
     Returns the previous handlers, for :func:`uninstall`.
     """
-    global _installed
+    global _installed, _previous_unraisablehook
     if threading.current_thread() is not threading.main_thread():
         return None
     previous = {s: signal.signal(s, _handler) for s in SIGNALS}
+    if sys.unraisablehook is not _unraisablehook:
+        _previous_unraisablehook = sys.unraisablehook
+        sys.unraisablehook = _unraisablehook
     _installed = True
     return previous
 
@@ -82,6 +133,8 @@ def uninstall(previous: dict[Any, Any] | None) -> None:
         return
     for s, h in previous.items():
         signal.signal(s, h)  # type: ignore[arg-type]
+    if sys.unraisablehook is _unraisablehook:
+        sys.unraisablehook = _previous_unraisablehook or sys.__unraisablehook__
     _installed = False
 
 
@@ -115,8 +168,8 @@ def exit_code() -> int | None:
 
 def reset() -> None:
     """Forget a received signal (the command line starts each call of ``main`` afresh)."""
-    global _pending
-    _pending = None
+    global _pending, _redeliver
+    _pending, _redeliver = None, False
 
 
 @contextlib.contextmanager

@@ -223,3 +223,37 @@ def test_the_starts_processes_end_with_their_parent(sig, tmp_path):
     assert not still, still
     if sig == signal.SIGTERM:
         assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_a_signal_inside_a_weakref_callback_is_raised_not_ignored(capfd):
+    """Python cannot raise an exception from a weakref callback or ``__del__`` ("Exception
+    ignored in …"): the signal is delivered again and raised in the code that was running."""
+    import weakref
+
+    from obsplan import interrupts
+
+    class Thing:
+        pass
+
+    def callback(ref):
+        signal.raise_signal(signal.SIGTERM)
+        for _ in range(1000):  # the handler runs here, inside the callback
+            pass
+
+    previous = interrupts.install()
+    interrupts.reset()
+    try:
+        thing = Thing()
+        ref = weakref.ref(thing, callback)
+        with pytest.raises(interrupts.Interrupted) as caught:
+            del thing
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline:  # raised here, in the interrupted code, not lost
+                pass
+        assert caught.value.signum == signal.SIGTERM
+        assert interrupts.exit_code() == 143
+        assert ref() is None
+    finally:
+        interrupts.reset()
+        interrupts.uninstall(previous)
+    assert "Exception ignored" not in capfd.readouterr().err
