@@ -270,8 +270,14 @@ def test_table_rows_from_stored_reports_and_comparable_columns():
         }
     }
     df = build_table(tasks, stored)
-    assert list(df.columns[:4]) == ["task_id", "task", "limits.accel", "beacon.position"]
-    assert df["beacon.position"].tolist() == ["[0.0, 0.0]"] * 2
+    # axis columns are named by path and unit
+    assert list(df.columns[:4]) == [
+        "task_id",
+        "task",
+        "limits.accel [m/s^2]",
+        "beacon.position [m]",
+    ]
+    assert df["beacon.position [m]"].tolist() == ["[0.0, 0.0]"] * 2
     assert df["status"].tolist() == ["done", "pending"]
     assert df.loc[0, "metrics.planned.min_eig"] == 1e-4
     assert pd.isna(df.loc[1, "metrics.planned.min_eig"])

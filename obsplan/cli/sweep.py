@@ -1,5 +1,6 @@
-"""``obsplan sweep SWEEP.toml --out DIR [--workers N | --scheduler ADDRESS]``: a parameter study
-on Dask; ``obsplan sweep --report DIR`` redraws its figures from the table."""
+"""``obsplan sweep SWEEP.toml --out DIR [--workers N | --scheduler ADDRESS | --scheduler-file
+FILE]``: a parameter study on Dask; ``obsplan sweep --report DIR`` redraws its figures from the
+table."""
 
 from __future__ import annotations
 
@@ -46,7 +47,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     where.add_argument(
         "--scheduler",
         metavar="ADDRESS",
-        help="use an existing Dask cluster, e.g. tcp://10.0.0.5:8786",
+        help="use an existing Dask cluster, e.g. tcp://10.0.0.5:8786 (default without "
+        "--workers: Dask's DASK_SCHEDULER_ADDRESS when set, else a local cluster)",
+    )
+    where.add_argument(
+        "--scheduler-file",
+        metavar="FILE",
+        help="use the Dask cluster whose scheduler wrote FILE "
+        "(`dask scheduler --scheduler-file FILE`, as on HPC)",
     )
     p.add_argument(
         "--report",
@@ -60,7 +68,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument(
         "--force",
         action="store_true",
-        help="write into a DIR that holds another sweep (or another obsplan output)",
+        help="write into a DIR that holds another sweep (or another obsplan output), or whose "
+        "tasks were computed by other obsplan code (they are computed again)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -115,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
             out,
             workers=args.workers,
             scheduler=args.scheduler,
+            scheduler_file=args.scheduler_file,
             retry_failed=args.retry_failed,
             progress=not args.quiet,
             figures=not args.no_figures,

@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from obsplan.sweeps.spec import axis_column
 from obsplan.sweeps.store import atomic_write
 
 #: Metrics drawn by default, by their name inside a path's report (``metrics.<path>.<name>``
@@ -67,12 +68,12 @@ def metric_column(df: pd.DataFrame, path: str, metric: str) -> str | None:
     return None
 
 
-def _numeric(values: Sequence[Any]) -> bool:
-    return all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
+def _numeric(series: pd.Series) -> bool:
+    return pd.api.types.is_numeric_dtype(series) and not pd.api.types.is_bool_dtype(series)
 
 
 def _as_float(series: pd.Series) -> np.ndarray:
-    return pd.to_numeric(series, errors="coerce").to_numpy(dtype=float)
+    return pd.to_numeric(series, errors="coerce").to_numpy(dtype=float, na_value=np.nan)
 
 
 def _label(v: Any) -> str:
@@ -124,12 +125,12 @@ def plot_metric(
     else:
         axs = list(ax)
         fig = axs[0].figure
-    xs_raw = list(df[axis])
-    numeric_x = _numeric(xs_raw)
+    numeric_x = _numeric(df[axis])
     if numeric_x:
-        x_all = np.asarray(xs_raw, float)
+        x_all = _as_float(df[axis])
         categories: list[Any] = []
     else:
+        xs_raw = list(df[axis])
         categories = list(dict.fromkeys(xs_raw))
         x_all = np.array([categories.index(v) for v in xs_raw], float)
     groups = df.groupby(list(others), sort=False, dropna=False) if others else [((), df)]
@@ -213,16 +214,17 @@ def study_figures(
     written: list[Path] = []
     if not paths:
         return written
+    columns = {a: axis_column(a) for a in axes}
     for metric in metrics or DEFAULT_METRICS:
         if all(metric_column(df, p, metric) is None for p in paths):
             continue
-        for axis in axes:
-            if df[axis].nunique(dropna=False) < 2:
+        for axis, col in columns.items():
+            if df[col].nunique(dropna=False) < 2:
                 continue  # a one-value axis has nothing to show along x
-            others = [o for o in axes if o != axis] if combine == "product" else []
+            others = [c for a, c in columns.items() if a != axis] if combine == "product" else []
             others = [o for o in others if df[o].nunique(dropna=False) > 1]
-            title = f"{name}: {metric} against {axis}" if name else ""
-            fig = plot_metric(df, metric, axis, others=others, paths=paths, title=title)
+            title = f"{name}: {metric} against {col}" if name else ""
+            fig = plot_metric(df, metric, col, others=others, paths=paths, title=title)
             target = folder / f"{_slug(metric)}_vs_{_slug(axis)}.png"
             buf = BytesIO()
             fig.savefig(buf, format="png", dpi=100)

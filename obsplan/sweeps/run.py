@@ -34,10 +34,12 @@ from typing import Any
 
 import pandas as pd
 
+import obsplan.sweeps.spec as specs
 from obsplan import interrupts
 from obsplan.errors import InputError, ObsplanError
 from obsplan.sweeps.spec import SweepSpec, Task, as_spec, expand, unique_tasks
 from obsplan.sweeps.store import (
+    check_code,
     check_out,
     read_report,
     write_manifest,
@@ -140,35 +142,80 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
         return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **kwargs)
 
 
+def configured_scheduler() -> str | None:
+    """The scheduler address of Dask's own configuration (``scheduler-address``: the
+    ``DASK_SCHEDULER_ADDRESS`` environment variable or a Dask config file), or None."""
+    import dask
+
+    address = dask.config.get("scheduler-address", None)
+    return str(address) if address else None
+
+
 @contextlib.contextmanager
 def dask_client(
-    workers: int | None = None, scheduler: str | None = None, client: Any = None
+    workers: int | None = None,
+    scheduler: str | None = None,
+    client: Any = None,
+    scheduler_file: str | Path | None = None,
 ) -> Iterator[Any]:
-    """The client a sweep runs on: ``client`` as given (left open), a client of the scheduler
-    at ``scheduler``, or a new :func:`local_cluster` of ``workers`` (both closed on exit).
+    """The client a sweep runs on.
+
+    In order: ``client`` as given (left open); a client of the scheduler at ``scheduler``, of
+    the one described by ``scheduler_file`` (written by ``dask scheduler --scheduler-file``,
+    the usual way on HPC), or, when no ``workers`` are asked for, of Dask's configured
+    ``scheduler-address`` (``DASK_SCHEDULER_ADDRESS``); otherwise a new :func:`local_cluster`
+    of ``workers``. Clients and clusters made here are closed on exit.
 
     Raises
     ------
     InputError
-        If both ``workers`` and ``scheduler`` are given, or the scheduler cannot be reached.
+        If more than one of ``workers``, ``scheduler`` and ``scheduler_file`` are given, or the
+        scheduler cannot be reached.
     """
     if client is not None:
         yield client
         return
     from distributed import Client
 
+    given = [
+        n
+        for n, v in (
+            ("--workers", workers),
+            ("--scheduler", scheduler),
+            ("--scheduler-file", scheduler_file),
+        )
+        if v is not None
+    ]
+    if len(given) > 1:
+        raise InputError(
+            f"{' and '.join(given)} exclude each other: an existing cluster has its own "
+            "workers, and one scheduler is enough"
+        )
+    where: str | None = None
     if scheduler is not None:
-        if workers is not None:
+        where, kwargs = f"--scheduler {scheduler}", {"address": scheduler}
+    elif scheduler_file is not None:
+        if not Path(scheduler_file).is_file():
             raise InputError(
-                "--workers and --scheduler exclude each other: an existing cluster has its "
-                "own workers"
+                f"--scheduler-file {scheduler_file}: no such file; start the scheduler with "
+                f"`dask scheduler --scheduler-file {scheduler_file}` (on a file system the "
+                "client sees) and give the same path"
             )
+        where, kwargs = (
+            f"--scheduler-file {scheduler_file}",
+            {"scheduler_file": str(scheduler_file)},
+        )
+    elif workers is None and (address := configured_scheduler()) is not None:
+        where = f"DASK_SCHEDULER_ADDRESS (Dask's scheduler-address) {address}"
+        kwargs = {"address": address}
+    if where is not None:
         try:
-            c = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError) as exc:  # ValueError: not an address
+            c = Client(**kwargs, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError, KeyError) as exc:
+            # ValueError: not an address; KeyError / ValueError: a file that is no scheduler file
             raise InputError(
-                f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({exc}); check "
-                "the address (tcp://HOST:8786) or start one with `dask scheduler`"
+                f"{where}: cannot reach a Dask scheduler there ({type(exc).__name__}: "
+                f"{exc}); check the address (tcp://HOST:8786) or start one with `dask scheduler`"
             ) from None
         try:
             yield c
@@ -247,6 +294,7 @@ def sweep(
     workers: int | None = None,
     scheduler: str | None = None,
     client: Any = None,
+    scheduler_file: str | Path | None = None,
     retries: int = 1,
     retry_failed: bool = False,
     progress: bool = True,
@@ -266,9 +314,13 @@ def sweep(
     workers
         Worker processes of a new local cluster (default: one per core).
     scheduler
-        Address of an existing Dask scheduler (``tcp://host:8786``) instead.
+        Address of an existing Dask scheduler (``tcp://host:8786``) instead. Without
+        ``scheduler``, ``scheduler_file`` or ``workers``, Dask's own ``scheduler-address``
+        (``DASK_SCHEDULER_ADDRESS``) is used when set.
     client
         An existing :class:`distributed.Client` instead (left open).
+    scheduler_file
+        The JSON file of ``dask scheduler --scheduler-file FILE`` (HPC) instead.
     retries
         Further attempts of a task whose worker process died.
     retry_failed
@@ -278,13 +330,14 @@ def sweep(
     figures
         Draw ``DIR/figures/`` when every task has finished.
     force
-        Write into a non-empty ``DIR`` that holds no sweep or another sweep.
+        Write into a non-empty ``DIR`` that holds no sweep or another sweep, or one whose
+        finished tasks were computed by other code (every task is then computed again).
     on_start
         Called once with a :class:`SweepStart` before the first task is sent.
     runner
         Advanced: replaces :func:`obsplan.sweeps.tasks.run_task` (same signature; must be
         importable or picklable by value on the workers). Results are still keyed by problem,
-        mode and version only.
+        mode, version and the package's code fingerprint only.
 
     Returns
     -------
@@ -297,7 +350,8 @@ def sweep(
     SweepFileError
         Bad sweep file or an invalid task (before anything runs).
     InputError
-        Bad options or output folder.
+        Bad options or output folder, or ``out``'s finished tasks were computed by other code
+        (:func:`obsplan.sweeps.store.check_code`; ``force`` computes them again).
     ClusterError
         The scheduler was lost (finished tasks are kept).
     KeyboardInterrupt
@@ -322,14 +376,17 @@ def sweep(
     tasks = expand(spec)
     if retries < 0:
         raise InputError(f"retries must be >= 0, got {retries}")
-    if workers is not None and scheduler is not None:
-        raise InputError("--workers and --scheduler exclude each other")
+    if sum(v is not None for v in (workers, scheduler, scheduler_file)) > 1:
+        raise InputError("--workers, --scheduler and --scheduler-file exclude each other")
     out = check_out(out, force, spec.name)  # nothing is written before the cluster is up
+    code = specs.code_fingerprint()
+    check_code(out, code, force)
     unique = unique_tasks(tasks)
     stored: dict[str, dict[str, Any] | None] = {t.id: read_report(out, t.id) for t in unique}
     todo = [t for t in unique if not _finished(stored[t.id], retry_failed)]
     manifest = {
         "obsplan": __version__,
+        "code": code,
         "sweep": spec.to_dict(),
         "tasks": [{"id": t.id, "task": t.index + 1, "axes": t.axes} for t in tasks],
     }
@@ -347,7 +404,7 @@ def sweep(
 
     try:
         if todo:
-            with dask_client(workers, scheduler, client) as c:
+            with dask_client(workers, scheduler, client, scheduler_file) as c:
                 write_manifest(out, manifest)
                 started = True
                 threads = c.nthreads()
@@ -376,12 +433,27 @@ def sweep(
     return df
 
 
+def has_bokeh() -> bool:
+    """Whether bokeh can be imported here (Dask serves a dashboard page without it, which only
+    says that it needs bokeh). Run on the scheduler by :func:`_dashboard`."""
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec("bokeh") is not None
+    except (ImportError, ValueError):  # a broken or half-removed installation
+        return False
+
+
 def _dashboard(client: Any) -> str | None:
+    """The dashboard link, or None when the scheduler serves none that works (no dashboard
+    service, or no bokeh where the scheduler runs)."""
     try:
         services = client.scheduler_info().get("services", {})
+        if "dashboard" not in services or not client.run_on_scheduler(has_bokeh):
+            return None
     except Exception:  # noqa: BLE001 - informational only
         return None
-    return client.dashboard_link if "dashboard" in services else None
+    return client.dashboard_link
 
 
 def _run(
@@ -527,6 +599,7 @@ def _store(out: Path, task: Task, outcome: Mapping[str, Any], attempts: int) -> 
         "wall_s": outcome.get("wall_s"),
         "worker": outcome.get("worker"),
         "obsplan": __version__,
+        "code": specs.code_fingerprint(),
         "axes": task.axes,
         "problem": task.problem,
     }

@@ -12,14 +12,16 @@ fields the base leaves to their defaults keep adapting, e.g. a default beacon to
 ``vehicle.dim``) and validated by :func:`obsplan.planning.problem.problem_from_dict` before
 anything runs: a typo in the 50th task is an error naming the task and the field. A task's
 identity is a hash of its resolved problem (:func:`~obsplan.planning.problem.problem_to_dict`,
-defaults filled in), its mode and the package version: the same problem in another sweep, or in
-an edited version of the same sweep, is the same task.
+defaults filled in), its mode, the package version and a fingerprint of the package's code
+(:func:`code_fingerprint`): the same problem in another sweep, or in an edited version of the
+same sweep, is the same task; the same problem computed by changed code is another one.
 """
 
 from __future__ import annotations
 
 import copy
 import difflib
+import functools
 import hashlib
 import itertools
 import json
@@ -123,7 +125,8 @@ class Task:
     Attributes
     ----------
     id : str
-        16 hex digits of SHA-256 of the resolved problem, the mode and the package version.
+        16 hex digits of SHA-256 of the resolved problem, the mode, the package version and
+        the code fingerprint (:func:`code_fingerprint`).
     index : int
         Position in the sweep's expansion (0-based).
     axes : dict[str, Any]
@@ -522,16 +525,63 @@ def _set(data: dict[str, Any], axis: Axis, value: Any) -> None:
     sec[name] = area
 
 
+#: The package's source folder, whose files :func:`code_fingerprint` hashes.
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
+#: Sub-folders of the package left out of the fingerprint: they present results but compute no
+#: part of a task (the command line's wording may change without invalidating a study).
+UNFINGERPRINTED = ("cli",)
+
+
+@functools.cache
+def code_fingerprint(root: Path = PACKAGE_DIR) -> str:
+    """16 hex digits of SHA-256 over the package's Python sources, ``cli/`` excluded.
+
+    Part of every task's identity: :func:`obsplan.__version__` stays the same through many
+    commits, while any edit of the code that computes a task (planner, filters, model, ...)
+    changes this. Every ``.py`` file counts, even one a task does not import: a needless rerun
+    is better than results of two codes mixed in one table. Computed once per process (about a
+    hundred small files).
+
+    Parameters
+    ----------
+    root
+        The package folder (default: this installation's).
+    """
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root)
+        if rel.parts[0] in UNFINGERPRINTED or "__pycache__" in rel.parts:
+            continue
+        digest.update(rel.as_posix().encode() + b"\0")
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
+    return digest.hexdigest()[:16]
+
+
 def task_id(problem: Mapping[str, Any], mode: str) -> str:
-    """16 hex digits identifying a resolved problem (its name excluded: a label), a mode and the
-    package version."""
+    """16 hex digits identifying a resolved problem (its name excluded: a label), a mode, the
+    package version and the code that computes it (:func:`code_fingerprint`)."""
     ident = {k: v for k, v in problem.items() if k != "problem"}
     text = json.dumps(
-        {"problem": ident, "mode": mode, "obsplan": __version__},
+        {"problem": ident, "mode": mode, "obsplan": __version__, "code": code_fingerprint()},
         sort_keys=True,
         separators=(",", ":"),
     )
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def axis_unit(path: str) -> str:
+    """The unit of the problem-file field an axis path sets (``"m/s^2"`` for
+    ``limits.accel.2``), ``"-"`` for a unitless field (:data:`obsplan.planning.schema.SCHEMA`)."""
+    keys = parse_path(path)
+    specs = {s.name: s for s in SCHEMA[cast(str, keys[0])]}
+    return specs[cast(str, keys[1])].unit
+
+
+def axis_column(path: str) -> str:
+    """The results table's column of an axis: its path and unit, ``"limits.accel [m/s^2]"``
+    (the path alone for a unitless field: ``"objective.kind"``)."""
+    unit = axis_unit(path)
+    return path if unit == "-" else f"{path} [{unit}]"
 
 
 def describe(values: Mapping[str, Any]) -> str:

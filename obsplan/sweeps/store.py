@@ -80,6 +80,36 @@ def check_out(out: str | Path, force: bool, name: str) -> Path:
     return out
 
 
+def check_code(out: Path, code: str, force: bool) -> None:
+    """Refuse to resume a sweep whose finished tasks were computed by other code.
+
+    A task's id includes the code fingerprint (:func:`obsplan.sweeps.spec.code_fingerprint`),
+    so results of two codes never share a row; without this check a resume after an update
+    would silently compute every task again beside the old ones. ``force`` accepts that (the
+    old task folders stay in ``DIR/tasks/`` but leave the table).
+
+    Raises
+    ------
+    InputError
+        If ``out``'s sweep was run by code with another fingerprint and has finished tasks.
+    """
+    if force or not (out / MANIFEST).is_file():
+        return
+    old = read_manifest(out).get("code")
+    if old == code:
+        return
+    finished = sum(1 for _ in (out / TASKS).glob(f"*/{REPORT}"))
+    if not finished:
+        return
+    seen = f"code fingerprint {old}" if old else "no code fingerprint recorded"
+    raise InputError(
+        f"--out {out}: its {finished} finished tasks were computed by other obsplan code "
+        f"({seen}; this installation's is {code}), so new results would not compare with "
+        "them; choose a new folder, or pass --force to compute every task again with this "
+        f"code (the old task folders stay in {out / TASKS} but leave the table)"
+    )
+
+
 def task_dir(out: Path, task_id: str) -> Path:
     return out / TASKS / task_id
 

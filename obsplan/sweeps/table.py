@@ -1,12 +1,19 @@
 """The results table: one row per task, built from the stored reports.
 
 Columns, in order: ``task_id``, ``task`` (1-based number in the sweep), one column per axis
-(named by its dotted path; list values as JSON text), ``status`` (``done``, ``failed`` or
-``pending``), ``error``, ``attempts``, ``task_wall_s`` [s], ``worker``, then the report flattened
+(named by its dotted path and unit, ``limits.accel [m/s^2]``: :func:`~obsplan.sweeps.spec.
+axis_column`; list values as JSON text), ``status`` (``done``, ``failed`` or ``pending``),
+``error``, ``attempts``, ``task_wall_s`` [s], ``worker``, then the report flattened
 generically: nested keys joined by dots (``solver.success``, ``metrics.planned.min_eig``,
 ``validation.lawnmower.ekf.rmse_pos``, ``verdict...``), lists of tables by index
 (``solver.starts.0.status``), other lists as JSON text. A key the report
 gains later becomes a column without any change here.
+
+Every column has one type whatever the tasks' outcomes (pandas' nullable dtypes, so a failed or
+pending task's missing value is ``<NA>`` and never turns a bool column into objects or an int
+column into floats): :data:`FIXED_TYPES` for the bookkeeping and solver columns, and for the
+others the type of their values (:func:`column_type`). Parquet keeps these types; the CSV leaves
+a missing value empty.
 """
 
 from __future__ import annotations
@@ -19,7 +26,7 @@ from typing import Any
 
 import pandas as pd
 
-from obsplan.sweeps.spec import Task
+from obsplan.sweeps.spec import Task, axis_column
 from obsplan.sweeps.store import RESULTS_CSV, RESULTS_PARQUET, atomic_write
 
 #: Report keys not flattened into the table: the task bookkeeping (its own columns) and the full
@@ -27,6 +34,22 @@ from obsplan.sweeps.store import RESULTS_CSV, RESULTS_PARQUET, atomic_write
 SKIP_KEYS = ("sweep",)
 #: Columns that measure time or place and so differ between two runs of the same sweep.
 RUN_DEPENDENT_SUFFIXES = ("wall_s", "build_s", "worker", "attempts")
+#: Columns whose type is fixed (pandas nullable dtypes), present or not in a task's report.
+FIXED_TYPES: dict[str, str] = {
+    "task_id": "string",
+    "task": "Int64",
+    "status": "string",
+    "error": "string",
+    "attempts": "Int64",
+    "task_wall_s": "Float64",
+    "worker": "string",
+    "solver.success": "boolean",
+    "solver.status": "string",
+    "solver.iterations": "Int64",
+    "solver.wall_s": "Float64",
+}
+#: :func:`column_type` of a column mixing kinds of values: JSON text in a ``string`` column.
+JSON_TEXT = "json"
 
 
 def flatten(data: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -68,7 +91,7 @@ def cell(value: Any) -> Any:
 def row(task: Task, stored: Mapping[str, Any] | None) -> dict[str, Any]:
     """The table row of ``task`` from its stored report (None: not finished yet)."""
     out: dict[str, Any] = {"task_id": task.id, "task": task.index + 1}
-    out.update({path: cell(v) for path, v in task.axes.items()})
+    out.update({axis_column(path): cell(v) for path, v in task.axes.items()})
     if stored is None:
         out.update(status="pending", error=None, attempts=0, task_wall_s=None, worker=None)
         return out
@@ -94,23 +117,47 @@ def build_table(
     columns: dict[str, None] = {}
     for r in rows:
         columns.update(dict.fromkeys(r))
-    return pd.DataFrame(rows, columns=list(columns))
+    data = {c: typed_column([r.get(c) for r in rows], FIXED_TYPES.get(c)) for c in columns}
+    return pd.DataFrame(data, index=pd.RangeIndex(len(rows)))
 
 
-def _arrow_safe(df: pd.DataFrame) -> pd.DataFrame:
-    """Columns mixing Python types (e.g. an axis of numbers and lists) as JSON text, so that
-    parquet, which needs one type per column, can store them."""
-    df = df.copy()
-    for col in df.columns:
-        if df[col].dtype != object:
-            continue
-        kinds = {type(v) for v in df[col] if v is not None and not _isnan(v)}
-        if len(kinds) > 1 and not kinds <= {int, float}:
-            df[col] = [
-                None if v is None or _isnan(v) else v if isinstance(v, str) else json.dumps(v)
-                for v in df[col]
-            ]
-    return df
+def column_type(values: Iterable[Any]) -> str:
+    """The nullable pandas dtype of a column's values, missing ones (None, NaN) left aside:
+    ``boolean``, ``Int64``, ``Float64`` (ints and floats mixed too), ``string``, or
+    :data:`JSON_TEXT` for other mixtures (e.g. an axis of numbers and lists). A column with no
+    value at all is ``Float64`` (a metric that was never finite)."""
+    kinds = {_kind(v) for v in values if not _missing(v)}
+    if not kinds:
+        return "Float64"
+    if len(kinds) == 1:
+        return {"bool": "boolean", "int": "Int64", "float": "Float64", "str": "string"}.get(
+            kinds.pop(), JSON_TEXT
+        )
+    return "Float64" if kinds == {"int", "float"} else JSON_TEXT
+
+
+def typed_column(values: Sequence[Any], dtype: str | None = None) -> pd.Series:
+    """``values`` as a Series of ``dtype`` (default :func:`column_type`); missing -> ``<NA>``."""
+    dtype = dtype or column_type(values)
+    cells: list[Any] = [None if _missing(v) else v for v in values]
+    if dtype == JSON_TEXT:
+        dtype = "string"
+        cells = [v if v is None or isinstance(v, str) else json.dumps(v) for v in cells]
+    return pd.Series(pd.array(cells, dtype=dtype))
+
+
+def _kind(v: Any) -> str:
+    if isinstance(v, bool):  # before int: a bool is an int to Python
+        return "bool"
+    if isinstance(v, int):
+        return "int"
+    if isinstance(v, float):
+        return "float"
+    return "str" if isinstance(v, str) else "other"
+
+
+def _missing(v: Any) -> bool:
+    return v is None or v is pd.NA or _isnan(v)
 
 
 def _isnan(v: Any) -> bool:
@@ -119,14 +166,13 @@ def _isnan(v: Any) -> bool:
 
 def write_table(df: pd.DataFrame, out: Path) -> tuple[Path, Path]:
     """``DIR/results.parquet`` and ``DIR/results.csv``, each written atomically."""
-    safe = _arrow_safe(df)
-    pq = atomic_write(out / RESULTS_PARQUET, lambda tmp: safe.to_parquet(tmp, index=False))
-    csv = atomic_write(out / RESULTS_CSV, lambda tmp: safe.to_csv(tmp, index=False))
+    pq = atomic_write(out / RESULTS_PARQUET, lambda tmp: df.to_parquet(tmp, index=False))
+    csv = atomic_write(out / RESULTS_CSV, lambda tmp: df.to_csv(tmp, index=False))
     return pq, csv
 
 
 def read_table(out: str | Path) -> pd.DataFrame:
-    """``DIR/results.parquet`` as a DataFrame."""
+    """``DIR/results.parquet`` as a DataFrame (the column types of :func:`build_table`)."""
     return pd.read_parquet(Path(out) / RESULTS_PARQUET)
 
 
