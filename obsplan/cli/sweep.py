@@ -96,8 +96,36 @@ def _announce(info: SweepStart, quiet: bool) -> None:
         )
 
 
+def kept(out: Path) -> str:
+    """What an interrupted or broken-off sweep leaves in ``out``, in words (one true clause)."""
+    from obsplan.sweeps.store import finished_tasks
+
+    if not out.is_dir():
+        return "nothing was written"
+    n = finished_tasks(out)
+    if n == 0:
+        return f"no task had finished; run the same command again to start the sweep in {out}"
+    return (
+        f"{n} finished task{'s are' if n != 1 else ' is'} kept in {out}; run the same command "
+        "again to resume"
+    )
+
+
+def _quiet_dask_logs() -> None:
+    """Silence the ``distributed`` loggers: Dask logs a lost connection or a dead worker as
+    tracebacks (``distributed.client`` has a level and a handler of its own, so setting the
+    parent's level is not enough); the sweep reports both itself, in one line."""
+    import distributed  # noqa: F401 - configures its loggers on import
+
+    for name, logger in list(logging.Logger.manager.loggerDict.items()):
+        if name == "distributed" or name.startswith("distributed."):
+            if isinstance(logger, logging.Logger):
+                logger.setLevel(logging.CRITICAL)
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the verb; 0 when every task finished, 1 if any failed, 130 on Ctrl-C."""
+    """Run the verb; 0 when every task finished, 1 if any failed or the scheduler was lost,
+    130 on Ctrl-C."""
     from obsplan.sweeps.figures import redraw_figures
     from obsplan.sweeps.run import sweep
     from obsplan.sweeps.store import FIGURES, RESULTS_CSV, RESULTS_PARQUET
@@ -116,8 +144,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         raise InputError("give --out DIR, the folder for the results (re-use it to resume)")
     out = check_name(args.out, "--out")  # "" is not the working folder
-    # Dask logs a lost connection or a dead worker as tracebacks; the sweep reports both itself
-    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    _quiet_dask_logs()
     try:
         df = sweep(
             args.sweep_file,
@@ -133,11 +160,7 @@ def run(args: argparse.Namespace) -> int:
         )
     except KeyboardInterrupt as exc:
         # the one line `obsplan` prints for the interruption says what is kept
-        exc.kept = (  # type: ignore[attr-defined]
-            f"finished tasks are kept in {out}; run the same command again to resume"
-            if out.is_dir()
-            else "nothing was written"
-        )
+        exc.kept = kept(out)  # type: ignore[attr-defined]
         raise
     counts = df["status"].value_counts()
     done, failed = int(counts.get("done", 0)), int(counts.get("failed", 0))

@@ -26,8 +26,10 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from obsplan.errors import InputError
 from obsplan.sweeps.spec import axis_column
-from obsplan.sweeps.store import atomic_write
+from obsplan.sweeps.store import FIGURES, RESULTS_PARQUET, atomic_write, read_manifest
+from obsplan.sweeps.table import read_table
 
 #: Metrics drawn by default, by their name inside a path's report (``metrics.<path>.<name>``
 #: or ``validation.<path>.<name>``).
@@ -68,6 +70,19 @@ def metric_column(df: pd.DataFrame, path: str, metric: str) -> str | None:
     return None
 
 
+def table_column(df: pd.DataFrame, name: str) -> str:
+    """The column of ``df`` called ``name``, or of the axis whose path is ``name``
+    (``"limits.accel"`` -> ``"limits.accel [m/s^2]"``: :func:`~obsplan.sweeps.spec.axis_column`).
+    """
+    if name in df.columns:
+        return name
+    try:
+        col = axis_column(name)
+    except InputError:  # not a problem-file path: let pandas name the missing column
+        return name
+    return col if col in df.columns else name
+
+
 def _numeric(series: pd.Series) -> bool:
     return pd.api.types.is_numeric_dtype(series) and not pd.api.types.is_bool_dtype(series)
 
@@ -106,9 +121,9 @@ def plot_metric(
     metric
         A metric name inside a path's report, e.g. ``"min_eig"`` or ``"ekf.rmse_pos"``.
     axis
-        The axis column drawn along x.
+        The axis drawn along x: its column or its path (``"limits.accel"``).
     others
-        Axis columns whose value combinations each get a line.
+        Axes (columns or paths) whose value combinations each get a line.
     paths
         Panels (default :func:`paths_in`).
     ax
@@ -119,6 +134,8 @@ def plot_metric(
     matplotlib.figure.Figure
     """
     paths = list(paths or paths_in(df))
+    axis = table_column(df, axis)
+    others = [table_column(df, o) for o in others]
     if ax is None:
         fig = Figure(figsize=(5.0 * len(paths) + 1.0, 4.0), layout="constrained")
         axs = fig.subplots(1, len(paths), sharey=True, squeeze=False)[0]
@@ -236,8 +253,6 @@ def study_figures(
 def figures_from_manifest(df: pd.DataFrame, out: str | Path, sweep: dict[str, Any]) -> list[Path]:
     """:func:`study_figures` into ``out/figures`` with the axes, combination, name and metrics
     of ``sweep`` (the ``"sweep"`` entry of ``DIR/sweep.json``)."""
-    from obsplan.sweeps.store import FIGURES
-
     return study_figures(
         df,
         Path(out) / FIGURES,
@@ -256,10 +271,6 @@ def redraw_figures(out: str | Path) -> list[Path]:
     InputError
         If ``out`` holds no sweep or no results table.
     """
-    from obsplan.errors import InputError
-    from obsplan.sweeps.store import RESULTS_PARQUET, read_manifest
-    from obsplan.sweeps.table import read_table
-
     manifest = read_manifest(Path(out))
     if not (Path(out) / RESULTS_PARQUET).is_file():
         raise InputError(f"{out} has no {RESULTS_PARQUET}; run the sweep first")

@@ -21,6 +21,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import importlib.util
 import logging
 import os
 import sys
@@ -41,6 +42,7 @@ from obsplan.sweeps.spec import SweepSpec, Task, as_spec, expand, unique_tasks
 from obsplan.sweeps.store import (
     check_code,
     check_out,
+    finished_tasks,
     read_report,
     write_manifest,
     write_task,
@@ -436,8 +438,6 @@ def sweep(
 def has_bokeh() -> bool:
     """Whether bokeh can be imported here (Dask serves a dashboard page without it, which only
     says that it needs bokeh). Run on the scheduler by :func:`_dashboard`."""
-    import importlib.util
-
     try:
         return importlib.util.find_spec("bokeh") is not None
     except (ImportError, ValueError):  # a broken or half-removed installation
@@ -516,21 +516,13 @@ def _run(
             except TimeoutError:
                 done = set()
             except FuturesCancelledError:  # the client lost its scheduler
-                raise ClusterError(
-                    f"lost the connection to the Dask scheduler with {len(running)} tasks in "
-                    f"flight; {bar.n} finished tasks are kept in {out}: run the same command "
-                    "again to resume"
-                ) from None
+                raise ClusterError(_lost(out, len(running))) from None
             if client.status != "running":
                 lost_since = lost_since or time.monotonic()
                 if client.status in ("closing", "closed") or (
                     time.monotonic() - lost_since > LOST_SCHEDULER_S
                 ):
-                    raise ClusterError(
-                        f"lost the Dask scheduler with {len(running)} tasks in flight; "
-                        f"{bar.n} finished tasks are kept in {out}: run the same command again "
-                        "to resume"
-                    )
+                    raise ClusterError(_lost(out, len(running)))
                 continue
             lost_since = None
             for fut in done:
@@ -565,6 +557,16 @@ def _run(
         if running:
             with contextlib.suppress(Exception):
                 client.cancel(list(running), force=True)
+
+
+def _lost(out: Path, in_flight: int) -> str:
+    """The one line of a lost scheduler: what was lost, what is kept (counted on disk)."""
+    n = finished_tasks(out)
+    return (
+        f"lost the Dask scheduler with {in_flight} task{'s' if in_flight != 1 else ''} in "
+        f"flight; {n} finished task{'s are' if n != 1 else ' is'} kept in {out}: run the same "
+        "command again to resume"
+    )
 
 
 def _failure(exc: BaseException | None, attempt: int) -> dict[str, Any]:

@@ -98,7 +98,7 @@ def check_code(out: Path, code: str, force: bool) -> None:
     old = read_manifest(out).get("code")
     if old == code:
         return
-    finished = sum(1 for _ in (out / TASKS).glob(f"*/{REPORT}"))
+    finished = finished_tasks(out)
     if not finished:
         return
     seen = f"code fingerprint {old}" if old else "no code fingerprint recorded"
@@ -108,6 +108,11 @@ def check_code(out: Path, code: str, force: bool) -> None:
         "them; choose a new folder, or pass --force to compute every task again with this "
         f"code (the old task folders stay in {out / TASKS} but leave the table)"
     )
+
+
+def finished_tasks(out: Path) -> int:
+    """Tasks whose report is in ``DIR/tasks/`` (done or failed: finished either way)."""
+    return sum(1 for _ in (Path(out) / TASKS).glob(f"*/{REPORT}"))
 
 
 def task_dir(out: Path, task_id: str) -> Path:

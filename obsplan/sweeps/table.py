@@ -9,11 +9,12 @@ generically: nested keys joined by dots (``solver.success``, ``metrics.planned.m
 (``solver.starts.0.status``), other lists as JSON text. A key the report
 gains later becomes a column without any change here.
 
-Every column has one type whatever the tasks' outcomes (pandas' nullable dtypes, so a failed or
-pending task's missing value is ``<NA>`` and never turns a bool column into objects or an int
-column into floats): :data:`FIXED_TYPES` for the bookkeeping and solver columns, and for the
-others the type of their values (:func:`column_type`). Parquet keeps these types; the CSV leaves
-a missing value empty.
+Every column has one type whatever the tasks' outcomes: pandas' nullable ``boolean``, ``Int64``
+and ``string`` dtypes, so that a failed or pending task's missing value is ``<NA>`` and never
+turns a bool column into objects or an int column into floats; floats are ``float64`` with NaN.
+:data:`FIXED_TYPES` holds for the bookkeeping and solver columns; the others take the type of
+their values (:func:`column_type`). Parquet keeps these types; the CSV leaves a missing value
+empty.
 """
 
 from __future__ import annotations
@@ -41,12 +42,12 @@ FIXED_TYPES: dict[str, str] = {
     "status": "string",
     "error": "string",
     "attempts": "Int64",
-    "task_wall_s": "Float64",
+    "task_wall_s": "float64",
     "worker": "string",
     "solver.success": "boolean",
     "solver.status": "string",
     "solver.iterations": "Int64",
-    "solver.wall_s": "Float64",
+    "solver.wall_s": "float64",
 }
 #: :func:`column_type` of a column mixing kinds of values: JSON text in a ``string`` column.
 JSON_TEXT = "json"
@@ -123,21 +124,23 @@ def build_table(
 
 def column_type(values: Iterable[Any]) -> str:
     """The nullable pandas dtype of a column's values, missing ones (None, NaN) left aside:
-    ``boolean``, ``Int64``, ``Float64`` (ints and floats mixed too), ``string``, or
-    :data:`JSON_TEXT` for other mixtures (e.g. an axis of numbers and lists). A column with no
-    value at all is ``Float64`` (a metric that was never finite)."""
+    ``boolean``, ``Int64``, ``float64`` (ints and floats mixed too; missing is NaN, as numpy
+    and string formatting expect), ``string``, or :data:`JSON_TEXT` for other mixtures (e.g. an
+    axis of numbers and lists). A column with no value at all is ``float64`` (a metric that was
+    never finite)."""
     kinds = {_kind(v) for v in values if not _missing(v)}
     if not kinds:
-        return "Float64"
+        return "float64"
     if len(kinds) == 1:
-        return {"bool": "boolean", "int": "Int64", "float": "Float64", "str": "string"}.get(
+        return {"bool": "boolean", "int": "Int64", "float": "float64", "str": "string"}.get(
             kinds.pop(), JSON_TEXT
         )
-    return "Float64" if kinds == {"int", "float"} else JSON_TEXT
+    return "float64" if kinds == {"int", "float"} else JSON_TEXT
 
 
 def typed_column(values: Sequence[Any], dtype: str | None = None) -> pd.Series:
-    """``values`` as a Series of ``dtype`` (default :func:`column_type`); missing -> ``<NA>``."""
+    """``values`` as a Series of ``dtype`` (default :func:`column_type`); missing -> ``<NA>``
+    (NaN in a float column)."""
     dtype = dtype or column_type(values)
     cells: list[Any] = [None if _missing(v) else v for v in values]
     if dtype == JSON_TEXT:
