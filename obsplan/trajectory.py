@@ -286,9 +286,10 @@ def write_csv(traj: Trajectory, path: str | Path, overwrite: bool = True) -> Pat
     >>> import tempfile
     >>> from pathlib import Path
     >>> from obsplan import generators, write_csv
-    >>> path = write_csv(generators.straight((0.0, 0.0), (1.0, 0.0), 10.0, duration=5.0, dt=1.0),
-    ...                  Path(tempfile.mkdtemp()) / "line.csv")
-    >>> path.read_text().splitlines()[0]
+    >>> line = generators.straight((0.0, 0.0), (1.0, 0.0), 10.0, duration=5.0, dt=1.0)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     path = write_csv(line, Path(tmp) / "line.csv")
+    ...     path.read_text().splitlines()[0]
     't,px,py,vx,vy,ux,uy'
     """
     path = Path(path)
@@ -317,7 +318,8 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
     >>> import numpy as np
     >>> from obsplan import generators, read_csv, write_csv
     >>> traj = generators.circle(50.0, 1.0, 60.0, 1.0)
-    >>> back = read_csv(write_csv(traj, Path(tempfile.mkdtemp()) / "circle.csv"))
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     back = read_csv(write_csv(traj, Path(tmp) / "circle.csv"))
     >>> back.n_samples, bool(np.allclose(back.p, traj.p))
     (61, True)
     """

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import doctest
 import inspect
+import tempfile
 
 import pytest
 
@@ -24,6 +25,12 @@ def test_the_public_functions_are_found():
 def test_examples_run(name, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # examples that write files use temporary folders anyway
     monkeypatch.setenv("MPLBACKEND", "Agg")
+    # the system temp folder, for this process and its children (a sweep's Dask workers): an
+    # example must leave nothing there
+    system_tmp = tmp_path / "system-tmp"
+    system_tmp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(system_tmp))
+    monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
     func = getattr(obsplan, name)
     doc = inspect.getdoc(func) or ""
     assert "\nExamples\n--------\n" in doc, f"obsplan.{name} has no numpydoc Examples section"
@@ -35,3 +42,5 @@ def test_examples_run(name, tmp_path, monkeypatch):
         runner.run(t, out=out.append)
     result = runner.summarize(verbose=False)
     assert result.failed == 0, "".join(out)
+    left = sorted(p.name for p in system_tmp.iterdir())
+    assert not left, f"obsplan.{name}'s example left {left} in the temp folder"

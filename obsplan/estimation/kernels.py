@@ -26,7 +26,8 @@ The batch kernels (``ekf_batch``, ``kf_batch``) and the per-epoch steps of the f
 epoch interface (``ekf_predict``, ``kf_predict``, ``kf_measure``) take their model, records,
 outputs and corrections as keyword-named bundles (:mod:`obsplan.estimation.bundles`), unpacked
 once per call.
-Compiled on first use and cached on disk (``cache=True``); this module is
+Compiled on first use and cached on disk (``cache=True``, in the per-user folder of
+:mod:`obsplan.estimation.jitcache` unless ``NUMBA_CACHE_DIR`` is set); this module is
 imported lazily, so ``import obsplan`` does not load numba.
 
 Packed layouts
@@ -51,6 +52,7 @@ import math
 import numba as nb
 import numpy as np
 
+from obsplan.estimation import jitcache
 from obsplan.estimation.stats import (  # the buffer's columns, the per-run info and truth
     COL_AXES,
     COL_NEES,
@@ -77,6 +79,8 @@ from obsplan.estimation.stats import (  # the buffer's columns, the per-run info
     TM_TRACK_SS,
 )
 
+# the cache folder is chosen when a function is decorated: before the first decorator
+jitcache.configure()
 jit = nb.njit(cache=True, nogil=True)
 inline = nb.njit(cache=True, nogil=True, inline="always")
 

@@ -32,6 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from obsplan.errors import ConfigError
+from obsplan.estimation import jitcache
 from obsplan.estimation.closedloop import ClosedLoop
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.crlb import posterior_crlb
@@ -189,13 +190,26 @@ def monte_carlo_paths(
     )
 
 
+def _bar(runs: int, progress: bool, closed_loop: bool) -> tqdm:
+    """The progress bar over runs; labelled while the first batch compiles the filters (a
+    cold numba cache: about a minute, :mod:`obsplan.estimation.jitcache`)."""
+    desc = jitcache.compile_note(closed_loop) if progress else None
+    return tqdm(total=runs, desc=desc, disable=not progress, unit="run", leave=False)
+
+
+def _advance(bar: tqdm, n: int) -> None:
+    if bar.desc:  # the first batch has compiled whatever it needed
+        bar.set_description_str("", refresh=False)
+    bar.update(n)
+
+
 def _closed_loop(
     traj, config, runs, seed, progress, names, record_every, run_start, guidance, limits, mask
 ) -> MonteCarloResult:
     """One path in closed loop: batches of runs (:class:`ClosedLoop`), merged exactly."""
     crlb = posterior_crlb(traj, config)
     parts = []
-    with tqdm(total=runs, disable=not progress, unit="run", leave=False) as bar:
+    with _bar(runs, progress, closed_loop=True) as bar:
         for c0 in range(run_start, run_start + runs, BATCH):
             k = min(BATCH, run_start + runs - c0)
             loop = ClosedLoop(
@@ -211,7 +225,7 @@ def _closed_loop(
                 filters=names,
             )
             parts.append(loop.result(crlb))
-            bar.update(k)
+            _advance(bar, k)
     return merge_monte_carlo(parts)
 
 
@@ -228,7 +242,7 @@ def _open_loop(
     for job in jobs:
         groups.setdefault(job.grid, []).append(job)
         job.tm = []
-    bar = tqdm(total=runs, disable=not progress, unit="run", leave=False)
+    bar = _bar(runs, progress, closed_loop=False)
     for c0 in range(run_start, run_start + runs, BATCH):
         chunk = range(c0, min(c0 + BATCH, run_start + runs))
         for group in groups.values():
@@ -250,7 +264,7 @@ def _open_loop(
                 draws.append((draw_run(first, seed, i), delta))
             for job in group:
                 _run_batch(job, chunk, run_start, draws)
-        bar.update(len(chunk))
+        _advance(bar, len(chunk))
     bar.close()
 
     wall = (time.perf_counter() - t_start) / len(jobs)

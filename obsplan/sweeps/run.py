@@ -25,6 +25,7 @@ import importlib.util
 import logging
 import os
 import sys
+import tempfile
 import time
 import uuid
 import warnings
@@ -113,7 +114,8 @@ def default_workers() -> int:
 def local_cluster(workers: int | None = None, **kwargs: Any):
     """A :class:`distributed.LocalCluster` of ``workers`` one-thread worker processes (default:
     one per core), BLAS/OpenMP pinned to one thread, no scheduler-side re-runs of a task whose
-    worker died, at most one task queued per worker."""
+    worker died, at most one task queued per worker, and Dask's scratch space in a temporary
+    folder removed with the cluster."""
     import dask
     from distributed import LocalCluster
 
@@ -126,7 +128,12 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
     # freezes glibc's mmap threshold at 128 kB, and IPOPT/CasADi in a worker thread then ran
     # 20-50 % slower than in a plain process (benchmarks/bench_sweep.py): keep glibc's defaults
     environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+    # the scratch folders of the scheduler and the workers (Dask's "dask-scratch-space", left in
+    # the system temp folder otherwise) in a folder removed with the cluster: closed by
+    # dask_client, or when the cluster object is collected or the interpreter exits
+    scratch = tempfile.TemporaryDirectory(prefix="obsplan-dask-", ignore_cleanup_errors=True)
     config = {
+        "temporary-directory": scratch.name,
         "distributed.nanny.pre-spawn-environ": environ,
         "distributed.scheduler.allowed-failures": 0,
         # no task queued behind the running one on a worker (with the client's feed of one
@@ -141,7 +148,9 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
         # port 8787 taken (another cluster): Dask serves the dashboard on a free port instead,
         # and the sweep reports the address it got
         warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
-        return LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **kwargs)
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **kwargs)
+    cluster._obsplan_scratch = scratch  # lives as long as the cluster
+    return cluster
 
 
 def configured_scheduler() -> str | None:
@@ -249,6 +258,9 @@ def dask_client(
                     cluster.sync(_stop_workers, cluster, KILL_TIMEOUT_S)
             with contextlib.suppress(Exception):
                 cluster.close(timeout=10)
+            scratch = getattr(cluster, "_obsplan_scratch", None)
+            if scratch is not None:
+                scratch.cleanup()
 
 
 @contextlib.contextmanager
@@ -370,7 +382,8 @@ def sweep(
     >>> spec = {"sweep": {"name": "doc", "base": base, "mode": "baselines"},
     ...         "base": {"horizon": {"steps": 20}, "validation": {"runs": 2}},
     ...         "axes": {"beacon.position": [[0.0, 0.0], [50.0, 0.0]]}}
-    >>> table = sweep(spec, tempfile.mkdtemp(), workers=1, progress=False, figures=False)
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     table = sweep(spec, out, workers=1, progress=False, figures=False)
     >>> len(table)
     2
     """
