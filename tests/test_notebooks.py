@@ -52,6 +52,10 @@ def test_notebook_executes_quick(name, monkeypatch, tmp_path):
     monkeypatch.setenv("MPLBACKEND", "Agg")
     # keep matplotlib/IPython caches out of the user's home
     monkeypatch.setenv("MPLCONFIGDIR", str(tmp_path / "mpl"))
+    # the kernel's system temp folder (and its Dask workers'): a notebook must leave nothing there
+    system_tmp = tmp_path / "system-tmp"
+    system_tmp.mkdir()
+    monkeypatch.setenv("TMPDIR", str(system_tmp))
     nb = _read(name)
     client = NotebookClient(
         nb,
@@ -60,8 +64,11 @@ def test_notebook_executes_quick(name, monkeypatch, tmp_path):
         resources={"metadata": {"path": str(NOTEBOOK_DIR)}},
     )
     t0 = time.perf_counter()
-    client.execute()  # raises CellExecutionError (with the traceback) on any error
+    client.execute()  # raises CellExecutionError (with the traceback) on any error; the
+    # kernel has stopped when it returns
     wall = time.perf_counter() - t0
+    left = sorted(p.name for p in system_tmp.iterdir())
+    assert not left, f"{name} left {left} in the temp folder"
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs]
     assert not [o for o in outputs if o.output_type == "error"]
     images = [o for o in outputs if "image/png" in o.get("data", {})]

@@ -198,7 +198,7 @@ def _bar(runs: int, progress: bool, closed_loop: bool) -> tqdm:
 
 
 def _advance(bar: tqdm, n: int) -> None:
-    if bar.desc:  # the first batch has compiled whatever it needed
+    if getattr(bar, "desc", ""):  # the first batch compiled what it needed (unset if disabled)
         bar.set_description_str("", refresh=False)
     bar.update(n)
 

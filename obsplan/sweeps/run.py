@@ -21,6 +21,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import functools
 import importlib.util
 import logging
 import os
@@ -117,7 +118,6 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
     worker died, at most one task queued per worker, and Dask's scratch space in a temporary
     folder removed with the cluster."""
     import dask
-    from distributed import LocalCluster
 
     n = workers if workers is not None else default_workers()
     if n < 1:
@@ -148,9 +148,28 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
         # port 8787 taken (another cluster): Dask serves the dashboard on a free port instead,
         # and the sweep reports the address it got
         warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, **kwargs)
-    cluster._obsplan_scratch = scratch  # lives as long as the cluster
+        cluster = _cluster_class()(n_workers=n, threads_per_worker=1, processes=True, **kwargs)
+    cluster.scratch = scratch
     return cluster
+
+
+@functools.cache
+def _cluster_class() -> type:
+    """:class:`distributed.LocalCluster` that removes its scratch folder when it closes
+    (defined on first use: distributed is imported only when a sweep runs)."""
+    from distributed import LocalCluster
+
+    class ScratchCluster(LocalCluster):
+        scratch: tempfile.TemporaryDirectory | None = None
+
+        async def _close(self) -> None:
+            try:
+                await super()._close()
+            finally:
+                if self.scratch is not None:
+                    self.scratch.cleanup()
+
+    return ScratchCluster
 
 
 def configured_scheduler() -> str | None:
@@ -258,9 +277,6 @@ def dask_client(
                     cluster.sync(_stop_workers, cluster, KILL_TIMEOUT_S)
             with contextlib.suppress(Exception):
                 cluster.close(timeout=10)
-            scratch = getattr(cluster, "_obsplan_scratch", None)
-            if scratch is not None:
-                scratch.cleanup()
 
 
 @contextlib.contextmanager
