@@ -9,9 +9,13 @@ either runs (small cases) or reaches the long computation, which is replaced by 
 from __future__ import annotations
 
 import json
+import os
+import shutil
+import signal
 import struct
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -377,3 +381,221 @@ def test_row34_path_figure_draws_the_min_range_and_zooms_on_loops_at_the_beacon(
     fig = plot_filter_errors(val, problem=pb.name)
     assert "at the end" not in fig.axes[0].get_title()
     plt.close(fig)
+
+
+# ------------------------------------------------------------------------------ sweeps
+def _baselines_sweep(folder: Path, positions: list, name: str = "rows") -> Path:
+    """A cheap sweep file: baselines only (no solver) of the free localisation problem, 20 steps,
+    2 Monte Carlo runs, one task per beacon position (about a second each)."""
+    f = folder / f"{name}.toml"
+    f.write_text(
+        f'[sweep]\nname = "{name}"\nbase = "{DEFAULT.as_posix()}"\nmode = "baselines"\n'
+        "[base.horizon]\nsteps = 20\n[base.validation]\nruns = 2\n"
+        f'[axes]\n"beacon.position" = {json.dumps(positions)}\n'
+    )
+    return f
+
+
+def _reports(out: Path) -> dict[Path, int]:
+    return {p: p.stat().st_mtime_ns for p in out.glob("tasks/*/report.json")}
+
+
+def test_row24_the_code_fingerprint_follows_the_computing_code_not_the_cli(tmp_path):
+    from obsplan.sweeps.spec import PACKAGE_DIR, code_fingerprint
+
+    fingerprint = code_fingerprint.__wrapped__  # uncached: the copy below changes
+    copy = tmp_path / "obsplan"
+    shutil.copytree(PACKAGE_DIR, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    base = fingerprint(copy)
+    assert base == code_fingerprint()  # a copy of this installation's sources: the same code
+    cli = copy / "cli" / "sweep.py"
+    cli.write_text(cli.read_text() + "\n# other wording\n")
+    assert fingerprint(copy) == base  # the command line computes no part of a task
+    kernel = copy / "estimation" / "ekf.py"
+    kernel.write_text(kernel.read_text() + "\n# a changed filter\n")
+    assert fingerprint(copy) != base
+
+
+def test_row24_a_resume_after_the_code_changed_refuses_then_force_computes_again(
+    tmp_path, capsys, monkeypatch
+):
+    import pandas as pd
+
+    import obsplan.sweeps.spec as specs
+    from obsplan.sweeps import read_table
+
+    f = _baselines_sweep(tmp_path, [[0.0, 0.0], [50.0, 0.0]])
+    out = tmp_path / "out"
+    argv = ["sweep", f, "--out", out, "--workers", "1", "--quiet", "--no-figures"]
+    code, _, err = run(argv, capsys)
+    assert code == 0, err
+    before, reports = read_table(out), _reports(out)
+    assert len(reports) == 2
+
+    real = specs.code_fingerprint()
+    monkeypatch.setattr(specs, "code_fingerprint", lambda: "0123456789abcdef")  # code changed
+    refused(
+        argv,
+        capsys,
+        "2 finished tasks were computed by other obsplan code",
+        real,
+        "0123456789abcdef",
+        "new folder",
+        "--force",
+    )
+    assert _reports(out) == reports  # nothing ran,
+    pd.testing.assert_frame_equal(read_table(out), before)  # nothing was rewritten
+
+    code, _, err = run([*argv, "--force"], capsys)
+    assert code == 0, err
+    after = read_table(out)
+    assert after["status"].tolist() == ["done", "done"]
+    assert set(after["task_id"]).isdisjoint(before["task_id"])  # new ids: computed again
+    assert set(reports) < set(_reports(out))  # the old results stay beside the new ones
+    assert json.loads((out / "sweep.json").read_text())["code"] == "0123456789abcdef"
+    code, stdout, _ = run(argv, capsys)  # the same code again: a plain resume
+    assert code == 0 and "2 already done, 0 to run" in stdout
+
+
+def test_row28_a_failed_task_among_done_ones_changes_no_column_type(tmp_path, capsys):
+    """The table as the command line rewrites it from the stored reports (JSON: a missing value
+    is null), with one task failed as a runner that raised leaves it."""
+    import pandas as pd
+
+    from obsplan.sweeps import expand, load_sweep, read_table, run_task
+    from obsplan.sweeps.run import _failure, _store
+    from obsplan.sweeps.spec import code_fingerprint
+    from obsplan.sweeps.store import write_manifest
+
+    f = _baselines_sweep(tmp_path, [[0.0, 0.0], [50.0, 0.0]])
+    out = tmp_path / "out"
+    spec = load_sweep(f)
+    ok, bad = expand(spec)
+    # the sweep's own writers, as a run whose second task raised leaves the folder
+    write_manifest(out, {"code": code_fingerprint(), "sweep": spec.to_dict(), "tasks": []})
+    _store(out, ok, run_task(ok), 1)
+    _store(out, bad, _failure(RuntimeError("out of memory"), 2), 2)
+    code, stdout, err = run(["sweep", f, "--out", out, "--quiet", "--no-figures"], capsys)
+    assert code == 1 and "1 done, 1 failed of 2 tasks" in stdout, err
+    for table in (read_table(out), pd.read_csv(out / "results.csv")):
+        assert table.columns[2] == "beacon.position [m]"  # an axis column names its unit
+    df = read_table(out)
+    assert str(df["task"].dtype) == "Int64" and str(df["attempts"].dtype) == "Int64"
+    assert df["attempts"].tolist() == [1, 2]
+    assert str(df["error"].dtype) == "string" and pd.isna(df.loc[0, "error"])
+    assert "the task raised (attempt 2): RuntimeError: out of memory" in df.loc[1, "error"]
+    metric = "metrics.lawnmower.min_eig"
+    assert df[metric].dtype == np.float64 and np.isnan(df.loc[1, metric])
+    assert str(df["status"].dtype) == "string"
+
+
+def test_row28_plan_columns_keep_their_types_with_a_failed_task():
+    """``solver.success`` stays boolean and ``solver.iterations`` an integer beside a task that
+    left no report (the row builder, on reports of the shape plan mode stores)."""
+    from obsplan.sweeps import expand, sweep_from_dict
+    from obsplan.sweeps.table import build_table
+
+    spec = sweep_from_dict(
+        {
+            "sweep": {"name": "t", "base": str(DEFAULT)},
+            "axes": {"limits.accel": [0.02, 0.05], "objective.kind": ["gramian-min-eig"]},
+        }
+    )
+    done, failed = expand(spec)
+    meta = {"status": "done", "error": None, "attempts": 1, "wall_s": 1.5, "worker": "h:1"}
+    stored = {
+        done.id: {"sweep": meta, "solver": {"success": True, "iterations": 41, "status": "x"}},
+        failed.id: {"sweep": {**meta, "status": "failed", "error": "E: boom"}},
+    }
+    df = build_table([done, failed], stored)
+    assert str(df["solver.success"].dtype) == "boolean" and pd_isna(df.loc[1, "solver.success"])
+    assert str(df["solver.iterations"].dtype) == "Int64"
+    assert df.loc[0, "solver.iterations"] == 41 and pd_isna(df.loc[1, "solver.iterations"])
+    assert str(df["solver.status"].dtype) == "string"
+    assert df.columns[2:4].tolist() == ["limits.accel [m/s^2]", "objective.kind"]
+
+
+def pd_isna(v) -> bool:
+    import pandas as pd
+
+    return bool(pd.isna(v))
+
+
+@pytest.mark.parametrize("bokeh", [True, False])
+def test_row30_the_dashboard_link_only_when_the_scheduler_has_bokeh(
+    bokeh, tmp_path, capsys, monkeypatch
+):
+    import obsplan.sweeps.run as run_module
+
+    # asked of the scheduler (here the local cluster's, in this process) by value
+    monkeypatch.setattr(run_module, "has_bokeh", lambda: bokeh)
+    f = _baselines_sweep(tmp_path, [[0.0, 0.0]])
+    code, stdout, err = run(
+        ["sweep", f, "--out", tmp_path / "o", "--workers", "1", "--no-figures"], capsys
+    )
+    assert code == 0, err
+    assert ("dashboard: http" in stdout) is bokeh, stdout
+
+
+def test_row30_has_bokeh_says_whether_bokeh_imports():
+    import importlib.util
+
+    from obsplan.sweeps.run import has_bokeh
+
+    assert has_bokeh() is (importlib.util.find_spec("bokeh") is not None)
+
+
+def test_row31_a_cold_cache_labels_the_first_monte_carlo(tmp_path, traj2):
+    """The installed command with an empty numba cache: the progress bar names the compile step
+    before compiling (the process is stopped there: the compile itself takes a minute)."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "MPLBACKEND": "Agg"}
+    cmd = [str(Path(sys.executable).with_name("obsplan")), "simulate", str(traj2), "--runs", "2"]
+    proc = subprocess.Popen(
+        cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, env=env, start_new_session=True
+    )
+    seen = b""
+    try:
+        deadline = time.monotonic() + 120.0  # generous: importing takes seconds on a loaded CI
+        assert proc.stderr is not None
+        while b"compiling the filters once" not in seen and time.monotonic() < deadline:
+            chunk = proc.stderr.read1(4096)
+            if not chunk:
+                break
+            seen += chunk
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    assert b"compiling the filters once (about" in seen, seen.decode(errors="replace")[-2000:]
+
+
+def test_row31_cache_state_and_folder(tmp_path, monkeypatch):
+    import numba
+    from numba.core.caching import UserProvidedCacheLocator
+
+    from obsplan.estimation import jitcache
+
+    monkeypatch.setattr(jitcache, "compiled_in_process", lambda name: False)
+    cache = tmp_path / "cache"
+    assert jitcache.cache_is_cold(("kernels.py",), cache)  # nothing cached
+    source = jitcache.HERE / "kernels.py"
+    folder = cache / UserProvidedCacheLocator.get_suitable_cache_subpath(str(source))
+    folder.mkdir(parents=True)
+    index = folder / "kernels.predict-1.py311.nbi"
+    index.write_bytes(b"")
+    assert not jitcache.cache_is_cold(("kernels.py",), cache)  # newer than its source
+    old = source.stat().st_mtime - 10.0
+    os.utime(index, (old, old))
+    assert jitcache.cache_is_cold(("kernels.py",), cache)  # the source changed since
+    assert jitcache.cache_is_cold(("kernels.py", "loop_kernels.py"), cache)
+
+    # the default folder: the user's cache, set for numba and for the processes started later
+    monkeypatch.setattr(numba.config, "CACHE_DIR", numba.config.CACHE_DIR)  # restored after
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "placeholder")
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    if sys.platform.startswith("linux"):
+        want = tmp_path / "xdg" / "obsplan" / "numba"
+        assert jitcache.configure() == want and want.is_dir()
+        assert os.environ["NUMBA_CACHE_DIR"] == str(want) == numba.config.CACHE_DIR
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
+    assert jitcache.configure() == tmp_path / "mine"  # the user's choice is kept
