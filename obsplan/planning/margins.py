@@ -88,17 +88,6 @@ RESERVE_ATOL = 0.01
 BOX_SHARE = 0.45
 
 
-def guidance_of(pb: PlanningProblem) -> Guidance:
-    """The guidance law the vehicle flies ``pb``'s paths with: the closed-loop validation's
-    (:func:`~obsplan.planning.validation_setup.validation_guidance`), also when the validation
-    runs open loop (the margins are for the vehicle at sea, which steers its estimate)."""
-    g = validation_guidance(pb)
-    if g is None:
-        g = validation_guidance(replace(pb, validation=replace(pb.validation, mode="closed-loop")))
-    assert g is not None
-    return g
-
-
 def confidence_quantile(confidence: float) -> float:
     """``k = Φ⁻¹(confidence)`` (one-sided normal quantile); 0 when ``confidence`` is 0."""
     c = float(confidence)
@@ -341,7 +330,8 @@ def keepout_margins(
     pb
         The problem: limits, ``limits.keepout_confidence``, the validation's filter settings.
     guidance
-        The guidance law the vehicle flies with (default :func:`guidance_of`).
+        The guidance law the vehicle flies with (default: the validation's,
+        :func:`~obsplan.planning.validation_setup.validation_guidance` with ``at_sea``).
     """
     grid = Grid.from_problem(pb)
     n, N = grid.n, grid.N
@@ -354,7 +344,9 @@ def keepout_margins(
         return KeepoutMargins(conf, k, rng, box, reserve)
     lim = pb.limits
     cov = path_covariance(traj, pb)
-    loop = LoopResponse.of(guidance or guidance_of(pb))
+    guidance = guidance or validation_guidance(pb, at_sea=True)
+    assert guidance is not None  # at_sea: never None
+    loop = LoopResponse.of(guidance)
     q = _process_intensity(pb)
     T = float(grid.times[-1])
     if lim.min_range > 0 or lim.max_range is not None:

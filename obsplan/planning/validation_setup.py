@@ -63,12 +63,16 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     )
 
 
-def validation_guidance(pb: PlanningProblem) -> Guidance | None:
+def validation_guidance(pb: PlanningProblem, *, at_sea: bool = False) -> Guidance | None:
     """The guidance law of a closed-loop validation (``None`` for ``validation.mode =
-    "open-loop"``): gains from the limits ``accel`` [m/s²] and ``speed`` [m/s], the feedback on a
-    prior-sized position error (``init_pos_error`` [m]) using half the smallest acceleration
-    bound (:meth:`~obsplan.estimation.guidance.Guidance.from_limits`)."""
-    if pb.validation.mode == "open-loop":
+    "open-loop"`` unless ``at_sea``): gains from the limits ``accel`` [m/s²] and ``speed`` [m/s],
+    the feedback on a prior-sized position error (``init_pos_error`` [m]) using half the smallest
+    acceleration bound (:meth:`~obsplan.estimation.guidance.Guidance.from_limits`).
+
+    ``at_sea``: the law the vehicle at sea flies whatever the validation's mode (the keep-out
+    margins are for that vehicle, which steers its estimate), never ``None``.
+    """
+    if pb.validation.mode == "open-loop" and not at_sea:
         return None
     lim = pb.limits
     return Guidance.from_limits(lim.accel, lim.speed, pb.validation.init_pos_error)
