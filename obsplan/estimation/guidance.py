@@ -75,12 +75,19 @@ class Guidance:
         Position gain [1/s²].
     kd
         Velocity gain [1/s].
+    settle_std
+        Position std [m] of a settled estimate (module docstring, "Schedule"): above it the
+        gains are scaled down; ``None``: constant gains.
+    speed_k
+        Velocity stds kept below the speed bound (module docstring, "Schedule"); 0: none.
     """
 
     accel: tuple[float, ...]
     speed: float | None
     kp: float
     kd: float
+    settle_std: float | None = None
+    speed_k: float = 0.0
 
     def __post_init__(self) -> None:
         acc = _axes(self.accel)
@@ -94,6 +101,12 @@ class Guidance:
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"guidance {name} must be a gain >= 0, got {v!r}")
             object.__setattr__(self, name, v)
+        if self.settle_std is not None:
+            object.__setattr__(self, "settle_std", _positive(self.settle_std, "settle_std"))
+        k = float(self.speed_k)
+        if not (math.isfinite(k) and k >= 0):
+            raise ConfigError(f"guidance speed_k must be >= 0, got {self.speed_k!r}")
+        object.__setattr__(self, "speed_k", k)
 
     @classmethod
     def from_limits(
@@ -101,6 +114,8 @@ class Guidance:
         accel: float | Sequence[float],
         speed: float | None = None,
         error_scale_m: float = 1.0,
+        settle_std: float | None = None,
+        speed_k: float = 0.0,
     ) -> Guidance:
         """Critically damped gains from the limits (module docstring).
 
@@ -113,11 +128,20 @@ class Guidance:
         error_scale_m
             Typical position error [m] (e.g. the prior position std): the feedback on it uses
             half of the smallest acceleration bound.
+        settle_std, speed_k
+            The schedule (module docstring): see the class.
         """
         acc = _axes(accel)
         a_min = min(_positive(a, "guidance accel") for a in acc)
         omega = math.sqrt(a_min / (2.0 * _positive(error_scale_m, "error_scale_m")))
-        return cls(accel=acc, speed=speed, kp=omega**2, kd=2.0 * omega)
+        return cls(
+            accel=acc,
+            speed=speed,
+            kp=omega**2,
+            kd=2.0 * omega,
+            settle_std=settle_std,
+            speed_k=speed_k,
+        )
 
     @property
     def natural_frequency(self) -> float:
@@ -134,7 +158,14 @@ class Guidance:
         return a
 
     def to_dict(self) -> dict:
-        return {"accel": list(self.accel), "speed": self.speed, "kp": self.kp, "kd": self.kd}
+        return {
+            "accel": list(self.accel),
+            "speed": self.speed,
+            "kp": self.kp,
+            "kd": self.kd,
+            "settle_std": self.settle_std,
+            "speed_k": self.speed_k,
+        }
 
 
 @dataclass(frozen=True)

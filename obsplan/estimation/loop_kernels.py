@@ -55,12 +55,15 @@ from obsplan.estimation.stats import TM_ACCEL, TM_SAT
 #: Relative slack of the speed limit: a plan flown exactly at the bound is not "corrected" for
 #: the round-off of its own chord inputs.
 SPEED_SLACK = 1e-9
+#: The speed reserve never takes the bound on the estimated speed below this fraction of it.
+SPEED_FLOOR = 0.5
 
 
 @jit
-def nav_measure(pt, st, io, k, e):
+def nav_measure(pt, gn, st, io, k, e):
     """Epoch ``e`` at sample ``k``: predict the covariance over the gap, the mean ``x_plan + c +
-    d``, the readings at the truth, the EKF's updates; then ``d`` and ``ce[e] = c``."""
+    d``, the readings at the truth, the EKF's updates; then ``d``, ``ce[e] = c`` and every run's
+    feedback schedule (:func:`schedule`)."""
     n = pt.n
     n2 = 2 * n
     X, P = st.X, st.P
@@ -111,6 +114,31 @@ def nav_measure(pt, st, io, k, e):
     for i in range(n2):
         for b in range(B):
             io.ce[e, i, b] = st.c[i, b]
+    schedule(P, st.gs, st.gd, st.vl, gn.settle2, gn.kv, gn.vmax, n, pt.cur)
+
+
+@inline
+def schedule(P, gs, gd, vl, settle2, kv, vmax, n, cur):
+    """Per run, from its covariance ``P`` (m, m, B) after an update (guidance.py, "Schedule"):
+    the gain scale ``gs`` (``Kp`` factor; ``gd = sqrt(gs)`` the ``Kd`` factor, keeping the
+    damping) and the bound ``vl`` on the estimated speed (``vmax`` less ``kv`` velocity stds)."""
+    B = P.shape[2]
+    for b in range(B):
+        sp = 0.0
+        sv = 0.0
+        for i in range(n):
+            sp = max(sp, P[i, i, b])
+            var = P[n + i, n + i, b]
+            if cur:  # inertial velocity v + v_f
+                var += P[2 * n + i, 2 * n + i, b] + 2.0 * P[n + i, 2 * n + i, b]
+            sv = max(sv, var)
+        g = 1.0
+        if settle2 > 0.0 and sp > settle2:
+            g = settle2 / sp
+        gs[b] = g
+        gd[b] = math.sqrt(g)
+        if vmax < math.inf:
+            vl[b] = max(vmax - kv * math.sqrt(max(sv, 0.0)), SPEED_FLOOR * vmax)
 
 
 @jit
@@ -171,18 +199,22 @@ def flush_metrics(pt, st, io):
 
 
 @inline
-def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, hk, n, cur):
+def guide(
+    U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, gs, gd, vl, hk, n, cur
+):
     """The commands of every run at sample ``k`` into ``U`` (n, B) (guidance.py): ``gains`` are
-    ``(Kp, Kd, v_max)``; ``sat`` (B,) is 1 where a run's command saturated, ``V`` (n, B)
+    ``(Kp, Kd, v_max)``, scaled per run by ``gs``, ``gd`` (B,), with the per-run bound ``vl``
+    (B,) on the estimated speed; ``sat`` (B,) is 1 where a run's command saturated, ``V`` (n, B)
     receives the estimated inertial velocities ``p̂'``."""
     B = c.shape[1]
-    kp, kd, vmax = gains
+    kp0, kd0, vmax = gains
     for b in range(B):
         sat[b] = 0.0
     for i in range(n):
         a = amax[i]
         xp, vp, up = xplan[k, i], nuplan[k, i], uplan[k, i]
         for b in range(B):
+            kp, kd = kp0 * gs[b], kd0 * gd[b]
             ep = c[i, b] + d[i, b]
             ev = c[n + i, b] + d[n + i, b] + (d[2 * n + i, b] if cur else 0.0)
             V[i, b] = vp + ev
@@ -196,16 +228,16 @@ def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gain
                 sat[b] = 1.0
             U[i, b] = u
     if vmax < math.inf:
-        lim2 = vmax * (1.0 + SPEED_SLACK)
-        lim2 *= lim2
         for b in range(B):
+            lim2 = vl[b] * (1.0 + SPEED_SLACK)
+            lim2 *= lim2
             vp2 = 0.0
             for i in range(n):
                 v = V[i, b] + hk * U[i, b]
                 vp2 += v * v
             if vp2 > lim2:  # project v̂ + h u onto the speed ball, then the box again
                 sat[b] = 1.0
-                f = vmax / math.sqrt(vp2)
+                f = vl[b] / math.sqrt(vp2)
                 for i in range(n):
                     u = ((f - 1.0) * V[i, b] + f * hk * U[i, b]) / hk
                     U[i, b] = min(max(u, -amax[i]), amax[i])
@@ -250,6 +282,7 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
     n, cur, h, expo = pt.n, pt.cur, pt.h, pt.expo
     xplan, nuplan, uplan, amax, alim, L = pt.xplan, pt.nuplan, pt.uplan, gn.amax, pt.alim, pt.L
     c, d, dl, U, V, sat, sc, pos = st.c, st.d, st.dl, st.u, st.nu, st.sat, st.sc, st.pos
+    gs, gd, vl = st.gs, st.gd, st.vl
     tm, xb = io.tm, io.xb
     gains = (gn.kp, gn.kd, gn.vmax)
     m = L.shape[0]
@@ -260,7 +293,28 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
             for i in range(m):
                 sc[i] = hk ** expo[i]
         kr = k - ka
-        guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, hk, n, cur)
+        guide(
+            U,
+            V,
+            sat,
+            c,
+            d,
+            ref,
+            kr,
+            has_ref,
+            xplan,
+            nuplan,
+            uplan,
+            k,
+            amax,
+            gains,
+            gs,
+            gd,
+            vl,
+            hk,
+            n,
+            cur,
+        )
         propagate(c, d, dl, U, sat, tm, uplan, alim, k, hk, n, cur, L, sc, z, kr)
         buffer_truth(xb, pos[3], xplan, nuplan, c, dl, ref, kr + 1, has_ref, k + 1, n, cur)
         pos[3] += 1
@@ -285,7 +339,7 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
                 st.pos[3] = 1
             e = pt.ep_of[k]
             if e >= 0:
-                nav_measure(pt, st, io, k, e)
+                nav_measure(pt, gn, st, io, k, e)
                 e_last = e
             ri = pt.rec_of[k]
             if ri >= 0:
