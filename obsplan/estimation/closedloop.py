@@ -66,8 +66,8 @@ NavPath = namedtuple(
     "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon n cur half_sq sig_r L expo "
     "scaled box has_box alim",
 )
-NavGains = namedtuple("NavGains", "kp kd amax vmax settle2 kv")
-NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat gs gd vl")
+NavGains = namedtuple("NavGains", "kp kd amax vmax kv")
+NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
 NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt tm xb ex ex_run")
 
 
@@ -218,10 +218,7 @@ class ClosedLoop:
     def _gains_bundle(self):
         g, n = self.guidance, self.config.model.dim
         vmax = np.inf if g.speed is None else float(g.speed)
-        settle2 = 0.0 if g.settle_std is None else float(g.settle_std) ** 2
-        return NavGains(
-            kp=g.kp, kd=g.kd, amax=g.bounds(n), vmax=vmax, settle2=settle2, kv=g.speed_k
-        )
+        return NavGains(kp=g.kp, kd=g.kd, amax=g.bounds(n), vmax=vmax, kv=g.speed_k)
 
     def _state_bundles(self):
         from obsplan.estimation import kernels
@@ -254,8 +251,6 @@ class ClosedLoop:
             u=np.zeros((n, R)),
             nu=np.zeros((n, R)),
             sat=np.zeros(R),
-            gs=np.ones(R),
-            gd=np.ones(R),
             vl=np.full(R, np.inf),
         )
         noise = dict(self.config.noise)
@@ -278,10 +273,10 @@ class ClosedLoop:
             ex=np.zeros((2, Nr, 2 * n)) if ex_run >= 0 else s.ctx.no_example,
             ex_run=ex_run,
         )
-        from obsplan.estimation.loop_kernels import schedule
+        from obsplan.estimation.loop_kernels import speed_bounds
 
-        gn = self._gn  # the schedule of the prior, until the first update
-        schedule(st.P, st.gs, st.gd, st.vl, gn.settle2, gn.kv, gn.vmax, n, bool(model.current))
+        gn = self._gn  # the prior's, until the first update
+        speed_bounds(st.P, st.vl, gn.kv, gn.vmax, n, bool(model.current))
         return st, io
 
     # ------------------------------------------------------------------ stepping

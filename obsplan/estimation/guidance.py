@@ -26,6 +26,16 @@ position error ``e`` uses half of the smallest acceleration bound, ``Kp e = a_mi
 velocity feedback. With the default problem (0.05 m/s², ``e`` = 1 m, the validation's prior
 position std) ``ω = 0.16 rad/s``: the loop corrects drifts within ~30 s while the EKF's error,
 which it cannot see, passes into the truth filtered at that bandwidth.
+
+**Speed reserve** (per run, recomputed from the EKF's covariance after every update): the
+estimated speed is bounded by ``v_max - speed_k σ_v`` instead of ``v_max`` (``σ_v`` the largest
+per-axis std of the estimated inertial velocity). The true velocity is the estimate's minus its
+error, so the *true* speed then holds ``v_max`` at the confidence of ``speed_k`` (the validation
+sets it from ``limits.keepout_confidence``; the planner keeps the same reserve in the plan,
+:mod:`obsplan.planning.margins`). Bounding the estimated speed at ``v_max`` itself lets the true
+vehicle exceed it by its velocity error in most runs. The reserve takes at most a tenth of the
+bound: slowing a path more than that (a prior's wide velocity std) makes its tracking error, not
+its speed, the larger risk.
 """
 
 from __future__ import annotations
@@ -75,18 +85,14 @@ class Guidance:
         Position gain [1/s²].
     kd
         Velocity gain [1/s].
-    settle_std
-        Position std [m] of a settled estimate (module docstring, "Schedule"): above it the
-        gains are scaled down; ``None``: constant gains.
     speed_k
-        Velocity stds kept below the speed bound (module docstring, "Schedule"); 0: none.
+        Velocity stds kept below the speed bound (module docstring, "Speed reserve"); 0: none.
     """
 
     accel: tuple[float, ...]
     speed: float | None
     kp: float
     kd: float
-    settle_std: float | None = None
     speed_k: float = 0.0
 
     def __post_init__(self) -> None:
@@ -101,8 +107,6 @@ class Guidance:
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"guidance {name} must be a gain >= 0, got {v!r}")
             object.__setattr__(self, name, v)
-        if self.settle_std is not None:
-            object.__setattr__(self, "settle_std", _positive(self.settle_std, "settle_std"))
         k = float(self.speed_k)
         if not (math.isfinite(k) and k >= 0):
             raise ConfigError(f"guidance speed_k must be >= 0, got {self.speed_k!r}")
@@ -114,7 +118,6 @@ class Guidance:
         accel: float | Sequence[float],
         speed: float | None = None,
         error_scale_m: float = 1.0,
-        settle_std: float | None = None,
         speed_k: float = 0.0,
     ) -> Guidance:
         """Critically damped gains from the limits (module docstring).
@@ -128,8 +131,8 @@ class Guidance:
         error_scale_m
             Typical position error [m] (e.g. the prior position std): the feedback on it uses
             half of the smallest acceleration bound.
-        settle_std, speed_k
-            The schedule (module docstring): see the class.
+        speed_k
+            Velocity stds kept below the speed bound (module docstring, "Speed reserve").
         """
         acc = _axes(accel)
         a_min = min(_positive(a, "guidance accel") for a in acc)
@@ -139,7 +142,6 @@ class Guidance:
             speed=speed,
             kp=omega**2,
             kd=2.0 * omega,
-            settle_std=settle_std,
             speed_k=speed_k,
         )
 
@@ -163,7 +165,6 @@ class Guidance:
             "speed": self.speed,
             "kp": self.kp,
             "kd": self.kd,
-            "settle_std": self.settle_std,
             "speed_k": self.speed_k,
         }
 

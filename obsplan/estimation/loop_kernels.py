@@ -56,14 +56,14 @@ from obsplan.estimation.stats import TM_ACCEL, TM_SAT
 #: the round-off of its own chord inputs.
 SPEED_SLACK = 1e-9
 #: The speed reserve never takes the bound on the estimated speed below this fraction of it.
-SPEED_FLOOR = 0.5
+SPEED_FLOOR = 0.9
 
 
 @jit
 def nav_measure(pt, gn, st, io, k, e):
     """Epoch ``e`` at sample ``k``: predict the covariance over the gap, the mean ``x_plan + c +
     d``, the readings at the truth, the EKF's updates; then ``d``, ``ce[e] = c`` and every run's
-    feedback schedule (:func:`schedule`)."""
+    bound on the estimated speed (:func:`speed_bounds`)."""
     n = pt.n
     n2 = 2 * n
     X, P = st.X, st.P
@@ -114,31 +114,24 @@ def nav_measure(pt, gn, st, io, k, e):
     for i in range(n2):
         for b in range(B):
             io.ce[e, i, b] = st.c[i, b]
-    schedule(P, st.gs, st.gd, st.vl, gn.settle2, gn.kv, gn.vmax, n, pt.cur)
+    speed_bounds(P, st.vl, gn.kv, gn.vmax, n, pt.cur)
 
 
 @inline
-def schedule(P, gs, gd, vl, settle2, kv, vmax, n, cur):
-    """Per run, from its covariance ``P`` (m, m, B) after an update (guidance.py, "Schedule"):
-    the gain scale ``gs`` (``Kp`` factor; ``gd = sqrt(gs)`` the ``Kd`` factor, keeping the
-    damping) and the bound ``vl`` on the estimated speed (``vmax`` less ``kv`` velocity stds)."""
-    B = P.shape[2]
-    for b in range(B):
-        sp = 0.0
+def speed_bounds(P, vl, kv, vmax, n, cur):
+    """Per run, from its covariance ``P`` (m, m, B) after an update, the bound ``vl`` (B,) on the
+    estimated speed: ``vmax`` less ``kv`` stds of the inertial velocity's noisiest axis
+    (guidance.py, "Speed reserve"), at least ``SPEED_FLOOR vmax``."""
+    if vmax == math.inf:
+        return
+    for b in range(P.shape[2]):
         sv = 0.0
         for i in range(n):
-            sp = max(sp, P[i, i, b])
             var = P[n + i, n + i, b]
             if cur:  # inertial velocity v + v_f
                 var += P[2 * n + i, 2 * n + i, b] + 2.0 * P[n + i, 2 * n + i, b]
             sv = max(sv, var)
-        g = 1.0
-        if settle2 > 0.0 and sp > settle2:
-            g = settle2 / sp
-        gs[b] = g
-        gd[b] = math.sqrt(g)
-        if vmax < math.inf:
-            vl[b] = max(vmax - kv * math.sqrt(max(sv, 0.0)), SPEED_FLOOR * vmax)
+        vl[b] = max(vmax - kv * math.sqrt(max(sv, 0.0)), SPEED_FLOOR * vmax)
 
 
 @jit
@@ -199,22 +192,19 @@ def flush_metrics(pt, st, io):
 
 
 @inline
-def guide(
-    U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, gs, gd, vl, hk, n, cur
-):
+def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, vl, hk, n, cur):
     """The commands of every run at sample ``k`` into ``U`` (n, B) (guidance.py): ``gains`` are
-    ``(Kp, Kd, v_max)``, scaled per run by ``gs``, ``gd`` (B,), with the per-run bound ``vl``
-    (B,) on the estimated speed; ``sat`` (B,) is 1 where a run's command saturated, ``V`` (n, B)
-    receives the estimated inertial velocities ``p̂'``."""
+    ``(Kp, Kd, v_max)``, ``vl`` (B,) the per-run bound on the estimated speed; ``sat`` (B,) is 1
+    where a run's command saturated, ``V`` (n, B) receives the estimated inertial velocities
+    ``p̂'``."""
     B = c.shape[1]
-    kp0, kd0, vmax = gains
+    kp, kd, vmax = gains
     for b in range(B):
         sat[b] = 0.0
     for i in range(n):
         a = amax[i]
         xp, vp, up = xplan[k, i], nuplan[k, i], uplan[k, i]
         for b in range(B):
-            kp, kd = kp0 * gs[b], kd0 * gd[b]
             ep = c[i, b] + d[i, b]
             ev = c[n + i, b] + d[n + i, b] + (d[2 * n + i, b] if cur else 0.0)
             V[i, b] = vp + ev
@@ -282,7 +272,7 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
     n, cur, h, expo = pt.n, pt.cur, pt.h, pt.expo
     xplan, nuplan, uplan, amax, alim, L = pt.xplan, pt.nuplan, pt.uplan, gn.amax, pt.alim, pt.L
     c, d, dl, U, V, sat, sc, pos = st.c, st.d, st.dl, st.u, st.nu, st.sat, st.sc, st.pos
-    gs, gd, vl = st.gs, st.gd, st.vl
+    vl = st.vl
     tm, xb = io.tm, io.xb
     gains = (gn.kp, gn.kd, gn.vmax)
     m = L.shape[0]
@@ -308,8 +298,6 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
             k,
             amax,
             gains,
-            gs,
-            gd,
             vl,
             hk,
             n,

@@ -91,7 +91,7 @@ RESERVE_ATOL = 0.01
 BOX_SHARE = 0.45
 #: Largest fraction of the speed bound kept in reserve, and the change [m/s] of a speed reserve
 #: that counts as a change between rounds.
-SPEED_SHARE = 0.3
+SPEED_SHARE = 0.1
 SPEED_ATOL = 1e-3
 
 
