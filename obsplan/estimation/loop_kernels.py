@@ -37,6 +37,7 @@ import math
 
 import numpy as np
 
+from obsplan.estimation.guidance import SPEED_RESERVE_CAP
 from obsplan.estimation.kernels import (
     TAB_G,
     TAB_S0,
@@ -56,7 +57,7 @@ from obsplan.estimation.stats import TM_ACCEL, TM_SAT
 #: the round-off of its own chord inputs.
 SPEED_SLACK = 1e-9
 #: The speed reserve never takes the bound on the estimated speed below this fraction of it.
-SPEED_FLOOR = 0.9
+SPEED_FLOOR = 1.0 - SPEED_RESERVE_CAP
 
 
 @jit

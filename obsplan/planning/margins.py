@@ -56,7 +56,7 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
-from obsplan.estimation.guidance import Guidance
+from obsplan.estimation.guidance import SPEED_RESERVE_CAP, Guidance
 from obsplan.estimation.riccati import run_recursion
 from obsplan.planning.estimator_objectives import CovarianceObjective, covariance_objective
 from obsplan.planning.evaluate import objective_value
@@ -89,9 +89,8 @@ RESERVE_CAP = 0.5
 RESERVE_ATOL = 0.01
 #: Largest fraction of the area's (or depth band's) width that margins may take from each side.
 BOX_SHARE = 0.45
-#: Largest fraction of the speed bound kept in reserve, and the change [m/s] of a speed reserve
-#: that counts as a change between rounds.
-SPEED_SHARE = 0.1
+#: The change [m/s] of a speed reserve that counts as a change between rounds (the reserve takes
+#: at most :data:`~obsplan.estimation.guidance.SPEED_RESERVE_CAP` of the bound, as the guidance's).
 SPEED_ATOL = 1e-3
 
 
@@ -258,7 +257,8 @@ class KeepoutMargins:
         At nodes 1..N, the speed reserve [m/s]: the guidance bounds the *estimated* speed by
         ``speed - k σ_v`` (:class:`~obsplan.estimation.guidance.Guidance`, ``speed_k``), so the
         plan keeps ``k`` times the velocity std and the velocity deviation's bound below it (at
-        most :data:`SPEED_SHARE` of the bound); zeros without a speed limit.
+        most :data:`~obsplan.estimation.guidance.SPEED_RESERVE_CAP` of the bound); zeros
+        without a speed limit.
     """
 
     confidence: float
@@ -381,7 +381,7 @@ def keepout_margins(
         reserve[axis] = np.minimum(command / grid.a[axis], RESERVE_CAP)
         speed = np.maximum(speed, k * vel)
     if lim.speed is not None:
-        speed = np.minimum(speed, SPEED_SHARE * float(lim.speed))
+        speed = np.minimum(speed, SPEED_RESERVE_CAP * float(lim.speed))
     else:
         speed[:] = 0.0
     return KeepoutMargins(conf, k, rng, box, reserve, speed)
