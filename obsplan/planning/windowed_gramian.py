@@ -148,10 +148,11 @@ def window_settings(pb: PlanningProblem) -> WindowSettings:
 
 
 def sensor_information(pb: PlanningProblem) -> SensorInformation:
-    """The validation's rates and noises (``[validation]``)."""
+    """The validation's rates and noises (``[validation]``) and the start's range."""
     v = pb.validation
+    r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon)))
     return SensorInformation(
-        v.range_rate, v.range_std, v.dvl_rate, v.dvl_std, v.depth_rate, v.depth_std
+        v.range_rate, v.range_std, v.dvl_rate, v.dvl_std, v.depth_rate, v.depth_std, r0
     )
 
 
@@ -162,7 +163,7 @@ def window_floor(pb: PlanningProblem, ws: WindowSettings) -> float:
     if ws.weighted:
         info = sensor_information(pb)
         c_range, _ = row_weight_factors(augmented_model(pb.model), info, pb.scales)
-        unit = c_range * float(range_information(L**2, info.range_std))
+        unit = c_range * float(range_information(L**2, info.range_std, info.start_range))
     return FLOOR_REL * unit * ws.window_s / T
 
 
@@ -202,7 +203,7 @@ def _interval_weights(grid: Grid, pb: PlanningProblem, u, p, v):
     sq = ca.sum1(p**2)
     mid = p[:, :N] + 0.5 * h * v[:, :N] + 0.125 * h**2 * u
     r2 = simpson_mean(sq[:, :N], ca.sum1(mid**2), sq[:, 1:])
-    rows = [c_range * range_information(r2, info.range_std)]
+    rows = [c_range * range_information(r2, info.range_std, info.start_range)]
     rows += [ca.DM.ones(1, N) * float(w) for w in other]
     return ca.vertcat(*rows)
 
