@@ -52,7 +52,7 @@ class SensorInformation:
     """Rates [Hz] and noise standard deviations of the sensors (range std on ``|p - b|`` [m],
     DVL [m/s] per axis, depth [m]); a sensor the model lacks is ignored. ``start_range`` [m]
     is ``r_0``, the range of the first sample, whose noise every augmented output carries
-    (module docstring; 0: the paper's ``y_0`` taken as exact)."""
+    (module docstring; None: ``y_0`` taken as exact)."""
 
     range_rate: float
     range_std: float
@@ -60,15 +60,16 @@ class SensorInformation:
     dvl_std: float = 1.0
     depth_rate: float = 0.0
     depth_std: float = 1.0
-    start_range: float = 0.0
+    start_range: float | None = None
 
 
-def range_information(r2, sigma: float, start_range: float = 0.0):
+def range_information(r2, sigma: float, start_range=None):
     """Information per sample of ``ȳ = y - y_0 + |d|²/2`` with range noise ``sigma`` [m]:
-    ``1/((r² + r_0²) σ² + σ⁴)`` [1/m⁴], for ``r2 = r²`` [m²] (numpy or CasADi); ``r_0 = 0``
-    gives ``y``'s alone, ``1/(r²σ² + σ⁴/2)``."""
-    r0sq = start_range**2
-    return 1.0 / ((r2 + r0sq) * sigma**2 + (1.0 if r0sq > 0 else 0.5) * sigma**4)
+    ``1/((r² + r_0²) σ² + σ⁴)`` [1/m⁴], for ``r2 = r²`` [m²] and ``start_range = r_0`` [m]
+    (numpy or CasADi); ``start_range = None``: ``y``'s alone, ``1/(r²σ² + σ⁴/2)``."""
+    if start_range is None:
+        return 1.0 / (r2 * sigma**2 + 0.5 * sigma**4)
+    return 1.0 / ((r2 + start_range**2) * sigma**2 + sigma**4)
 
 
 def simpson_mean(f_start, f_mid, f_end):
