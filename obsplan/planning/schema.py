@@ -309,7 +309,9 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "-",
             'For gramian-min-eig and gramian-log-det: "information" (each output row scaled by '
             "its information rate, rate / variance; for the range 1/(r^2 sigma_r^2 + sigma_r^4/2) "
-            'with r from the path) or "none" (the paper\'s unit weights).',
+            "with r from the path, for gramian-log-det 1/((r^2 + r_0^2) sigma_r^2 + sigma_r^4) "
+            "with r_0 the start's: the augmented output subtracts the first range) or "
+            '"none" (the paper\'s unit weights).',
         ),
         FieldSpec(
             "window",
