@@ -13,7 +13,7 @@ and prints its wall and CPU time (the machine may be shared: the load average is
 before and after), its IPOPT iterations and status, the windows and the budget of the issue
 (2D N = 200: 20 s, N = 1000: 60 s; 3D DVL N = 600: 90 s), flagging a row whose wall time is
 over it and a solve that did not converge (any status but ``Solve_Succeeded``).
-``--quick`` runs the N = 200 case only.
+``--quick`` runs the N = 200 case only; ``--kind K`` (repeatable) only those objectives.
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--starts", type=int, default=1, help="starts per solve (default 1)")
     ap.add_argument("--quick", action="store_true", help="the N = 200 case only")
+    ap.add_argument("--kind", action="append", choices=KINDS, help="only this objective")
     args = ap.parse_args(argv)
     head = (
         f"{'case':22s} {'objective':16s} {'form':9s} {'windows':>8s} {'wall s':>7s} "
@@ -59,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     for label, path, steps, budget in CASES[:1] if args.quick else CASES:
         base = load_problem(ROOT / path)
         base = replace(base, horizon=Horizon(base.horizon.duration, steps))
-        for kind in KINDS:
+        for kind in args.kind or KINDS:
             for form, fields in FORMS:
                 obj = replace(base.objective, kind=kind, starts=args.starts, **fields)
                 pb = replace(base, objective=obj)

@@ -207,6 +207,16 @@ def test_range_weight_carries_the_first_sample_and_bounds_the_position_informati
     assert wd.range_information(4.0, sigma) == pytest.approx(1.0 / (4 * sigma**2 + sigma**4 / 2))
 
 
+def test_only_log_det_weights_carry_the_first_sample():
+    # START_RANGE_CRITERIA: the D-optimal weights carry r_0, the E-optimal ones do not
+    pb = load_problem(ROOT / "problems/suite/gramian-offset-beacon.toml")
+    assert pb.objective.kind == "gramian-min-eig"
+    assert sensor_information(pb).start_range is None
+    ld = _with(pb, kind="gramian-log-det")
+    r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon)))
+    assert sensor_information(ld).start_range == pytest.approx(r0, rel=1e-12)
+
+
 @pytest.mark.parametrize(
     ("field", "value", "words"),
     [

@@ -6,18 +6,18 @@ filter with process noise forgets: what it knows at ``t`` comes from the last fe
 seconds of measurements, and a range carries less information the farther the beacon is. So:
 
 * **Information weights.** Each output row is scaled by its information per unit time, rate /
-  variance. The augmented output is ``ȳ = y - y_0 + |d|²/2`` (eq. 21): the range pseudo-output
-  ``y = |p - b|²/2`` (noise variance ``r² σ_r² + σ_r⁴/2`` for range noise ``σ_r``) minus the
-  *first* one, ``y_0``, whose noise is in every sample: the variance of ``ȳ`` is
-  ``(r² + r_0²) σ_r² + σ_r⁴`` (``r_0`` the start's range). Without ``y_0``'s share the weight
-  grows as ``1/r²`` at the beacon while the row ``dᵀ`` keeps the size of the displacement from
-  the start, so the position block of a sample reads ``|d|²/r²`` times the ``1/σ_r²`` a range
-  carries: the optimum circled within 5 m of the beacon, and the EKF, linearising there, was
-  lost on 3 to 7 of 30 closed-loop runs (suite, water-profiling DVL with a current; 3D
-  range-only). With it ``|d| <= r + r_0`` bounds that ratio by 2 (start at rest). ``r²`` is
-  held at its mean over each interval (Simpson's rule on the exact quadratic path). DVL rows
-  get ``rate / σ_dvl²``, the depth row ``rate / σ_z²``. Weights are expressed in the metric
-  scales (outputs ``ȳ/L²``, ``v T/L``, ``p_z/L``; time ``t/T``).
+  variance. For the range pseudo-output ``y = |p - b|²/2`` with range noise ``σ_r`` the variance
+  is ``r² σ_r² + σ_r⁴/2``. The augmented output is ``ȳ = y - y_0 + |d|²/2`` (eq. 21): it also
+  carries the noise of the *first* sample ``y_0``, and with it the variance is
+  ``(r² + r_0²) σ_r² + σ_r⁴`` (``r_0`` the start's range; ``SensorInformation.start_range``).
+  Without ``y_0``'s share the weight grows as ``1/r²`` at the beacon while the row ``dᵀ`` keeps
+  the size of the displacement from the start, so a sample's position block reads ``|d|²/r²``
+  times the ``1/σ_r²`` a range carries; with it ``|d| <= r + r_0`` bounds that ratio by 2 (start
+  at rest). Whether to use it is the caller's choice (``start_range = None``: not). ``r²`` is
+  held at its mean
+  over each interval (Simpson's rule on the exact quadratic path). DVL rows get
+  ``rate / σ_dvl²``, the depth row ``rate / σ_z²``. Weights are expressed in the metric scales
+  (outputs ``ȳ/L²``, ``v T/L``, ``p_z/L``; time ``t/T``).
 * **Windows.** The Gramian of a window ``[t_a, t_b]`` is the sum of its intervals' exact
   contributions (eq. 25), built once for the whole path: a window is a difference of prefix
   sums. The contributions are referred to ``z(t_0)``; since ``z(t) = Φ(t - t_0) z(t_0)`` +

@@ -310,10 +310,10 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "information",
             "-",
             'For gramian-min-eig and gramian-log-det: "information" (each output row scaled by '
-            "its information rate, rate / variance; for the range "
-            "1/((r^2 + r_0^2) sigma_r^2 + sigma_r^4) with r from the path and r_0 the start's: "
-            'the augmented output subtracts the first range) or "none" (the paper\'s unit '
-            "weights).",
+            "its information rate, rate / variance; for the range 1/(r^2 sigma_r^2 + sigma_r^4/2) "
+            "with r from the path, for gramian-log-det 1/((r^2 + r_0^2) sigma_r^2 + sigma_r^4) "
+            "with r_0 the start's: the augmented output subtracts the first range) or "
+            '"none" (the paper\'s unit weights).',
         ),
         FieldSpec(
             "window",
