@@ -9,13 +9,17 @@ Cases: 2D range-only (``problems/suite/gramian-offset-beacon.toml``) at N = 200 
 and ``gramian-log-det`` with their default (windowed, information-weighted) settings and with
 ``window = "mission"``, ``weights = "none"`` (the paper's). Each row is one ``solve`` as ``obsplan
 plan`` runs it (multi-start, coarse-to-fine above N = 250) with ``--starts`` starts in one process,
-and prints its wall time, status, the windows and the budget of the issue (2D N = 200: 20 s,
-N = 1000: 60 s; 3D DVL N = 600: 90 s). ``--quick`` runs the N = 200 case only.
+and prints its wall and CPU time (the machine may be shared: the load average is printed
+before and after), its IPOPT iterations and status, the windows and the budget of the issue
+(2D N = 200: 20 s, N = 1000: 60 s; 3D DVL N = 600: 90 s), flagging a row whose wall time is
+over it and a solve that did not converge (any status but ``Solve_Succeeded``).
+``--quick`` runs the N = 200 case only.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from dataclasses import replace
@@ -25,6 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
+from obsplan.planning.ipopt import SUCCESS_STATUS  # noqa: E402
 from obsplan.planning.problem import Horizon  # noqa: E402
 from obsplan.planning.solve import solve  # noqa: E402
 from obsplan.planning.windowed_gramian import paper_form, window_settings  # noqa: E402
@@ -46,8 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     head = (
         f"{'case':22s} {'objective':16s} {'form':9s} {'windows':>8s} {'wall s':>7s} "
-        f"{'budget':>6s}  status"
+        f"{'cpu s':>6s} {'budget':>6s} {'iters':>5s}  status"
     )
+    print("load average (1, 5, 15 min): " + ", ".join(f"{x:.2f}" for x in os.getloadavg()))
     print(head)
     print("-" * (len(head) + 20))
     for label, path, steps, budget in CASES[:1] if args.quick else CASES:
@@ -59,15 +65,18 @@ def main(argv: list[str] | None = None) -> int:
                 pb = replace(base, objective=obj)
                 ws = window_settings(pb)
                 nw = "1" if paper_form(pb) else f"{len(ws.starts)}x{ws.window_s:.0f}s"
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 res = solve(pb, processes=1)
-                wall = time.perf_counter() - t0
-                flag = "" if wall <= budget else "  OVER BUDGET"
+                wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+                flags = [] if res.status == SUCCESS_STATUS else ["NOT CONVERGED"]
+                flags += [] if wall <= budget else ["OVER BUDGET"]
                 print(
-                    f"{label:22s} {kind:16s} {form:9s} {nw:>8s} {wall:7.1f} {budget:6.0f}  "
-                    f"{res.status}{flag}",
+                    f"{label:22s} {kind:16s} {form:9s} {nw:>8s} {wall:7.1f} {cpu:6.1f} "
+                    f"{budget:6.0f} {res.iterations:5d}  {res.status}"
+                    + "".join(f"  {f}" for f in flags),
                     flush=True,
                 )
+    print("load average (1, 5, 15 min): " + ", ".join(f"{x:.2f}" for x in os.getloadavg()))
     return 0
 
 

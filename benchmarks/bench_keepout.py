@@ -5,7 +5,8 @@
 For every problem (default: the shipped ``problems/*.toml`` and ``problems/suite/*.toml``):
 the plan without margins (``solve``, ``limits.keepout_confidence = 0``) and with them
 (``keep_out`` on that plan, the problem's confidence), then the closed-loop Monte Carlo of both
-and of the lawn-mower (guidance on the EKF's estimate, :func:`obsplan.planning.margins.guidance_of`;
+and of the lawn-mower (guidance on the EKF's estimate,
+:func:`obsplan.planning.validation_setup.validation_guidance` with ``at_sea``;
 the same seed and runs for every path). Prints a Markdown table: runs whose true path enters
 ``min_range``, the true closest range over all runs, runs breaking any limit, EKF RMSE and final
 error, and the re-solve's rounds, whether the margins held, the largest margin and acceleration
@@ -23,9 +24,9 @@ from pathlib import Path
 from obsplan.estimation.simulate import monte_carlo_paths
 from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
-from obsplan.planning.margins import guidance_of, keep_out
+from obsplan.planning.margins import keep_out
 from obsplan.planning.solve import solve
-from obsplan.planning.validation_setup import estimation_config, truth_limits
+from obsplan.planning.validation_setup import estimation_config, truth_limits, validation_guidance
 from obsplan.trajectory import resample
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -84,7 +85,7 @@ def main() -> None:
                 cfg,
                 runs=args.runs,
                 seed=args.seed,
-                guidance=guidance_of(pb),
+                guidance=validation_guidance(pb, at_sea=True),
                 limits=truth_limits(pb),
                 filters=("ekf",),
             )

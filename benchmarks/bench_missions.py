@@ -16,13 +16,17 @@ over the survey problems whose lines leave at least 30 % speed headroom.
 
 Speed table (``--speed``): the solve (``obsplan.planning.solve``, its default worker processes)
 of the default 3-line 2D survey at N = 300 and of the 6-line 3D survey with DVL
-(``problems/suite/missions/survey-dvl3d.toml``) at N = 600, wall time and status.
+(``problems/suite/missions/survey-dvl3d.toml``) at N = 600: status, wall time, CPU time (this
+process and the worker processes; the machine is shared, so the wall time depends on the load,
+printed beside it), the construction time and each start's IPOPT iterations.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import resource
 import statistics
 import sys
 import time
@@ -121,6 +125,13 @@ def verdict_table(rows: list[dict]) -> None:
     )
 
 
+def _cpu_s() -> float:
+    """CPU time [s] of this process and of its reaped children (the starts' worker processes)."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def speed_table() -> None:
     cases = (
         ("3-line 2D survey", ROOT / "problems" / "default.toml", 300),
@@ -130,16 +141,30 @@ def speed_table() -> None:
             600,
         ),
     )
-    print(f"{'case':<24} {'N':>5} {'status':<18} {'solve s':>8} {'complete':>9}")
+    print(
+        f"{'case':<24} {'N':>5} {'status':<18} {'wall s':>7} {'cpu s':>7} {'build s':>7} "
+        f"{'iterations':>10} {'complete':>9} {'load':>5}"
+    )
     for name, path, steps in cases:
         pb = load_problem(path)
         pb = replace(pb, horizon=Horizon(pb.horizon.duration, steps))
         bls = baselines(pb)
+        load = os.getloadavg()[0]
+        c0 = _cpu_s()
         t0 = time.perf_counter()
         res = solve(pb, baselines=bls)
         wall = time.perf_counter() - t0
+        cpu = _cpu_s() - c0
         done = res.trajectory is not None and completes_mission(res.trajectory, pb)
-        print(f"{name:<24} {steps:5d} {res.status:<18} {wall:8.1f} {str(done):>9}")
+        iters = "/".join(str(s.iterations) for s in res.starts)
+        print(
+            f"{name:<24} {steps:5d} {res.status:<18} {wall:7.1f} {cpu:7.1f} {res.build_s:7.1f} "
+            f"{iters:>10} {str(done):>9} {load:5.1f}"
+        )
+    print(
+        "wall: the solve (build, then the starts in parallel worker processes); cpu: user + "
+        "system time of this process and the workers; load: the 1-minute load average before"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,11 +16,13 @@ from obsplan.cli import main
 from obsplan.errors import ProblemError
 from obsplan.planning.baselines import baselines, unfitted_baselines
 from obsplan.planning.feasibility import check_limits
+from obsplan.planning.guesses import COARSE_STEPS, coarse_problem
 from obsplan.planning.mission_check import mission_check
 from obsplan.planning.mission_schedule import dubins, mission_schedule
 from obsplan.planning.mission_spec import LineArea, generate_lines
 from obsplan.planning.parse import (
     DEFAULT_PROBLEM,
+    LOCALISE_PROBLEM,
     PROBLEMS_DIR,
     load_problem,
     problem_from_dict,
@@ -28,6 +30,7 @@ from obsplan.planning.parse import (
 )
 from obsplan.planning.plan import plan
 from obsplan.planning.problem import Horizon
+from obsplan.planning.solve import default_expand
 from obsplan.trajectory import Trajectory
 
 MISSIONS = sorted((PROBLEMS_DIR / "suite" / "missions").glob("*.toml"))
@@ -299,6 +302,19 @@ def test_the_lines_mode_plans_over_the_line_windows():
     res = plan(pb, validate=False, processes=1)
     assert res.missions["planned"].complete
     assert res.metrics["planned"].objective < res.metrics["lawnmower"].objective
+
+
+def test_a_mission_is_solved_expanded_on_every_grid_and_free_problems_as_before():
+    # a mission has no coarse pass, so its fine grid is expanded to SX too; a free problem's
+    # fine grid (warm-started from its coarse plan) is not
+    survey = load_problem()
+    fine = 300  # a divisor of both horizons in filter steps (0.1 s), above COARSE_STEPS
+    assert fine > COARSE_STEPS
+    assert coarse_problem(replace(survey, horizon=Horizon(survey.horizon.duration, fine))) is None
+    assert default_expand(replace(survey, horizon=Horizon(survey.horizon.duration, fine)))
+    free = load_problem(LOCALISE_PROBLEM)
+    assert not default_expand(replace(free, horizon=Horizon(free.horizon.duration, fine)))
+    assert default_expand(replace(free, horizon=Horizon(free.horizon.duration, COARSE_STEPS)))
 
 
 def test_a_coarser_grid_of_the_same_mission_keeps_the_windows():

@@ -8,6 +8,8 @@ an iterate count, a status other than what the code guarantees, or one run's exa
 
 from __future__ import annotations
 
+import multiprocessing as mp
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -29,6 +31,7 @@ from obsplan.planning.ipopt import project as _project
 from obsplan.planning.lwo_objective import LWO_BETA, lwo_condition, lwo_conditions, lwo_softmin
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict
 from obsplan.planning.problem import Horizon, Limits
+from obsplan.planning.starts import run_forked
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.validation_setup import estimation_config
 from obsplan.trajectory import Trajectory, resample
@@ -364,3 +367,20 @@ def test_default_problem_beats_the_lawnmower_and_the_circle():
 def test_limits_dataclass_defaults_match_the_schema():
     lim = Limits(accel=(0.05, 0.05), speed=1.0)
     assert lim.min_range == 5.0 and lim.max_range is None and lim.min_speed == 0.0
+
+
+def _scaled(state: float, item: int) -> tuple[int, float, int]:
+    return item, state * item, os.getpid()
+
+
+def test_run_forked_keeps_the_item_order_and_equals_serial():
+    # the one fork-pool helper of the multi-start and of the replanned Monte Carlo
+    seen: list[int] = []
+    items = list(range(7))
+    serial = run_forked(_scaled, 1.5, items, 1)
+    forked = run_forked(_scaled, 1.5, items, 2, lambda i, _: seen.append(i))
+    assert [r[:2] for r in forked] == [r[:2] for r in serial] == [(i, 1.5 * i) for i in items]
+    assert seen == items  # called in item order
+    assert {r[2] for r in serial} == {os.getpid()}
+    if "fork" in mp.get_all_start_methods():  # the state reached the workers by the fork
+        assert os.getpid() not in {r[2] for r in forked}

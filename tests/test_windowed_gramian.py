@@ -184,6 +184,29 @@ def test_weights_make_the_objective_see_the_beacon():
     )
 
 
+def test_range_weight_carries_the_first_sample_and_bounds_the_position_information():
+    # the augmented output subtracts y_0, so its variance has r_0²σ² besides r²σ²; with it the
+    # position block of one sample, w |d|² (d = p - p_0, start at rest), is at most 2/σ² (the
+    # 1/σ² of a range, twice), wherever the vehicle is; without it, it grows as |d|²/r² at the
+    # beacon (the fictitious information the plans circled the beacon for)
+    rng = np.random.default_rng(3)
+    sigma = 0.1
+    b = np.zeros(3)
+    p0 = rng.uniform(-100.0, 100.0, size=(2000, 3))
+    p = rng.uniform(-100.0, 100.0, size=(2000, 3))
+    p[:200] = b + rng.normal(scale=0.5, size=(200, 3))  # next to the beacon
+    r2 = np.sum((p - b) ** 2, axis=1)
+    r0 = np.linalg.norm(p0 - b, axis=1)
+    d2 = np.sum((p - p0) ** 2, axis=1)
+    with_y0 = wd.range_information(r2, sigma, r0) * d2 * sigma**2
+    assert np.all(with_y0 <= 2.0)  # exact bound: |d| <= r + r_0, (r + r_0)² <= 2 (r² + r_0²)
+    assert np.max(with_y0) > 1.0  # and nearly reached: not a vacuous weight
+    without = wd.range_information(r2, sigma) * d2 * sigma**2
+    assert np.max(without[:200]) > 1e3
+    # without a start range: the single pseudo-output's 1/(r²σ² + σ⁴/2)
+    assert wd.range_information(4.0, sigma) == pytest.approx(1.0 / (4 * sigma**2 + sigma**4 / 2))
+
+
 @pytest.mark.parametrize(
     ("field", "value", "words"),
     [

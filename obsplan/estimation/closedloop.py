@@ -66,8 +66,8 @@ NavPath = namedtuple(
     "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon n cur half_sq sig_r L expo "
     "scaled box has_box alim",
 )
-NavGains = namedtuple("NavGains", "kp kd amax vmax")
-NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat")
+NavGains = namedtuple("NavGains", "kp kd amax vmax kv")
+NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
 NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt tm xb ex ex_run")
 
 
@@ -218,7 +218,7 @@ class ClosedLoop:
     def _gains_bundle(self):
         g, n = self.guidance, self.config.model.dim
         vmax = np.inf if g.speed is None else float(g.speed)
-        return NavGains(kp=g.kp, kd=g.kd, amax=g.bounds(n), vmax=vmax)
+        return NavGains(kp=g.kp, kd=g.kd, amax=g.bounds(n), vmax=vmax, kv=g.speed_k)
 
     def _state_bundles(self):
         from obsplan.estimation import kernels
@@ -251,6 +251,7 @@ class ClosedLoop:
             u=np.zeros((n, R)),
             nu=np.zeros((n, R)),
             sat=np.zeros(R),
+            vl=np.full(R, np.inf),
         )
         noise = dict(self.config.noise)
         Yn = np.stack(
@@ -272,6 +273,10 @@ class ClosedLoop:
             ex=np.zeros((2, Nr, 2 * n)) if ex_run >= 0 else s.ctx.no_example,
             ex_run=ex_run,
         )
+        from obsplan.estimation.loop_kernels import speed_bounds
+
+        gn = self._gn  # the prior's, until the first update
+        speed_bounds(st.P, st.vl, gn.kv, gn.vmax, n, bool(model.current))
         return st, io
 
     # ------------------------------------------------------------------ stepping

@@ -26,6 +26,17 @@ position error ``e`` uses half of the smallest acceleration bound, ``Kp e = a_mi
 velocity feedback. With the default problem (0.05 m/s², ``e`` = 1 m, the validation's prior
 position std) ``ω = 0.16 rad/s``: the loop corrects drifts within ~30 s while the EKF's error,
 which it cannot see, passes into the truth filtered at that bandwidth.
+
+**Speed reserve** (per run, recomputed from the EKF's covariance after every update): the
+estimated speed is bounded by ``v_max - speed_k σ_v`` instead of ``v_max`` (``σ_v`` the largest
+per-axis std of the estimated inertial velocity). The true velocity is the estimate's minus its
+error, so the *true* speed then holds ``v_max`` at the confidence of ``speed_k`` (the validation
+sets it from ``limits.keepout_confidence``; the planner keeps the same reserve in the plan,
+:mod:`obsplan.planning.margins`). Bounding the estimated speed at ``v_max`` itself lets the true
+vehicle exceed it by its velocity error in most runs. The reserve takes at most
+:data:`SPEED_RESERVE_CAP` of the bound: slowing a path more than that (a prior's wide velocity
+std) makes its tracking error, not its speed, the larger risk. A path planned at the bound
+without the reserve (a baseline) lags it by a few metres instead.
 """
 
 from __future__ import annotations
@@ -38,6 +49,9 @@ from typing import cast
 import numpy as np
 
 from obsplan.errors import ConfigError
+
+#: Largest fraction of the speed bound the speed reserve takes (module docstring).
+SPEED_RESERVE_CAP = 0.3
 
 
 def _axes(value: float | Sequence[float]) -> tuple[float, ...]:
@@ -75,12 +89,15 @@ class Guidance:
         Position gain [1/s²].
     kd
         Velocity gain [1/s].
+    speed_k
+        Velocity stds kept below the speed bound (module docstring, "Speed reserve"); 0: none.
     """
 
     accel: tuple[float, ...]
     speed: float | None
     kp: float
     kd: float
+    speed_k: float = 0.0
 
     def __post_init__(self) -> None:
         acc = _axes(self.accel)
@@ -94,6 +111,10 @@ class Guidance:
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"guidance {name} must be a gain >= 0, got {v!r}")
             object.__setattr__(self, name, v)
+        k = float(self.speed_k)
+        if not (math.isfinite(k) and k >= 0):
+            raise ConfigError(f"guidance speed_k must be >= 0, got {self.speed_k!r}")
+        object.__setattr__(self, "speed_k", k)
 
     @classmethod
     def from_limits(
@@ -101,6 +122,7 @@ class Guidance:
         accel: float | Sequence[float],
         speed: float | None = None,
         error_scale_m: float = 1.0,
+        speed_k: float = 0.0,
     ) -> Guidance:
         """Critically damped gains from the limits (module docstring).
 
@@ -113,11 +135,19 @@ class Guidance:
         error_scale_m
             Typical position error [m] (e.g. the prior position std): the feedback on it uses
             half of the smallest acceleration bound.
+        speed_k
+            Velocity stds kept below the speed bound (module docstring, "Speed reserve").
         """
         acc = _axes(accel)
         a_min = min(_positive(a, "guidance accel") for a in acc)
         omega = math.sqrt(a_min / (2.0 * _positive(error_scale_m, "error_scale_m")))
-        return cls(accel=acc, speed=speed, kp=omega**2, kd=2.0 * omega)
+        return cls(
+            accel=acc,
+            speed=speed,
+            kp=omega**2,
+            kd=2.0 * omega,
+            speed_k=speed_k,
+        )
 
     @property
     def natural_frequency(self) -> float:
@@ -134,7 +164,13 @@ class Guidance:
         return a
 
     def to_dict(self) -> dict:
-        return {"accel": list(self.accel), "speed": self.speed, "kp": self.kp, "kd": self.kd}
+        return {
+            "accel": list(self.accel),
+            "speed": self.speed,
+            "kp": self.kp,
+            "kd": self.kd,
+            "speed_k": self.speed_k,
+        }
 
 
 @dataclass(frozen=True)

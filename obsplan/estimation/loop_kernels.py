@@ -37,6 +37,7 @@ import math
 
 import numpy as np
 
+from obsplan.estimation.guidance import SPEED_RESERVE_CAP
 from obsplan.estimation.kernels import (
     TAB_G,
     TAB_S0,
@@ -55,12 +56,15 @@ from obsplan.estimation.stats import TM_ACCEL, TM_SAT
 #: Relative slack of the speed limit: a plan flown exactly at the bound is not "corrected" for
 #: the round-off of its own chord inputs.
 SPEED_SLACK = 1e-9
+#: The speed reserve never takes the bound on the estimated speed below this fraction of it.
+SPEED_FLOOR = 1.0 - SPEED_RESERVE_CAP
 
 
 @jit
-def nav_measure(pt, st, io, k, e):
+def nav_measure(pt, gn, st, io, k, e):
     """Epoch ``e`` at sample ``k``: predict the covariance over the gap, the mean ``x_plan + c +
-    d``, the readings at the truth, the EKF's updates; then ``d`` and ``ce[e] = c``."""
+    d``, the readings at the truth, the EKF's updates; then ``d``, ``ce[e] = c`` and every run's
+    bound on the estimated speed (:func:`speed_bounds`)."""
     n = pt.n
     n2 = 2 * n
     X, P = st.X, st.P
@@ -111,6 +115,24 @@ def nav_measure(pt, st, io, k, e):
     for i in range(n2):
         for b in range(B):
             io.ce[e, i, b] = st.c[i, b]
+    speed_bounds(P, st.vl, gn.kv, gn.vmax, n, pt.cur)
+
+
+@inline
+def speed_bounds(P, vl, kv, vmax, n, cur):
+    """Per run, from its covariance ``P`` (m, m, B) after an update, the bound ``vl`` (B,) on the
+    estimated speed: ``vmax`` less ``kv`` stds of the inertial velocity's noisiest axis
+    (guidance.py, "Speed reserve"), at least ``SPEED_FLOOR vmax``."""
+    if vmax == math.inf:
+        return
+    for b in range(P.shape[2]):
+        sv = 0.0
+        for i in range(n):
+            var = P[n + i, n + i, b]
+            if cur:  # inertial velocity v + v_f
+                var += P[2 * n + i, 2 * n + i, b] + 2.0 * P[n + i, 2 * n + i, b]
+            sv = max(sv, var)
+        vl[b] = max(vmax - kv * math.sqrt(max(sv, 0.0)), SPEED_FLOOR * vmax)
 
 
 @jit
@@ -171,10 +193,11 @@ def flush_metrics(pt, st, io):
 
 
 @inline
-def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, hk, n, cur):
+def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, vl, hk, n, cur):
     """The commands of every run at sample ``k`` into ``U`` (n, B) (guidance.py): ``gains`` are
-    ``(Kp, Kd, v_max)``; ``sat`` (B,) is 1 where a run's command saturated, ``V`` (n, B)
-    receives the estimated inertial velocities ``p̂'``."""
+    ``(Kp, Kd, v_max)``, ``vl`` (B,) the per-run bound on the estimated speed; ``sat`` (B,) is 1
+    where a run's command saturated, ``V`` (n, B) receives the estimated inertial velocities
+    ``p̂'``."""
     B = c.shape[1]
     kp, kd, vmax = gains
     for b in range(B):
@@ -196,16 +219,16 @@ def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gain
                 sat[b] = 1.0
             U[i, b] = u
     if vmax < math.inf:
-        lim2 = vmax * (1.0 + SPEED_SLACK)
-        lim2 *= lim2
         for b in range(B):
+            lim2 = vl[b] * (1.0 + SPEED_SLACK)
+            lim2 *= lim2
             vp2 = 0.0
             for i in range(n):
                 v = V[i, b] + hk * U[i, b]
                 vp2 += v * v
             if vp2 > lim2:  # project v̂ + h u onto the speed ball, then the box again
                 sat[b] = 1.0
-                f = vmax / math.sqrt(vp2)
+                f = vl[b] / math.sqrt(vp2)
                 for i in range(n):
                     u = ((f - 1.0) * V[i, b] + f * hk * U[i, b]) / hk
                     U[i, b] = min(max(u, -amax[i]), amax[i])
@@ -250,6 +273,7 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
     n, cur, h, expo = pt.n, pt.cur, pt.h, pt.expo
     xplan, nuplan, uplan, amax, alim, L = pt.xplan, pt.nuplan, pt.uplan, gn.amax, pt.alim, pt.L
     c, d, dl, U, V, sat, sc, pos = st.c, st.d, st.dl, st.u, st.nu, st.sat, st.sc, st.pos
+    vl = st.vl
     tm, xb = io.tm, io.xb
     gains = (gn.kp, gn.kd, gn.vmax)
     m = L.shape[0]
@@ -260,7 +284,26 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
             for i in range(m):
                 sc[i] = hk ** expo[i]
         kr = k - ka
-        guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gains, hk, n, cur)
+        guide(
+            U,
+            V,
+            sat,
+            c,
+            d,
+            ref,
+            kr,
+            has_ref,
+            xplan,
+            nuplan,
+            uplan,
+            k,
+            amax,
+            gains,
+            vl,
+            hk,
+            n,
+            cur,
+        )
         propagate(c, d, dl, U, sat, tm, uplan, alim, k, hk, n, cur, L, sc, z, kr)
         buffer_truth(xb, pos[3], xplan, nuplan, c, dl, ref, kr + 1, has_ref, k + 1, n, cur)
         pos[3] += 1
@@ -285,7 +328,7 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
                 st.pos[3] = 1
             e = pt.ep_of[k]
             if e >= 0:
-                nav_measure(pt, st, io, k, e)
+                nav_measure(pt, gn, st, io, k, e)
                 e_last = e
             ri = pt.rec_of[k]
             if ri >= 0:

@@ -30,7 +30,7 @@ from obsplan.planning.grid import Grid
 from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
 
-Hessian = Literal["exact", "limited-memory"]
+Hessian = Literal["exact", "limited-memory", "limited-memory-sr1"]
 
 
 def no_variables(W: np.ndarray) -> np.ndarray:
@@ -142,8 +142,9 @@ class ObjectiveTerm:
         Lifting variables (e.g. a Cholesky factor), placed right after ``W``.
     constraints : tuple of ConstraintBlock
         The lifting's constraints, placed right after the path constraints.
-    hessian : {"exact", "limited-memory"}
-        IPOPT's Hessian: exact, or L-BFGS when the exact one is dense or slow to build.
+    hessian : {"exact", "limited-memory", "limited-memory-sr1"}
+        IPOPT's Hessian: exact, or a limited-memory quasi-Newton update (BFGS, or SR1 for a
+        non-convex objective on which BFGS stalls) when the exact one is dense or slow to build.
     """
 
     f: ca.MX

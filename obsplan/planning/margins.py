@@ -55,9 +55,8 @@ from functools import cache
 import casadi as ca
 import numpy as np
 import scipy.linalg
-from scipy.stats import norm
 
-from obsplan.estimation.guidance import Guidance
+from obsplan.estimation.guidance import SPEED_RESERVE_CAP, Guidance
 from obsplan.estimation.riccati import run_recursion
 from obsplan.planning.estimator_objectives import CovarianceObjective, covariance_objective
 from obsplan.planning.evaluate import objective_value
@@ -67,7 +66,11 @@ from obsplan.planning.grid import Grid
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult, solve
 from obsplan.planning.starts import StartOutcome, run_start, start_context
-from obsplan.planning.validation_setup import estimation_config, validation_guidance
+from obsplan.planning.validation_setup import (
+    confidence_quantile,
+    estimation_config,
+    validation_guidance,
+)
 from obsplan.trajectory import Trajectory
 
 #: Re-solves with tightened limits at most (module docstring, "Fixed point").
@@ -86,23 +89,9 @@ RESERVE_CAP = 0.5
 RESERVE_ATOL = 0.01
 #: Largest fraction of the area's (or depth band's) width that margins may take from each side.
 BOX_SHARE = 0.45
-
-
-def guidance_of(pb: PlanningProblem) -> Guidance:
-    """The guidance law the vehicle flies ``pb``'s paths with: the closed-loop validation's
-    (:func:`~obsplan.planning.validation_setup.validation_guidance`), also when the validation
-    runs open loop (the margins are for the vehicle at sea, which steers its estimate)."""
-    g = validation_guidance(pb)
-    if g is None:
-        g = validation_guidance(replace(pb, validation=replace(pb.validation, mode="closed-loop")))
-    assert g is not None
-    return g
-
-
-def confidence_quantile(confidence: float) -> float:
-    """``k = Φ⁻¹(confidence)`` (one-sided normal quantile); 0 when ``confidence`` is 0."""
-    c = float(confidence)
-    return 0.0 if c <= 0 else float(norm.ppf(c))
+#: The change [m/s] of a speed reserve that counts as a change between rounds (the reserve takes
+#: at most :data:`~obsplan.estimation.guidance.SPEED_RESERVE_CAP` of the bound, as the guidance's).
+SPEED_ATOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -264,6 +253,12 @@ class KeepoutMargins:
     accel_reserve : ndarray (n, N)
         Per axis and interval, the fraction of the acceleration bound kept for the guidance's
         feedback (at most :data:`RESERVE_CAP`).
+    speed : ndarray (N,)
+        At nodes 1..N, the speed reserve [m/s]: the guidance bounds the *estimated* speed by
+        ``speed - k σ_v`` (:class:`~obsplan.estimation.guidance.Guidance`, ``speed_k``), so the
+        plan keeps ``k`` times the velocity std and the velocity deviation's bound below it (at
+        most :data:`~obsplan.estimation.guidance.SPEED_RESERVE_CAP` of the bound); zeros
+        without a speed limit.
     """
 
     confidence: float
@@ -271,6 +266,7 @@ class KeepoutMargins:
     range_points: np.ndarray
     box: np.ndarray
     accel_reserve: np.ndarray
+    speed: np.ndarray
 
     def maximum(self, other: KeepoutMargins, scale: float = 1.0) -> KeepoutMargins:
         """The larger of these margins and ``scale`` times ``other``'s at every point (the
@@ -281,6 +277,7 @@ class KeepoutMargins:
             range_points=np.maximum(self.range_points, scale * other.range_points),
             box=np.maximum(self.box, scale * other.box),
             accel_reserve=np.maximum(self.accel_reserve, reserve),
+            speed=np.maximum(self.speed, scale * other.speed),
         )
 
     def grew(self, other: KeepoutMargins, atol: float = MARGIN_ATOL_M) -> bool:
@@ -289,6 +286,7 @@ class KeepoutMargins:
             np.any(other.range_points > self.range_points + atol)
             or np.any(other.box > self.box + atol)
             or np.any(other.accel_reserve > self.accel_reserve + RESERVE_ATOL)
+            or np.any(other.speed > self.speed + SPEED_ATOL)
         )
 
     def to_dict(self) -> dict:
@@ -298,6 +296,7 @@ class KeepoutMargins:
             "max_range_margin_m": float(np.max(self.range_points, initial=0.0)),
             "max_box_margin_m": float(np.max(self.box, initial=0.0)),
             "max_accel_reserve": float(np.max(self.accel_reserve, initial=0.0)),
+            "max_speed_margin_mps": float(np.max(self.speed, initial=0.0)),
         }
 
 
@@ -341,7 +340,8 @@ def keepout_margins(
     pb
         The problem: limits, ``limits.keepout_confidence``, the validation's filter settings.
     guidance
-        The guidance law the vehicle flies with (default :func:`guidance_of`).
+        The guidance law the vehicle flies with (default: the validation's,
+        :func:`~obsplan.planning.validation_setup.validation_guidance` with ``at_sea``).
     """
     grid = Grid.from_problem(pb)
     n, N = grid.n, grid.N
@@ -350,11 +350,14 @@ def keepout_margins(
     rng = np.zeros(2 * N)
     box = np.zeros((n, N))
     reserve = np.zeros((n, N))
+    speed = np.zeros(N)
     if k == 0:
-        return KeepoutMargins(conf, k, rng, box, reserve)
+        return KeepoutMargins(conf, k, rng, box, reserve, speed)
     lim = pb.limits
     cov = path_covariance(traj, pb)
-    loop = LoopResponse.of(guidance or guidance_of(pb))
+    guidance = guidance or validation_guidance(pb, at_sea=True)
+    assert guidance is not None  # at_sea: never None
+    loop = LoopResponse.of(guidance)
     q = _process_intensity(pb)
     T = float(grid.times[-1])
     if lim.min_range > 0 or lim.max_range is not None:
@@ -376,7 +379,12 @@ def keepout_margins(
         vel = vel + _std_at(cov, dirs, on_steps, "vel")
         command = k * (loop.kp * pos + loop.kd * vel)  # feedback std bound [m/s²]
         reserve[axis] = np.minimum(command / grid.a[axis], RESERVE_CAP)
-    return KeepoutMargins(conf, k, rng, box, reserve)
+        speed = np.maximum(speed, k * vel)
+    if lim.speed is not None:
+        speed = np.minimum(speed, SPEED_RESERVE_CAP * float(lim.speed))
+    else:
+        speed[:] = 0.0
+    return KeepoutMargins(conf, k, rng, box, reserve, speed)
 
 
 def _axis_dirs(count: int, n: int, axis: int) -> np.ndarray:
@@ -404,6 +412,8 @@ def tighten(form: Formulation, margins: KeepoutMargins) -> Formulation:
             lbg[sl] += margins.range_points / grid.Lp
         elif block.name == "max_range":
             ubg[sl] -= margins.range_points / grid.Lp
+        elif block.name == "speed":  # |V|² <= (1 - reserve / v_max)²
+            ubg[sl] = np.minimum(ubg[sl], (1.0 - margins.speed / grid.v_max) ** 2)
         row += block.size
     lbx, ubx = form.lbx.copy(), form.ubx.copy()
     n, N = grid.n, grid.N
@@ -452,6 +462,8 @@ class KeepoutReport:
         Largest margin on the distance limits and on the area/depth band [m].
     max_accel_reserve : float
         Largest fraction of an acceleration bound kept for the guidance.
+    max_speed_margin_mps : float
+        Largest speed reserve [m/s] below the speed bound.
     planned_closest_range_m : float
         The returned path's closest distance to the beacon [m].
     wall_s : float
@@ -470,6 +482,7 @@ class KeepoutReport:
     planned_closest_range_m: float
     wall_s: float
     note: str = ""
+    max_speed_margin_mps: float = 0.0
 
     def to_dict(self) -> dict:
         return {
@@ -481,6 +494,7 @@ class KeepoutReport:
             "max_range_margin_m": self.max_range_margin_m,
             "max_box_margin_m": self.max_box_margin_m,
             "max_accel_reserve": self.max_accel_reserve,
+            "max_speed_margin_mps": self.max_speed_margin_mps,
             "planned_closest_range_m": self.planned_closest_range_m,
             "wall_s": self.wall_s,
             "note": self.note,
@@ -555,6 +569,7 @@ def _report(
         max_range_margin_m=float(np.max(margins.range_points, initial=0.0)),
         max_box_margin_m=float(np.max(margins.box, initial=0.0)),
         max_accel_reserve=float(np.max(margins.accel_reserve, initial=0.0)),
+        max_speed_margin_mps=float(np.max(margins.speed, initial=0.0)),
         planned_closest_range_m=range_extremes(path, pb.beacon)[0],
         wall_s=time.perf_counter() - t0,
         note=note,

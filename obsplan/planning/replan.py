@@ -35,9 +35,6 @@ the plan in force unchanged; failures are counted.
 from __future__ import annotations
 
 import math
-import multiprocessing as mp
-import os
-import signal
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -59,7 +56,7 @@ from obsplan.planning.formulation import Formulation, build_formulation
 from obsplan.planning.ipopt import SUCCESS_STATUS, _call, make_solver
 from obsplan.planning.margins import keepout_margins, tighten
 from obsplan.planning.problem import PlanningProblem
-from obsplan.planning.starts import default_processes
+from obsplan.planning.starts import default_processes, run_forked
 from obsplan.planning.validation import PathValidation, validate_paths
 from obsplan.planning.validation_setup import estimation_config, truth_limits, validation_guidance
 from obsplan.planning.verdict import Verdict, verdict
@@ -471,7 +468,6 @@ def _f(x: float | None) -> str:
 
 
 # ----------------------------------------------------------------------------- Monte Carlo
-_WORKER: tuple[Replanner, dict] | None = None  # (Replanner, job) set in the parent before fork
 
 
 def _fly_batch(
@@ -509,50 +505,19 @@ def _fly_batch(
     return loop.result(job["crlb"]), solves
 
 
-def _worker_init() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops everyone on Ctrl-C
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
-
-
-def _worker_batch(args: tuple[int, int]):
-    assert _WORKER is not None
-    return _fly_batch(*_WORKER, *args)
+def _batch(state: tuple[Replanner, dict], batch: tuple[int, int]):
+    return _fly_batch(*state, *batch)
 
 
 def _fly_all(rp: Replanner, job: dict, batches: list[tuple[int, int]], processes: int, bar):
     """Every batch, serially or in ``fork``-ed processes (same results: runs are independent
     and the solver is deterministic on one machine)."""
-    global _WORKER
-    if processes <= 1 or len(batches) <= 1 or "fork" not in mp.get_all_start_methods():
-        out = []
-        for b in batches:
-            out.append(_fly_batch(rp, job, *b))
-            if bar is not None:
-                bar(b[1])
-        return out
-    _WORKER = (rp, job)
-    pool = mp.get_context("fork").Pool(min(processes, len(batches)), initializer=_worker_init)
-    try:
-        pending = [pool.apply_async(_worker_batch, (b,)) for b in batches]
-        out = []
-        for b, res in zip(batches, pending, strict=True):
-            while True:
-                try:
-                    out.append(res.get(timeout=0.2))  # short waits keep Ctrl-C responsive
-                    break
-                except mp.TimeoutError:
-                    continue
-            if bar is not None:
-                bar(b[1])
-        pool.close()
-        return out
-    except BaseException:
-        pool.terminate()
-        raise
-    finally:
-        pool.join()
-        _WORKER = None
+
+    def done(i: int, _) -> None:
+        if bar is not None:
+            bar(batches[i][1])
+
+    return run_forked(_batch, (rp, job), batches, processes, done)
 
 
 def replan_monte_carlo(

@@ -251,7 +251,9 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "min_range, max_range, the area and the depth band: the plan keeps them with a "
             "margin k times a bound on the std of its true deviation from the plan (from the "
             "posterior CRB along the path and the guidance loop), k the normal quantile of the "
-            "confidence (3.09 at 0.999). 0 disables the margins.",
+            "confidence (3.09 at 0.999). The same k sets the speed reserve: the guidance keeps "
+            "the estimated speed k velocity stds of the EKF below limits.speed (at most 30 % of "
+            "it) and the plan keeps the same reserve from the CRB. 0 disables the margins.",
         ),
         FieldSpec(
             "area",
@@ -308,8 +310,10 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "information",
             "-",
             'For gramian-min-eig and gramian-log-det: "information" (each output row scaled by '
-            "its information rate, rate / variance; for the range 1/(r^2 sigma_r^2 + sigma_r^4/2) "
-            'with r from the path) or "none" (the paper\'s unit weights).',
+            "its information rate, rate / variance; for the range "
+            "1/((r^2 + r_0^2) sigma_r^2 + sigma_r^4) with r from the path and r_0 the start's: "
+            'the augmented output subtracts the first range) or "none" (the paper\'s unit '
+            "weights).",
         ),
         FieldSpec(
             "window",

@@ -16,6 +16,7 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -187,7 +188,9 @@ def run_start(
 
 
 # ----------------------------------------------------------------------------- processes
-_WORKER: StartContext | None = None  # set in the parent before fork; read by the children
+#: ``(fn, state)`` of :func:`run_forked`: set in the parent before fork, read by the children
+#: (inherited, never pickled: a built solver does not pickle).
+_WORKER: tuple[Callable[[Any, Any], Any], Any] | None = None
 
 
 def _worker_init() -> None:
@@ -196,9 +199,10 @@ def _worker_init() -> None:
         os.environ.setdefault(var, "1")
 
 
-def _worker_start(args: tuple[str, Trajectory]) -> tuple[StartOutcome, Trajectory | None]:
+def _worker_call(item: Any) -> Any:
     assert _WORKER is not None
-    return run_start(_WORKER, *args)
+    fn, state = _WORKER
+    return fn(state, item)
 
 
 def default_processes(n_starts: int) -> int:
@@ -210,12 +214,34 @@ def default_processes(n_starts: int) -> int:
     return max(1, min(cores, n_starts))
 
 
-def _run_parallel(ctx: StartContext, guesses, processes: int, progress: Callable | None):
+def run_forked(
+    fn: Callable[[Any, Any], Any],
+    state: Any,
+    items: Sequence[Any],
+    processes: int,
+    on_result: Callable[[int, Any], None] | None = None,
+) -> list:
+    """``[fn(state, item) for item in items]``, in up to ``processes`` ``fork``-ed workers.
+
+    ``state`` (e.g. a built solver) reaches the workers by the fork, not by pickling; the items
+    and the results are pickled. Serial when ``processes <= 1``, with one item, or where
+    ``fork`` is not available. ``on_result(i, result)`` is called in item order as the results
+    arrive. Ctrl-C in the parent terminates the workers.
+    """
     global _WORKER
-    _WORKER = ctx
-    pool = mp.get_context("fork").Pool(processes, initializer=_worker_init)
+    items = list(items)
+    nproc = min(int(processes), len(items))
+    if nproc <= 1 or "fork" not in mp.get_all_start_methods():
+        out = []
+        for i, item in enumerate(items):
+            out.append(fn(state, item))
+            if on_result is not None:
+                on_result(i, out[-1])
+        return out
+    _WORKER = (fn, state)
+    pool = mp.get_context("fork").Pool(nproc, initializer=_worker_init)
     try:
-        pending = [pool.apply_async(_worker_start, (g,)) for g in guesses]
+        pending = [pool.apply_async(_worker_call, (item,)) for item in items]
         out = []
         for i, res in enumerate(pending):
             while True:
@@ -225,8 +251,8 @@ def _run_parallel(ctx: StartContext, guesses, processes: int, progress: Callable
                 except mp.TimeoutError:
                     continue
             out.append(item)
-            if progress is not None:
-                progress(i, guesses[i][0], item[0])
+            if on_result is not None:
+                on_result(i, item)
         pool.close()
         return out
     except BaseException:
@@ -235,6 +261,10 @@ def _run_parallel(ctx: StartContext, guesses, processes: int, progress: Callable
     finally:
         pool.join()
         _WORKER = None
+
+
+def _start(ctx: StartContext, guess: tuple[str, Trajectory]):
+    return run_start(ctx, *guess)
 
 
 def run_starts(
@@ -266,15 +296,13 @@ def run_starts(
 
     nproc = default_processes(len(guesses)) if processes is None else max(1, int(processes))
     nproc = min(nproc, len(guesses))
+
+    def done(i: int, item: tuple[StartOutcome, Trajectory | None]) -> None:
+        if callback is not None:
+            callback(i, guesses[i][0], item[0])
+
     try:
-        if nproc > 1 and not verbose and "fork" in mp.get_all_start_methods():
-            return _run_parallel(ctx, guesses, nproc, callback)
-        results = []
-        for i, (label, guess) in enumerate(guesses):
-            results.append(run_start(ctx, label, guess))
-            if callback is not None:
-                callback(i, label, results[-1][0])
-        return results
+        return run_forked(_start, ctx, guesses, 1 if verbose else nproc, done)
     finally:
         if bar is not None:
             bar.close()

@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from scipy.stats import norm
 
 from obsplan.estimation.config import EstimationConfig, paper_covariances
 from obsplan.estimation.guidance import Guidance, TruthLimits
@@ -63,15 +64,29 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     )
 
 
-def validation_guidance(pb: PlanningProblem) -> Guidance | None:
+def confidence_quantile(confidence: float) -> float:
+    """``k = Φ⁻¹(confidence)`` (one-sided normal quantile); 0 when ``confidence`` is 0."""
+    c = float(confidence)
+    return 0.0 if c <= 0 else float(norm.ppf(c))
+
+
+def validation_guidance(pb: PlanningProblem, *, at_sea: bool = False) -> Guidance | None:
     """The guidance law of a closed-loop validation (``None`` for ``validation.mode =
-    "open-loop"``): gains from the limits ``accel`` [m/s²] and ``speed`` [m/s], the feedback on a
-    prior-sized position error (``init_pos_error`` [m]) using half the smallest acceleration
-    bound (:meth:`~obsplan.estimation.guidance.Guidance.from_limits`)."""
-    if pb.validation.mode == "open-loop":
+    "open-loop"`` unless ``at_sea``): gains from the limits ``accel`` [m/s²] and ``speed`` [m/s],
+    the feedback on a prior-sized position error (``init_pos_error`` [m]) using half the smallest
+    acceleration bound (:meth:`~obsplan.estimation.guidance.Guidance.from_limits`), and the
+    estimated speed kept ``k`` velocity stds of the EKF below the speed bound (``k`` the normal
+    quantile of ``limits.keepout_confidence``, as the keep-out margins), so that the *true*
+    speed holds it at that confidence.
+
+    ``at_sea``: the law the vehicle at sea flies whatever the validation's mode (the keep-out
+    margins are for that vehicle, which steers its estimate), never ``None``.
+    """
+    if pb.validation.mode == "open-loop" and not at_sea:
         return None
     lim = pb.limits
-    return Guidance.from_limits(lim.accel, lim.speed, pb.validation.init_pos_error)
+    k = confidence_quantile(lim.keepout_confidence)
+    return Guidance.from_limits(lim.accel, lim.speed, pb.validation.init_pos_error, speed_k=k)
 
 
 def truth_limits(pb: PlanningProblem) -> TruthLimits:
