@@ -545,11 +545,34 @@ def test_row30_has_bokeh_says_whether_bokeh_imports():
     assert has_bokeh() is (importlib.util.find_spec("bokeh") is not None)
 
 
-def test_row31_a_cold_cache_labels_the_first_monte_carlo(tmp_path, traj2):
+@pytest.mark.parametrize("verb", ["simulate", "sweep"])
+def test_row31_a_cold_cache_labels_the_first_monte_carlo(verb, tmp_path, traj2):
     """The installed command with an empty numba cache: the progress bar names the compile step
-    before compiling (the process is stopped there: the compile itself takes a minute)."""
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "MPLBACKEND": "Agg"}
-    cmd = [str(Path(sys.executable).with_name("obsplan")), "simulate", str(traj2), "--runs", "2"]
+    before compiling (the process is stopped there: the compile itself takes a minute). A sweep
+    on a local cluster says that its workers compile."""
+    # the process group is killed: its temporary files go to a folder of this test's
+    (tmp_path / "tmp").mkdir()
+    env = {
+        **os.environ,
+        "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+        "MPLBACKEND": "Agg",
+        "TMPDIR": str(tmp_path / "tmp"),
+    }
+    args = {
+        "simulate": [traj2, "--runs", "2"],
+        "sweep": [
+            _baselines_sweep(tmp_path, [[0.0, 0.0]]),
+            "--out",
+            tmp_path / "o",
+            "--workers",
+            "1",
+        ],
+    }[verb]
+    needle = {
+        "simulate": b"compiling the filters once (about",
+        "sweep": b"rows: the workers are compiling the filters once (about",
+    }[verb]
+    cmd = [str(Path(sys.executable).with_name("obsplan")), verb, *map(str, args)]
     proc = subprocess.Popen(
         cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, env=env, start_new_session=True
     )
@@ -557,7 +580,7 @@ def test_row31_a_cold_cache_labels_the_first_monte_carlo(tmp_path, traj2):
     try:
         deadline = time.monotonic() + 120.0  # generous: importing takes seconds on a loaded CI
         assert proc.stderr is not None
-        while b"compiling the filters once" not in seen and time.monotonic() < deadline:
+        while needle not in seen and time.monotonic() < deadline:
             chunk = proc.stderr.read1(4096)
             if not chunk:
                 break
@@ -565,7 +588,7 @@ def test_row31_a_cold_cache_labels_the_first_monte_carlo(tmp_path, traj2):
     finally:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-    assert b"compiling the filters once (about" in seen, seen.decode(errors="replace")[-2000:]
+    assert needle in seen, seen.decode(errors="replace")[-2000:]
 
 
 def test_row31_cache_state_and_folder(tmp_path, monkeypatch):

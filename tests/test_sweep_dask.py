@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from obsplan.cli import main
 from obsplan.sweeps import (
     ClusterError,
     comparable,
@@ -68,20 +69,22 @@ STUDY = {
 }
 
 
-def write_study(folder: Path) -> Path:
-    """STUDY as a sweep file (for the command line)."""
-    lines = ['[sweep]\nname = "study"\nmode = "plan"\n']
-    for section, values in BASE.items():
+def write_study(folder: Path, study: dict = STUDY) -> Path:
+    """``study`` (STUDY by default) as a sweep file (for the command line)."""
+    name = study["sweep"]["name"]
+    lines = [f'[sweep]\nname = "{name}"\nmode = "{study["sweep"].get("mode", "plan")}"\n']
+    for section, values in study["base"].items():
         lines.append(f"[base.{section}]")
         lines += [f"{k} = {json.dumps(v)}" for k, v in values.items()]
     lines.append("[axes]")
-    lines += [f'"{k}" = {json.dumps(v)}' for k, v in STUDY["axes"].items()]
-    lines.append(f"[figures]\nmetrics = {json.dumps(STUDY['figures']['metrics'])}")
-    path = folder / "study.toml"
+    lines += [f'"{k}" = {json.dumps(v)}' for k, v in study["axes"].items()]
+    if "figures" in study:
+        lines.append(f"[figures]\nmetrics = {json.dumps(study['figures']['metrics'])}")
+    path = folder / f"{name}.toml"
     path.write_text("\n".join(lines) + "\n")
     with path.open("rb") as fh:
         parsed = tomllib.load(fh)
-    assert parsed["axes"] == STUDY["axes"] and parsed["base"] == BASE  # the same study
+    assert parsed["axes"] == study["axes"] and parsed["base"] == study["base"]  # the same study
     return path
 
 
@@ -233,6 +236,20 @@ def test_killed_worker_is_retried_then_reported(client, tmp_path):
     assert "worker process died" in rows.loc[b.id, "error"]
     assert "KilledWorker" in rows.loc[b.id, "error"]
     assert (crash_dir / b.id).read_text() == "3"  # exactly two attempts died
+    # one failed task among done ones changes no column's type, in memory, in the table the
+    # command line rewrites from the stored reports, and in parquet
+    sweep_file = write_study(tmp_path, study)
+    argv = ["sweep", str(sweep_file), "--out", str(tmp_path / "out"), "--quiet", "--no-figures"]
+    assert main(argv) == 1  # nothing left to run: the table is rebuilt from the reports
+    for table in (df, read_table(tmp_path / "out")):
+        types = {col: str(table[col].dtype) for col in table.columns}
+        assert types["solver.success"] == "boolean" and types["solver.iterations"] == "Int64"
+        assert types["error"] == types["status"] == types["solver.status"] == "string"
+        assert types["attempts"] == "Int64" and types["limits.speed [m/s]"] == "float64"
+        assert types["metrics.planned.min_eig"] == "float64"
+        failed = table.set_index("task_id").loc[b.id]
+        assert pd.isna(failed["solver.success"]) and pd.isna(failed["solver.iterations"])
+    pd.testing.assert_frame_equal(read_table(tmp_path / "out"), df)
     client.wait_for_workers(2, timeout=WAIT_S)  # the nannies restarted the killed workers
     stored = read_report(tmp_path / "out", b.id)
     assert stored["sweep"]["status"] == "failed" and "metrics" not in stored
@@ -268,9 +285,13 @@ def test_ctrl_c_then_rerun_resumes_and_equals_an_uninterrupted_run(reference, cl
     assert proc.returncode == 130, stderr
     assert "sweep study: 6 tasks, 0 already done, 6 to run on tcp://" in stdout
     assert "Traceback" not in stderr  # neither the client nor a worker process printed one
-    assert "run the same command again to resume" in stderr
     finished = {p: os.stat(p).st_mtime_ns for p in reports(out)}
     assert 2 <= len(finished) < 6, "the interrupt came too late to test resuming"
+    # one line, and a true one: how many finished tasks are kept (not also "nothing was written")
+    assert [line for line in stderr.splitlines() if line.strip()] == [
+        f"obsplan sweep: interrupted; {len(finished)} finished tasks are kept in {out}; run the "
+        "same command again to resume"
+    ], stderr
     table = read_table(out)  # written on the way out: finished rows and pending ones
     assert (table["status"] == "done").sum() == len(finished)
     assert (table["status"] == "pending").sum() == 6 - len(finished)
@@ -294,15 +315,17 @@ def free_port() -> int:
 
 
 @contextlib.contextmanager
-def dask_processes(port: int, workers: int = 1):
-    """``dask scheduler`` and ``dask worker`` as separate processes; stopped on exit, even on
-    failure (each by its own pid)."""
+def dask_processes(port: int, workers: int = 1, scheduler_file: Path | None = None):
+    """``dask scheduler`` (writing ``scheduler_file`` if given) and ``dask worker`` as separate
+    processes; stopped on exit, even on failure (each by its own pid)."""
     dask_cli = str(Path(sys.executable).with_name("dask"))
     env = {**os.environ, "DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": "0"}
     address = f"tcp://127.0.0.1:{port}"
+    extra = [] if scheduler_file is None else ["--scheduler-file", str(scheduler_file)]
     procs = [
         subprocess.Popen(
-            [dask_cli, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            [dask_cli, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"]
+            + extra,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
             env=env,
@@ -371,6 +394,105 @@ def test_external_scheduler_lost_then_resumed(reference, tmp_path):
 
 
 # ------------------------------------------------------------------------------ Monte Carlo
+#: Two cheap tasks (baselines only, no solver): for the command-line tests of a cluster.
+SMALL = {
+    "sweep": {"name": "small", "mode": "baselines"},
+    "base": BASE,
+    "axes": {"beacon.position": [[0.0, 0.0], [50.0, 0.0]]},
+}
+
+
+def test_scheduler_file_and_dask_scheduler_address_are_honoured(tmp_path, capsys):
+    sweep_file = write_study(tmp_path, SMALL)
+    scheduler_file = tmp_path / "scheduler.json"
+    args = ["--quiet", "--no-figures"]
+    with dask_processes(free_port(), scheduler_file=scheduler_file) as (address, _):
+        # HPC: the file the scheduler wrote (`dask scheduler --scheduler-file FILE`)
+        code = main(
+            [
+                "sweep",
+                str(sweep_file),
+                "--out",
+                str(tmp_path / "a"),
+                "--scheduler-file",
+                str(scheduler_file),
+                *args,
+            ]
+        )
+        stdout = capsys.readouterr().out
+        assert code == 0 and f"2 to run on {address} (1 worker)" in stdout, stdout
+        # Dask's own configuration, in the environment of the installed command
+        proc = subprocess.run(
+            [
+                str(Path(sys.executable).with_name("obsplan")),
+                "sweep",
+                str(sweep_file),
+                "--out",
+                str(tmp_path / "b"),
+                *args,
+            ],
+            env={**os.environ, "DASK_SCHEDULER_ADDRESS": address, "MPLBACKEND": "Agg"},
+            capture_output=True,
+            text=True,
+            timeout=WAIT_S,
+        )
+        assert proc.returncode == 0, proc.stderr
+        assert f"2 to run on {address} (1 worker)" in proc.stdout, proc.stdout
+    pd.testing.assert_frame_equal(
+        comparable(read_table(tmp_path / "a")), comparable(read_table(tmp_path / "b"))
+    )
+
+
+def test_a_missing_scheduler_file_exits_2(tmp_path, capsys):
+    missing = tmp_path / "nowhere.json"
+    code = main(
+        [
+            "sweep",
+            str(write_study(tmp_path, SMALL)),
+            "--out",
+            str(tmp_path / "o"),
+            "--scheduler-file",
+            str(missing),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and f"--scheduler-file {missing}: no such file" in err, err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+
+
+def test_a_killed_scheduler_process_is_one_line_and_exit_1(tmp_path):
+    out = tmp_path / "out"
+    with dask_processes(free_port()) as (address, procs):
+        proc = run_cli(
+            [
+                str(write_study(tmp_path)),
+                "--out",
+                str(out),
+                "--scheduler",
+                address,
+                "--quiet",
+                "--no-figures",
+            ]
+        )
+        try:
+            wait_for(lambda: len(reports(out)) >= 1 or proc.poll() is not None, "a finished task")
+            procs[0].kill()  # the scheduler process dies mid-sweep
+            stdout, stderr = proc.communicate(timeout=WAIT_S)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    n = len(reports(out))
+    assert 1 <= n < 6, "the scheduler died too late to test"
+    assert proc.returncode == 1, stderr  # a failure, not an interruption (130)
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in stderr, stderr  # no distributed traceback
+    assert lines[0].startswith("obsplan sweep: failed: lost the Dask scheduler with "), lines
+    kept = f"{n} finished task{'s are' if n != 1 else ' is'} kept in {out}"
+    assert kept in lines[0] and "run the same command again to resume" in lines[0]
+    assert (read_table(out)["status"] == "done").sum() == n  # the table was written on the way out
+
+
 def test_sharded_monte_carlo_equals_the_unsharded_run(client):
     from obsplan.estimation import simulate
     from obsplan.planning.parse import problem_from_dict

@@ -40,6 +40,7 @@ import pandas as pd
 import obsplan.sweeps.spec as specs
 from obsplan import interrupts
 from obsplan.errors import InputError, ObsplanError
+from obsplan.estimation import jitcache
 from obsplan.sweeps.spec import SweepSpec, Task, as_spec, expand, unique_tasks
 from obsplan.sweeps.store import (
     check_code,
@@ -447,7 +448,14 @@ def sweep(
                 )
                 if on_start is not None:
                     on_start(info)
-                _run(c, todo, out, stored, spec, runner or run_task, retries, progress, flush)
+                # workers on this machine share its numba cache: say when they compile first
+                local = client is None and scheduler is None and scheduler_file is None
+                note = (
+                    jitcache.compile_note()
+                    if progress and local and workers_local(workers)
+                    else None
+                )
+                _run(c, todo, out, stored, spec, runner or run_task, retries, progress, flush, note)
         else:
             write_manifest(out, manifest)
             started = True
@@ -473,6 +481,13 @@ def has_bokeh() -> bool:
         return False
 
 
+def workers_local(workers: int | None) -> bool:
+    """Whether a sweep without a given client or scheduler runs on a local cluster (its workers
+    then share this machine's numba cache): ``workers`` given, or no Dask scheduler-address
+    configured."""
+    return workers is not None or configured_scheduler() is None
+
+
 def _dashboard(client: Any) -> str | None:
     """The dashboard link, or None when the scheduler serves none that works (no dashboard
     service, or no bokeh where the scheduler runs)."""
@@ -495,6 +510,7 @@ def _run(
     retries: int,
     progress: bool,
     flush: Callable[[], None],
+    note: str | None = None,
 ) -> None:
     """Feed the tasks to the cluster, at most one per worker thread at a time, and store each
     outcome as it arrives.
@@ -532,7 +548,9 @@ def _run(
             submit(queue.popleft())
 
     failed = 0
-    bar = tqdm(total=len(todo), desc=spec.name, unit="task", disable=not progress, leave=True)
+    # ``note``: the workers compile the filters before their first task ends (a cold cache)
+    desc = f"{spec.name}: the workers are {note}" if note else spec.name
+    bar = tqdm(total=len(todo), desc=desc, unit="task", disable=not progress, leave=True)
     last_flush = time.monotonic()
     flush_every = FLUSH_S
     dirty = False
@@ -572,6 +590,9 @@ def _run(
                 stored[task.id] = _store(out, task, outcome, attempts[task.id])
                 failed += outcome["status"] != "done"
                 bar.set_postfix(failed=failed, refresh=False)
+                if note:
+                    note = None
+                    bar.set_description_str(spec.name, refresh=False)
                 bar.update(1)
             refill()
             dirty = dirty or bool(done)
