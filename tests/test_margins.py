@@ -141,3 +141,17 @@ def test_keepout_confidence_is_read_written_and_checked():
         data["limits"]["keepout_confidence"] = bad
         with pytest.raises(ProblemError, match="limits.keepout_confidence"):
             problem_from_dict(data)
+
+
+def test_a_mission_keeps_its_speed_for_its_timing():
+    """The plan's speed rows keep no reserve when a mission sets the timing (slowed by it, a plan
+    missed a waypoint); the distance margins stay."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "problems/suite/missions/waypoints.toml"
+    pb = load_problem(path)
+    assert pb.mission is not None and pb.limits.speed is not None
+    traj = baselines(pb)["lawnmower"].trajectory
+    m = keepout_margins(traj, pb)
+    assert np.all(m.speed == 0.0)
+    assert np.any(m.range_points > 0)
