@@ -155,3 +155,21 @@ def test_a_mission_keeps_its_speed_for_its_timing():
     m = keepout_margins(traj, pb)
     assert np.all(m.speed == 0.0)
     assert np.any(m.range_points > 0)
+
+
+def test_keep_out_never_trades_the_mission_for_its_margins():
+    """On a survey with no time to spare the tightened re-solves may stop unfinished: a path they
+    return is kept only if it still completes the mission (independent check)."""
+    from pathlib import Path
+
+    from obsplan.planning.mission_check import completes_mission
+    from obsplan.planning.solve import solve
+
+    path = (
+        Path(__file__).resolve().parents[1] / "problems/suite/missions/survey-no-time-to-spare.toml"
+    )
+    pb = load_problem(path)
+    nominal = solve(pb, progress=False).trajectory
+    assert nominal is not None and completes_mission(nominal, pb)
+    kept, report, _ = keep_out(pb, nominal)
+    assert completes_mission(kept, pb), report

@@ -511,7 +511,14 @@ def _resolve(
     tight = tighten(form, margins)
     ctx = start_context(tight, warm=True)
     outcome, traj = run_start(ctx, label, guess)
-    keeps = traj is not None and outcome.limits.ok() and keeps_margins(tight, traj)
+    # a re-solve that IPOPT did not finish may keep the limits and margins yet break the
+    # mission (a heading off a survey line): it is kept only if it still does the job
+    keeps = (
+        traj is not None
+        and outcome.limits.ok()
+        and outcome.mission_complete
+        and keeps_margins(tight, traj)
+    )
     return outcome, traj, keeps
 
 
