@@ -40,6 +40,7 @@ _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 _pending: int | None = None
 _installed = False
 _redeliver = False
+_redeliver_pid = -1  # the process that armed the re-delivery (not a forked child)
 _in_hook = False
 _previous_unraisablehook: Any = None
 
@@ -65,7 +66,9 @@ class Interrupted(KeyboardInterrupt):
 
 def _handler(signum: int, frame: object) -> None:
     global _pending, _redeliver
-    if _redeliver:  # our re-delivery of an Interrupted that Python could not raise
+    # our re-delivery of an Interrupted that Python could not raise; a forked child inherits
+    # the flag but must not raise (its parent decides)
+    if _redeliver and _redeliver_pid == os.getpid():
         if _in_hook:  # still inside the hook, where it would be lost again: once more, later
             _redeliver_later()
             return
@@ -96,12 +99,12 @@ def _unraisablehook(unraisable: Any) -> None:
     """Keep an :class:`Interrupted` that Python could not raise (it came inside a ``__del__`` or a
     weakref callback) from printing "Exception ignored" and from being lost: deliver the signal
     again, so that it is raised in the code that was running."""
-    global _redeliver, _in_hook
+    global _redeliver, _redeliver_pid, _in_hook
     exc = getattr(unraisable, "exc_value", None)
     if isinstance(exc, Interrupted) and _installed:
         _in_hook = True
         try:
-            _redeliver = True
+            _redeliver, _redeliver_pid = True, os.getpid()
             _redeliver_later()
         finally:
             _in_hook = False
