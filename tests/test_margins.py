@@ -143,18 +143,24 @@ def test_keepout_confidence_is_read_written_and_checked():
             problem_from_dict(data)
 
 
-def test_a_mission_keeps_its_speed_for_its_timing():
-    """The plan's speed rows keep no reserve when a mission sets the timing (slowed by it, a plan
-    missed a waypoint); the distance margins stay."""
+def test_a_mission_plan_keeps_its_speed_reserve_and_its_waypoints():
+    """With a mission the speed reserve still tightens the plan (the true vehicle holds the
+    speed limit) and the path returned still passes every waypoint: a re-solve that the
+    reserve made miss one is not kept."""
     from pathlib import Path
+
+    from obsplan.planning.mission_check import completes_mission
+    from obsplan.planning.solve import solve
 
     path = Path(__file__).resolve().parents[1] / "problems/suite/missions/waypoints.toml"
     pb = load_problem(path)
     assert pb.mission is not None and pb.limits.speed is not None
-    traj = baselines(pb)["lawnmower"].trajectory
-    m = keepout_margins(traj, pb)
-    assert np.all(m.speed == 0.0)
-    assert np.any(m.range_points > 0)
+    nominal = solve(pb, progress=False).trajectory
+    assert nominal is not None and completes_mission(nominal, pb)
+    assert np.any(keepout_margins(nominal, pb).speed > 0)
+    kept, report, _ = keep_out(pb, nominal)
+    assert report.max_speed_margin_mps > 0
+    assert completes_mission(kept, pb), report
 
 
 def test_keep_out_never_trades_the_mission_for_its_margins():

@@ -380,12 +380,9 @@ def keepout_margins(
         command = k * (loop.kp * pos + loop.kd * vel)  # feedback std bound [m/s²]
         reserve[axis] = np.minimum(command / grid.a[axis], RESERVE_CAP)
         speed = np.maximum(speed, k * vel)
-    if lim.speed is not None and pb.mission is None:
+    if lim.speed is not None:
         speed = np.minimum(speed, SPEED_RESERVE_CAP * float(lim.speed))
     else:
-        # a mission's timing (line windows, waypoints, the end) needs the speed the limits allow:
-        # a plan slowed by the reserve misses its waypoints (measured: the fourth of
-        # suite/missions/waypoints.toml by 1.6 m); the guidance keeps its own reserve
         speed[:] = 0.0
     return KeepoutMargins(conf, k, rng, box, reserve, speed)
 

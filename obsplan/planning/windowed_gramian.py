@@ -196,7 +196,9 @@ def windowed_aggregate(traj: Trajectory, pb: PlanningProblem) -> float:
     tau = (traj.t - traj.t[0]) / pb.scales.time_s
     a, b = np.asarray(ws.starts), np.asarray(ws.ends)
     G = windowed_gramians(Gk, tau, aug, a, b, ws.anchor)
-    return float(_aggregate_numeric(G, window_floor(pb, ws), pb, ws))
+    tr, ld = window_criteria(G, window_floor(pb, ws))
+    vals = tr if CRITERIA[pb.objective.kind] == "trace-inverse" else ld
+    return float(_aggregate(vals, ws.anchor, np.mean))
 
 
 def windowed_value(traj: Trajectory, pb: PlanningProblem) -> float:
@@ -313,10 +315,3 @@ def windowed_term(ctx: NLPContext) -> ObjectiveTerm:
     return ObjectiveTerm(
         f=-(agg - agg_ref) / m, to_objective=lambda fv: float(agg_ref - m * fv), hessian=hessian
     )
-
-
-def _aggregate_numeric(G: np.ndarray, eps: float, pb: PlanningProblem, ws: WindowSettings):
-    """The aggregated criterion of numeric window Gramians (:func:`window_criteria`)."""
-    tr, ld = window_criteria(G, eps)
-    vals = tr if CRITERIA[pb.objective.kind] == "trace-inverse" else ld
-    return _aggregate(vals, ws.anchor, np.mean)

@@ -182,6 +182,24 @@ def configured_scheduler() -> str | None:
     return str(address) if address else None
 
 
+def _one_cluster(workers: Any, scheduler: Any, scheduler_file: Any) -> None:
+    """Refuse more than one of ``--workers``, ``--scheduler`` and ``--scheduler-file``."""
+    given = [
+        n
+        for n, v in (
+            ("--workers", workers),
+            ("--scheduler", scheduler),
+            ("--scheduler-file", scheduler_file),
+        )
+        if v is not None
+    ]
+    if len(given) > 1:
+        raise InputError(
+            f"{' and '.join(given)} exclude each other: an existing cluster has its own "
+            "workers, and one scheduler is enough"
+        )
+
+
 @contextlib.contextmanager
 def dask_client(
     workers: int | None = None,
@@ -208,20 +226,7 @@ def dask_client(
         return
     from distributed import Client
 
-    given = [
-        n
-        for n, v in (
-            ("--workers", workers),
-            ("--scheduler", scheduler),
-            ("--scheduler-file", scheduler_file),
-        )
-        if v is not None
-    ]
-    if len(given) > 1:
-        raise InputError(
-            f"{' and '.join(given)} exclude each other: an existing cluster has its own "
-            "workers, and one scheduler is enough"
-        )
+    _one_cluster(workers, scheduler, scheduler_file)
     where: str | None = None
     if scheduler is not None:
         where, kwargs = f"--scheduler {scheduler}", {"address": scheduler}
@@ -408,8 +413,7 @@ def sweep(
     tasks = expand(spec)
     if retries < 0:
         raise InputError(f"retries must be >= 0, got {retries}")
-    if sum(v is not None for v in (workers, scheduler, scheduler_file)) > 1:
-        raise InputError("--workers, --scheduler and --scheduler-file exclude each other")
+    _one_cluster(workers, scheduler, scheduler_file)  # before any work
     out = check_out(out, force, spec.name)  # nothing is written before the cluster is up
     code = specs.code_fingerprint()
     check_code(out, code, force)
