@@ -5,6 +5,7 @@ Run (minutes; the validation Monte Carlo of every path):
 
     MPLBACKEND=Agg python benchmarks/bench_missions.py [--runs N] [--json out.json] [FILES...]
     MPLBACKEND=Agg python benchmarks/bench_missions.py --speed
+    MPLBACKEND=Agg python benchmarks/bench_missions.py --shift 0.2 --mode lines   # variants
 
 Verdict table (default: ``problems/default.toml`` and ``problems/suite/missions/*.toml``): for each
 problem, ``obsplan.plan`` exactly as ``obsplan plan`` runs it; the schedule's speed headroom
@@ -55,8 +56,14 @@ RATIOS = (
 HEADROOM = 0.3
 
 
-def run_one(path: Path, runs: int | None) -> dict:
+def run_one(
+    path: Path, runs: int | None, shift: float | None = None, mode: str | None = None
+) -> dict:
     pb = load_problem(path)
+    if shift is not None and pb.mission is not None and pb.mission.lines:
+        pb = replace(pb, mission=replace(pb.mission, shift=shift))
+    if mode is not None and pb.mission is not None and pb.mission.lines:
+        pb = replace(pb, objective=replace(pb.objective, mode=mode))
     res = plan(pb, runs=runs)
     row: dict = {
         "problem": str(path.relative_to(ROOT)),
@@ -173,6 +180,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=None, help="override validation.runs")
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     ap.add_argument("--speed", action="store_true", help="the speed table only")
+    ap.add_argument(
+        "--shift", type=float, default=None, help="override mission.shift of the surveys"
+    )
+    ap.add_argument(
+        "--mode", default=None, help="override objective.mode of the surveys (e.g. lines)"
+    )
     args = ap.parse_args(argv)
     if args.speed:
         speed_table()
@@ -183,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     rows = []
     for f in files:
-        rows.append(run_one(f, args.runs))
+        rows.append(run_one(f, args.runs, args.shift, args.mode))
         print(f"done {f.name}", file=sys.stderr, flush=True)
     verdict_table(rows)
     if args.json:

@@ -86,6 +86,11 @@ def _check_mission(pb: PlanningProblem) -> None:
         raise field_error(
             "mission.order", '"free" (reordering the lines) is not available yet; use "given"'
         )
+    if not 0.0 <= m.shift < 0.5:
+        raise field_error(
+            "mission.shift",
+            f"must be in [0, 0.5) (a fraction of each line's time), got {m.shift:g}",
+        )
     if m.kind == "survey" and not m.lines:
         raise field_error("mission.lines", "a survey needs lines (or mission.area + spacing)")
     if m.kind == "waypoints" and not m.waypoints:

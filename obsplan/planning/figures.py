@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from obsplan.observability.gramian import cumulative_gramians
+from obsplan.planning.mission_check import mission_check
 from obsplan.planning.mission_schedule import mission_schedule
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.validation import PathValidation
@@ -128,7 +129,8 @@ def _draw_mission(ax, pb: PlanningProblem, ix: int, iy: int) -> None:
 
 def plot_speed(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None) -> Figure:
     """Speed ``|v(t)|`` [m/s] of each path, with the speed limit and, with a survey, the band
-    ``mission.speed`` over the lines' windows (the schedule's, shaded)."""
+    ``mission.speed`` over the lines' passes (shaded: the plan's own, which may shift from the
+    schedule's windows, or the schedule's without a plan)."""
     fig, ax = _ax(ax)
     for name, tr in paths.items():
         ax.plot(tr.t, np.linalg.norm(tr.v, axis=1), label=name, **_STYLE.get(name, {"lw": 1.0}))
@@ -136,7 +138,12 @@ def plot_speed(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None) ->
     m = pb.mission
     if m is not None and m.lines:
         lo, hi = m.speed_band(pb.limits.speed)
-        for k, (t0, t1) in enumerate(mission_schedule(pb).line_windows):
+        windows = mission_schedule(pb).line_windows
+        if "planned" in paths:
+            chk = mission_check(paths["planned"], pb)
+            if chk is not None and chk.complete:
+                windows = tuple(ln.pass_s for ln in chk.lines)
+        for k, (t0, t1) in enumerate(windows):
             ax.fill_between(
                 [t0, t1],
                 lo,

@@ -77,6 +77,7 @@ class Mission:
     heading_tol: float = 10.0
     speed: tuple[float, float] | None = None
     order: str = "given"
+    shift: float = 0.0
     waypoints: tuple[tuple[float, ...], ...] = ()
     radius: float = 5.0
     windows: tuple[tuple[float, float], ...] = ()

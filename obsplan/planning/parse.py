@@ -226,6 +226,7 @@ def _mission(data: Mapping[str, Any], vals: dict[str, Any], dim: int, start) -> 
         heading_tol=vals["heading_tol"],
         speed=vals["speed"],
         order=vals["order"],
+        shift=vals["shift"],
         waypoints=vals["waypoints"] or (),
         radius=vals["radius"],
         windows=vals["windows"] or (),
@@ -370,6 +371,7 @@ def _mission_to_dict(m: Mission) -> dict[str, Any]:
         "cross_track": m.cross_track,
         "heading_tol": m.heading_tol,
         "order": m.order,
+        "shift": m.shift,
         "radius": m.radius,
     }
     if m.area is not None:

@@ -463,6 +463,15 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "lines: not available yet, refused).",
         ),
         FieldSpec(
+            "shift",
+            "float",
+            0.0,
+            "-",
+            "How far each survey line's window may shift: the line may start and end up to this "
+            "fraction of its scheduled time earlier or later (within half the time to the "
+            "neighbouring lines); 0 flies the schedule's fixed windows. In [0, 0.5).",
+        ),
+        FieldSpec(
             "waypoints",
             "points",
             _NONE,
