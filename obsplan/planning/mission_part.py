@@ -95,6 +95,7 @@ class _Line:
 
     def __init__(self, pb: PlanningProblem, grid: Grid, a: np.ndarray, b: np.ndarray):
         m = pb.mission
+        assert m is not None
         self.grid = grid
         self.lo, self.hi = m.speed_band(pb.limits.speed)
         self.length = float(np.linalg.norm(b - a))
@@ -253,6 +254,7 @@ def _trim_to_lawnmowers(pb: PlanningProblem, zones: list[LineZone]) -> list[Line
         except ProblemError:
             pass
     nodes = [(ca.DM(p), ca.DM(v)) for _, p, v in (grid.si_nodes(W) for W in paths)]
+    assert pb.mission is not None
     out = []
     for (a, b), z in zip(pb.mission.segments(grid.n), zones, strict=True):
         ln = _Line(pb, grid, a, b)
