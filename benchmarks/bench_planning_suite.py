@@ -3,7 +3,7 @@
 Run (minutes; the full validation Monte Carlo of every path):
 
     MPLBACKEND=Agg python benchmarks/bench_planning_suite.py [--runs N] [--max-runs N]
-        [--open-loop] [--json out.json] [FILES...]
+        [--open-loop] [--ekf-update second-order] [--json out.json] [FILES...]
 
 For each problem (default: ``problems/*.toml`` then ``problems/suite/*.toml``) this runs
 ``obsplan.plan`` exactly as ``obsplan plan`` does and prints: solver status, solve time, and the
@@ -62,11 +62,18 @@ def _letter_of(d: dict) -> str:
 
 
 def run_one(
-    path: Path, runs: int | None, max_runs: int | None, open_loop: bool, truth_runs: int = 0
+    path: Path,
+    runs: int | None,
+    max_runs: int | None,
+    open_loop: bool,
+    truth_runs: int = 0,
+    ekf_update: str | None = None,
 ) -> dict:
     pb = load_problem(path)
     if open_loop:
         pb = replace(pb, validation=replace(pb.validation, mode="open-loop"))
+    if ekf_update:
+        pb = replace(pb, validation=replace(pb.validation, ekf_update=ekf_update))
     t0 = time.perf_counter()
     res = plan(pb, runs=runs, max_runs=max_runs)
     wall = time.perf_counter() - t0
@@ -150,6 +157,11 @@ def main(argv: list[str] | None = None) -> int:
         help="also fly the plan alone N times (EKF only) and report its true closest approach "
         "and runs inside min_range",
     )
+    ap.add_argument(
+        "--ekf-update",
+        choices=("first-order", "second-order"),
+        help="override validation.ekf_update (the EKF's range update)",
+    )
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     ap.add_argument(
         "--objective",
@@ -173,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     print(head)
     print("-" * len(head))
     for f in files:
-        r = run_one(f, args.runs, args.max_runs, args.open_loop, args.truth_runs)
+        r = run_one(f, args.runs, args.max_runs, args.open_loop, args.truth_runs, args.ekf_update)
         rows.append(r)
         cells = "  ".join(
             f"{fmt(r['lawnmower'].get(k))}|{fmt(r['best'].get(k))}" for _, k in RATIOS

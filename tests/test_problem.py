@@ -17,6 +17,7 @@ from obsplan.planning.parse import (
     problem_to_dict,
 )
 from obsplan.planning.schema import SCHEMA
+from obsplan.planning.validation_setup import estimation_config
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "problem-files.md"
 
@@ -113,6 +114,7 @@ def test_minimal_dict_fills_defaults():
         ("horizon.steps", 100000, "horizon.steps", "limit of 5000"),
         ("limits.accel", 1e-12, "limits.accel", "range noise"),
         ("validation.runs", 100000, "validation.runs", "at most"),
+        ("validation.ekf_update", "third-order", "validation.ekf_update", "second-order"),
         ("beacon.position", [-80.0, 60.0], "start.position", "inside limits.min_range"),
     ],
 )
@@ -122,6 +124,13 @@ def test_bad_field_is_named(path, value, field, hint):
     msg = str(exc.value)
     assert field in msg, msg
     assert hint in msg, msg
+
+
+def test_ekf_update_reaches_the_validation_filters():
+    assert estimation_config(problem_from_dict(BASE)).ekf_update == "first-order"
+    pb = problem_from_dict(_with("validation.ekf_update", "second-order"))
+    cfg = estimation_config(pb)
+    assert cfg.ekf_update == "second-order" and cfg.to_dict()["ekf_update"] == "second-order"
 
 
 def test_objective_mode_only_for_timed_objectives():

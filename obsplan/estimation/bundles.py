@@ -21,8 +21,9 @@ from obsplan.model import VehicleModel
 #: What the EKF (and the Gaussian sum's components) predict and update with: the segment table
 #: ``tab``, the composed process-noise terms ``qt`` (3, m, m), the transition's packed entries
 #: ``tr``, the linear output rows ``lin``, the dimension ``n``, current ``cur``, beacon (n,),
-#: range form ``half_sq`` and the range noise ``sig_r`` [m].
-EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq sig_r")
+#: range form ``half_sq``, the second-order range update ``second`` and the range noise
+#: ``sig_r`` [m].
+EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig_r")
 
 #: What the augmented KF predicts and updates with: as :data:`EkfModel` plus the segments'
 #: Gauss rules ``rule``, the input displacement and rate at the epochs ``ep_d`` (E, 2n), the
@@ -62,6 +63,7 @@ def ekf_model(model: VehicleModel, ctx: RunContext, filt) -> EkfModel:
         cur=bool(model.current),
         beacon=model.beacon_array,
         half_sq=model.range_form == "half-squared",
+        second=bool(filt.second_order),
         sig_r=float(filt.noise["range"]),
     )
 

@@ -63,8 +63,8 @@ GRID_RTOL = 1e-9
 
 NavPath = namedtuple(
     "NavPath",
-    "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon n cur half_sq sig_r L expo "
-    "scaled box has_box alim",
+    "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon n cur half_sq second sig_r L "
+    "expo scaled box has_box alim",
 )
 NavGains = namedtuple("NavGains", "kp kd amax vmax kv")
 NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
@@ -206,6 +206,7 @@ class ClosedLoop:
             n=model.dim,
             cur=bool(model.current),
             half_sq=model.range_form == "half-squared",
+            second=bool(f.second_order),
             sig_r=float(self.config.noise["range"]),
             L=np.ascontiguousarray(s.L),
             expo=np.asarray(s.expo, float),

@@ -78,6 +78,9 @@ DEFAULT_CONVERGENCE_M = 0.5
 DEFAULT_ACCEL_NOISE = math.sqrt(1e-7)
 
 Y0Mode = Literal["augment", "inflate"]
+#: The EKF's range update (:mod:`obsplan.estimation.ekf`).
+EkfUpdate = Literal["first-order", "second-order"]
+EKF_UPDATES: tuple[str, ...] = ("first-order", "second-order")
 
 
 def _sensor_key(model: VehicleModel, key: str, fieldname: str) -> str:
@@ -239,6 +242,11 @@ class EstimationConfig:
     monitor_window_s
         The final stretch [s] over which the divergence monitor averages one run's NEES against
         the 99.9 % bound (:mod:`obsplan.estimation.stats`); ``None``: 10 % of the duration.
+    ekf_update
+        The EKF's (and the Gaussian sum's components') range update: ``"first-order"``
+        (default, the paper's EKF) or ``"second-order"``, the Gaussian second-order filter's,
+        which adds the range's curvature over the prior to the prediction and the variance
+        (:mod:`obsplan.estimation.ekf`).
 
     Instances pickle (the model is rebuilt from its parameters), so they can be shipped to worker
     processes.
@@ -261,6 +269,7 @@ class EstimationConfig:
     monitor_window_s: float | None = None
     accel_noise: float | None = None
     current_noise: float = 0.0
+    ekf_update: EkfUpdate = "first-order"
 
     def __reduce__(self):
         # the model may hold CasADi symbols (not picklable) and the mappings are read-only
@@ -283,6 +292,7 @@ class EstimationConfig:
                 "monitor_window_s",
                 "accel_noise",
                 "current_noise",
+                "ekf_update",
             )
         }
         for f in ("rates_hz", "noise", "dropout"):
@@ -366,6 +376,10 @@ class EstimationConfig:
         elif self.true_current is not None:
             raise ConfigError("true_current is set but the model has no current (current=False)")
         self._check_process_noise()
+        if self.ekf_update not in EKF_UPDATES:
+            raise ConfigError(
+                f"ekf_update must be 'first-order' or 'second-order', got {self.ekf_update!r}"
+            )
         if self.y0_mode not in ("augment", "inflate"):
             raise ConfigError(f"y0_mode must be 'augment' or 'inflate', got {self.y0_mode!r}")
         thr = float(self.convergence_threshold_m)
@@ -481,6 +495,7 @@ class EstimationConfig:
                 else [float(x) for x in self.init_error]
             ),
             "y0_mode": self.y0_mode,
+            "ekf_update": self.ekf_update,
             "true_current": None if self.true_current is None else list(self.true_current),
             "kf_coupling": bool(self.kf_coupling),
             "monitor_window_s": self.monitor_window_s,

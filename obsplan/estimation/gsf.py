@@ -67,6 +67,8 @@ class GaussianSumFilter(Filter):
         As for :class:`~obsplan.estimation.ekf.ExtendedKalmanFilter`.
     split
         ``(points per velocity axis, component std)``; default :data:`DEFAULT_SPLIT`.
+    second_order
+        The components' range update (as for the EKF).
     """
 
     name = "gsf"
@@ -79,8 +81,9 @@ class GaussianSumFilter(Filter):
         p0: np.ndarray,
         noise: dict[str, float],
         split: tuple[int, float] | None = None,
+        second_order: bool = False,
     ) -> None:
-        self.ekf = ExtendedKalmanFilter(model, q, p0, noise)
+        self.ekf = ExtendedKalmanFilter(model, q, p0, noise, second_order)
         self.model = model
         self.state_dim = model.state_dim
         k, s = DEFAULT_SPLIT[model.dim] if split is None else split
@@ -101,7 +104,8 @@ class GaussianSumFilter(Filter):
     def from_config(
         cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
     ) -> GaussianSumFilter:
-        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise))
+        second = config.ekf_update == "second-order"
+        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), None, second)
 
     @property
     def components(self) -> int:

@@ -589,8 +589,15 @@ def record_batch(X, P, lw, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, c
 
 # ----------------------------------------------------------------------------- EKF
 @inline
-def ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
-    """The range row of every member, linearised at its prior; returns whether any reports."""
+def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
+    """The range row of every member, linearised at its prior; returns whether any reports.
+
+    ``second``: the Gaussian second-order update (Jazwinski 1970, sec. 9.3; Bar-Shalom, Li and
+    Kirubarajan 2001, sec. 10.3): with ``δ ~ N(0, P_pp)`` the range's quadratic term
+    ``½ δᵀ M δ`` (``M = I`` for the half-squared form, ``(I - u uᵀ)/ρ`` for the range) adds its
+    mean ``½ tr(M P_pp)`` to the prediction and its variance ``½ tr((M P_pp)²)`` to the
+    reading's. Where the position is uncertain on the scale of ``sqrt(2 ρ σ_r)`` the first-order
+    update takes the curvature of the range for information it does not have."""
     B = X.shape[1]
     any_ok = False
     for i in range(n):
@@ -606,6 +613,15 @@ def ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
         if half_sq:
             nu = 0.5 * rm * rm - 0.5 * var_r - 0.5 * rho2
             r = rm * rm * var_r + 0.5 * var_r * var_r
+            if second:  # M = I
+                tr1 = 0.0
+                tr2 = 0.0
+                for i in range(n):
+                    tr1 += P[i, i, b]
+                    for j in range(n):
+                        tr2 += P[i, j, b] * P[i, j, b]
+                nu -= 0.5 * tr1
+                r += 0.5 * tr2
         else:
             rho = math.sqrt(rho2)
             ok = ok and rho > 0.0  # at the beacon the range has no gradient: no information
@@ -613,6 +629,23 @@ def ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
                 ws[WS_VAL, i, b] = ws[WS_VAL, i, b] / rho if ok else 0.0
             nu = rm - rho
             r = var_r
+            if second and ok:
+                # M = (I - u uᵀ)/ρ, w = P u: tr(M P) = (tr P - uᵀw)/ρ and
+                # tr((M P)²) = (tr(P²) - 2|w|² + (uᵀw)²)/ρ²
+                trp = 0.0
+                trp2 = 0.0
+                ww = 0.0
+                uw = 0.0
+                for i in range(n):
+                    trp += P[i, i, b]
+                    wi = 0.0
+                    for j in range(n):
+                        trp2 += P[i, j, b] * P[i, j, b]
+                        wi += P[i, j, b] * ws[WS_VAL, j, b]
+                    ww += wi * wi
+                    uw += ws[WS_VAL, i, b] * wi
+                nu -= 0.5 * (trp - uw) / rho
+                r += 0.5 * (trp2 - 2.0 * ww + uw * uw) / (rho * rho)
         ws[WS_SC, SC_NU, b] = nu if ok else 0.0
         ws[WS_SC, SC_R, b] = r if ok else 1.0
         ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
@@ -621,7 +654,9 @@ def ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
 
 
 @jit
-def ekf_measure(X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, var_r, lin, run_nis, run_cnt):
+def ekf_measure(
+    X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt
+):
     """The EKF's updates at epoch ``e`` (range row, then the linear rows) of every member, and
     their NIS: per run, or for a Gaussian sum (``G > 1``) the mixture's with the prior weights,
     whose log weights ``lw`` then grow by the innovations' log-likelihoods."""
@@ -631,7 +666,7 @@ def ekf_measure(X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, var_r, lin, ru
         ws[WS_SC, SC_NIS, b] = 0.0
         ws[WS_SC, SC_CNT, b] = 0.0
         ws[WS_SC, SC_LL, b] = 0.0
-    if ekf_range_row(X, Y, e, iw, ws, n, G, beacon, half_sq, var_r):
+    if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
         update_rows(X, P, iw, ws, n)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, lin, iw, ws, G)
@@ -680,7 +715,7 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
     the runs' input ``Corrections`` (closed loop; empty: none).
     """
     tab, qt, tr, lin, n, cur = mdl.tab, mdl.qt, mdl.tr, mdl.lin, mdl.n, mdl.cur
-    beacon, half_sq, sig_r = mdl.beacon, mdl.half_sq, mdl.sig_r
+    beacon, half_sq, second, sig_r = mdl.beacon, mdl.half_sq, mdl.second, mdl.sig_r
     rec_base, rec, qz, t_rec = rcd.rec_base, rcd.rec, rcd.qz, rcd.t_rec
     thr, bound, window, rec_w = rcd.thr, rcd.bound, rcd.window, rcd.rec_w
     sums, info, ex_run, ex = out.sums, out.info, out.ex_run, out.ex
@@ -713,7 +748,9 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
             predict(X, P, tab, e, n, tr, Q, ws)
             if corr:
                 correct_inputs(X, ce, e, tab[e, TAB_T], n, G)
-        ekf_measure(X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, var_r, lin, run_nis, run_cnt)
+        ekf_measure(
+            X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt
+        )
         while ri < n_rec and rec_base[ri] == e:
             record_batch(X, P, lw, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
             ri += 1

@@ -104,6 +104,7 @@ def nav_measure(pt, gn, st, io, k, e):
         n,
         pt.beacon,
         pt.half_sq,
+        pt.second,
         pt.sig_r * pt.sig_r,
         pt.lin,
         io.run_nis,

@@ -37,6 +37,7 @@ from obsplan.planning.schema import (
     OBJECTIVES,
     PROCESS_NOISE_MODELS,
     TIMED_OBJECTIVES,
+    VALIDATION_EKF_UPDATES,
     VALIDATION_MODES,
     field_error,
 )
@@ -375,6 +376,11 @@ def _check_validation(pb: PlanningProblem) -> None:
         raise field_error(
             "validation.process_noise_model",
             f"must be one of {', '.join(PROCESS_NOISE_MODELS)}, got {val.process_noise_model!r}",
+        )
+    if val.ekf_update not in VALIDATION_EKF_UPDATES:
+        raise field_error(
+            "validation.ekf_update",
+            f"must be one of {', '.join(VALIDATION_EKF_UPDATES)}, got {val.ekf_update!r}",
         )
     if val.max_runs < 1:
         raise field_error("validation.max_runs", f"must be at least 1, got {val.max_runs}")

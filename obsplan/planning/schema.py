@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from obsplan.errors import ProblemError
-from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
+from obsplan.estimation.config import DEFAULT_ACCEL_NOISE, EKF_UPDATES
 
 #: Largest ``horizon.steps`` the planner accepts: the NLP grows linearly in N and IPOPT's time
 #: faster; N = 1000 solves in seconds to a minute (README benchmarks), 5000 is already hours.
@@ -87,6 +87,8 @@ MINIMISED: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.se
 VALIDATION_MODES: tuple[str, ...] = ("closed-loop", "open-loop")
 #: ``validation.process_noise_model`` values (the first is the default).
 PROCESS_NOISE_MODELS: tuple[str, ...] = ("physical", "paper-per-step")
+#: ``validation.ekf_update`` values (the first is the default).
+VALIDATION_EKF_UPDATES: tuple[str, ...] = EKF_UPDATES
 #: ``objective.mode`` values; ``auto`` is ``final`` for kf-position-std (its historical meaning)
 #: and ``average-and-final`` for pcrb-position (:attr:`ObjectiveKind.auto_mode`).
 MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final", "lines")
@@ -548,6 +550,17 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             'How the Monte Carlo flies every path: "closed-loop" (the vehicle steers its EKF '
             "estimate onto the path: feed-forward of the path's acceleration plus feedback "
             'saturated at the limits) or "open-loop" (the accelerations flown blind).',
+        ),
+        FieldSpec(
+            "ekf_update",
+            "str",
+            "first-order",
+            "-",
+            "The range update of the EKF the vehicle steers on (and of the Gaussian sum's "
+            'components): "first-order" (the paper\'s EKF) or "second-order" (the Gaussian '
+            "second-order filter: the range's curvature over the prior adds its mean to the "
+            "prediction and its variance to the reading's; steadier where the position std "
+            "nears sqrt(2 r sigma_r): wide priors, long range-only legs, close passes).",
         ),
         FieldSpec(
             "max_runs",

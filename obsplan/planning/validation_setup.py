@@ -30,8 +30,9 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     ``init_pos_error`` / ``init_vel_error``, the problem's rates and noises, the true current
     ``vehicle.current_velocity``, and the process noise of ``validation.process_noise_model``:
     ``"physical"``, the white acceleration noise ``accel_noise`` [m/s²/√Hz] (exact for any
-    ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``. Used by the
-    validation and by the planning objectives.
+    ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``; the EKF's
+    range update ``validation.ekf_update``. Used by the validation and by the planning
+    objectives.
     """
     model, val, n = pb.model, pb.validation, pb.dim
     cov: dict[str, Any] = paper_covariances(model, val.dt)
@@ -60,6 +61,7 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
         init_error="sample",
         p0_ekf=cov["p0_ekf"],
         p0_kf=cov["p0_kf"],
+        ekf_update=val.ekf_update,  # type: ignore[arg-type]
         **noise_model,
     )
 
