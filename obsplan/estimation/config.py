@@ -80,6 +80,7 @@ DEFAULT_ACCEL_NOISE = math.sqrt(1e-7)
 Y0Mode = Literal["augment", "inflate"]
 #: The EKF's range update (:mod:`obsplan.estimation.ekf`).
 EkfUpdate = Literal["first-order", "second-order"]
+#: ``EkfUpdate`` values (the first is the default).
 EKF_UPDATES: tuple[str, ...] = ("first-order", "second-order")
 
 
@@ -377,9 +378,8 @@ class EstimationConfig:
             raise ConfigError("true_current is set but the model has no current (current=False)")
         self._check_process_noise()
         if self.ekf_update not in EKF_UPDATES:
-            raise ConfigError(
-                f"ekf_update must be 'first-order' or 'second-order', got {self.ekf_update!r}"
-            )
+            choices = " or ".join(repr(u) for u in EKF_UPDATES)
+            raise ConfigError(f"ekf_update must be {choices}, got {self.ekf_update!r}")
         if self.y0_mode not in ("augment", "inflate"):
             raise ConfigError(f"y0_mode must be 'augment' or 'inflate', got {self.y0_mode!r}")
         thr = float(self.convergence_threshold_m)

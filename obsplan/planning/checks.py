@@ -22,6 +22,7 @@ import numpy as np
 
 from obsplan import budget
 from obsplan.errors import ConfigError, ProblemError
+from obsplan.estimation.config import EKF_UPDATES
 from obsplan.model import VehicleModel, parse_sensors
 from obsplan.observability.gramian import augmented_model, gramian, rank_scales
 from obsplan.observability.lwo import lwo_structural_max_rank
@@ -37,7 +38,6 @@ from obsplan.planning.schema import (
     OBJECTIVES,
     PROCESS_NOISE_MODELS,
     TIMED_OBJECTIVES,
-    VALIDATION_EKF_UPDATES,
     VALIDATION_MODES,
     field_error,
 )
@@ -377,10 +377,10 @@ def _check_validation(pb: PlanningProblem) -> None:
             "validation.process_noise_model",
             f"must be one of {', '.join(PROCESS_NOISE_MODELS)}, got {val.process_noise_model!r}",
         )
-    if val.ekf_update not in VALIDATION_EKF_UPDATES:
+    if val.ekf_update not in EKF_UPDATES:
         raise field_error(
             "validation.ekf_update",
-            f"must be one of {', '.join(VALIDATION_EKF_UPDATES)}, got {val.ekf_update!r}",
+            f"must be one of {', '.join(EKF_UPDATES)}, got {val.ekf_update!r}",
         )
     if val.max_runs < 1:
         raise field_error("validation.max_runs", f"must be at least 1, got {val.max_runs}")

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from obsplan.errors import ProblemError
-from obsplan.estimation.config import DEFAULT_ACCEL_NOISE, EKF_UPDATES
+from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 
 #: Largest ``horizon.steps`` the planner accepts: the NLP grows linearly in N and IPOPT's time
 #: faster; N = 1000 solves in seconds to a minute (README benchmarks), 5000 is already hours.
@@ -87,8 +87,6 @@ MINIMISED: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.se
 VALIDATION_MODES: tuple[str, ...] = ("closed-loop", "open-loop")
 #: ``validation.process_noise_model`` values (the first is the default).
 PROCESS_NOISE_MODELS: tuple[str, ...] = ("physical", "paper-per-step")
-#: ``validation.ekf_update`` values (the first is the default).
-VALIDATION_EKF_UPDATES: tuple[str, ...] = EKF_UPDATES
 #: ``objective.mode`` values; ``auto`` is ``final`` for kf-position-std (its historical meaning)
 #: and ``average-and-final`` for pcrb-position (:attr:`ObjectiveKind.auto_mode`).
 MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final", "lines")
