@@ -61,6 +61,7 @@ PLANNING_ORDER: tuple[str, ...] = (
     "schema",  # the problem file declared: fields, units, defaults, objective kinds
     "mission_spec",  # the [mission]: lines, waypoints, end region, generated lines
     "mission_schedule",  # the mission's constant-speed schedule: windows, shortest horizon
+    "mission_order",  # mission.order = "free": the order and directions of the lines
     "checks",  # cheap checks (on construction) and structural rank checks (before solving)
     "problem",  # the frozen dataclasses
     "parse",  # files and mappings <-> problems (geodetic fields included)

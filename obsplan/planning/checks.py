@@ -47,8 +47,10 @@ if TYPE_CHECKING:  # annotations only: problem.py runs check_values from __post_
     from obsplan.planning.problem import PlanningProblem
 
 
-def check_values(pb: PlanningProblem) -> None:
-    """The cheap checks of a problem (no solver work), in the order the loader reports them.
+def check_values(pb: PlanningProblem, mission_fit: bool = True) -> None:
+    """The cheap checks of a problem (no solver work), in the order the loader reports them;
+    ``mission_fit=False`` leaves out whether the mission fits the horizon (a free line order
+    is resolved first).
 
     Raises
     ------
@@ -69,7 +71,8 @@ def check_values(pb: PlanningProblem) -> None:
         )
     if pb.mission is not None:
         _check_mission(pb)
-        mission_fit_error(pb)
+        if mission_fit:
+            mission_fit_error(pb)
 
 
 def _check_mission(pb: PlanningProblem) -> None:
@@ -83,10 +86,6 @@ def _check_mission(pb: PlanningProblem) -> None:
         )
     if m.order not in MISSION_ORDERS:
         raise field_error("mission.order", f'must be "given" or "free", got {m.order!r}')
-    if m.order == "free":
-        raise field_error(
-            "mission.order", '"free" (reordering the lines) is not available yet; use "given"'
-        )
     if not 0.0 <= m.shift < 0.5:
         raise field_error(
             "mission.shift",

@@ -2,7 +2,8 @@
 
 Numpy only, and independent of the planner's constraints: the path (piecewise-constant inputs,
 exact quadratics between samples) is evaluated at ``SUBSAMPLES`` points per interval. For each
-survey line (in order) the *pass* is the stretch of the path from the last time it is at or
+survey line (in the order flown: ``mission.lines``, which ``order = "free"`` may have
+reordered and reversed) the *pass* is the stretch of the path from the last time it is at or
 before the line's start (along the line) to the first time after it reaches the line's end;
 over the part of the pass between the two ends:
 
@@ -21,7 +22,7 @@ radius`` (and ``|v(T)| <= speed``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -38,7 +39,9 @@ RTOL = 1e-6
 
 @dataclass(frozen=True)
 class LineCheck:
-    """One survey line: see the module docstring; ``pass_s`` is the pass's ``(t0, t1)`` [s]."""
+    """One survey line: see the module docstring; ``pass_s`` is the pass's ``(t0, t1)`` [s];
+    ``line`` its index in ``mission.lines`` as given and ``reversed`` whether it is flown from
+    its second point to its first (``mission.order = "free"``)."""
 
     coverage: float
     max_cross_track_m: float
@@ -46,6 +49,8 @@ class LineCheck:
     speed_range_mps: tuple[float, float]
     pass_s: tuple[float, float]
     complete: bool
+    line: int = 0
+    reversed: bool = False
 
     def to_dict(self) -> dict:
         return {
@@ -55,6 +60,8 @@ class LineCheck:
             "speed_range_mps": [float(self.speed_range_mps[0]), float(self.speed_range_mps[1])],
             "pass_s": [float(self.pass_s[0]), float(self.pass_s[1])],
             "complete": bool(self.complete),
+            "line": int(self.line),
+            "reversed": bool(self.reversed),
         }
 
 
@@ -190,9 +197,10 @@ def mission_check(traj: Trajectory, pb: PlanningProblem) -> MissionCheck | None:
     first = 0
     if m.kind == "survey":
         tol = (m.cross_track, m.heading_tol, m.speed_band(pb.limits.speed))
-        for a, b in m.segments(n):
+        flown = m.flown_as or tuple((i, False) for i in range(len(m.lines)))
+        for (a, b), (given, rev) in zip(m.segments(n), flown, strict=True):
             ln, first = _line(t, p, v, a, b, first, tol)
-            lines.append(ln)
+            lines.append(replace(ln, line=given, reversed=rev))
             last_t = ln.pass_s[1]
     points: list[PointCheck] = []
     for i, w in enumerate(m.waypoints):

@@ -251,11 +251,11 @@ def dubins(
 
 
 # ---------------------------------------------------------------------------------- schedule
-def _targets(pb: PlanningProblem, lead: float) -> list[tuple[str, np.ndarray, np.ndarray, float]]:
+def _targets(
+    pb: PlanningProblem, m: Mission, lead: float
+) -> list[tuple[str, np.ndarray, np.ndarray, float]]:
     """What the schedule flies in order: ``(kind, run-in point, unit direction, straight
-    length)`` for every line (kind ``"line"``) or waypoint (``"waypoint"``)."""
-    m = pb.mission
-    assert m is not None
+    length)`` for every line (kind ``"line"``) or waypoint (``"waypoint"``) of ``m``."""
     n = pb.dim
     out = []
     if m.kind == "survey":
@@ -333,17 +333,20 @@ def _speed_change(t: float, p: np.ndarray, e: np.ndarray, s0: float, s1: float, 
     return pc, t + dur, p + e * (s0 * dur + 0.5 * acc * dur**2)
 
 
-def build_schedule(pb: PlanningProblem, v: float, accelerated: bool = False) -> Schedule:
-    """The schedule of ``pb``'s mission at horizontal speed ``v`` [m/s] (module docstring);
-    ``accelerated``: sinusoidal speed on the lines (same windows)."""
-    m = pb.mission
+def build_schedule(
+    pb: PlanningProblem, v: float, accelerated: bool = False, mission: Mission | None = None
+) -> Schedule:
+    """The schedule of ``pb``'s mission (or of ``mission``, same end region: a candidate line
+    order) at horizontal speed ``v`` [m/s] (module docstring); ``accelerated``: sinusoidal speed
+    on the lines (same windows)."""
+    m = pb.mission if mission is None else mission
     assert m is not None
     n = pb.dim
     a = ACCEL_USE * float(np.min(pb.accel))
     r = v * v / a
     lead = LEAD_STEPS * v * pb.horizon.dt
     lo, hi = m.speed_band(pb.limits.speed)
-    targets = _targets(pb, lead)
+    targets = _targets(pb, m, lead)
     p = pb.p0.astype(float).copy()
     s0 = float(np.linalg.norm(pb.v0[:2]))
     if s0 > 0:

@@ -20,6 +20,10 @@ width ``spacing`` inside the area; each line is the chord of the
 area (rectangle or polygon; of a non-convex polygon the longest chord piece) along its offset.
 They are flown boustrophedon: the line nearest the start first, along ``heading``; then every
 next line in the opposite direction of the previous one.
+
+``order = "free"`` lets the planner reorder and reverse the lines
+(:mod:`obsplan.planning.mission_order`: the order of the shortest transits); ``lines`` then holds
+them as flown and ``flown_as`` how they were given.
 """
 
 from __future__ import annotations
@@ -86,6 +90,19 @@ class Mission:
     spacing: float | None = None
     heading: float | None = None
     depth: float | None = None
+    #: With ``order = "free"``: for each line of ``lines`` (the order flown), its index in the
+    #: lines as given and whether it is flown reversed (:mod:`obsplan.planning.mission_order`).
+    flown_as: tuple[tuple[int, bool], ...] = ()
+
+    def given_lines(self) -> tuple[tuple[float, ...], ...]:
+        """The lines as given (``lines`` undone from the free order), each ``2 n`` numbers [m]."""
+        if not self.flown_as:
+            return self.lines
+        out: list[tuple[float, ...]] = [()] * len(self.lines)
+        for ln, (i, rev) in zip(self.lines, self.flown_as, strict=True):
+            h = len(ln) // 2
+            out[i] = (*ln[h:], *ln[:h]) if rev else ln
+        return tuple(out)
 
     def speed_band(self, speed_limit: float) -> tuple[float, float]:
         """``speed`` or its default ``(0.3, 1) * limits.speed`` [m/s]."""

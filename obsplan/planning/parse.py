@@ -384,7 +384,7 @@ def _mission_to_dict(m: Mission) -> dict[str, Any]:
         if m.depth is not None:
             out["depth"] = m.depth
     elif m.lines:
-        out["lines"] = [list(ln) for ln in m.lines]
+        out["lines"] = [list(ln) for ln in m.given_lines()]
     if m.speed is not None:
         out["speed"] = list(m.speed)
     if m.waypoints:

@@ -20,6 +20,7 @@ from obsplan.geodesy import GeodeticOrigin
 from obsplan.model import VehicleModel
 from obsplan.observability.scaling import Scales
 from obsplan.planning.checks import check_values
+from obsplan.planning.mission_order import free_order
 from obsplan.planning.mission_spec import Mission
 from obsplan.planning.schema import OBJECTIVE_KINDS
 
@@ -167,6 +168,11 @@ class PlanningProblem:
     mission: Mission | None = None
 
     def __post_init__(self) -> None:
+        m = self.mission
+        if m is not None and m.order == "free" and m.lines and not m.flown_as:
+            check_values(self, mission_fit=False)
+            # frozen: the free order is resolved once, before anything reads (or hashes) it
+            object.__setattr__(self, "mission", free_order(self))
         check_values(self)
 
     @cached_property

@@ -459,8 +459,9 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "str",
             "given",
             "-",
-            '"given" (lines in the order given) or "free" (the planner may reorder and reverse '
-            "lines: not available yet, refused).",
+            '"given" (lines in the order given) or "free" (the planner reorders and reverses '
+            "the lines for the shortest transits between them, which leaves the most time on "
+            "the lines; the lawn-mowers fly the same order).",
         ),
         FieldSpec(
             "shift",

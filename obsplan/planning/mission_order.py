@@ -1,0 +1,210 @@
+"""The order of a survey's lines when ``mission.order = "free"``: which line next, and which way.
+
+A surveyor's freedom is the order and the direction of the lines; what the planner gains from
+it is time. The horizon is fixed, so every second the transits between lines do not need is
+speed headroom left to the planner on the lines (:mod:`obsplan.planning.mission_schedule`: the
+lawn-mower's constant speed ``v_c`` is the slowest that ends within the horizon). The free
+order is the one that lets the schedule fly slowest, found on a grid of ``SPEEDS`` speeds across
+the band ``mission.speed``, slowest first: at each speed ``s`` the order of the shortest transit
+path (from the start pose, along the schedule's bounded-curvature Dubins transits at ``s``, turn
+radius ``s² / a_turn`` and run-in and run-out ``lead`` as the schedule's, to every line's run-in
+point in turn, each line flown whole in the direction chosen, then straight to the end region
+if any); the first of these orders whose schedule at ``s`` ends within the horizon is kept
+(``mission_schedule`` then refines ``v_c`` for it). The speed matters: with turns wider than
+the line spacing the shortest path skips a line and comes back, with tight turns it takes the
+next. When no speed fits, the order of the shortest mission is kept (and the fit check refuses
+it with the shortest horizon).
+
+* Up to ``EXACT_LINES`` lines the order is exact: dynamic programming over the subsets of lines
+  flown (Held–Karp) on precomputed transit lengths.
+* Beyond, the greedy nearest next line and direction, improved by reversing runs of the order
+  (2-opt, each run's lines reversed too) while that shortens the path.
+
+Ties are broken by a canonical order of the lines (sorted by their endpoints), so the result
+depends only on the set of lines, not on how they were listed: a problem file written back with
+its lines in the flown order resolves to the same order. The lawn-mower baselines fly the same
+order, so the comparison stays like for like. The observability objective does not choose the
+order: it chooses the speed, the turns and the manoeuvres between lines in the windows the
+order leaves.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from obsplan.planning.mission_schedule import ACCEL_USE, LEAD_STEPS, build_schedule, dubins
+from obsplan.planning.mission_spec import Mission
+
+if TYPE_CHECKING:  # annotations only: problem.py resolves the order from __post_init__
+    from obsplan.planning.problem import PlanningProblem
+
+#: Lines up to which the order is exact (dynamic programming over subsets).
+EXACT_LINES = 10
+#: Speeds across the band at which the order is searched (slowest first).
+SPEEDS = 13
+#: Relative tolerance under which two path lengths are a tie (round-off of the Dubins lengths).
+_TIE = 1e-9
+
+
+def _poses(
+    segs: list[tuple[np.ndarray, np.ndarray]], lead: float
+) -> tuple[list[tuple[float, float, float]], list[np.ndarray]]:
+    """Run-in pose and exit point of every line ``j`` flown forward (index ``2j``) and reversed
+    (``2j + 1``)."""
+    runin, exit_ = [], []
+    for a, b in segs:
+        for s, f in ((a, b), (b, a)):
+            e = (f - s)[:2] / np.linalg.norm((f - s)[:2])
+            p = s[:2] - lead * e
+            runin.append((float(p[0]), float(p[1]), math.atan2(e[1], e[0])))
+            exit_.append(np.array([*(f[:2] + lead * e), math.atan2(e[1], e[0])]))
+    return runin, exit_
+
+
+def _costs(pb: PlanningProblem, segs: list[tuple[np.ndarray, np.ndarray]], speed: float):
+    """Transit lengths [m] at ``speed`` [m/s]: from the start to each oriented line, between
+    oriented lines, and from each oriented line to the end region (0 without one)."""
+    m = pb.mission
+    assert m is not None
+    r = speed * speed / (ACCEL_USE * float(np.min(pb.accel)))
+    lead = LEAD_STEPS * speed * pb.horizon.dt
+    runin, exit_ = _poses(segs, lead)
+    k = len(runin)
+    p0 = pb.p0[:2].astype(float)
+    moving = float(np.linalg.norm(pb.v0[:2])) > 0
+    first = np.empty(k)
+    for j, pose in enumerate(runin):
+        if moving:
+            th0 = math.atan2(pb.v0[1], pb.v0[0])
+        else:  # from rest the vehicle sets off towards its first target (as the schedule does)
+            d = np.array(pose[:2]) - p0
+            th0 = math.atan2(d[1], d[0]) if np.linalg.norm(d) > 1e-9 else pose[2]
+        first[j] = sum(ln for _, ln in dubins((p0[0], p0[1], th0), pose, r))
+    between = np.empty((k, k))
+    for i, ex in enumerate(exit_):
+        for j, pose in enumerate(runin):
+            between[i, j] = sum(ln for _, ln in dubins(tuple(ex), pose, r))
+    last = np.zeros(k)
+    if m.end is not None:
+        goal = np.asarray(m.end.position, float)[:2]
+        last = np.array([float(np.linalg.norm(goal - ex[:2])) for ex in exit_])
+    return first, between, last
+
+
+def _exact(first: np.ndarray, between: np.ndarray, last: np.ndarray, n: int) -> list[int]:
+    """Held–Karp over subsets: the oriented-line sequence (indices ``2j + d``) of least length."""
+    full = (1 << n) - 1
+    inf = math.inf
+    cost = np.full((1 << n, 2 * n), inf)
+    back = np.full((1 << n, 2 * n), -1, dtype=np.int64)
+    line_of = np.arange(2 * n) >> 1
+    for o in range(2 * n):
+        cost[1 << (o >> 1), o] = first[o]
+    for mask in range(1, full + 1):
+        ends = np.flatnonzero(np.isfinite(cost[mask]))
+        if ends.size == 0:
+            continue
+        # every way to extend the paths ending at ``ends`` by one oriented line not yet flown
+        ext = cost[mask, ends][:, None] + between[ends]
+        src = ends[np.argmin(ext, axis=0)]  # argmin: the first (canonical) of equal lengths
+        best = ext.min(axis=0)
+        for o2 in np.flatnonzero(((mask >> line_of) & 1) == 0):
+            nxt = mask | (1 << int(line_of[o2]))
+            if best[o2] < cost[nxt, o2] * (1 - _TIE):
+                cost[nxt, o2] = best[o2]
+                back[nxt, o2] = src[o2]
+    tot = cost[full] + last
+    o = int(np.argmin(tot))  # argmin: the first (canonical) of equal lengths
+    seq, mask = [], full
+    while o >= 0:
+        seq.append(o)
+        prev = int(back[mask, o])
+        mask &= ~(1 << (o >> 1))
+        o = prev
+    return seq[::-1]
+
+
+def _length(seq: list[int], first, between, last) -> float:
+    return float(
+        first[seq[0]]
+        + sum(between[a, b] for a, b in zip(seq, seq[1:], strict=False))
+        + last[seq[-1]]
+    )
+
+
+def _greedy(first: np.ndarray, between: np.ndarray, last: np.ndarray, n: int) -> list[int]:
+    """Nearest next line, then 2-opt (a run reversed, its lines flown the other way)."""
+    seq = [int(np.argmin(first))]
+    left = set(range(n)) - {seq[0] >> 1}
+    while left:
+        o = seq[-1]
+        cand = [o2 for j in sorted(left) for o2 in (2 * j, 2 * j + 1)]
+        nxt = min(cand, key=lambda o2: between[o, o2])
+        seq.append(nxt)
+        left.discard(nxt >> 1)
+    best = _length(seq, first, between, last)
+    improved = True
+    while improved:
+        improved = False
+        for i in range(n - 1):
+            for j in range(i + 1, n):
+                trial = seq[:i] + [o ^ 1 for o in reversed(seq[i : j + 1])] + seq[j + 1 :]
+                c = _length(trial, first, between, last)
+                if c < best * (1 - _TIE):
+                    seq, best, improved = trial, c, True
+    return seq
+
+
+def free_order(pb: PlanningProblem) -> Mission:
+    """``pb``'s mission with its lines in the free order (module docstring).
+
+    Returns
+    -------
+    Mission
+        ``lines`` in the order and direction flown, ``flown_as`` the given index of each and
+        whether it is reversed. Missions without survey lines, or not ``order = "free"``, are
+        returned unchanged.
+    """
+    m = pb.mission
+    if m is None or m.order != "free" or not m.lines or m.flown_as:
+        return m  # type: ignore[return-value]
+    n = pb.dim
+    given = m.segments(n)
+    canon = sorted(range(len(given)), key=lambda i: tuple(sorted(map(tuple, given[i]))))
+    segs: list[tuple[np.ndarray, np.ndarray]] = []
+    for i in canon:  # each line's endpoints in a canonical order too
+        a, b = sorted((given[i][0], given[i][1]), key=tuple)
+        segs.append((np.asarray(a), np.asarray(b)))
+    k = len(segs)
+    lo, hi = m.speed_band(pb.limits.speed)
+    fallback: tuple[float, Mission] | None = None
+    for s in np.linspace(lo, hi, SPEEDS):
+        first, between, last = _costs(pb, segs, float(s))
+        seq = (_exact if k <= EXACT_LINES else _greedy)(first, between, last, k)
+        cand = _flown(m, n, given, canon, segs, seq)
+        end = build_schedule(pb, float(s), mission=cand).end_s
+        if end <= pb.horizon.duration:
+            return cand
+        if fallback is None or end < fallback[0]:
+            fallback = (end, cand)
+    assert fallback is not None
+    return fallback[1]
+
+
+def _flown(m: Mission, n: int, given, canon: list[int], segs, seq: list[int]) -> Mission:
+    """``m`` with its lines in the oriented order ``seq`` (indices into the canonical ``segs``)."""
+    lines, flown = [], []
+    for o in seq:
+        c, rev = o >> 1, bool(o & 1)
+        a, b = segs[c]
+        if rev:
+            a, b = b, a
+        gi = canon[c]
+        ga = given[gi][0]
+        flown.append((gi, not np.allclose(a, ga)))
+        lines.append(tuple(float(x) for x in (*a, *b)))
+    return replace(m, lines=tuple(lines), flown_as=tuple(flown))
