@@ -127,10 +127,10 @@ def test_bad_field_is_named(path, value, field, hint):
 
 
 def test_ekf_update_reaches_the_validation_filters():
-    assert estimation_config(problem_from_dict(BASE)).ekf_update == "first-order"
-    pb = problem_from_dict(_with("validation.ekf_update", "second-order"))
+    assert estimation_config(problem_from_dict(BASE)).ekf_update == "second-order"
+    pb = problem_from_dict(_with("validation.ekf_update", "first-order"))
     cfg = estimation_config(pb)
-    assert cfg.ekf_update == "second-order" and cfg.to_dict()["ekf_update"] == "second-order"
+    assert cfg.ekf_update == "first-order" and cfg.to_dict()["ekf_update"] == "first-order"
 
 
 def test_objective_mode_only_for_timed_objectives():

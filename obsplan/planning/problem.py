@@ -135,7 +135,7 @@ class ValidationSpec:
     accel_noise: float = DEFAULT_ACCEL_NOISE
     process_noise_model: str = "physical"
     mode: str = "closed-loop"
-    ekf_update: str = "first-order"
+    ekf_update: str = "second-order"
     max_runs: int = 400
     stress_prior: float = 1.0
     stress_range_noise: float = 1.0

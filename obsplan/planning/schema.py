@@ -553,13 +553,13 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
         FieldSpec(
             "ekf_update",
             "str",
-            "first-order",
+            "second-order",
             "-",
             "The range update of the EKF the vehicle steers on (and of the Gaussian sum's "
-            'components): "first-order" (the paper\'s EKF) or "second-order" (the Gaussian '
-            "second-order filter: the range's curvature over the prior adds its mean to the "
-            "prediction and its variance to the reading's; steadier where the position std "
-            "nears sqrt(2 r sigma_r): wide priors, long range-only legs, close passes).",
+            'components): "second-order" (the Gaussian second-order filter: the range\'s '
+            "curvature over the prior adds its mean to the prediction and its variance to the "
+            "reading's; steadier where the position std nears sqrt(2 r sigma_r): wide priors, "
+            'long range-only legs, close passes) or "first-order" (the paper\'s EKF).',
         ),
         FieldSpec(
             "max_runs",
