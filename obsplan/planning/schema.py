@@ -586,8 +586,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "float",
             1.0,
             "-",
-            "Robustness row: the true range noise is range_std times this (the filters are "
-            "told the stated range_std, as a vehicle told the wrong noise).",
+            "Robustness row: the range noise is range_std times this (the world the plan "
+            "meets; the filters are configured for it, as for the stress prior).",
         ),
     ),
 }
