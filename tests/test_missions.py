@@ -362,6 +362,39 @@ def test_exact_free_order_is_the_shortest_of_all_orders(seed):
     assert _length(heur, first, between, last) >= brute * (1 - 1e-12)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_greedy_free_order_is_a_two_opt_optimum(seed):
+    from obsplan.planning.mission_order import _greedy, _length
+
+    rng = np.random.default_rng(seed)
+    n = 12
+    first = rng.uniform(0, 100, 2 * n)
+    between = rng.uniform(0, 100, (2 * n, 2 * n))
+    last = rng.uniform(0, 100, 2 * n)
+    seq = _greedy(first, between, last, n)
+    assert sorted(o >> 1 for o in seq) == list(range(n))
+    best = _length(seq, first, between, last)
+    for i in range(n - 1):  # no reversed run (its lines flown the other way) is shorter
+        for j in range(i + 1, n):
+            trial = seq[:i] + [o ^ 1 for o in reversed(seq[i : j + 1])] + seq[j + 1 :]
+            assert _length(trial, first, between, last) >= best * (1 - 1e-9)
+
+
+def test_free_order_refuses_more_lines_than_it_searches():
+    from obsplan.planning.mission_order import MAX_FREE_LINES
+
+    d = tomllib.loads(DEFAULT_PROBLEM.read_text())
+    d["mission"] = {
+        "kind": "survey",
+        "area": {"x": [-100.0, 100.0], "y": [-100.0, 100.0]},
+        "spacing": 200.0 / (MAX_FREE_LINES + 1),
+        "heading": 90.0,
+        "order": "free",
+    }
+    with pytest.raises(ProblemError, match="mission.order"):
+        problem_from_dict(d)
+
+
 def test_a_plan_flies_a_free_order_and_reports_it():
     d = _small()
     a, b = d["mission"]["lines"]

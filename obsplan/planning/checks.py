@@ -27,6 +27,7 @@ from obsplan.model import VehicleModel, parse_sensors
 from obsplan.observability.gramian import augmented_model, gramian, rank_scales
 from obsplan.observability.lwo import lwo_structural_max_rank
 from obsplan.observability.scaling import numerical_rank
+from obsplan.planning.mission_order import MAX_FREE_LINES
 from obsplan.planning.mission_schedule import check_mission_geometry, mission_fit_error
 from obsplan.planning.mission_spec import MISSION_KINDS, MISSION_ORDERS
 from obsplan.planning.schema import (
@@ -86,6 +87,13 @@ def _check_mission(pb: PlanningProblem) -> None:
         )
     if m.order not in MISSION_ORDERS:
         raise field_error("mission.order", f'must be "given" or "free", got {m.order!r}')
+    if m.order == "free" and len(m.lines) > MAX_FREE_LINES:
+        raise field_error(
+            "mission.order",
+            f'"free" searches the order of up to {MAX_FREE_LINES} lines, the mission has '
+            f'{len(m.lines)}; use order = "given" (generated lines are flown boustrophedon) or '
+            "split the survey",
+        )
     if not 0.0 <= m.shift < 0.5:
         raise field_error(
             "mission.shift",

@@ -44,6 +44,9 @@ if TYPE_CHECKING:  # annotations only: problem.py resolves the order from __post
 
 #: Lines up to which the order is exact (dynamic programming over subsets).
 EXACT_LINES = 10
+#: Most lines a free order is searched for (its transit table grows as the square of the lines,
+#: on every speed of the search); more are refused before any work.
+MAX_FREE_LINES = 60
 #: Speeds across the band at which the order is searched (slowest first).
 SPEEDS = 13
 #: Relative tolerance under which two path lengths are a tie (round-off of the Dubins lengths).
@@ -146,16 +149,38 @@ def _greedy(first: np.ndarray, between: np.ndarray, last: np.ndarray, n: int) ->
         nxt = min(cand, key=lambda o2: between[o, o2])
         seq.append(nxt)
         left.discard(nxt >> 1)
+    return _two_opt(seq, first, between, last)
+
+
+def _two_opt(seq: list[int], first, between, last) -> list[int]:
+    """Reverse runs ``seq[i..j]`` (each line flown the other way) while that shortens the path.
+
+    A pass costs ``O(n²)``: the run's own transits, forward and reversed, come from prefix sums
+    (the costs are asymmetric, so the reversed run's transits are not the forward ones)."""
+    n = len(seq)
     best = _length(seq, first, between, last)
     improved = True
     while improved:
         improved = False
+        s = np.asarray(seq)
+        fwd = np.concatenate([[0.0], np.cumsum(between[s[:-1], s[1:]])])
+        rev = np.concatenate([[0.0], np.cumsum(between[s[1:] ^ 1, s[:-1] ^ 1])])
         for i in range(n - 1):
+            before = first[s[i]] if i == 0 else between[s[i - 1], s[i]]
             for j in range(i + 1, n):
-                trial = seq[:i] + [o ^ 1 for o in reversed(seq[i : j + 1])] + seq[j + 1 :]
-                c = _length(trial, first, between, last)
-                if c < best * (1 - _TIE):
-                    seq, best, improved = trial, c, True
+                after = last[s[j]] if j == n - 1 else between[s[j], s[j + 1]]
+                new_before = first[s[j] ^ 1] if i == 0 else between[s[i - 1], s[j] ^ 1]
+                new_after = last[s[i] ^ 1] if j == n - 1 else between[s[i] ^ 1, s[j + 1]]
+                delta = (new_before + new_after + rev[j] - rev[i]) - (
+                    before + after + fwd[j] - fwd[i]
+                )
+                if delta < -_TIE * best:
+                    seq = seq[:i] + [o ^ 1 for o in reversed(seq[i : j + 1])] + seq[j + 1 :]
+                    best = _length(seq, first, between, last)
+                    improved = True
+                    break
+            if improved:
+                break
     return seq
 
 
