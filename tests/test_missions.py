@@ -338,46 +338,55 @@ def test_free_order_interleaves_lines_closer_than_the_turns():
         assert mission_check(lw, pb).complete
 
 
+def _random_transits(seed: int, n: int):
+    """Random asymmetric transit lengths of ``n`` lines (start, between, end), as
+    :func:`obsplan.planning.mission_order._costs` returns them."""
+    rng = np.random.default_rng(seed)
+    return (
+        rng.uniform(0, 100, 2 * n),
+        rng.uniform(0, 100, (2 * n, 2 * n)),
+        rng.uniform(0, 100, 2 * n),
+    )
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_exact_free_order_is_the_shortest_of_all_orders(seed):
     from itertools import permutations, product
 
-    from obsplan.planning.mission_order import _exact, _greedy, _length
+    from obsplan.planning.mission_order import _exact, _length
 
-    rng = np.random.default_rng(seed)
     n = 5
-    first = rng.uniform(0, 100, 2 * n)
-    between = rng.uniform(0, 100, (2 * n, 2 * n))
-    last = rng.uniform(0, 100, 2 * n)
+    costs = _random_transits(seed, n)
     brute = min(
-        _length([2 * j + d for j, d in zip(perm, dirs, strict=True)], first, between, last)
+        _length([2 * j + d for j, d in zip(perm, dirs, strict=True)], *costs)
         for perm in permutations(range(n))
         for dirs in product((0, 1), repeat=n)
     )
-    seq = _exact(first, between, last, n)
+    seq = _exact(*costs, n)
     assert sorted(o >> 1 for o in seq) == list(range(n))
-    assert _length(seq, first, between, last) == pytest.approx(brute, rel=1e-12)
-    heur = _greedy(first, between, last, n)
-    assert sorted(o >> 1 for o in heur) == list(range(n))
-    assert _length(heur, first, between, last) >= brute * (1 - 1e-12)
+    assert _length(seq, *costs) == pytest.approx(brute, rel=1e-12)
 
 
 @pytest.mark.parametrize("seed", range(3))
 def test_greedy_free_order_is_a_two_opt_optimum(seed):
     from obsplan.planning.mission_order import _greedy, _length
 
-    rng = np.random.default_rng(seed)
     n = 12
-    first = rng.uniform(0, 100, 2 * n)
-    between = rng.uniform(0, 100, (2 * n, 2 * n))
-    last = rng.uniform(0, 100, 2 * n)
-    seq = _greedy(first, between, last, n)
+    costs = _random_transits(seed, n)
+    seq = _greedy(*costs, n)
     assert sorted(o >> 1 for o in seq) == list(range(n))
-    best = _length(seq, first, between, last)
+    best = _length(seq, *costs)
     for i in range(n - 1):  # no reversed run (its lines flown the other way) is shorter
         for j in range(i + 1, n):
             trial = seq[:i] + [o ^ 1 for o in reversed(seq[i : j + 1])] + seq[j + 1 :]
-            assert _length(trial, first, between, last) >= best * (1 - 1e-9)
+            assert _length(trial, *costs) >= best * (1 - 1e-9)
+
+
+def test_a_line_order_that_does_not_match_the_lines_is_refused():
+    pb = problem_from_dict(_default_shuffled("free"))
+    stale = replace(pb.mission, lines=pb.mission.lines[:2])  # flown_as still names 3 lines
+    with pytest.raises(ProblemError, match="mission.flown_as"):
+        replace(pb, mission=stale)
 
 
 def test_free_order_refuses_more_lines_than_it_searches():

@@ -80,7 +80,8 @@ DEFAULT_ACCEL_NOISE = math.sqrt(1e-7)
 Y0Mode = Literal["augment", "inflate"]
 #: The EKF's range update (:mod:`obsplan.estimation.ekf`).
 EkfUpdate = Literal["first-order", "second-order"]
-#: ``EkfUpdate`` values (the first is the default).
+#: ``EkfUpdate`` values; the first is ``EstimationConfig``'s default (the paper's EKF), problem
+#: files default to the second (``validation.ekf_update``).
 EKF_UPDATES: tuple[str, ...] = ("first-order", "second-order")
 
 

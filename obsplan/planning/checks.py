@@ -87,6 +87,12 @@ def _check_mission(pb: PlanningProblem) -> None:
         )
     if m.order not in MISSION_ORDERS:
         raise field_error("mission.order", f'must be "given" or "free", got {m.order!r}')
+    if m.flown_as and sorted(i for i, _ in m.flown_as) != list(range(len(m.lines))):
+        raise field_error(
+            "mission.flown_as",
+            f"names {len(m.flown_as)} lines flown, not a reordering of the {len(m.lines)} lines; "
+            'give the lines as given with order = "free" and flown_as empty (it is resolved)',
+        )
     if m.order == "free" and len(m.lines) > MAX_FREE_LINES:
         raise field_error(
             "mission.order",

@@ -79,11 +79,11 @@ def _costs(pb: PlanningProblem, segs: list[tuple[np.ndarray, np.ndarray]], speed
     k = len(runin)
     p0 = pb.p0[:2].astype(float)
     moving = float(np.linalg.norm(pb.v0[:2])) > 0
+    heading = math.atan2(pb.v0[1], pb.v0[0]) if moving else 0.0
     first = np.empty(k)
     for j, pose in enumerate(runin):
-        if moving:
-            th0 = math.atan2(pb.v0[1], pb.v0[0])
-        else:  # from rest the vehicle sets off towards its first target (as the schedule does)
+        th0 = heading
+        if not moving:  # from rest the vehicle sets off towards its first target (as the schedule)
             d = np.array(pose[:2]) - p0
             th0 = math.atan2(d[1], d[0]) if np.linalg.norm(d) > 1e-9 else pose[2]
         first[j] = sum(ln for _, ln in dubins((p0[0], p0[1], th0), pose, r))
@@ -201,16 +201,18 @@ def free_order(pb: PlanningProblem) -> Mission:
     given = m.segments(n)
     canon = sorted(range(len(given)), key=lambda i: tuple(sorted(map(tuple, given[i]))))
     segs: list[tuple[np.ndarray, np.ndarray]] = []
+    swapped: list[bool] = []  # the canonical endpoints are the given ones swapped
     for i in canon:  # each line's endpoints in a canonical order too
-        a, b = sorted((given[i][0], given[i][1]), key=tuple)
-        segs.append((np.asarray(a), np.asarray(b)))
+        a, b = given[i]
+        swapped.append(tuple(b) < tuple(a))
+        segs.append((b, a) if swapped[-1] else (a, b))
     k = len(segs)
     lo, hi = m.speed_band(pb.limits.speed)
     fallback: tuple[float, Mission] | None = None
     for s in np.linspace(lo, hi, SPEEDS):
         first, between, last = _costs(pb, segs, float(s))
         seq = (_exact if k <= EXACT_LINES else _greedy)(first, between, last, k)
-        cand = _flown(m, n, given, canon, segs, seq)
+        cand = _flown(m, canon, swapped, segs, seq)
         end = build_schedule(pb, float(s), mission=cand).end_s
         if end <= pb.horizon.duration:
             return cand
@@ -220,16 +222,13 @@ def free_order(pb: PlanningProblem) -> Mission:
     return fallback[1]
 
 
-def _flown(m: Mission, n: int, given, canon: list[int], segs, seq: list[int]) -> Mission:
-    """``m`` with its lines in the oriented order ``seq`` (indices into the canonical ``segs``)."""
+def _flown(m: Mission, canon: list[int], swapped: list[bool], segs, seq: list[int]) -> Mission:
+    """``m`` with its lines in the oriented order ``seq`` (indices ``2c + reversed`` into the
+    canonical ``segs``; ``canon[c]`` the given index, ``swapped[c]`` its endpoints' order)."""
     lines, flown = [], []
     for o in seq:
         c, rev = o >> 1, bool(o & 1)
-        a, b = segs[c]
-        if rev:
-            a, b = b, a
-        gi = canon[c]
-        ga = given[gi][0]
-        flown.append((gi, not np.allclose(a, ga)))
+        a, b = segs[c][::-1] if rev else segs[c]
+        flown.append((canon[c], rev != swapped[c]))
         lines.append(tuple(float(x) for x in (*a, *b)))
     return replace(m, lines=tuple(lines), flown_as=tuple(flown))
