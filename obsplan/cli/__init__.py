@@ -8,11 +8,13 @@ Errors raised on purpose (:mod:`obsplan.errors`) are printed as one line, withou
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import os
 import signal
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from obsplan import interrupts, outputs
 from obsplan.cli.common import join_negative_values
@@ -73,9 +75,31 @@ def main(argv: Sequence[str] | None = None) -> int:
             # the console script: the work is done and whole; a signal while the interpreter
             # shuts down (seconds on a loaded machine) must not turn it into a kill
             interrupts.ignore_all()
+            if signalled is not None:
+                _exit_now(signalled)
         else:
             interrupts.uninstall(previous)
     return code if signalled is None else signalled
+
+
+def _exit_now(code: int) -> NoReturn:
+    """End the interrupted console script with ``code``, skipping the interpreter's
+    finalisation.
+
+    The outputs are already undone and the exit handlers (temporary folders, worker pools) run
+    here; what is skipped is the teardown of threads a signal left inside native code (a numba
+    or BLAS pool stopped mid-loop), which once aborted the process (SIGABRT, "PyThreadState_Get
+    ... finalizing") after it had printed that nothing was written.
+    """
+    try:
+        atexit._run_exitfuncs()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed pipe: nothing more can be said
+                pass
+        os._exit(code)
 
 
 def _interrupted_message(verb: str, exc: BaseException) -> str:
