@@ -179,3 +179,43 @@ def test_keep_out_never_trades_the_mission_for_its_margins():
     assert nominal is not None and completes_mission(nominal, pb)
     kept, report, _ = keep_out(pb, nominal)
     assert completes_mission(kept, pb), report
+
+
+def test_the_plans_speed_reserve_is_never_inflated_past_the_guidances_cap(short_problem, lawnmower):
+    """The fixed point inflates every margin by 10 % between rounds; the speed reserve stops at
+    the guidance's own cap (a plan slower than the guidance's floor gains nothing)."""
+    from obsplan.estimation.guidance import SPEED_RESERVE_CAP
+
+    m = keepout_margins(lawnmower, short_problem)
+    cap = SPEED_RESERVE_CAP * short_problem.limits.speed
+    assert m.speed_cap == pytest.approx(cap)
+    assert np.isclose(m.speed.max(), cap)  # the prior's velocity std reaches the cap early on
+    grown = m.maximum(m, 1.1)
+    assert grown.speed.max() <= cap + 1e-12
+    assert np.all(grown.range_points >= 1.1 * m.range_points - 1e-12)  # the others do grow
+
+
+def test_a_mission_with_no_room_for_the_speed_reserve_keeps_every_other_margin():
+    """The default survey on a horizon whose timing needs more speed than the reserve leaves:
+    the re-solve with the reserve cannot fit, so the plan is solved without it, keeps the
+    distance and area margins, still completes the mission, and the report says so."""
+    from obsplan.planning.mission_check import completes_mission
+    from obsplan.planning.solve import solve
+
+    pb = load_problem()
+    pb = replace(pb, horizon=Horizon(duration=780.0, steps=195))
+    nominal = solve(pb, progress=False).trajectory
+    assert nominal is not None and completes_mission(nominal, pb)
+    margins = keepout_margins(nominal, pb)
+    # lines, turns and run-in (about 656 m) in 780 s need 0.84 m/s on average: more than the
+    # 0.7 m/s that a reserve at its cap leaves of the 1 m/s bound
+    assert margins.speed.max() == pytest.approx(margins.speed_cap)
+    kept, report, best = keep_out(pb, nominal)
+    assert best is not None, report  # a re-solve was kept: not the nominal plan
+    assert report.max_speed_margin_mps == 0.0
+    assert "speed reserve did not fit" in report.note
+    assert report.max_range_margin_m > 0 and report.max_box_margin_m > 0
+    assert completes_mission(kept, pb)
+    if report.held:
+        again = keepout_margins(kept, pb).without_speed_reserve()
+        assert keeps_margins(tighten(build_formulation(pb), again), kept)

@@ -238,7 +238,7 @@ def run(args: argparse.Namespace) -> int:
             f"{k.max_range_margin_m:.2f} m "
             f"(range), {k.max_box_margin_m:.2f} m (area/depth), up to {k.max_accel_reserve:.0%} "
             f"of the acceleration kept for the guidance; {k.rounds} re-solve(s), "
-            + ("held" if k.held else f"NOT held: {k.note}")
+            + ("held" + (f" ({k.note})" if k.note else "") if k.held else f"NOT held: {k.note}")
         )
     print(summary_table(result))
     for line in result.verdict.summary():

@@ -267,18 +267,27 @@ class KeepoutMargins:
     box: np.ndarray
     accel_reserve: np.ndarray
     speed: np.ndarray
+    #: Largest speed reserve [m/s]: the guidance's own cap,
+    #: :data:`~obsplan.estimation.guidance.SPEED_RESERVE_CAP` of the speed bound (a plan slower
+    #: than the guidance's floor gains nothing).
+    speed_cap: float = math.inf
 
     def maximum(self, other: KeepoutMargins, scale: float = 1.0) -> KeepoutMargins:
         """The larger of these margins and ``scale`` times ``other``'s at every point (the
-        reserve capped at :data:`RESERVE_CAP`)."""
+        reserves capped at :data:`RESERVE_CAP` and :attr:`speed_cap`)."""
         reserve = np.minimum(scale * other.accel_reserve, RESERVE_CAP)
+        speed = np.minimum(scale * other.speed, min(self.speed_cap, other.speed_cap))
         return replace(
             self,
             range_points=np.maximum(self.range_points, scale * other.range_points),
             box=np.maximum(self.box, scale * other.box),
             accel_reserve=np.maximum(self.accel_reserve, reserve),
-            speed=np.maximum(self.speed, scale * other.speed),
+            speed=np.maximum(self.speed, speed),
         )
+
+    def without_speed_reserve(self) -> KeepoutMargins:
+        """These margins with no speed reserve (every other margin kept)."""
+        return replace(self, speed=np.zeros_like(self.speed), speed_cap=0.0)
 
     def grew(self, other: KeepoutMargins, atol: float = MARGIN_ATOL_M) -> bool:
         """True when ``other`` exceeds these margins anywhere by more than ``atol`` [m]."""
@@ -286,7 +295,7 @@ class KeepoutMargins:
             np.any(other.range_points > self.range_points + atol)
             or np.any(other.box > self.box + atol)
             or np.any(other.accel_reserve > self.accel_reserve + RESERVE_ATOL)
-            or np.any(other.speed > self.speed + SPEED_ATOL)
+            or np.any(np.minimum(other.speed, self.speed_cap) > self.speed + SPEED_ATOL)
         )
 
     def to_dict(self) -> dict:
@@ -380,11 +389,9 @@ def keepout_margins(
         command = k * (loop.kp * pos + loop.kd * vel)  # feedback std bound [m/s²]
         reserve[axis] = np.minimum(command / grid.a[axis], RESERVE_CAP)
         speed = np.maximum(speed, k * vel)
-    if lim.speed is not None:
-        speed = np.minimum(speed, SPEED_RESERVE_CAP * float(lim.speed))
-    else:
-        speed[:] = 0.0
-    return KeepoutMargins(conf, k, rng, box, reserve, speed)
+    cap = SPEED_RESERVE_CAP * float(lim.speed) if lim.speed is not None else 0.0
+    speed = np.minimum(speed, cap)
+    return KeepoutMargins(conf, k, rng, box, reserve, speed, cap)
 
 
 def _axis_dirs(count: int, n: int, axis: int) -> np.ndarray:
@@ -537,11 +544,19 @@ def keep_out(
     if keeps_margins(tighten(form, margins), nominal):
         return nominal, _report(pb, margins, nominal, 0, True, (), t0), None
     path, best, statuses = nominal, None, []
-    held = False
+    held = unreserved = False
     guess = nominal
     for rnd in range(MAX_ROUNDS):
         outcome, traj, keeps = _resolve(form, margins, guess, f"keep-out round {rnd + 1}")
         statuses.append(outcome.status)
+        if (not keeps or traj is None) and best is None and np.any(margins.speed > 0):
+            # a mission's timing (or the limits) may leave no room for the speed reserve: the
+            # margins that keep the vehicle off the beacon and inside its box matter more, so
+            # they are kept without it, and the report says the speed limit is not protected
+            margins = margins.without_speed_reserve()
+            unreserved = True
+            outcome, traj, keeps = _resolve(form, margins, guess, f"keep-out round {rnd + 1}")
+            statuses.append(outcome.status)
         if not keeps or traj is None:
             break
         path, best, guess = traj, outcome, traj
@@ -551,6 +566,16 @@ def keep_out(
             break
         margins = margins.maximum(again, 1.0 + INFLATE)
     note = "" if held else "no re-solve kept the margins computed on its own path"
+    if unreserved and best is not None:
+        note = "; ".join(
+            n
+            for n in (
+                "the speed reserve did not fit (the true vehicle may exceed the speed limit by "
+                "its velocity error); planned with every other margin",
+                note,
+            )
+            if n
+        )
     if best is None:
         note = f"the tightened re-solve failed ({statuses[-1]}); the nominal plan is returned"
     rep = _report(pb, margins, path, len(statuses), held, tuple(statuses), t0, note)
