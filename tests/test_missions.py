@@ -498,3 +498,114 @@ def test_a_waypoint_window_the_schedule_misses_is_refused():
     d["mission"] = {"kind": "waypoints", "waypoints": [[0.0, 30.0]], "windows": [[0.0, 10.0]]}
     with pytest.raises(ProblemError, match=re.escape("mission.windows[0]")):
         problem_from_dict(d)
+
+
+# ----------------------------------------------------------------------- altitude band
+ALTITUDE = PROBLEMS_DIR / "suite" / "missions" / "survey-altitude3d.toml"
+
+
+def _altitude_dict() -> dict:
+    """A two-line 3D survey 8-12 m above a seabed 60 m deep at the origin, shoaling 10 % to +x."""
+    d = _with(_small(), "vehicle", dim=3, sensors=["range", "depth"])
+    d["beacon"] = {"position": [0.0, 0.0, 60.0]}
+    d["start"] = {"position": [-60.0, 30.0, 56.0], "velocity": [0.0, 0.0, 0.0]}
+    d["limits"] = {"accel": 0.05, "speed": 1.0, "depth": [2.0, 100.0]}
+    d["mission"] = {
+        **d["mission"],
+        "altitude": [8.0, 12.0],
+        "seabed": {"depth": 60.0, "slope": [-0.1, 0.0]},
+    }
+    return d
+
+
+def test_altitude_lines_follow_the_seabed_at_the_bands_middle():
+    pb = problem_from_dict(_altitude_dict())
+    m = pb.mission
+    for (a, b), track in zip(m.segments(3), _small()["mission"]["lines"], strict=True):
+        assert a[:2] == pytest.approx(track[:2]) and b[:2] == pytest.approx(track[2:])
+        for pt in (a, b):  # 10 m above the seabed (60 - 0.1 x deep)
+            assert m.seabed.depth_at(pt[:2]) - pt[2] == pytest.approx(10.0)
+    assert problem_from_dict(problem_to_dict(pb)) == pb
+    # generated from an area, the same rule
+    d = _altitude_dict()
+    mm = {k: v for k, v in d["mission"].items() if k != "lines"}
+    d["mission"] = {**mm, "area": {"x": [-40.0, 40.0], "y": [-20.0, 40.0]}, "spacing": 30.0}
+    gen = problem_from_dict(d).mission
+    assert all(
+        gen.seabed.depth_at(pt[:2]) - pt[2] == pytest.approx(10.0)
+        for a, b in gen.segments(3)
+        for pt in (a, b)
+    )
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        (lambda d: d["mission"].pop("seabed"), "mission.seabed"),
+        (  # a seabed alone
+            lambda d: (
+                d["mission"].pop("altitude"),
+                d["mission"].update(lines=[[-40.0, 30.0, 50.0, 40.0, 30.0, 50.0]]),
+            ),
+            "mission.seabed",
+        ),
+        (lambda d: d["mission"].update(depth=20.0), "mission.depth"),
+        (lambda d: d["mission"].update(altitude=[0.0, 4.0]), "mission.altitude"),
+        (lambda d: d["mission"].update(seabed={"depth": 60.0, "tilt": 1}), "mission.seabed.tilt"),
+        (lambda d: d["mission"].update(lines=[[-40.0, 30.0, 50.0, 40.0, 30.0, 50.0]]), "lines"),
+        # a band narrower than the path may bend vertically between nodes (6.9 s steps)
+        (lambda d: d.update(horizon={"duration": 420.0, "steps": 61}), "horizon.steps"),
+        (lambda d: d["mission"].update(altitude=[9.99, 10.01]), "horizon.steps"),
+    ],
+)
+def test_bad_altitude_bands_name_the_field(change, field):
+    d = _altitude_dict()
+    change(d)
+    with pytest.raises(ProblemError, match=re.escape(field)):
+        problem_from_dict(d)
+
+
+def test_an_altitude_band_needs_3d():
+    d = _with(_small(), "mission", altitude=[8.0, 12.0], seabed={"depth": 60.0})
+    d["mission"]["lines"] = [[-40.0, 30.0, 40.0, 30.0]]
+    with pytest.raises(ProblemError, match=r"mission\.altitude"):
+        problem_from_dict(d)
+
+
+def test_lines_given_off_the_seabed_are_refused():
+    pb = problem_from_dict(_altitude_dict())
+    ln = pb.mission.lines[0]
+    moved = (*ln[:2], ln[2] + 1.0, *ln[3:])
+    with pytest.raises(ProblemError, match=re.escape("mission.lines[0]")):
+        replace(pb, mission=replace(pb.mission, lines=(moved, *pb.mission.lines[1:])))
+
+
+def test_the_check_holds_the_altitude_band_and_the_horizontal_track():
+    """The lawn-mower flies the band's middle; moved down by 1.9 m it is still inside (the
+    horizontal track is unchanged: cross-track 0), by 2.5 m it leaves the band."""
+    pb = load_problem(ALTITUDE)
+    lm = baselines(pb)["lawnmower"].trajectory
+    chk = mission_check(lm, pb)
+    assert chk.complete
+    for ln in chk.lines:
+        assert ln.altitude_range_m == pytest.approx((10.0, 10.0), abs=1e-6)
+    for dz, complete in ((1.9, True), (2.5, False)):
+        p = lm.p.copy()
+        p[:, 2] += dz
+        moved = mission_check(Trajectory(t=lm.t, p=p, v=lm.v, u=lm.u), pb)
+        assert moved.complete == complete
+        for ln in moved.lines:
+            assert ln.max_cross_track_m < 1e-6
+            assert ln.altitude_range_m == pytest.approx((10.0 - dz, 10.0 - dz), abs=1e-6)
+        assert ("altitude_range_m" in moved.to_dict()["lines"][0]) is True
+
+
+def test_a_plan_flies_its_lines_inside_the_altitude_band():
+    pb = load_problem(ALTITUDE)
+    res = plan(pb, validate=False)
+    assert res.solve.success, res.solve.status
+    chk = mission_check(res.solve.trajectory, pb)
+    assert chk.complete, chk
+    lo, hi = pb.mission.altitude
+    for ln in chk.lines:
+        assert lo <= ln.altitude_range_m[0] <= ln.altitude_range_m[1] <= hi

@@ -158,6 +158,7 @@ def _check_mission_tolerances(pb: PlanningProblem) -> None:
             f"planning step h = {pb.horizon.dt:.3g} s, too much of mission.cross_track = "
             f"{m.cross_track:g} m; use more horizon.steps",
         )
+    _check_altitude_band(pb)
     if m.end is not None:
         if len(m.end.position) != pb.dim:
             raise field_error("mission.end.position", f"expected {pb.dim} numbers")
@@ -170,6 +171,49 @@ def _check_mission_tolerances(pb: PlanningProblem) -> None:
                 "mission.end.speed", f"is below limits.min_speed = {lim.min_speed:g} m/s"
             )
     _check_lines_inside(pb)
+
+
+def _check_altitude_band(pb: PlanningProblem) -> None:
+    """An altitude band: 3D survey lines at its middle above the seabed, wider than the path
+    may bend vertically between nodes."""
+    m = pb.mission
+    assert m is not None
+    if m.altitude is None:
+        if m.seabed is not None:
+            raise field_error("mission.seabed", "is for an altitude band; give mission.altitude")
+        return
+    if pb.dim != 3:
+        raise field_error("mission.altitude", "an altitude band needs vehicle.dim = 3")
+    if m.kind != "survey":
+        raise field_error("mission.altitude", 'is for survey lines (kind = "survey")')
+    if m.seabed is None:
+        raise field_error("mission.seabed", "missing; the altitude band is above it: {depth = d}")
+    lo, hi = m.altitude
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        raise field_error(
+            "mission.altitude", f"must be [lo, hi] with 0 < lo < hi m, got {m.altitude}"
+        )
+    row = m.altitude_row()
+    assert row is not None
+    w, half = row
+    mid = 0.5 * (lo + hi)
+    for i, (a, b) in enumerate(m.segments(3)):
+        for pt in (a, b):
+            # 1e-6 m: the round-off of a line computed from the seabed and written back
+            if abs(float(m.seabed.depth_at(pt[:2])) - pt[2] - mid) > 1e-6:
+                raise field_error(
+                    f"mission.lines[{i}]",
+                    f"its depth {pt[2]:g} m is not the seabed's minus the band's middle "
+                    f"({mid:g} m); give the lines as horizontal tracks [x0, y0, x1, y1]",
+                )
+    bend = float(np.abs(w) @ np.asarray(pb.accel, float)) * pb.horizon.dt**2 / 8.0
+    if bend >= 0.5 * half:
+        raise field_error(
+            "horizon.steps",
+            f"between nodes the altitude may change by {bend:.3g} m at the planning step "
+            f"h = {pb.horizon.dt:.3g} s, too much of the half width {half:g} m of "
+            "mission.altitude; use more horizon.steps or a wider band",
+        )
 
 
 def _check_lines_inside(pb: PlanningProblem) -> None:

@@ -11,10 +11,13 @@ over the part of the pass between the two ends:
   the cross-track tolerance;
 * ``max_cross_track_m``: the largest distance from the line;
 * ``max_heading_err_deg``: the largest angle between the velocity and the line's direction;
-* ``speed_range_mps``: the smallest and largest speed.
+* ``speed_range_mps``: the smallest and largest speed;
+* ``altitude_range_m`` (with an altitude band): the smallest and largest altitude above the
+  seabed; the cross-track is then the horizontal distance from the line's track.
 
 A line is complete when its coverage is 1 and the three errors are within ``mission.cross_track``,
-``mission.heading_tol`` and ``mission.speed``. Waypoints are complete when passed in order within
+``mission.heading_tol`` and ``mission.speed`` (and the altitude inside ``mission.altitude``).
+Waypoints are complete when passed in order within
 ``mission.radius`` (inside their windows, if any), the end region when ``|p(T) - position| <=
 radius`` (and ``|v(T)| <= speed``).
 """
@@ -26,6 +29,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from obsplan.planning.mission_spec import Seabed
 from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
 
@@ -51,9 +55,10 @@ class LineCheck:
     complete: bool
     line: int = 0
     reversed: bool = False
+    altitude_range_m: tuple[float, float] | None = None
 
     def to_dict(self) -> dict:
-        return {
+        out = {
             "coverage": float(self.coverage),
             "max_cross_track_m": float(self.max_cross_track_m),
             "max_heading_err_deg": float(self.max_heading_err_deg),
@@ -63,6 +68,9 @@ class LineCheck:
             "line": int(self.line),
             "reversed": bool(self.reversed),
         }
+        if self.altitude_range_m is not None:
+            out["altitude_range_m"] = [float(x) for x in self.altitude_range_m]
+        return out
 
 
 @dataclass(frozen=True)
@@ -132,15 +140,27 @@ def _dense(traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _line(
-    t: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray, b: np.ndarray, first: int, tol
+    t: np.ndarray,
+    p: np.ndarray,
+    v: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    first: int,
+    tol,
+    band: tuple[Seabed, tuple[float, float]] | None = None,
 ) -> tuple[LineCheck, int]:
-    """The check of the line ``a -> b`` on the dense path from index ``first``."""
+    """The check of the line ``a -> b`` on the dense path from index ``first`` (``band``: the
+    seabed and the altitude band)."""
     m_tol, h_tol, (lo, hi) = tol
     length = float(np.linalg.norm(b - a))
     e = (b - a) / length
     r = p[first:] - a
     s = r @ e
-    c = np.linalg.norm(r - s[:, None] * e[None, :], axis=1)
+    if band is None:
+        c = np.linalg.norm(r - s[:, None] * e[None, :], axis=1)
+    else:  # the horizontal distance from the track
+        eh = e[:2] / np.linalg.norm(e[:2])
+        c = np.abs(r[:, 0] * -eh[1] + r[:, 1] * eh[0])
     reached = np.flatnonzero(s >= length)
     ib = int(reached[0]) if reached.size else int(np.argmax(s))
     before = np.flatnonzero(s[: ib + 1] <= 0.0)
@@ -148,6 +168,12 @@ def _line(
     seg = slice(ia, ib + 1)
     ss, cc, vv = s[seg], c[seg], v[first:][seg]
     ok = cc <= m_tol * (1 + RTOL) + 1e-9
+    alt = None
+    if band is not None:
+        seabed, (alt_lo, alt_hi) = band
+        pp = p[first:][seg]
+        alt = seabed.depth_at(pp[:, :2]) - pp[:, 2]
+        ok &= (alt >= alt_lo * (1 - RTOL) - 1e-9) & (alt <= alt_hi * (1 + RTOL) + 1e-9)
     # stations passed within tolerance: every step between two samples within tolerance
     # covers the stations between them
     edges = np.linspace(0.0, length, COVERAGE_BINS + 1)
@@ -173,6 +199,7 @@ def _line(
         speed_range_mps=(float(np.min(speed)), float(np.max(speed))),
         pass_s=(float(t[first + ia]), float(t[first + ib])),
         complete=False,
+        altitude_range_m=None if alt is None else (float(np.min(alt[on])), float(np.max(alt[on]))),
     )
     done = (
         coverage >= 1.0
@@ -181,6 +208,7 @@ def _line(
         and check.max_heading_err_deg <= h_tol * (1 + RTOL) + 1e-9
         and check.speed_range_mps[0] >= lo * (1 - RTOL)
         and check.speed_range_mps[1] <= hi * (1 + RTOL)
+        and (alt is None or bool(np.all(ok[on])))
     )
     return LineCheck(**{**check.__dict__, "complete": bool(done)}), first + ib
 
@@ -197,9 +225,10 @@ def mission_check(traj: Trajectory, pb: PlanningProblem) -> MissionCheck | None:
     first = 0
     if m.kind == "survey":
         tol = (m.cross_track, m.heading_tol, m.speed_band(pb.limits.speed))
+        band = (m.seabed, m.altitude) if m.altitude is not None and m.seabed is not None else None
         flown = m.flown_as or tuple((i, False) for i in range(len(m.lines)))
         for (a, b), (given, rev) in zip(m.segments(n), flown, strict=True):
-            ln, first = _line(t, p, v, a, b, first, tol)
+            ln, first = _line(t, p, v, a, b, first, tol, band)
             lines.append(replace(ln, line=given, reversed=rev))
             last_t = ln.pass_s[1]
     points: list[PointCheck] = []

@@ -17,6 +17,12 @@ start ``a`` and ``v_k`` its velocity, at every node of the window:
   in time between nodes, so both hold on the continuous path;
 * heading cone ``|n·v_k| <= tan(heading_tol) e·v_k`` (convex: exact between nodes too);
 
+With an altitude band (3D, :class:`~obsplan.planning.mission_spec.Seabed`) the cross-track
+row is two linear rows instead: the horizontal distance from the track ``|n_h·r_k| <= tol -
+a_h h²/8`` (``n_h`` the track's horizontal normal) and the altitude ``|w·r_k| <= half -
+(|w|·a) h²/8`` (``w`` the altitude's gradient, ``half`` the band's half width); both linear in
+the position, so the parabola bound holds them between nodes too.
+
 and coverage end to end: ``e·r_k0 <= 0`` and ``e·r_k1 >= length`` (with way on, the path passes
 every station of the line inside the window). Waypoints: ``|p(t_i) - w_i| <= radius`` at the
 schedule's passing time (the exact path at that time, :meth:`~obsplan.planning.grid.Grid
@@ -110,6 +116,17 @@ class _Line:
         self.room = 1.0 - a_n * grid.h**2 / 8.0 / m.cross_track
         self.tan = math.tan(math.radians(m.heading_tol))
         self.tol = m.cross_track
+        # the altitude band's linear rows (module docstring): directions, tolerances, rooms
+        band = m.altitude_row() if grid.n == 3 else None
+        self.band = band is not None
+        if band is not None:
+            w, half = band
+            eh = self.e[:2] / np.linalg.norm(self.e[:2])
+            self.box_dirs = np.vstack([[-eh[1], eh[0], 0.0], w])
+            tols = np.array([m.cross_track, half])
+            bend = np.abs(self.box_dirs) @ grid.a * grid.h**2 / 8.0
+            self.box_tol = tols
+            self.box_room = 1.0 - bend / tols
         # parabola overshoot along the line between nodes, and the relaxation's width [m]
         self.overshoot = float(np.linalg.norm(grid.a)) * grid.h**2 / 8.0
         self.width = FLEX_WIDTH * grid.v_max * grid.h
@@ -132,6 +149,11 @@ class _Line:
             "cross": ca.mtimes(ca.DM(self.nrm), r) / self.tol,
             "side": ca.mtimes(ca.DM(self.nrm), vw) / g.v_max,
             "speed2": ca.sum1(vw**2) / g.v_max**2,
+            **(
+                {"box": ca.mtimes(ca.DM(self.box_dirs / self.box_tol[:, None]), r)}
+                if self.band
+                else {}
+            ),
         }
 
     def relaxation(self, p, k: int, end: bool):
@@ -175,6 +197,13 @@ class _Line:
                     f"line{i}_heading", ca.vec(cone), np.full(2 * K, -np.inf), np.zeros(2 * K)
                 )
             )
+        elif self.band:
+            box_room = np.tile(self.box_room, K)
+            out.append(
+                ConstraintBlock(f"line{i}_cross_track", ca.vec(q["box"]), -box_room, box_room)
+            )
+            cone = ca.sum1(q["side"] ** 2) - tan**2 * q["along_v"] ** 2
+            out.append(ConstraintBlock(f"line{i}_heading", cone.T, -inf, np.zeros(K)))
         else:
             out.append(
                 ConstraintBlock(
@@ -197,6 +226,11 @@ class _Line:
         if g.n == 2:
             cr = [cross[0] - self.room, -cross[0] - self.room]
             vel = [side[0] - self.tan * av, -side[0] - self.tan * av]
+            relax_c = FLEX_RELAX_CROSS
+        elif self.band:
+            box = q["box"]
+            cr = [sign * box[j] - self.box_room[j] for j in range(2) for sign in (1, -1)]
+            vel = [ca.sumsqr(side) - self.tan**2 * av**2]
             relax_c = FLEX_RELAX_CROSS
         else:
             cr = [ca.sumsqr(cross) - self.room**2]

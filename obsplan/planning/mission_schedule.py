@@ -11,7 +11,8 @@ planning nodes just before the line's start and just after its end lie on the li
 Waypoints are passed the same way, each on a short straight of ``2 lead`` along the leg that
 reaches it. After the mission (or at the end region, approached along the line from the last
 point) it brakes to rest and holds. Depth (3D) changes smoothly (a half cosine) during each
-transit; lines are level.
+transit; lines are level, or follow the seabed of an altitude band (the depth rate of the
+line's slope is then reached on the transit's last planning step).
 
 ``v_c`` is the slowest speed of the band ``mission.speed`` at which the mission ends within the
 horizon (a surveyor uses the time available): the lines then leave the planner a speed headroom
@@ -504,13 +505,14 @@ def line_sample_mask(pb: PlanningProblem, t: np.ndarray) -> np.ndarray:
 
 
 def check_mission_geometry(m: Mission, dim: int) -> None:
-    """Lines of positive length, level in 3D (the schedule's turns are horizontal)."""
+    """Lines of positive length, level in 3D (the schedule's turns are horizontal) unless they
+    follow the seabed of an altitude band."""
     for i, (a, b) in enumerate(m.segments(dim)):
         if np.linalg.norm((b - a)[:2]) < 1e-6:
             raise field_error(
                 f"mission.lines[{i}]", "has no horizontal length; give two distinct points"
             )
-        if dim == 3 and abs(float(b[2] - a[2])) > 1e-9:
+        if dim == 3 and m.altitude is None and abs(float(b[2] - a[2])) > 1e-9:
             raise field_error(
                 f"mission.lines[{i}]",
                 f"is not level (z from {a[2]:g} to {b[2]:g} m); survey lines are flown at one "

@@ -21,6 +21,13 @@ area (rectangle or polygon; of a non-convex polygon the longest chord piece) alo
 They are flown boustrophedon: the line nearest the start first, along ``heading``; then every
 next line in the opposite direction of the previous one.
 
+**Altitude band** (3D surveys): with ``altitude = (lo, hi)`` [m] above a planar ``seabed``
+(:class:`Seabed`, depth ``d + sx x + sy y``, ``z`` positive down), the lines are given (or
+generated) as horizontal tracks ``[x0, y0, x1, y1]`` and flown at the band's middle
+(:func:`lines_at_altitude`): over a plane that is a straight line whose depth follows the seabed.
+The line's horizontal distance from its track is held within ``cross_track`` and its altitude
+``seabed(x, y) - z`` within the band (a linear row in the position, :meth:`Mission.altitude_row`).
+
 ``order = "free"`` lets the planner reorder and reverse the lines
 (:mod:`obsplan.planning.mission_order`: the order of the shortest transits); ``lines`` then holds
 them as flown and ``flown_as`` how they were given.
@@ -70,6 +77,33 @@ class LineArea:
 
 
 @dataclass(frozen=True)
+class Seabed:
+    """A planar seabed: its depth [m] (``z`` down) is ``depth + slope[0] x + slope[1] y``."""
+
+    depth: float
+    slope: tuple[float, float] = (0.0, 0.0)
+
+    def depth_at(self, xy: np.ndarray) -> np.ndarray:
+        """The seabed's depth [m] under the points ``xy`` (..., 2) [m]."""
+        xy = np.asarray(xy, float)
+        return self.depth + xy[..., 0] * self.slope[0] + xy[..., 1] * self.slope[1]
+
+
+def lines_at_altitude(
+    tracks: tuple[tuple[float, ...], ...], altitude: tuple[float, float], seabed: Seabed
+) -> tuple[tuple[float, ...], ...]:
+    """Horizontal tracks ``(x0, y0, x1, y1)`` [m] as 3D lines at the middle of the ``altitude``
+    band [m] above ``seabed``: ``(x0, y0, z0, x1, y1, z1)``."""
+    mid = 0.5 * (altitude[0] + altitude[1])
+    out = []
+    for x0, y0, x1, y1 in (tr[:2] + tr[-2:] for tr in tracks):
+        z0 = float(seabed.depth_at(np.array([x0, y0]))) - mid
+        z1 = float(seabed.depth_at(np.array([x1, y1]))) - mid
+        out.append((x0, y0, z0, x1, y1, z1))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
 class Mission:
     """A mission (module docstring). ``lines`` are the resolved lines (given or generated),
     each ``2 n`` numbers [m]; the generator's fields (``area``, ``spacing``, ``heading``,
@@ -90,6 +124,9 @@ class Mission:
     spacing: float | None = None
     heading: float | None = None
     depth: float | None = None
+    #: 3D surveys: the band ``(lo, hi)`` [m] of the altitude above ``seabed`` (module docstring).
+    altitude: tuple[float, float] | None = None
+    seabed: Seabed | None = None
     #: With ``order = "free"``: for each line of ``lines`` (the order flown), its index in the
     #: lines as given and whether it is flown reversed (:mod:`obsplan.planning.mission_order`).
     flown_as: tuple[tuple[int, bool], ...] = ()
@@ -103,6 +140,15 @@ class Mission:
             h = len(ln) // 2
             out[i] = (*ln[h:], *ln[:h]) if rev else ln
         return tuple(out)
+
+    def altitude_row(self) -> tuple[np.ndarray, float] | None:
+        """``(w, half)``: a point ``p`` at ``r = p - a`` from a line's start ``a`` is inside the
+        altitude band when ``|w·r| <= half`` (``w = (sx, sy, -1)``, the altitude's gradient;
+        ``half`` the band's half width [m]); None without a band."""
+        if self.altitude is None or self.seabed is None:
+            return None
+        sx, sy = self.seabed.slope
+        return np.array([sx, sy, -1.0]), 0.5 * (self.altitude[1] - self.altitude[0])
 
     def speed_band(self, speed_limit: float) -> tuple[float, float]:
         """``speed`` or its default ``(0.3, 1) * limits.speed`` [m/s]."""

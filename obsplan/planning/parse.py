@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +23,14 @@ from obsplan.geodesy import GeodeticOrigin, check_lat_lon, geodetic_to_local
 from obsplan.model import parse_sensors
 from obsplan.observability.scaling import Scales
 from obsplan.planning.checks import check_structure
-from obsplan.planning.mission_spec import EndRegion, LineArea, Mission, generate_lines
+from obsplan.planning.mission_spec import (
+    EndRegion,
+    LineArea,
+    Mission,
+    Seabed,
+    generate_lines,
+    lines_at_altitude,
+)
 from obsplan.planning.problem import (
     Area,
     Horizon,
@@ -123,7 +131,7 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
                 raise field_error(f"{where}.{ax}", "missing; give [min, max] in m")
             axes[ax] = _parse_value(where, FieldSpec(ax, "range", None, "m", ""), raw[ax], dim)
         return Area(x=axes["x"], y=axes["y"])
-    if k in ("lines", "points", "windows", "line-area", "end"):
+    if k in ("lines", "tracks", "points", "windows", "line-area", "end", "seabed"):
         return _parse_mission_value(where, spec, raw, dim)
     raise AssertionError(k)  # pragma: no cover
 
@@ -131,10 +139,11 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
 def _parse_mission_value(where: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
     """The mission's kinds of :func:`_parse_value`: lines, points, windows, an area, an end."""
     k = spec.kind
-    if k in ("lines", "points", "windows"):
-        width = {"lines": 2 * dim, "points": dim, "windows": 2}[k]
+    if k in ("lines", "tracks", "points", "windows"):
+        width = {"lines": 2 * dim, "tracks": 4, "points": dim, "windows": 2}[k]
         form = {
             "lines": "[[x0, y0, x1, y1], ...]" if dim == 2 else "[[x0, y0, z0, x1, y1, z1], ...]",
+            "tracks": "horizontal tracks [[x0, y0, x1, y1], ...] (with mission.altitude)",
             "points": "[[x, y], ...]" if dim == 2 else "[[x, y, z], ...]",
             "windows": "[[t0, t1], ...]",
         }[k]
@@ -155,7 +164,24 @@ def _parse_mission_value(where: str, spec: FieldSpec, raw: Any, dim: int) -> Any
         return tuple(tuple(float(x) for x in r) for r in raw)
     if k == "line-area":
         return _line_area(where, raw, dim)
+    if k == "seabed":
+        return _seabed(where, raw)
     return _end_region(where, raw, dim)
+
+
+def _seabed(where: str, raw: Any) -> Seabed:
+    if not isinstance(raw, dict):
+        raise field_error(where, f"expected {{depth = d, slope = [sx, sy]}}, got {raw!r}")
+    unknown = sorted(set(raw) - {"depth", "slope"})
+    if unknown:
+        raise field_error(f"{where}.{unknown[0]}", "unknown key; a seabed has depth and slope")
+    if "depth" not in raw:
+        raise field_error(f"{where}.depth", "missing; the seabed's depth [m] at x = y = 0")
+    depth = _parse_value(where, FieldSpec("depth", "float", None, "m", ""), raw["depth"], 2)
+    slope = (0.0, 0.0)
+    if "slope" in raw:
+        slope = _parse_value(where, FieldSpec("slope", "vec", None, "m/m", ""), raw["slope"], 2)
+    return Seabed(depth=depth, slope=slope)
 
 
 def _line_area(where: str, raw: Any, dim: int) -> LineArea:
@@ -212,13 +238,29 @@ def _mission(data: Mapping[str, Any], vals: dict[str, Any], dim: int, start) -> 
         if not vals["spacing"] > 0:
             raise field_error("mission.spacing", f"must be > 0 m, got {vals['spacing']}")
         depth = None
-        if dim == 3:
+        if dim == 3 and vals["altitude"] is None:
             depth = float(start[2]) if vals["depth"] is None else vals["depth"]
         lines = generate_lines(area, vals["spacing"], vals["heading"], np.asarray(start[:2]), depth)
     else:
         for key in ("spacing", "heading", "depth"):
             if key in given:
                 raise field_error(f"mission.{key}", "is for generated lines; give mission.area")
+    altitude, seabed = vals["altitude"], vals["seabed"]
+    if altitude is not None:
+        if dim != 3:
+            raise field_error("mission.altitude", "an altitude band needs vehicle.dim = 3")
+        if seabed is None:
+            raise field_error(
+                "mission.seabed", "missing; the altitude band is above it: {depth = d}"
+            )
+        if "depth" in given:
+            raise field_error(
+                "mission.depth", "excludes mission.altitude (the lines follow the seabed)"
+            )
+        if lines:
+            lines = lines_at_altitude(lines, altitude, seabed)
+    elif seabed is not None:
+        raise field_error("mission.seabed", "is for an altitude band; give mission.altitude")
     return Mission(
         kind=vals["kind"],
         lines=lines or (),
@@ -235,6 +277,8 @@ def _mission(data: Mapping[str, Any], vals: dict[str, Any], dim: int, start) -> 
         spacing=vals["spacing"] if area is not None else None,
         heading=vals["heading"] if area is not None else None,
         depth=vals["depth"] if area is not None else None,
+        altitude=altitude,
+        seabed=seabed,
     )
 
 
@@ -252,6 +296,10 @@ def _section_values(data: Mapping[str, Any], section: str, dim: int) -> dict[str
     out: dict[str, Any] = {}
     for name, spec in specs.items():
         if name in raw:
+            # with an altitude band the lines are horizontal tracks (their depth follows the
+            # seabed): [x0, y0, x1, y1] in 3D too
+            if section == "mission" and name == "lines" and "altitude" in raw:
+                spec = replace(spec, kind="tracks")
             out[name] = _parse_value(section, spec, raw[name], dim)
         elif spec.required:
             raise field_error(f"{section}.{name}", f"missing; {spec.doc} [{spec.unit}]")
@@ -384,7 +432,13 @@ def _mission_to_dict(m: Mission) -> dict[str, Any]:
         if m.depth is not None:
             out["depth"] = m.depth
     elif m.lines:
-        out["lines"] = [list(ln) for ln in m.given_lines()]
+        given = m.given_lines()
+        if m.altitude is not None:  # horizontal tracks: their depth follows the seabed
+            given = tuple(ln[:2] + ln[3:5] for ln in given)
+        out["lines"] = [list(ln) for ln in given]
+    if m.altitude is not None and m.seabed is not None:
+        out["altitude"] = list(m.altitude)
+        out["seabed"] = {"depth": m.seabed.depth, "slope": list(m.seabed.slope)}
     if m.speed is not None:
         out["speed"] = list(m.speed)
     if m.waypoints:

@@ -433,6 +433,24 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "3D only: depth z of generated lines; default the start depth.",
         ),
         FieldSpec(
+            "altitude",
+            "range",
+            _NONE,
+            "m",
+            "3D surveys: [lo, hi] band of the altitude above mission.seabed held on the lines; "
+            "the lines are then horizontal tracks [x0, y0, x1, y1] (or generated), flown at the "
+            "band's middle with their depth following the seabed; cross_track is then the "
+            "horizontal distance from the track. Excludes mission.depth.",
+        ),
+        FieldSpec(
+            "seabed",
+            "seabed",
+            _NONE,
+            "m",
+            "With mission.altitude: a planar seabed {depth = d, slope = [sx, sy]}, its depth "
+            "d + sx x + sy y [m] (z down; slope in m of depth per m, default [0, 0]).",
+        ),
+        FieldSpec(
             "cross_track",
             "float",
             2.0,
