@@ -88,6 +88,7 @@ def plot_paths(
         if pb.limits.depth is not None:
             for k, z in enumerate(pb.limits.depth):
                 az.axhline(z, color="0.5", ls="--", lw=1, label="depth band" if k == 0 else None)
+        _draw_altitude_band(az, paths[names[0]], pb)
         az.invert_yaxis()  # z is depth (north-east-down): down is down
         az.set_xlabel("t [s]")
         az.set_ylabel("z = depth [m]")
@@ -96,6 +97,28 @@ def plot_paths(
         az.legend(fontsize=7)
         fig.tight_layout()
     return fig
+
+
+def _draw_altitude_band(az, tr: Trajectory, pb: PlanningProblem) -> None:
+    """On the depth panel: the seabed under ``tr`` and, over its line passes, the depths of
+    the mission's altitude band."""
+    m = pb.mission
+    if m is None or m.altitude is None or m.seabed is None:
+        return
+    sb = m.seabed.depth_at(tr.p[:, :2])
+    az.plot(tr.t, sb, color="saddlebrown", lw=1, label="seabed under the path")
+    chk = mission_check(tr, pb)
+    lo, hi = m.altitude
+    for k, ln in enumerate(chk.lines if chk is not None else ()):
+        on = (tr.t >= ln.pass_s[0]) & (tr.t <= ln.pass_s[1])
+        az.fill_between(
+            tr.t[on],
+            sb[on] - hi,
+            sb[on] - lo,
+            color="tab:blue",
+            alpha=0.2,
+            label=f"mission.altitude {lo:g}-{hi:g} m on the lines" if k == 0 else None,
+        )
 
 
 def _draw_mission(ax, pb: PlanningProblem, ix: int, iy: int) -> None:
