@@ -552,7 +552,8 @@ def keep_out(
         if (not keeps or traj is None) and best is None and np.any(margins.speed > 0):
             # a mission's timing (or the limits) may leave no room for the speed reserve: the
             # margins that keep the vehicle off the beacon and inside its box matter more, so
-            # they are kept without it, and the report says the speed limit is not protected
+            # they are kept without it (the guidance still slows the vehicle: it lags the plan
+            # there), and the report says so
             margins = margins.without_speed_reserve()
             unreserved = True
             outcome, traj, keeps = _resolve(form, margins, guess, f"keep-out round {rnd + 1}")
@@ -570,8 +571,9 @@ def keep_out(
         note = "; ".join(
             n
             for n in (
-                "the speed reserve did not fit (the true vehicle may exceed the speed limit by "
-                "its velocity error); planned with every other margin",
+                "the speed reserve did not fit the plan (the guidance still keeps it, so the "
+                "vehicle lags the plan where the plan flies above it); planned with every other "
+                "margin",
                 note,
             )
             if n
