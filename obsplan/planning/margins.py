@@ -29,6 +29,17 @@ and ``max_range`` ``d`` is the radial direction at the constraint point, for the
 depth band the axis. ``B`` is evaluated at each constraint point and at the ends of the stretch of
 path it covers (:mod:`obsplan.planning.formulation`), and the largest value is kept.
 
+**Reserves.** The acceleration the plan leaves free for the feedback and the speed it keeps
+below the bound come from the linearised loop's second moments
+(:mod:`obsplan.estimation.loop_covariance`, the CRB's gains along the path): per interval, ``k``
+times the largest std of the feedback command ``-(Kp ε_p + Kd ε_v)`` over the epochs acting on it
+(at most :data:`RESERVE_CAP` of the bound), and ``k`` times the filter's velocity std plus the
+std of the estimated velocity's deviation (the guidance keeps the estimated speed ``k σ_v``
+below the bound, and the plan must leave room for the estimate's deviation above that). Between
+epochs the estimate moves with the known input, so the command moves only with the filter's
+corrections, which are white: this is the command's std, not a bound, and much smaller than the
+bound above applied to it (a slowly varying estimation error moves the vehicle, not the command).
+
 **Fixed point.** The margin depends on the path, the path on the margin. The plan is solved
 without margins (the full multi-start strategy), the margins are computed on it, and the NLP is
 re-solved warm from it with every limit tightened by its margin (only the bounds ``lbg``, ``ubg``,
@@ -57,6 +68,7 @@ import numpy as np
 import scipy.linalg
 
 from obsplan.estimation.guidance import SPEED_RESERVE_CAP, Guidance
+from obsplan.estimation.loop_covariance import LoopCovariance, loop_covariance
 from obsplan.estimation.riccati import run_recursion
 from obsplan.planning.estimator_objectives import CovarianceObjective, covariance_objective
 from obsplan.planning.evaluate import objective_value
@@ -207,6 +219,38 @@ def path_covariance(traj: Trajectory, pb: PlanningProblem) -> PathCovariance:
         pos=Pn[:, :n, :n] * s**2,
         vel=Pn[:, n:, n:] * s**2,
     )
+
+
+def path_loop_covariance(
+    traj: Trajectory, pb: PlanningProblem, guidance: Guidance
+) -> LoopCovariance:
+    """The linearised closed loop along ``traj`` (planning grid) flown with ``guidance``
+    (:func:`~obsplan.estimation.loop_covariance.loop_covariance`), with the posterior CRB of the
+    ``pcrb-position`` recursion as the filter's covariance."""
+    cobj = _pcrb(pb)
+    assert cobj.scale == 1.0  # the CRB's recursion is in metres and seconds, as the gains
+    grid = Grid.from_problem(pb)
+    h, rho = cobj.rows(grid, grid.from_trajectory(traj))
+    return loop_covariance(
+        cobj.model, cobj.epochs, cobj.P0, h, rho, guidance.kp, guidance.kd, cobj.mask
+    )
+
+
+def _interval_epochs(epoch_time: np.ndarray, node_time: np.ndarray) -> np.ndarray:
+    """Per interval ``[t_i, t_{i+1}]`` the first and last epoch whose update acts on it: the last
+    epoch at or before ``t_i`` through the last one before ``t_{i+1}``, shape (N, 2)."""
+    lo = np.searchsorted(epoch_time, node_time[:-1], side="right") - 1
+    hi = np.searchsorted(epoch_time, node_time[1:], side="left") - 1
+    lo = np.clip(lo, 0, epoch_time.size - 1)
+    return np.stack([lo, np.maximum(hi, lo)], axis=1)
+
+
+def _window_max(values: np.ndarray, window: np.ndarray) -> np.ndarray:
+    """The largest of ``values`` (J, c) over each epoch window (N, 2) (inclusive), (N, c)."""
+    out = np.empty((window.shape[0], values.shape[1]))
+    for i, (a, b) in enumerate(window):
+        out[i] = values[a : b + 1].max(axis=0)
+    return out
 
 
 def deviation_bound(
@@ -379,16 +423,14 @@ def keepout_margins(
     at_nodes = np.clip(np.stack([t_nodes - grid.h / 2, t_nodes, t_nodes + grid.h / 2], 1), 0, T)
     for axis, _ in _box_axes(pb):
         box[axis] = k * deviation_bound(cov, loop, q, at_nodes, _axis_dirs(N, n, axis))
-    t0 = grid.times[:-1]
-    on_steps = np.stack([t0, t0 + grid.h / 2, t0 + grid.h], axis=1)
-    for axis in range(n):
-        dirs = _axis_dirs(N, n, axis)
-        pos = deviation_bound(cov, loop, q, on_steps, dirs) + _std_at(cov, dirs, on_steps, "pos")
-        vel = deviation_bound(cov, loop, q, on_steps, dirs, rate=True)
-        vel = vel + _std_at(cov, dirs, on_steps, "vel")
-        command = k * (loop.kp * pos + loop.kd * vel)  # feedback std bound [m/s²]
-        reserve[axis] = np.minimum(command / grid.a[axis], RESERVE_CAP)
-        speed = np.maximum(speed, k * vel)
+    # the reserves: the feedback command and the estimated velocity move only with the filter's
+    # corrections (obsplan.estimation.loop_covariance), at the epochs of each interval
+    loop_cov = path_loop_covariance(traj, pb, guidance)
+    window = _interval_epochs(loop_cov.time, grid.times)
+    command = _window_max(loop_cov.command_std(guidance.kp, guidance.kd), window)  # (N, n)
+    reserve = np.minimum(k * command.T / np.asarray(grid.a, float)[:, None], RESERVE_CAP)
+    vel = loop_cov.std("filter", "vel").max(axis=1) + loop_cov.std("estimated", "vel").max(axis=1)
+    speed = k * _window_max(vel[:, None], window)[:, 0]
     cap = SPEED_RESERVE_CAP * float(lim.speed) if lim.speed is not None else 0.0
     speed = np.minimum(speed, cap)
     return KeepoutMargins(conf, k, rng, box, reserve, speed, cap)
