@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -43,7 +44,9 @@ def test_default_problem_loads_with_documented_defaults():
     pb = load_problem()
     assert pb.dim == 2 and pb.vehicle.sensors == ("range",)
     assert pb.objective.kind == "pcrb-position"
-    assert pb.objective_mode == "average-and-final"
+    assert pb.objective_mode == "lines-and-final"  # auto on a survey
+    without = replace(pb, mission=None)
+    assert without.objective_mode == "average-and-final"  # auto on free localisation
     assert pb.limits.min_range == 5.0  # the schema default
     assert pb.horizon.dt == pytest.approx(3.0)
     assert pb.scales.length_m == 100.0 and pb.scales.time_s == 100.0  # [scales] defaults

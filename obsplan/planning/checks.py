@@ -31,6 +31,7 @@ from obsplan.planning.mission_order import MAX_FREE_LINES
 from obsplan.planning.mission_schedule import check_mission_geometry, mission_fit_error
 from obsplan.planning.mission_spec import MISSION_KINDS, MISSION_ORDERS
 from obsplan.planning.schema import (
+    LINE_MODES,
     MAX_DURATION_S,
     MAX_MAGNITUDE,
     MAX_STEPS,
@@ -65,10 +66,10 @@ def check_values(pb: PlanningProblem, mission_fit: bool = True) -> None:
     _check_objective(pb)
     _check_validation(pb)
     _check_budget(pb)
-    if pb.objective.mode == "lines" and (pb.mission is None or not pb.mission.lines):
+    if pb.objective.mode in LINE_MODES and (pb.mission is None or not pb.mission.lines):
         raise field_error(
             "objective.mode",
-            '"lines" averages over survey lines: it needs a [mission] with lines',
+            f'"{pb.objective.mode}" averages over survey lines: it needs a [mission] with lines',
         )
     if pb.mission is not None:
         _check_mission(pb)

@@ -15,8 +15,10 @@ bound uses) on the validation's filter grid (:func:`~obsplan.planning.validation
 
 Each has a time mode (:func:`timed_value`): at the end (``final``), averaged over the filter
 samples (``mission-average``), the sum of the two, each relative to its value on the reference
-path (``average-and-final``), or averaged over the filter samples inside the survey lines'
-windows (``lines``: the schedule's, :mod:`obsplan.planning.mission_schedule`). The exact
+path (``average-and-final``), averaged over the filter samples inside the survey lines'
+windows (``lines``: the schedule's, :mod:`obsplan.planning.mission_schedule`), or that line
+average and the final value, each relative to the reference path's (``lines-and-final``: what the
+sonar data and the recovery need; the default of a survey). The exact
 Hessian of a recursion over hundreds of epochs is dense and slow to build, so IPOPT runs L-BFGS
 on them.
 """
@@ -81,7 +83,9 @@ class CovarianceObjective:
         n = self.model.n
         if numeric:
             std = position_std(np.asarray(D), n, self.epochs)
-            on = None if self.lines is None else float(np.mean(std[self.lines])) * self.scale
+            on = None
+            if self.lines is not None:  # the RMS over the line samples: rmse_pos_lines's bound
+                on = float(np.sqrt(np.mean(std[self.lines] ** 2))) * self.scale
             return float(np.mean(std)) * self.scale, float(std[-1]) * self.scale, on
         total, final = position_std(D, n, self.epochs)
         count = int(self.epochs.gap.sum())
@@ -92,26 +96,29 @@ class CovarianceObjective:
 
 
 def _lines_average(D, n: int, epochs: Epochs, lines: np.ndarray):
-    """The mean of ``sqrt(tr P_pp)`` over the samples ``lines`` (CasADi), in the column layout
-    of :func:`~obsplan.estimation.riccati.position_std` (epoch ``j``, step ``kk < gap_j``)."""
+    """``sqrt`` of the mean of ``tr P_pp`` over the samples ``lines`` (CasADi), in the column
+    layout of :func:`~obsplan.estimation.riccati.position_std` (epoch ``j``, step ``kk < gap_j``):
+    the bound of the validation's ``rmse_pos_lines``, the RMS of the error over those samples
+    (the early, larger errors weigh more than in a mean of the std)."""
     K = epochs.max_gap
     sample = epochs.index[:, None] + np.arange(K)[None, :]
     keep = np.arange(K)[None, :] < epochs.gap[:, None]
     on = keep & lines[np.minimum(sample, lines.size - 1)]
     w = on.reshape(-1).astype(float)
-    std = ca.sqrt(ca.sum1(D[:n, :]) + 1e-30)
-    return ca.dot(std.T, ca.DM(w)) / max(float(w.sum()), 1.0)
+    var = ca.sum1(D[:n, :])
+    return ca.sqrt(ca.dot(var.T, ca.DM(w)) / max(float(w.sum()), 1.0) + 1e-30)
 
 
-def timed_value(mode: str, average, final, reference: tuple[float, float], lines=None):
+def timed_value(mode: str, average, final, reference: tuple, lines=None):
     """The objective of a time ``mode`` from the mission-average and final std [m].
 
-    ``average-and-final`` is ``average / a_ref + final / f_ref`` with ``(a_ref, f_ref) =
-    reference``, the two values on the reference path
+    ``average-and-final`` is ``average / a_ref + final / f_ref`` with ``(a_ref, f_ref, l_ref) =
+    reference``, the values on the reference path
     (:func:`~obsplan.planning.guesses.reference_path`): the survey and its end weigh alike
     whatever their sizes (with a DVL the final std is often 10x smaller than the average, and a
     plain sum would ignore it). It is dimensionless: 2 on the reference. ``lines`` is the
-    average over the survey lines' windows (mode ``lines``).
+    average over the survey lines' windows (mode ``lines``); ``lines-and-final`` is
+    ``lines / l_ref + final / f_ref``.
     """
     if mode == "lines":
         return lines
@@ -119,6 +126,8 @@ def timed_value(mode: str, average, final, reference: tuple[float, float], lines
         return average
     if mode == "final":
         return final
+    if mode == "lines-and-final":
+        return lines / reference[2] + final / reference[1]
     return average / reference[0] + final / reference[1]
 
 
@@ -344,8 +353,10 @@ def covariance_stds(traj: Trajectory, pb: PlanningProblem, kind: str) -> tuple[f
 
 
 @cache
-def _reference_stds(pb: PlanningProblem, kind: str) -> tuple[float, float]:
-    return covariance_stds(reference_path(pb), pb, kind)
+def _reference_stds(pb: PlanningProblem, kind: str) -> tuple:
+    """``(mission-average, final, lines)`` std [m] on the reference path (lines: None without)."""
+    grid = Grid.from_problem(pb)
+    return _covariance(pb, kind).evaluate_all(grid, grid.from_trajectory(reference_path(pb)))
 
 
 def covariance_value(traj: Trajectory, pb: PlanningProblem) -> float:
@@ -361,7 +372,7 @@ def covariance_term(ctx: NLPContext) -> ObjectiveTerm:
     pb, grid = ctx.problem, ctx.grid
     cobj = covariance_objective(pb)
     avg, final, on = cobj.evaluate_all(grid, ctx.W)
-    value = timed_value(pb.objective_mode, avg, final, cobj.evaluate(grid, ctx.W_ref), on)
+    value = timed_value(pb.objective_mode, avg, final, cobj.evaluate_all(grid, ctx.W_ref), on)
     ref = max(covariance_value(ctx.reference, pb), 1e-12)
     return ObjectiveTerm(
         f=value / ref,

@@ -213,10 +213,15 @@ class PlanningProblem:
 
     @property
     def objective_mode(self) -> str:
-        """``objective.mode`` with ``auto`` resolved (:data:`~obsplan.planning.schema.MODES`)."""
+        """``objective.mode`` with ``auto`` resolved (:data:`~obsplan.planning.schema.MODES`): the
+        kind's own (:attr:`~obsplan.planning.schema.ObjectiveKind.auto_mode`), except that with
+        survey lines ``average-and-final`` becomes ``lines-and-final`` (the samples the sonar
+        data needs instead of the whole mission's: the transits and turns do not count)."""
         mode = self.objective.mode
         if mode == "auto":
-            return OBJECTIVE_KINDS[self.objective.kind].auto_mode
+            mode = OBJECTIVE_KINDS[self.objective.kind].auto_mode
+            if mode == "average-and-final" and self.mission is not None and self.mission.lines:
+                return "lines-and-final"
         return mode
 
     @property

@@ -104,8 +104,8 @@ def robust_term(ctx: NLPContext) -> ObjectiveTerm:
     terms = []
     for cpb, ref in zip(condition_problems(pb), refs, strict=True):
         cobj = covariance_objective(cpb)
-        avg, final = cobj.evaluate(grid, ctx.W)
-        value = timed_value(cpb.objective_mode, avg, final, cobj.evaluate(grid, ctx.W_ref))
+        avg, final, on = cobj.evaluate_all(grid, ctx.W)
+        value = timed_value(cpb.objective_mode, avg, final, cobj.evaluate_all(grid, ctx.W_ref), on)
         terms.append(value / ref)
     if pb.objective.robust_aggregate == "mean":
         return ObjectiveTerm(

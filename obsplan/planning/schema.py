@@ -88,8 +88,19 @@ VALIDATION_MODES: tuple[str, ...] = ("closed-loop", "open-loop")
 #: ``validation.process_noise_model`` values (the first is the default).
 PROCESS_NOISE_MODELS: tuple[str, ...] = ("physical", "paper-per-step")
 #: ``objective.mode`` values; ``auto`` is ``final`` for kf-position-std (its historical meaning)
-#: and ``average-and-final`` for pcrb-position (:attr:`ObjectiveKind.auto_mode`).
-MODES: tuple[str, ...] = ("auto", "final", "mission-average", "average-and-final", "lines")
+#: and ``average-and-final`` for pcrb-position (:attr:`ObjectiveKind.auto_mode`), which becomes
+#: ``lines-and-final`` with survey lines (:attr:`~obsplan.planning.problem.PlanningProblem.
+#: objective_mode`).
+MODES: tuple[str, ...] = (
+    "auto",
+    "final",
+    "mission-average",
+    "average-and-final",
+    "lines",
+    "lines-and-final",
+)
+#: The modes that average over survey lines (they need a [mission] with lines).
+LINE_MODES: tuple[str, ...] = ("lines", "lines-and-final")
 
 
 def field_error(where: str, msg: str) -> ProblemError:
@@ -291,10 +302,11 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "-",
             'For pcrb-position and kf-position-std: "final" (position std at the end), '
             '"mission-average" (its time average over the mission), "average-and-final" (the '
-            'sum of the two, each relative to its value on the lawn-mower) or "lines" (its '
+            'sum of the two, each relative to its value on the lawn-mower), "lines" (its '
             "average over the survey lines' windows: what the sonar data needs; needs a survey "
-            '[mission]); "auto" is average-and-final for pcrb-position and final for '
-            "kf-position-std.",
+            '[mission]) or "lines-and-final" (the line average and the final value, each '
+            'relative to its value on the lawn-mower); "auto" is average-and-final for '
+            "pcrb-position (lines-and-final with survey lines) and final for kf-position-std.",
         ),
         FieldSpec(
             "starts",
