@@ -14,11 +14,14 @@ import pytest
 
 from obsplan.cli import main
 from obsplan.errors import ProblemError
+from obsplan.estimation.crlb import posterior_crlb
 from obsplan.planning.baselines import baselines, unfitted_baselines
+from obsplan.planning.estimator_objectives import covariance_objective, covariance_value
 from obsplan.planning.feasibility import check_limits
+from obsplan.planning.grid import Grid
 from obsplan.planning.guesses import COARSE_STEPS, coarse_problem
 from obsplan.planning.mission_check import mission_check
-from obsplan.planning.mission_schedule import dubins, mission_schedule
+from obsplan.planning.mission_schedule import dubins, line_sample_mask, mission_schedule
 from obsplan.planning.mission_spec import LineArea, generate_lines
 from obsplan.planning.parse import (
     DEFAULT_PROBLEM,
@@ -31,7 +34,8 @@ from obsplan.planning.parse import (
 from obsplan.planning.plan import plan
 from obsplan.planning.problem import Horizon
 from obsplan.planning.solve import default_expand
-from obsplan.trajectory import Trajectory
+from obsplan.planning.validation_setup import estimation_config
+from obsplan.trajectory import Trajectory, resample
 
 MISSIONS = sorted((PROBLEMS_DIR / "suite" / "missions").glob("*.toml"))
 
@@ -140,12 +144,37 @@ def test_bad_mission_fields_name_the_field(section, values, field):
         problem_from_dict(d)
 
 
-def test_lines_mode_needs_survey_lines():
+@pytest.mark.parametrize("mode", ["lines", "lines-and-final"])
+def test_line_modes_need_survey_lines(mode):
     d = _small()
     del d["mission"]
-    d["objective"] = {"mode": "lines"}
+    d["objective"] = {"mode": mode}
     with pytest.raises(ProblemError, match="objective.mode"):
         problem_from_dict(d)
+
+
+def test_line_objectives_are_the_rms_over_the_line_samples_and_its_sum_with_the_final():
+    """``lines`` is the RMS of the bound's position std over the filter samples on the lines
+    (the bound of ``rmse_pos_lines``), ``lines-and-final`` that and the final std each relative
+    to the plain lawn-mower's (2 on it), and ``auto`` means the latter on a survey."""
+    pb = problem_from_dict(_small())
+    assert pb.objective_mode == "lines-and-final"
+    lm = baselines(pb)["lawnmower"].trajectory
+    acc = baselines(pb)["lawnmower-accel"].trajectory
+    grid = Grid.from_problem(pb)
+    cobj = covariance_objective(pb, "pcrb-position")
+    crlb = posterior_crlb(resample(acc, pb.validation.dt), estimation_config(pb))
+    on = line_sample_mask(pb, pb.filter_times)
+    std = crlb.pos_std_t  # sqrt(tr P_pp) per filter sample
+    rms = float(np.sqrt(np.mean(std[on] ** 2)))
+    _, final, lines = cobj.evaluate_all(grid, grid.from_trajectory(acc))
+    assert lines == pytest.approx(rms, rel=1e-6)
+    assert lines > float(np.mean(std[on]))  # the RMS, not the mean: the early samples weigh
+    _, f_lm, l_lm = cobj.evaluate_all(grid, grid.from_trajectory(lm))
+    assert covariance_value(lm, pb) == pytest.approx(2.0)
+    assert covariance_value(acc, pb) == pytest.approx(lines / l_lm + final / f_lm)
+    only = replace(pb, objective=replace(pb.objective, mode="lines"))
+    assert covariance_value(acc, only) == pytest.approx(lines)
 
 
 def test_a_mission_that_cannot_fit_is_refused_with_the_shortest_horizon():
