@@ -17,6 +17,7 @@ from obsplan.planning.formulation import build_formulation
 from obsplan.planning.margins import (
     RESERVE_ATOL,
     RESERVE_CAP,
+    RESERVE_FLOOR,
     LoopResponse,
     PathCovariance,
     confidence_quantile,
@@ -25,10 +26,12 @@ from obsplan.planning.margins import (
     keepout_margins,
     keeps_margins,
     path_covariance,
+    path_loop_covariance,
     tighten,
 )
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
 from obsplan.planning.problem import Horizon
+from obsplan.planning.validation_setup import validation_guidance
 
 
 @pytest.fixture(scope="module")
@@ -93,6 +96,29 @@ def test_margins_scale_with_the_confidence_quantile_and_zero_disables(short_prob
     off = replace(short_problem, limits=replace(short_problem.limits, keepout_confidence=0.0))
     m0 = keepout_margins(lawnmower, off)
     assert m0.k == 0 and not m0.range_points.any() and not m0.box.any()
+
+
+def test_the_reserves_are_the_linearised_loops_stds_between_floor_and_cap(short_problem, lawnmower):
+    """Per interval, the acceleration reserve is ``k`` times the largest std of the feedback
+    command over the epochs acting on it (the linearised loop), clipped to [floor, cap]; the
+    speed reserve ``k`` times the filter's velocity std plus the estimated velocity's, capped."""
+    pb = short_problem
+    m = keepout_margins(lawnmower, pb)
+    g = validation_guidance(pb, at_sea=True)
+    lc = path_loop_covariance(lawnmower, pb, g)
+    cmd = lc.command_std(g.kp, g.kd)
+    t = pb.times
+    a = np.asarray(pb.accel, float)
+    for i in (5, 20, pb.horizon.steps - 1):  # the epochs from the last at or before t_i
+        lo = np.searchsorted(lc.time, t[i], side="right") - 1
+        hi = max(np.searchsorted(lc.time, t[i + 1], side="left") - 1, lo)
+        want = np.clip(m.k * cmd[lo : hi + 1].max(axis=0) / a, RESERVE_FLOOR, RESERVE_CAP)
+        np.testing.assert_allclose(m.accel_reserve[:, i], want, rtol=1e-12)
+        vel = lc.std("filter", "vel").max(axis=1) + lc.std("estimated", "vel").max(axis=1)
+        assert m.speed[i] == pytest.approx(min(m.k * vel[lo : hi + 1].max(), m.speed_cap))
+    # once the filter has converged the linear reserve is below the floor: the floor holds
+    assert np.all(m.accel_reserve >= RESERVE_FLOOR)
+    assert np.any(m.k * cmd[lc.time > 60].max(axis=0) / a < RESERVE_FLOOR)
 
 
 def test_tighten_moves_only_the_limit_bounds(short_problem, lawnmower):
