@@ -14,6 +14,7 @@ from obsplan.planning.baselines import baselines
 from obsplan.planning.estimator_objectives import covariance_value
 from obsplan.planning.evaluate import objective_value
 from obsplan.planning.formulation import build_formulation
+from obsplan.planning.margins import condition_margins, keepout_margins
 from obsplan.planning.objectives import objective_of
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
 from obsplan.planning.problem import Horizon
@@ -27,6 +28,7 @@ from obsplan.planning.robust import (
 )
 from obsplan.planning.stress import stress_active, stress_validate
 from obsplan.planning.validation import validate_paths
+from obsplan.planning.validation_setup import validation_guidance
 
 
 @pytest.fixture(scope="module")
@@ -126,3 +128,22 @@ def test_stress_validation_is_the_validation_of_the_scaled_problem(short_problem
     # a wider prior and noisier ranges: a larger error than under the nominal condition
     nominal = validate_paths(paths, pb, runs=3)
     assert rob.validation["circle"].result.ekf.rmse_pos > nominal["circle"].result.ekf.rmse_pos
+
+
+def test_a_robust_plan_keeps_its_limits_in_every_condition(short_problem):
+    """The keep-out margins of a robust problem are the largest over its conditions, each with
+    that condition's prior and range noise and the vehicle's own (nominal) guidance: wider
+    than the nominal ones where the wide prior is not yet forgotten."""
+    pb = _robust(short_problem)
+    lm = baselines(short_problem)["lawnmower"].trajectory
+    g = validation_guidance(short_problem, at_sea=True)
+    both = keepout_margins(lm, pb)
+    each = [
+        condition_margins(lm, c, g) for c in (scaled_problem(pb, a, b) for a, b in conditions(pb))
+    ]
+    for name in ("range_points", "box", "accel_reserve", "speed"):
+        want = np.max([getattr(m, name) for m in each], axis=0)
+        np.testing.assert_allclose(getattr(both, name), want, rtol=1e-12)
+    nominal = keepout_margins(lm, short_problem)
+    np.testing.assert_allclose(each[0].range_points, nominal.range_points, rtol=1e-12)
+    assert np.max(both.range_points) > 2 * np.max(nominal.range_points)  # 5x the prior

@@ -34,12 +34,18 @@ below the bound come from the linearised loop's second moments
 (:mod:`obsplan.estimation.loop_covariance`, the CRB's gains along the path): per interval, ``k``
 times the largest std of the feedback command ``-(Kp ε_p + Kd ε_v)`` over the epochs acting on it
 (at most :data:`RESERVE_CAP` of the bound, at least :data:`RESERVE_FLOOR`: the EKF's transients
-beyond the linearisation need room to be recovered from), and ``k`` times the filter's velocity std plus the
-std of the estimated velocity's deviation (the guidance keeps the estimated speed ``k σ_v``
-below the bound, and the plan must leave room for the estimate's deviation above that). Between
-epochs the estimate moves with the known input, so the command moves only with the filter's
-corrections, which are white: this is the command's std, not a bound, and much smaller than the
-bound above applied to it (a slowly varying estimation error moves the vehicle, not the command).
+beyond the linearisation need room to be recovered from), and ``k`` times the filter's velocity
+std plus the std of the estimated velocity's deviation (the guidance keeps the estimated speed
+``k σ_v`` below the bound, and the plan must leave room for the estimate's deviation above
+that). Between epochs the estimate moves with the known input, so the command moves only with
+the filter's corrections, which are white: this is the command's std, not a bound, and much
+smaller than the bound above applied to it (a slowly varying estimation error moves the vehicle,
+not the command).
+
+**Robust planning.** A plan made for a family of conditions (``objective.robust_prior``,
+``robust_range_noise``, :mod:`obsplan.planning.robust`) keeps its limits in every one of them:
+the margins are the largest over the conditions, each from that condition's prior and range
+noise, with the guidance the vehicle flies (its gains from the nominal prior).
 
 **Fixed point.** The margin depends on the path, the path on the margin. The plan is solved
 without margins (the full multi-start strategy), the margins are computed on it, and the NLP is
@@ -77,6 +83,7 @@ from obsplan.planning.feasibility import check_limits, range_extremes
 from obsplan.planning.formulation import Formulation, build_formulation
 from obsplan.planning.grid import Grid
 from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.robust import condition_problems, is_robust
 from obsplan.planning.solve import SolveResult, solve
 from obsplan.planning.starts import StartOutcome, run_start, start_context
 from obsplan.planning.validation_setup import (
@@ -394,7 +401,11 @@ def _box_axes(pb: PlanningProblem) -> list[tuple[int, tuple[float, float]]]:
 def keepout_margins(
     traj: Trajectory, pb: PlanningProblem, guidance: Guidance | None = None
 ) -> KeepoutMargins:
-    """The margins (module docstring) of the limits of ``pb`` along ``traj`` (planning grid).
+    """The margins (module docstring) of the limits of ``pb`` along ``traj`` (planning grid):
+    with robust planning (``objective.robust_prior`` / ``robust_range_noise``), the largest over
+    every condition of the family, each with that condition's prior and range noise and the
+    guidance the vehicle flies (designed for the nominal prior): the limits are kept for every
+    world the plan is made for, not only the nominal one.
 
     Parameters
     ----------
@@ -405,6 +416,27 @@ def keepout_margins(
     guidance
         The guidance law the vehicle flies with (default: the validation's,
         :func:`~obsplan.planning.validation_setup.validation_guidance` with ``at_sea``).
+    """
+    guidance = guidance or validation_guidance(pb, at_sea=True)
+    family = condition_problems(pb) if is_robust(pb) else (pb,)
+    out = condition_margins(traj, family[0], guidance)
+    for cpb in family[1:]:
+        out = out.maximum(condition_margins(traj, cpb, guidance))
+    return out
+
+
+def condition_margins(traj: Trajectory, pb: PlanningProblem, guidance: Guidance) -> KeepoutMargins:
+    """The margins of the limits of ``pb`` along ``traj`` for one condition (its prior and
+    noises), flown with ``guidance``.
+
+    Parameters
+    ----------
+    traj
+        A path on the planning grid (``N + 1`` samples).
+    pb
+        The problem: limits, ``limits.keepout_confidence``, the validation's filter settings.
+    guidance
+        The guidance law the vehicle flies with.
     """
     grid = Grid.from_problem(pb)
     n, N = grid.n, grid.N
@@ -418,8 +450,6 @@ def keepout_margins(
         return KeepoutMargins(conf, k, rng, box, reserve, speed)
     lim = pb.limits
     cov = path_covariance(traj, pb)
-    guidance = guidance or validation_guidance(pb, at_sea=True)
-    assert guidance is not None  # at_sea: never None
     loop = LoopResponse.of(guidance)
     q = _process_intensity(pb)
     T = float(grid.times[-1])
