@@ -83,9 +83,7 @@ class CovarianceObjective:
         n = self.model.n
         if numeric:
             std = position_std(np.asarray(D), n, self.epochs)
-            on = None
-            if self.lines is not None:  # the RMS over the line samples: rmse_pos_lines's bound
-                on = float(np.sqrt(np.mean(std[self.lines] ** 2))) * self.scale
+            on = None if self.lines is None else float(np.mean(std[self.lines])) * self.scale
             return float(np.mean(std)) * self.scale, float(std[-1]) * self.scale, on
         total, final = position_std(D, n, self.epochs)
         count = int(self.epochs.gap.sum())
@@ -96,17 +94,21 @@ class CovarianceObjective:
 
 
 def _lines_average(D, n: int, epochs: Epochs, lines: np.ndarray):
-    """``sqrt`` of the mean of ``tr P_pp`` over the samples ``lines`` (CasADi), in the column
-    layout of :func:`~obsplan.estimation.riccati.position_std` (epoch ``j``, step ``kk < gap_j``):
-    the bound of the validation's ``rmse_pos_lines``, the RMS of the error over those samples
-    (the early, larger errors weigh more than in a mean of the std)."""
+    """The mean of ``sqrt(tr P_pp)`` over the samples ``lines`` (CasADi), in the column layout
+    of :func:`~obsplan.estimation.riccati.position_std` (epoch ``j``, step ``kk < gap_j``).
+
+    The mean of the std, as the mission average (``rmse_pos`` averages the RMSE over time). The
+    RMS over the samples (the bound of ``rmse_pos_lines`` exactly) was tried: the same verdicts
+    within the Monte Carlo noise (median over the surveys 0.63 against 0.64 of the lawn-mower's
+    EKF RMSE on the lines), but the 3D DVL and depth surveys no longer converged
+    (``Maximum_Iterations_Exceeded`` where the mean converges in 921 iterations at N = 600)."""
     K = epochs.max_gap
     sample = epochs.index[:, None] + np.arange(K)[None, :]
     keep = np.arange(K)[None, :] < epochs.gap[:, None]
     on = keep & lines[np.minimum(sample, lines.size - 1)]
     w = on.reshape(-1).astype(float)
-    var = ca.sum1(D[:n, :])
-    return ca.sqrt(ca.dot(var.T, ca.DM(w)) / max(float(w.sum()), 1.0) + 1e-30)
+    std = ca.sqrt(ca.sum1(D[:n, :]) + 1e-30)
+    return ca.dot(std.T, ca.DM(w)) / max(float(w.sum()), 1.0)
 
 
 def timed_value(mode: str, average, final, reference: tuple, lines=None):
