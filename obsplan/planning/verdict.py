@@ -292,7 +292,7 @@ class Verdict:
 LWO_NOTE = (
     "lwo-condition is a diagnostic of local, node-by-node observability: scale-free, it ignores "
     "the range's distance, the rates and the process noise, and its plans do not serve the "
-    "filters (suite/lwo-dvl3d.toml: EKF final error 3.4x, final bound 4.2x the lawn-mower's); "
+    "filters (suite/lwo-dvl3d.toml: EKF final error 3.7x, final bound 4.2x the lawn-mower's); "
     "to fly, plan with pcrb-position or a Gramian objective"
 )
 
