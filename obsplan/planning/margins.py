@@ -417,11 +417,12 @@ def keepout_margins(
         The guidance law the vehicle flies with (default: the validation's,
         :func:`~obsplan.planning.validation_setup.validation_guidance` with ``at_sea``).
     """
-    guidance = guidance or validation_guidance(pb, at_sea=True)
+    flown = guidance or validation_guidance(pb, at_sea=True)
+    assert flown is not None  # at_sea: never None
     family = condition_problems(pb) if is_robust(pb) else (pb,)
-    out = condition_margins(traj, family[0], guidance)
+    out = condition_margins(traj, family[0], flown)
     for cpb in family[1:]:
-        out = out.maximum(condition_margins(traj, cpb, guidance))
+        out = out.maximum(condition_margins(traj, cpb, flown))
     return out
 
 
