@@ -17,30 +17,16 @@ import scipy.linalg
 
 from obsplan.estimation.closedloop import ClosedLoop
 from obsplan.estimation.loop_covariance import loop_covariance, loop_gain_matrix
-from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
 from obsplan.planning.estimator_objectives import covariance_objective
 from obsplan.planning.grid import Grid
 from obsplan.planning.margins import path_loop_covariance
-from obsplan.planning.parse import LOCALISE_PROBLEM
-from obsplan.planning.problem import Horizon
 from obsplan.planning.validation_setup import (
     estimation_config,
     truth_limits,
     validation_guidance,
 )
 from obsplan.trajectory import resample
-
-
-@pytest.fixture(scope="module")
-def problem():
-    pb = load_problem(LOCALISE_PROBLEM)
-    return replace(pb, horizon=Horizon(duration=120.0, steps=40))
-
-
-@pytest.fixture(scope="module")
-def lawnmower(problem):
-    return baselines(problem)["lawnmower"].trajectory
 
 
 def _van_loan(A: np.ndarray, q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -97,17 +83,19 @@ def _simulate_linear_loop(cobj, h, rho, kp, kd, runs, seed):
     return out
 
 
-def test_the_linear_loop_covariance_matches_a_simulation_of_the_linear_loop(problem, lawnmower):
+def test_the_linear_loop_covariance_matches_a_simulation_of_the_linear_loop(
+    short_problem, lawnmower
+):
     """The joint recursion is the second moment of the linear loop: the filter block equals a
     plain Kalman recursion to round-off (1e-9 relative), the deviations match 3000 simulated runs
     within 8 % in std (about 6 standard errors of a std estimated from 3000 samples)."""
-    g = validation_guidance(problem, at_sea=True)
-    cobj = covariance_objective(problem, "pcrb-position")
-    grid = Grid.from_problem(problem)
+    g = validation_guidance(short_problem, at_sea=True)
+    cobj = covariance_objective(short_problem, "pcrb-position")
+    grid = Grid.from_problem(short_problem)
     h, rho = (np.asarray(x, float) for x in cobj.rows(grid, grid.from_trajectory(lawnmower)))
     lc = loop_covariance(cobj.model, cobj.epochs, cobj.P0, h, rho, g.kp, g.kd, cobj.mask)
     sim = _simulate_linear_loop(cobj, h, rho, g.kp, g.kd, runs=3000, seed=3)
-    n = problem.dim
+    n = short_problem.dim
     checked = 0
     for j in range(5, cobj.epochs.count, 10):
         eps, delta, filt = sim[j]
@@ -127,12 +115,12 @@ def test_the_linear_loop_covariance_matches_a_simulation_of_the_linear_loop(prob
 
 
 def test_the_estimated_deviation_is_much_smaller_than_the_true_one_once_converged(
-    problem, lawnmower
+    short_problem, lawnmower
 ):
     """A slowly varying estimation error moves the vehicle, not the command: once the filter has
     converged the estimated deviation (what the feedback sees) is a fraction of the true one."""
-    g = validation_guidance(problem, at_sea=True)
-    lc = path_loop_covariance(lawnmower, problem, g)
+    g = validation_guidance(short_problem, at_sea=True)
+    lc = path_loop_covariance(lawnmower, short_problem, g)
     late = lc.time >= 100.0  # the last 20 s of the 120 s lawn-mower
     est = lc.std("estimated", "pos")[late]
     true = lc.std("true", "pos")[late]
@@ -140,7 +128,7 @@ def test_the_estimated_deviation_is_much_smaller_than_the_true_one_once_converge
 
 
 @pytest.mark.slow
-def test_the_validations_closed_loop_matches_the_linearisation_once_converged(problem):
+def test_the_validations_closed_loop_matches_the_linearisation_once_converged(short_problem):
     """The validation's kernel (second-order EKF, saturations, the real range) against the
     linearisation over the last minute of the circle about the beacon, 400 runs, robust stds
     (half the 16-84 % range, so a run the EKF loses does not count; about 6 % standard error):
@@ -154,8 +142,10 @@ def test_the_validations_closed_loop_matches_the_linearisation_once_converged(pr
 
     The circle flies at the speed bound, which the guidance would hold back (a saturation the
     linearisation leaves out), so it is flown under a bound 50 % higher."""
-    circle = baselines(problem)["circle"].trajectory
-    pb = replace(problem, limits=replace(problem.limits, speed=1.5 * problem.limits.speed))
+    circle = baselines(short_problem)["circle"].trajectory
+    pb = replace(
+        short_problem, limits=replace(short_problem.limits, speed=1.5 * short_problem.limits.speed)
+    )
     g = validation_guidance(pb, at_sea=True)
     lc = path_loop_covariance(circle, pb, g)
     fine = resample(circle, pb.validation.dt)

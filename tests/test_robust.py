@@ -17,7 +17,6 @@ from obsplan.planning.formulation import build_formulation
 from obsplan.planning.margins import condition_margins, keepout_margins
 from obsplan.planning.objectives import objective_of
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
-from obsplan.planning.problem import Horizon
 from obsplan.planning.robust import (
     ROBUST,
     condition_values,
@@ -29,12 +28,6 @@ from obsplan.planning.robust import (
 from obsplan.planning.stress import stress_active, stress_validate
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.validation_setup import validation_guidance
-
-
-@pytest.fixture(scope="module")
-def short_problem():
-    pb = load_problem(LOCALISE_PROBLEM)
-    return replace(pb, horizon=Horizon(duration=120.0, steps=40))
 
 
 def _robust(pb, aggregate="worst"):

@@ -140,11 +140,6 @@ def loop_covariance(
             epochs.time[None, :],
         )[0]
     ).reshape(m, J, m)
-    rows = [(np.zeros(m), 0.0, model.range_sensor)]
-    rows += [
-        (np.asarray(r, float), float(v), int(s))
-        for r, v, s in zip(model.rows, model.row_var, model.row_sensor, strict=True)
-    ]
     support = np.asarray(model.range_support, int)
     two = 2 * n
     C = np.zeros((two + m, two + m))
@@ -153,19 +148,23 @@ def loop_covariance(
     est = np.empty((J, two, two))
     true = np.empty((J, two, two))
     filt = np.empty((J, two, two))
-    phi_cache: dict[tuple[float, int], np.ndarray] = {}
+    steps: dict[tuple[float, int], np.ndarray] = {}  # repeats on uniform grids
+
+    def update(C: np.ndarray, r: np.ndarray, var: float) -> np.ndarray:
+        """One scalar row's rank-one update of the joint covariance (module docstring)."""
+        c = C[:, two:] @ r  # C r̃ᵀ
+        s = float(r @ c[two:]) + var
+        gt = np.concatenate([T @ c[two:], c[two:]])
+        return C + (np.outer(gt, gt) - np.outer(gt, c) - np.outer(c, gt)) / s
+
     for j in range(J):
-        for idx, (r, var, sensor) in enumerate(rows):
-            if M[j, sensor] == 0.0:
-                continue
-            if idx == 0:
-                r = np.zeros(m)
-                r[support] = h[:, j]
-                var = float(rho[j])
-            c = C[:, two:] @ r  # C r̃ᵀ
-            s = float(r @ c[two:]) + var
-            gt = np.concatenate([T @ c[two:], c[two:]])
-            C = C + (np.outer(gt, gt) - np.outer(gt, c) - np.outer(c, gt)) / s
+        if M[j, model.range_sensor] != 0.0:
+            r = np.zeros(m)
+            r[support] = h[:, j]
+            C = update(C, r, float(rho[j]))
+        for r, var, sensor in zip(model.rows, model.row_var, model.row_sensor, strict=True):
+            if M[j, sensor] != 0.0:
+                C = update(C, np.asarray(r, float), float(var))
         C = 0.5 * (C + C.T)
         est[j] = C[:two, :two]
         true[j] = E @ C @ E.T
@@ -173,16 +172,13 @@ def loop_covariance(
         if j == J - 1:
             break
         k, dt = int(epochs.gap[j]), float(epochs.dt[j])
-        key = (dt, k)
-        phi = phi_cache.get(key)
-        if phi is None:
-            phi = np.linalg.matrix_power(loop_gain_matrix(kp, kd, dt, n), k)
-            phi_cache[key] = phi
-        t = k * dt
-        F = np.eye(m) + A * t + 0.5 * A2 * t**2
-        G = np.zeros_like(C)
-        G[:two, :two] = phi
-        G[two:, two:] = F
+        G = steps.get((dt, k))
+        if G is None:  # the gap's transition: the loop on ε, the filter's prediction on e
+            t = k * dt
+            G = np.zeros_like(C)
+            G[:two, :two] = np.linalg.matrix_power(loop_gain_matrix(kp, kd, dt, n), k)
+            G[two:, two:] = np.eye(m) + A * t + 0.5 * A2 * t**2
+            steps[(dt, k)] = G
         C = G @ C @ G.T
         C[two:, two:] += Q[:, j, :]
     return LoopCovariance(
