@@ -131,7 +131,14 @@ def main() -> int:
     noise = paired_noise(a, b, "ekf.final_pos_err")
     print()
     if ea is not None and eb is not None:
-        verdict = "beats" if ea < eb else "does NOT beat"
+        # the word comes from the verdict's interval, not the sign of the difference
+        c = out.verdict.comparisons.get("one-shot", {}).get("ekf.final_pos_err")
+        outcome = c.outcome if c is not None else ("better" if ea < eb else "worse")
+        verdict = {
+            "better": "beats",
+            "worse": "does NOT beat",
+            "tie": "ties (within the Monte Carlo noise) with",
+        }[outcome]
         print(
             f"EKF final error: replanned {ea:.4g} m vs one-shot {eb:.4g} m "
             f"(ratio {ea / eb:.3f}, paired difference {ea - eb:+.3g} m, two standard errors "
