@@ -129,12 +129,12 @@ def main() -> int:
     a, b = out.validation["replanned"], out.validation["one-shot"]
     ea, eb = metric_value(a, "ekf.final_pos_err"), metric_value(b, "ekf.final_pos_err")
     noise = paired_noise(a, b, "ekf.final_pos_err")
+    verdict = out.verdict  # a property that bootstraps every comparison: once
     print()
     if ea is not None and eb is not None:
         # the word comes from the verdict's interval, not the sign of the difference
-        c = out.verdict.comparisons.get("one-shot", {}).get("ekf.final_pos_err")
-        outcome = c.outcome if c is not None else ("better" if ea < eb else "worse")
-        verdict = {
+        outcome = verdict.comparisons["one-shot"]["ekf.final_pos_err"].outcome
+        word = {
             "better": "beats",
             "worse": "does NOT beat",
             "tie": "ties (within the Monte Carlo noise) with",
@@ -142,10 +142,10 @@ def main() -> int:
         print(
             f"EKF final error: replanned {ea:.4g} m vs one-shot {eb:.4g} m "
             f"(ratio {ea / eb:.3f}, paired difference {ea - eb:+.3g} m, two standard errors "
-            f"{'-' if noise is None else format(noise, '.2g')} m): replanning {verdict} the "
+            f"{'-' if noise is None else format(noise, '.2g')} m): replanning {word} the "
             "one-shot plan"
         )
-    for line in out.verdict.summary():
+    for line in verdict.summary():
         print(line)
     if args.json is not None:
         doc = {"problem": str(path), "runs": args.runs, **out.to_dict()}

@@ -116,7 +116,10 @@ def test_verdict_in_words_and_in_the_report(tmp_path, capsys):
     for loss in verdict["losses"]:
         assert loss in text
     if verdict["beats_all"] and not verdict["losses"]:
-        assert "beats every validated baseline on every metric" in text
+        # "beats" only when every verdict is decided; ahead with ties says so
+        won = "the plan beats every validated baseline on every metric"
+        assert (won in text) == (not verdict["ties"])
+        assert ("not decidedly on the ties below" in text) == bool(verdict["ties"])
 
 
 def test_bad_problem_file_exit_2_names_field(tmp_path, capsys):

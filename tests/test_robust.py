@@ -19,6 +19,7 @@ from obsplan.planning.objectives import objective_of
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
 from obsplan.planning.robust import (
     ROBUST,
+    condition_problems,
     condition_values,
     conditions,
     is_robust,
@@ -123,20 +124,17 @@ def test_stress_validation_is_the_validation_of_the_scaled_problem(short_problem
     assert rob.validation["circle"].result.ekf.rmse_pos > nominal["circle"].result.ekf.rmse_pos
 
 
-def test_a_robust_plan_keeps_its_limits_in_every_condition(short_problem):
+def test_a_robust_plan_keeps_its_limits_in_every_condition(short_problem, lawnmower):
     """The keep-out margins of a robust problem are the largest over its conditions, each with
     that condition's prior and range noise and the vehicle's own (nominal) guidance: wider
     than the nominal ones where the wide prior is not yet forgotten."""
     pb = _robust(short_problem)
-    lm = baselines(short_problem)["lawnmower"].trajectory
     g = validation_guidance(short_problem, at_sea=True)
-    both = keepout_margins(lm, pb)
-    each = [
-        condition_margins(lm, c, g) for c in (scaled_problem(pb, a, b) for a, b in conditions(pb))
-    ]
+    both = keepout_margins(lawnmower, pb)
+    each = [condition_margins(lawnmower, c, g) for c in condition_problems(pb)]
     for name in ("range_points", "box", "accel_reserve", "speed"):
         want = np.max([getattr(m, name) for m in each], axis=0)
         np.testing.assert_allclose(getattr(both, name), want, rtol=1e-12)
-    nominal = keepout_margins(lm, short_problem)
+    nominal = keepout_margins(lawnmower, short_problem)
     np.testing.assert_allclose(each[0].range_points, nominal.range_points, rtol=1e-12)
     assert np.max(both.range_points) > 2 * np.max(nominal.range_points)  # 5x the prior

@@ -3,19 +3,15 @@ in batches until decided (merged exactly)."""
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
-from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
-from obsplan.planning.parse import LOCALISE_PROBLEM
-from obsplan.planning.problem import Horizon
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.verdict import (
     RUN_METRICS,
     Comparison,
+    Verdict,
     ratio_interval,
     validate_until_decided,
     verdict,
@@ -72,10 +68,23 @@ def test_missing_or_unpaired_runs_have_no_interval():
     assert ratio_interval(a[:1], a[:1]) is None
 
 
+def test_the_summary_says_beats_only_when_every_lead_is_decided():
+    """Ahead on every metric with an undecided lead is not "beats": the words say ahead, and
+    name the tie."""
+    won = Comparison("ekf.final_pos_err", 1.0, 2.0, ci=(0.4, 0.6))
+    lead = Comparison("ekf.rmse_pos", 1.0, 1.1, ci=(0.8, 1.2))
+    decided = Verdict({"lawnmower": {"ekf.final_pos_err": won}}, {}, runs=50).summary()
+    assert decided[0] == "the plan beats every validated baseline on every metric"
+    tied = Verdict(
+        {"lawnmower": {"ekf.final_pos_err": won, "ekf.rmse_pos": lead}}, {}, runs=50
+    ).summary()
+    assert "beats" not in tied[0] and "not decidedly on the ties below" in tied[0]
+    assert any("EKF position RMSE" in line and "[0.80, 1.20]" in line for line in tied[1:])
+
+
 @pytest.fixture(scope="module")
-def short():
-    pb = load_problem(LOCALISE_PROBLEM)
-    pb = replace(pb, horizon=Horizon(duration=120.0, steps=40))
+def short(short_problem):
+    pb = short_problem
     bls = baselines(pb)
     return pb, {"planned": bls["circle"].trajectory, "lawnmower": bls["lawnmower"].trajectory}
 

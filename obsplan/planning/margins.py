@@ -452,8 +452,9 @@ def condition_margins(traj: Trajectory, pb: PlanningProblem, guidance: Guidance)
     loop_cov = path_loop_covariance(traj, pb, guidance)
     window = _interval_epochs(loop_cov.time, grid.times)
     command = _window_max(loop_cov.command_std(guidance.kp, guidance.kd), window)  # (N, n)
-    reserve = np.minimum(k * command.T / np.asarray(grid.a, float)[:, None], RESERVE_CAP)
-    reserve = np.maximum(reserve, RESERVE_FLOOR)
+    reserve = np.clip(
+        k * command.T / np.asarray(grid.a, float)[:, None], RESERVE_FLOOR, RESERVE_CAP
+    )
     vel = loop_cov.std("filter", "vel").max(axis=1) + loop_cov.std("estimated", "vel").max(axis=1)
     speed = k * _window_max(vel[:, None], window)[:, 0]
     cap = SPEED_RESERVE_CAP * float(lim.speed) if lim.speed is not None else 0.0

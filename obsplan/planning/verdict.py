@@ -244,7 +244,13 @@ class Verdict:
         if not self.comparisons:
             lines.append("no validation was run: nothing says the plan localises better")
         elif self.beats_all and not self.losses():
-            lines.append("the plan beats every validated baseline on every metric")
+            # ahead on every metric is a win only where the interval says so: the ties follow
+            lines.append(
+                "the plan beats every validated baseline on every metric"
+                if not self.ties()
+                else "the plan is ahead of every validated baseline on every metric, but not "
+                "decidedly on the ties below"
+            )
         else:
             head = "beats" if self.beats_all else "does NOT beat"
             lines.append(
