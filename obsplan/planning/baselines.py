@@ -38,8 +38,9 @@ import numpy as np
 from obsplan import generators
 from obsplan.errors import ConfigError, ProblemError
 from obsplan.planning.feasibility import check_limits, range_extremes
-from obsplan.planning.mission_baselines import mission_lawnmower
+from obsplan.planning.mission_baselines import mission_lawnmower, planner_lawnmower
 from obsplan.planning.mission_check import mission_check
+from obsplan.planning.mission_schedule import planner_schedule
 from obsplan.planning.problem import Area, PlanningProblem
 from obsplan.trajectory import Trajectory
 
@@ -376,11 +377,14 @@ BASELINES = ("lawnmower", "circle", "straight", "paper-lawnmower")
 MISSION_BASELINES = ("lawnmower", "lawnmower-accel")
 
 
-def _mission_baseline(pb: PlanningProblem, accelerated: bool) -> Baseline:
-    """The mission's (accelerated) lawn-mower (:mod:`obsplan.planning.mission_baselines`)."""
+def _mission_baseline(pb: PlanningProblem, accelerated: bool, planner: bool = False) -> Baseline:
+    """The mission's (accelerated) lawn-mower (:mod:`obsplan.planning.mission_baselines`);
+    ``planner``: on the planner's schedule, with its lead-in (a start of the planner)."""
     name = "lawnmower-accel" if accelerated else "lawnmower"
+    if planner:
+        name += "+lead-in"
     try:
-        traj, desc = mission_lawnmower(pb, accelerated)
+        traj, desc = (planner_lawnmower if planner else mission_lawnmower)(pb, accelerated)
     except ProblemError as exc:
         raise BaselineUnfit(f"{name}: {exc}") from None
     if not check_limits(traj, pb).ok():
@@ -389,6 +393,23 @@ def _mission_baseline(pb: PlanningProblem, accelerated: bool) -> Baseline:
     if chk is None or not chk.complete:
         raise BaselineUnfit(f"{name}: its path on the planning grid does not complete the mission")
     return Baseline(name, _check_grid(traj, pb, name), desc)
+
+
+def mission_starts(pb: PlanningProblem) -> list[Baseline]:
+    """The planner's starts for ``pb``'s mission: the (accelerated) lawn-mower on the planner's
+    schedule (:func:`~obsplan.planning.mission_schedule.planner_schedule`), which meets its line
+    windows: the baselines themselves when the survey has no lead-in. Those that do not fit are
+    left out."""
+    if planner_schedule(pb).lead_in <= 0:
+        fitted = _all(pb)[0]
+        return [fitted[k] for k in MISSION_BASELINES if k in fitted]
+    out = []
+    for accelerated in (False, True):
+        try:
+            out.append(_mission_baseline(pb, accelerated, planner=True))
+        except BaselineUnfit:
+            pass
+    return out
 
 
 def _all_mission(pb: PlanningProblem) -> tuple[dict[str, Baseline], dict[str, str]]:

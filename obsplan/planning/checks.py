@@ -106,6 +106,13 @@ def _check_mission(pb: PlanningProblem) -> None:
             "mission.shift",
             f"must be in [0, 0.5) (a fraction of each line's time), got {m.shift:g}",
         )
+    if isinstance(m.lead_in, str):
+        if m.lead_in != "auto":
+            raise field_error(
+                "mission.lead_in", f'must be a time in s or "auto", got {m.lead_in!r}'
+            )
+    elif not (math.isfinite(m.lead_in) and m.lead_in >= 0):
+        raise field_error("mission.lead_in", f'must be a time >= 0 s or "auto", got {m.lead_in!r}')
     if m.kind == "survey" and not m.lines:
         raise field_error("mission.lines", "a survey needs lines (or mission.area + spacing)")
     if m.kind == "waypoints" and not m.waypoints:

@@ -21,6 +21,7 @@ import numpy as np
 
 from obsplan.errors import ProblemError
 from obsplan.planning.baselines import baselines as all_baselines
+from obsplan.planning.baselines import mission_starts
 from obsplan.planning.problem import Horizon, PlanningProblem
 from obsplan.trajectory import Trajectory
 
@@ -52,15 +53,16 @@ def random_guess(pb: PlanningProblem, seed: int | Sequence[int]) -> Trajectory:
 
 
 def initial_guesses(pb: PlanningProblem) -> list[tuple[str, Trajectory]]:
-    """``objective.starts`` guesses: lawn-mower and circle (if they fit), then seeded random."""
-    fitted = all_baselines(pb)
-    # a mission: the lawn-mowers that fly it (random paths are far from every line)
-    names = ("lawnmower", "lawnmower-accel") if pb.mission is not None else ("lawnmower", "circle")
-    out: list[tuple[str, Trajectory]] = [
-        (name, fitted[name].trajectory) for name in names if name in fitted
-    ]
-    if pb.mission is not None and out:
-        return out[: pb.objective.starts]
+    """``objective.starts`` guesses: lawn-mower and circle (if they fit), then seeded random;
+    with a mission, the lawn-mowers that fly it in the planner's line windows
+    (:func:`~obsplan.planning.baselines.mission_starts`; random paths are far from every line)."""
+    if pb.mission is not None:
+        out = [(b.name, b.trajectory) for b in mission_starts(pb)]
+        if out:
+            return out[: pb.objective.starts]
+    else:
+        fitted = all_baselines(pb)
+        out = [(k, fitted[k].trajectory) for k in ("lawnmower", "circle") if k in fitted]
     i = 0
     while len(out) < pb.objective.starts:
         out.append((f"random-{i}", random_guess(pb, (pb.objective.seed, i))))
@@ -69,7 +71,8 @@ def initial_guesses(pb: PlanningProblem) -> list[tuple[str, Trajectory]]:
 
 
 def reference_path(pb: PlanningProblem) -> Trajectory:
-    """The path objectives are normalised by: the lawn-mower, or the first guess if it is unfit."""
+    """The path objectives are normalised by: the lawn-mower (with a mission, on the planner's
+    schedule), or the first guess if it is unfit."""
     return initial_guesses(pb)[0][1]
 
 

@@ -19,7 +19,12 @@ from __future__ import annotations
 import numpy as np
 
 from obsplan.errors import ProblemError
-from obsplan.planning.mission_schedule import Schedule, build_schedule, mission_schedule
+from obsplan.planning.mission_schedule import (
+    Schedule,
+    build_schedule,
+    mission_schedule,
+    planner_schedule,
+)
 from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
 
@@ -85,12 +90,26 @@ def mission_lawnmower(pb: PlanningProblem, accelerated: bool = False) -> tuple[T
         For the accelerated one when the lines leave no speed headroom (the schedule flies them
         at the top of ``mission.speed``).
     """
+    return _lawnmower(pb, mission_schedule(pb), accelerated)
+
+
+def planner_lawnmower(pb: PlanningProblem, accelerated: bool = False) -> tuple[Trajectory, str]:
+    """:func:`mission_lawnmower` on the planner's schedule (its lead-in at rest, its lines at
+    its speed: :func:`~obsplan.planning.mission_schedule.planner_schedule`): the planner's
+    starts, which meet its line windows. Without a lead-in, the lawn-mower itself."""
+    return _lawnmower(pb, planner_schedule(pb), accelerated)
+
+
+def _lawnmower(pb: PlanningProblem, base: Schedule, accelerated: bool) -> tuple[Trajectory, str]:
     m = pb.mission
     assert m is not None
     if accelerated and not m.lines:
         raise ProblemError("the mission has no survey lines to accelerate on")
-    base = mission_schedule(pb)
-    sched = build_schedule(pb, base.speed, accelerated=accelerated) if accelerated else base
+    sched = (
+        build_schedule(pb, base.speed, accelerated=accelerated, delay=base.lead_in)
+        if accelerated
+        else base
+    )
     traj = fly_schedule(sched, pb)
     what = f"{len(m.lines)} survey lines" if m.kind == "survey" else f"{len(m.waypoints)} waypoints"
     radius = base.speed**2 / (float(np.min(pb.accel)))
@@ -98,6 +117,8 @@ def mission_lawnmower(pb: PlanningProblem, accelerated: bool = False) -> tuple[T
         f"lawn-mower over the mission's {what} at {base.speed:.3g} m/s, turns of radius "
         f">= {radius:.3g} m, mission flown in {base.end_s:.0f} s"
     )
+    if base.lead_in > 0:
+        desc += f", after {base.lead_in:.0f} s at rest"
     if accelerated:
         amp = max((pc.amp for pc in sched.pieces if pc.cycles), default=0.0)
         if amp <= 0:

@@ -2,7 +2,8 @@
 .FormulationPart`).
 
 Each survey line is flown in a window of nodes ``k0 .. k1``: the schedule's time at the line's
-start and end (:mod:`obsplan.planning.mission_schedule`, the lawn-mower's timing), widened to
+start and end (:func:`~obsplan.planning.mission_schedule.planner_schedule`: the lawn-mower's
+timing after a lead-in, the lines faster), widened to
 the nodes just outside, which lie on the run-in and run-out. With ``mission.shift`` the window
 widens to flexible run-in and run-out zones around a strict core (:func:`line_zones`): there a
 node's rows are relaxed by a smooth ``max(0, x)`` of how far it and its neighbours are off the
@@ -42,8 +43,8 @@ import numpy as np
 from obsplan.errors import ProblemError
 from obsplan.planning.blocks import ConstraintBlock, FormulationPart
 from obsplan.planning.grid import Grid, apply_operator
-from obsplan.planning.mission_baselines import mission_lawnmower
-from obsplan.planning.mission_schedule import mission_schedule
+from obsplan.planning.mission_baselines import planner_lawnmower
+from obsplan.planning.mission_schedule import planner_schedule
 from obsplan.planning.problem import PlanningProblem
 
 
@@ -259,7 +260,7 @@ def line_zones(pb: PlanningProblem) -> tuple[LineZone, ...]:
     m = pb.mission
     assert m is not None
     h, N = pb.horizon.dt, pb.horizon.steps
-    wins = mission_schedule(pb).line_windows
+    wins = planner_schedule(pb).line_windows
     zones = []
     for i, (t0, t1) in enumerate(wins):
         k0, k1 = line_nodes(pb, (t0, t1))
@@ -281,10 +282,10 @@ def _trim_to_lawnmowers(pb: PlanningProblem, zones: list[LineZone]) -> list[Line
     rows (to 1e-9). The zone still reaches the schedule's own window (the lawn-mowers are on the
     line there), so its coverage nodes lie before the line's start and past its end."""
     grid = Grid.from_problem(pb)
-    paths = [grid.from_trajectory(mission_lawnmower(pb, accelerated=False)[0])]
-    if mission_schedule(pb).headroom > 0:
+    paths = [grid.from_trajectory(planner_lawnmower(pb, accelerated=False)[0])]
+    if planner_schedule(pb).headroom > 0:
         try:
-            paths.append(grid.from_trajectory(mission_lawnmower(pb, accelerated=True)[0]))
+            paths.append(grid.from_trajectory(planner_lawnmower(pb, accelerated=True)[0]))
         except ProblemError:
             pass
     nodes = [(ca.DM(p), ca.DM(v)) for _, p, v in (grid.si_nodes(W) for W in paths)]
@@ -324,7 +325,7 @@ def _point_blocks(pb, grid: Grid, W, p, v) -> list[ConstraintBlock]:
     m = pb.mission
     out = []
     if m.waypoints:
-        times = np.array(mission_schedule(pb).waypoint_times)
+        times = np.array(planner_schedule(pb).waypoint_times)
         if m.windows:
             win = np.array(m.windows)
             times = np.clip(times, win[:, 0], win[:, 1])

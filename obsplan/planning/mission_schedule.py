@@ -1,5 +1,6 @@
 """The constant-speed schedule of a mission: the plain lawn-mower's timing, which fixes the
-planner's line windows and the shortest horizon a mission needs.
+shortest horizon a mission needs, and the planner's (:func:`planner_schedule`: the same lines
+flown faster after a lead-in at the start), which fixes the planner's line windows.
 
 The schedule flies the whole mission at one horizontal speed ``v_c``: from the start it speeds
 up (or slows down) along its heading at ``ACCEL_USE`` of the acceleration bound to ``v_c``, then
@@ -148,6 +149,8 @@ class Schedule:
     end_s: float
     headroom: float
     lead: float
+    #: The lead-in [s]: at rest at the start until then (:func:`planner_schedule`).
+    lead_in: float = 0.0
 
     def state(self, t: np.ndarray, dim: int) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities (J, dim) of the schedule at times ``t`` [s]."""
@@ -335,11 +338,16 @@ def _speed_change(t: float, p: np.ndarray, e: np.ndarray, s0: float, s1: float, 
 
 
 def build_schedule(
-    pb: PlanningProblem, v: float, accelerated: bool = False, mission: Mission | None = None
+    pb: PlanningProblem,
+    v: float,
+    accelerated: bool = False,
+    mission: Mission | None = None,
+    delay: float = 0.0,
 ) -> Schedule:
     """The schedule of ``pb``'s mission (or of ``mission``, same end region: a candidate line
     order) at horizontal speed ``v`` [m/s] (module docstring); ``accelerated``: sinusoidal speed
-    on the lines (same windows)."""
+    on the lines (same windows); ``delay`` [s]: at rest at the start (braking first if moving)
+    until then, the lead-in the planner localises in (:func:`planner_schedule`)."""
     m = pb.mission if mission is None else mission
     assert m is not None
     n = pb.dim
@@ -358,7 +366,14 @@ def build_schedule(
     e0 = np.zeros(n)
     e0[:2] = (math.cos(th), math.sin(th))
     pieces: list[Piece] = []
-    pc, t, p = _speed_change(0.0, p, e0, s0, v, a)
+    t = 0.0
+    if delay > 0:
+        pc, t, p = _speed_change(t, p, e0, s0, 0.0, a)
+        if pc is not None:
+            pieces.append(pc)
+        pieces.append(Piece("hold", t, max(delay - t, 0.0), p.copy(), e0))
+        t, s0 = max(t, delay), 0.0
+    pc, t, p = _speed_change(t, p, e0, s0, v, a)
     if pc is not None:
         pieces.append(pc)
     windows, passes = [], []
@@ -384,7 +399,7 @@ def build_schedule(
         p = p + length * e
     pieces, t = _finish(pb, pieces, t, p, th, v, a, r)
     headroom = 1.0 - v / hi
-    return Schedule(v, tuple(pieces), tuple(windows), tuple(passes), t, headroom, lead)
+    return Schedule(v, tuple(pieces), tuple(windows), tuple(passes), t, headroom, lead, delay)
 
 
 def _sinusoid(v: float, lo: float, hi: float, a: float, line_t: float) -> tuple[float, int]:
@@ -429,6 +444,32 @@ def _finish(pb, pieces, t, p, th, v, a, r):
 _SPEED_GRID = 24
 
 
+def _slowest_fit(pb: PlanningProblem, delay: float = 0.0) -> tuple[float | None, float, float]:
+    """The slowest band speed whose schedule (with ``delay``) ends within the horizon: ``(speed
+    or None, the fastest mission's speed, its end [s])`` (:func:`mission_schedule`)."""
+    m = pb.mission
+    assert m is not None
+    lo, hi = m.speed_band(pb.limits.speed)
+    T = pb.horizon.duration
+    speeds = [float(x) for x in np.linspace(lo, hi, _SPEED_GRID + 1)]
+    ends = [build_schedule(pb, s, delay=delay).end_s for s in speeds]
+    best = int(np.argmin(ends))
+    fits = [i for i, e in enumerate(ends) if e <= T]
+    if not fits:
+        return None, speeds[best], ends[best]
+    i = fits[0]
+    fit = speeds[i]
+    if i > 0:
+        unfit = speeds[i - 1]
+        for _ in range(30):
+            mid = 0.5 * (fit + unfit)
+            if build_schedule(pb, mid, delay=delay).end_s <= T:
+                fit = mid
+            else:
+                unfit = mid
+    return fit, speeds[best], ends[best]
+
+
 @cache
 def mission_schedule(pb: PlanningProblem) -> Schedule:
     """The schedule at the slowest band speed that ends within the horizon (module docstring).
@@ -443,33 +484,77 @@ def mission_schedule(pb: PlanningProblem) -> Schedule:
         On ``horizon.duration`` (with the shortest duration that fits) when no band speed ends
         the mission within the horizon.
     """
-    m = pb.mission
-    assert m is not None
-    lo, hi = m.speed_band(pb.limits.speed)
-    T = pb.horizon.duration
-    speeds = [float(x) for x in np.linspace(lo, hi, _SPEED_GRID + 1)]
-    ends = [build_schedule(pb, s).end_s for s in speeds]
-    fits = [i for i, e in enumerate(ends) if e <= T]
-    if not fits:
-        best = int(np.argmin(ends))
+    fit, fastest, end = _slowest_fit(pb)
+    if fit is None:
+        T = pb.horizon.duration
         raise field_error(
             "horizon.duration",
             f"{T:g} s is too short for the mission: at its fastest (a constant "
-            f"{speeds[best]:.3g} m/s within mission.speed, the tightest turns limits.accel "
-            f"allows) it takes {ends[best]:.1f} s; use horizon.duration >= "
-            f"{math.ceil(ends[best])} s, a wider mission.speed, or fewer lines",
+            f"{fastest:.3g} m/s within mission.speed, the tightest turns limits.accel "
+            f"allows) it takes {end:.1f} s; use horizon.duration >= "
+            f"{math.ceil(end)} s, a wider mission.speed, or fewer lines",
         )
-    i = fits[0]
-    fit = speeds[i]
-    if i > 0:
-        unfit = speeds[i - 1]
-        for _ in range(30):
-            mid = 0.5 * (fit + unfit)
-            if build_schedule(pb, mid).end_s <= T:
-                fit = mid
-            else:
-                unfit = mid
     return build_schedule(pb, fit)
+
+
+#: ``mission.lead_in = "auto"``: the lines are scheduled for the planner at the speed this far
+#: from the lawn-mower's up to the top of the band, and the time saved is the lead-in.
+LEAD_IN_SPEED_SHARE = 0.5
+
+
+def lead_in_seconds(pb: PlanningProblem) -> float:
+    """The lead-in [s] of ``pb``'s survey (``mission.lead_in``, ``"auto"`` resolved; 0 for
+    waypoints and transits, and when the lines leave no speed headroom)."""
+    m = pb.mission
+    assert m is not None
+    if m.kind != "survey" or not m.lines:
+        return 0.0
+    if m.lead_in != "auto":
+        return float(m.lead_in)
+    base = mission_schedule(pb)
+    if base.headroom <= 0:
+        return 0.0
+    _, hi = m.speed_band(pb.limits.speed)
+    v = base.speed + LEAD_IN_SPEED_SHARE * (hi - base.speed)
+    slack = pb.horizon.duration - build_schedule(pb, v, delay=1e-9).end_s
+    # whole planning steps: the windows then fall on the nodes as the schedule's do
+    h = pb.horizon.dt
+    return max(0.0, math.floor(slack / h) * h)
+
+
+@cache
+def planner_schedule(pb: PlanningProblem) -> Schedule:
+    """The schedule whose line windows the planner flies: the lawn-mower's
+    (:func:`mission_schedule`) delayed by the lead-in (``mission.lead_in``), the lines at the
+    slowest band speed that still ends the mission within the horizon.
+
+    The lead-in is time at the start, before the first line's run-in, in which the planner is
+    free to localise: flown at the lawn-mower's speed, the first line starts while the filter
+    still holds its prior, and those samples dominate the localisation error over the lines.
+    A surveyor spends the speed headroom on a calibration manoeuvre first; the planner does the
+    same, and chooses what to fly in it.
+
+    Raises
+    ------
+    ProblemError
+        On ``mission.lead_in`` when no band speed fits the lead-in and the mission in the
+        horizon (with the longest lead-in that fits).
+    """
+    base = mission_schedule(pb)
+    delay = lead_in_seconds(pb)
+    if delay <= 0:
+        return base
+    fit, _, _ = _slowest_fit(pb, delay)
+    if fit is None:
+        _, hi = pb.mission.speed_band(pb.limits.speed)  # type: ignore[union-attr]
+        room = pb.horizon.duration - build_schedule(pb, hi, delay=1e-9).end_s
+        raise field_error(
+            "mission.lead_in",
+            f"{delay:g} s does not fit: with the lines at the top of mission.speed the mission "
+            f"leaves {max(room, 0.0):.0f} s; use mission.lead_in <= {max(math.floor(room), 0)} "
+            'or "auto", or a longer horizon.duration',
+        )
+    return build_schedule(pb, fit, delay=delay)
 
 
 def mission_fit_error(pb: PlanningProblem) -> None:
@@ -479,9 +564,10 @@ def mission_fit_error(pb: PlanningProblem) -> None:
     Raises
     ------
     ProblemError
-        On ``horizon.duration`` or ``mission.windows[i]``.
+        On ``horizon.duration``, ``mission.lead_in`` or ``mission.windows[i]``.
     """
     sched = mission_schedule(pb)
+    planner_schedule(pb)  # a lead-in that does not fit is refused here, before any solve
     m = pb.mission
     assert m is not None
     for i, (t, (t0, t1)) in enumerate(zip(sched.waypoint_times, m.windows, strict=False)):
@@ -495,11 +581,12 @@ def mission_fit_error(pb: PlanningProblem) -> None:
 
 
 def line_sample_mask(pb: PlanningProblem, t: np.ndarray) -> np.ndarray:
-    """Boolean mask of the times ``t`` [s] inside the schedule's line windows."""
+    """Boolean mask of the times ``t`` [s] inside the planner's line windows
+    (:func:`planner_schedule`)."""
     mask = np.zeros(np.asarray(t).size, bool)
     if pb.mission is None:
         return mask
-    for t0, t1 in mission_schedule(pb).line_windows:
+    for t0, t1 in planner_schedule(pb).line_windows:
         mask |= (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
     return mask
 

@@ -116,6 +116,9 @@ class Mission:
     speed: tuple[float, float] | None = None
     order: str = "given"
     shift: float = 0.0
+    #: Seconds at the start before the planner's first line, or ``"auto"``
+    #: (:func:`~obsplan.planning.mission_schedule.planner_schedule`).
+    lead_in: float | str = "auto"
     waypoints: tuple[tuple[float, ...], ...] = ()
     radius: float = 5.0
     windows: tuple[tuple[float, float], ...] = ()

@@ -269,6 +269,7 @@ def _mission(data: Mapping[str, Any], vals: dict[str, Any], dim: int, start) -> 
         speed=vals["speed"],
         order=vals["order"],
         shift=vals["shift"],
+        lead_in=vals["lead_in"],
         waypoints=vals["waypoints"] or (),
         radius=vals["radius"],
         windows=vals["windows"] or (),
@@ -420,6 +421,7 @@ def _mission_to_dict(m: Mission) -> dict[str, Any]:
         "heading_tol": m.heading_tol,
         "order": m.order,
         "shift": m.shift,
+        "lead_in": m.lead_in,
         "radius": m.radius,
     }
     if m.area is not None:

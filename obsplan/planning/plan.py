@@ -11,6 +11,7 @@ from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
 from obsplan.planning.evaluate import PathMetrics, path_metrics
 from obsplan.planning.margins import KeepoutReport, solve_with_keepout
 from obsplan.planning.mission_check import MissionCheck, mission_check
+from obsplan.planning.mission_schedule import mission_schedule, planner_schedule
 from obsplan.planning.parse import load_problem, problem_to_dict
 from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult
@@ -115,6 +116,7 @@ class PlanResult:
                 "steps": pb.horizon.steps,
                 "duration_s": pb.horizon.duration,
                 "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
+                "schedule": _schedule_dict(pb),
             },
             "baselines": {k: b.description for k, b in self.baselines.items()},
             "baselines_not_fitted": dict(self.not_fitted),
@@ -124,6 +126,19 @@ class PlanResult:
             "robustness": None if self.robustness is None else self.robustness.to_dict(),
             "wall_s": float(self.wall_s),
         }
+
+
+def _schedule_dict(pb: PlanningProblem) -> dict | None:
+    """The mission's schedules: the lawn-mower's speed, the planner's line speed and lead-in."""
+    if pb.mission is None:
+        return None
+    base, lead = mission_schedule(pb), planner_schedule(pb)
+    return {
+        "lawnmower_speed_mps": float(base.speed),
+        "planner_speed_mps": float(lead.speed),
+        "lead_in_s": float(lead.lead_in),
+        "headroom": float(base.headroom),
+    }
 
 
 def plan(

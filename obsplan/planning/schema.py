@@ -303,9 +303,10 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             'For pcrb-position and kf-position-std: "final" (position std at the end), '
             '"mission-average" (its time average over the mission), "average-and-final" (the '
             'sum of the two, each relative to its value on the lawn-mower), "lines" (its '
-            "average over the survey lines' windows: what the sonar data needs; needs a survey "
+            "average over the planner's line windows: what the sonar data needs; needs a survey "
             '[mission]) or "lines-and-final" (the line average and the final value, each '
-            'relative to its value on the lawn-mower); "auto" is average-and-final for '
+            "relative to its value on the planner's first start, the lawn-mower on its "
+            'schedule); "auto" is average-and-final for '
             "pcrb-position (lines-and-final with survey lines) and final for kf-position-std.",
         ),
         FieldSpec(
@@ -501,6 +502,16 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "How far each survey line's window may shift: the line may start and end up to this "
             "fraction of its scheduled time earlier or later (within half the time to the "
             "neighbouring lines); 0 flies the schedule's fixed windows. In [0, 0.5).",
+        ),
+        FieldSpec(
+            "lead_in",
+            "float-or-str",
+            "auto",
+            "s",
+            "Surveys: time at the start, before the first line, in which the planner localises "
+            "(its lines are then flown faster than the lawn-mower's, in the same horizon). "
+            '"auto": the time saved by scheduling the lines halfway from the lawn-mower\'s speed '
+            "to the top of mission.speed (0 without speed headroom); 0: the lawn-mower's windows.",
         ),
         FieldSpec(
             "waypoints",
