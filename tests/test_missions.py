@@ -571,6 +571,14 @@ def test_no_lead_in_without_speed_headroom_or_lines():
     wp = load_problem(PROBLEMS_DIR / "suite" / "missions" / "waypoints.toml")
     assert planner_schedule(wp).lead_in == 0.0
     assert [b.name for b in mission_starts(wp)][:1] == ["lawnmower"]
+    # a vehicle that cannot hover cannot wait at the start
+    d = _small()
+    d["limits"] = {**d["limits"], "min_speed": 0.3}
+    d["start"] = {**d["start"], "velocity": [0.6, 0.0]}
+    assert planner_schedule(problem_from_dict(d)).lead_in == 0.0
+    d["mission"] = {**d["mission"], "lead_in": 30.0}
+    with pytest.raises(ProblemError, match=re.escape("mission.lead_in")):
+        problem_from_dict(d)
 
 
 @pytest.mark.parametrize(

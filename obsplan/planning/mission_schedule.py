@@ -504,10 +504,25 @@ LEAD_IN_SPEED_SHARE = 0.5
 
 def lead_in_seconds(pb: PlanningProblem) -> float:
     """The lead-in [s] of ``pb``'s survey (``mission.lead_in``, ``"auto"`` resolved; 0 for
-    waypoints and transits, and when the lines leave no speed headroom)."""
+    waypoints and transits, when the lines leave no speed headroom, and for a vehicle that
+    cannot wait at the start, ``limits.min_speed > 0``).
+
+    Raises
+    ------
+    ProblemError
+        On ``mission.lead_in`` when a lead-in is given for a vehicle with ``limits.min_speed``.
+    """
     m = pb.mission
     assert m is not None
     if m.kind != "survey" or not m.lines:
+        return 0.0
+    if pb.limits.min_speed > 0:
+        if m.lead_in != "auto" and float(m.lead_in) > 0:
+            raise field_error(
+                "mission.lead_in",
+                f"{float(m.lead_in):g} s: a vehicle with limits.min_speed cannot wait at the "
+                'start; use 0 or "auto" (no lead-in)',
+            )
         return 0.0
     if m.lead_in != "auto":
         return float(m.lead_in)
