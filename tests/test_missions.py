@@ -571,6 +571,8 @@ def test_no_lead_in_without_speed_headroom_or_lines():
     wp = load_problem(PROBLEMS_DIR / "suite" / "missions" / "waypoints.toml")
     assert planner_schedule(wp).lead_in == 0.0
     assert [b.name for b in mission_starts(wp)][:1] == ["lawnmower"]
+    with pytest.raises(ProblemError, match=re.escape("mission.lead_in")):
+        replace(wp, mission=replace(wp.mission, lead_in=30.0))
     # a vehicle that cannot hover cannot wait at the start
     d = _small()
     d["limits"] = {**d["limits"], "min_speed": 0.3}

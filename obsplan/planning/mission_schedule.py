@@ -510,14 +510,20 @@ def lead_in_seconds(pb: PlanningProblem) -> float:
     Raises
     ------
     ProblemError
-        On ``mission.lead_in`` when a lead-in is given for a vehicle with ``limits.min_speed``.
+        On ``mission.lead_in`` when a lead-in is given for a mission without survey lines or
+        for a vehicle with ``limits.min_speed``.
     """
     m = pb.mission
     assert m is not None
+    given = m.lead_in != "auto" and float(m.lead_in) > 0
     if m.kind != "survey" or not m.lines:
+        if given:
+            raise field_error(
+                "mission.lead_in", f"is for survey lines; a {m.kind} mission has none: remove it"
+            )
         return 0.0
     if pb.limits.min_speed > 0:
-        if m.lead_in != "auto" and float(m.lead_in) > 0:
+        if given:
             raise field_error(
                 "mission.lead_in",
                 f"{float(m.lead_in):g} s: a vehicle with limits.min_speed cannot wait at the "
