@@ -251,11 +251,13 @@ class _Line:
 def line_zones(pb: PlanningProblem) -> tuple[LineZone, ...]:
     """The nodes of every survey line's constraints (:class:`LineZone`).
 
-    The core is the schedule's window (the nodes just before its start and just after its end).
+    The core is the planner's window (:func:`~obsplan.planning.mission_schedule
+    .planner_schedule`; the nodes just before its start and just after its end).
     With ``mission.shift`` each line may start up to ``shift`` of its scheduled time earlier or
     later, and end so too; the zones of consecutive lines meet at most at the middle of the
     time between them (a path beside one line is not held to the other's rows), and a zone
-    only reaches nodes where both lawn-mowers meet its rows (they are the planner's starts).
+    only reaches nodes where both lawn-mowers on the planner's schedule meet its rows (they are
+    its starts).
     """
     m = pb.mission
     assert m is not None
