@@ -528,7 +528,8 @@ def test_the_lead_in_schedules_the_lines_later_and_faster_in_the_same_horizon():
     pb = load_problem()
     base, lead = mission_schedule(pb), planner_schedule(pb)
     lo, hi = pb.mission.speed_band(pb.limits.speed)
-    assert lead.lead_in > 0 and lead.lead_in % pb.horizon.dt == pytest.approx(0.0, abs=1e-9)
+    steps = lead.lead_in / pb.horizon.dt  # whole planning steps
+    assert lead.lead_in > 0 and steps == pytest.approx(round(steps), abs=1e-9)
     assert base.speed < lead.speed <= hi
     assert lead.end_s <= pb.horizon.duration + 1e-9
     # every line starts later in the planner's schedule and is flown in less time
@@ -593,6 +594,10 @@ def test_a_bad_lead_in_names_the_field(value, words):
     with pytest.raises(ProblemError, match=re.escape("mission.lead_in")) as err:
         problem_from_dict(d)
     assert words in str(err.value)
+    if words == "does not fit":  # the longest lead-in the error names fits
+        room = float(re.search(r"leaves (\d+) s", str(err.value)).group(1))
+        d["mission"]["lead_in"] = room
+        assert planner_schedule(problem_from_dict(d)).lead_in == room
 
 
 def test_a_plan_with_a_lead_in_flies_its_lines_after_it():

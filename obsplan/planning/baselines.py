@@ -400,16 +400,14 @@ def mission_starts(pb: PlanningProblem) -> list[Baseline]:
     schedule (:func:`~obsplan.planning.mission_schedule.planner_schedule`), which meets its line
     windows: the baselines themselves when the survey has no lead-in. Those that do not fit are
     left out (the baselines then, if neither fits)."""
-    if planner_schedule(pb).lead_in <= 0:
-        fitted = _all(pb)[0]
-        return [fitted[k] for k in MISSION_BASELINES if k in fitted]
     out = []
-    for accelerated in (False, True):
-        try:
-            out.append(_mission_baseline(pb, accelerated, planner=True))
-        except BaselineUnfit:
-            pass
-    if not out:  # the lawn-mowers themselves: off the planner's windows, but on its lines
+    if planner_schedule(pb).lead_in > 0:
+        for accelerated in (False, True):
+            try:
+                out.append(_mission_baseline(pb, accelerated, planner=True))
+            except BaselineUnfit:
+                pass
+    if not out:  # the lawn-mowers themselves (with a lead-in: off its windows, on its lines)
         fitted = _all(pb)[0]
         out = [fitted[k] for k in MISSION_BASELINES if k in fitted]
     return out

@@ -106,7 +106,7 @@ def _lawnmower(pb: PlanningProblem, base: Schedule, accelerated: bool) -> tuple[
     if accelerated and not m.lines:
         raise ProblemError("the mission has no survey lines to accelerate on")
     sched = (
-        build_schedule(pb, base.speed, accelerated=accelerated, delay=base.lead_in)
+        build_schedule(pb, base.speed, accelerated=accelerated, delay=base.lead_in or None)
         if accelerated
         else base
     )

@@ -342,12 +342,13 @@ def build_schedule(
     v: float,
     accelerated: bool = False,
     mission: Mission | None = None,
-    delay: float = 0.0,
+    delay: float | None = None,
 ) -> Schedule:
     """The schedule of ``pb``'s mission (or of ``mission``, same end region: a candidate line
     order) at horizontal speed ``v`` [m/s] (module docstring); ``accelerated``: sinusoidal speed
-    on the lines (same windows); ``delay`` [s]: at rest at the start (braking first if moving)
-    until then, the lead-in the planner localises in (:func:`planner_schedule`)."""
+    on the lines (same windows); ``delay`` [s]: a lead-in, at rest at the start (braking first
+    if moving) until then, the time the planner localises in (:func:`planner_schedule`); None:
+    none (0 still brings a moving start to rest)."""
     m = pb.mission if mission is None else mission
     assert m is not None
     n = pb.dim
@@ -367,7 +368,7 @@ def build_schedule(
     e0[:2] = (math.cos(th), math.sin(th))
     pieces: list[Piece] = []
     t = 0.0
-    if delay > 0:
+    if delay is not None:
         pc, t, p = _speed_change(t, p, e0, s0, 0.0, a)
         if pc is not None:
             pieces.append(pc)
@@ -399,7 +400,9 @@ def build_schedule(
         p = p + length * e
     pieces, t = _finish(pb, pieces, t, p, th, v, a, r)
     headroom = 1.0 - v / hi
-    return Schedule(v, tuple(pieces), tuple(windows), tuple(passes), t, headroom, lead, delay)
+    return Schedule(
+        v, tuple(pieces), tuple(windows), tuple(passes), t, headroom, lead, delay or 0.0
+    )
 
 
 def _sinusoid(v: float, lo: float, hi: float, a: float, line_t: float) -> tuple[float, int]:
@@ -444,7 +447,9 @@ def _finish(pb, pieces, t, p, th, v, a, r):
 _SPEED_GRID = 24
 
 
-def _slowest_fit(pb: PlanningProblem, delay: float = 0.0) -> tuple[float | None, float, float]:
+def _slowest_fit(
+    pb: PlanningProblem, delay: float | None = None
+) -> tuple[float | None, float, float]:
     """The slowest band speed whose schedule (with ``delay``) ends within the horizon: ``(speed
     or None, the fastest mission's speed, its end [s])`` (:func:`mission_schedule`)."""
     m = pb.mission
@@ -537,7 +542,7 @@ def lead_in_seconds(pb: PlanningProblem) -> float:
         return 0.0
     _, hi = m.speed_band(pb.limits.speed)
     v = base.speed + LEAD_IN_SPEED_SHARE * (hi - base.speed)
-    slack = pb.horizon.duration - build_schedule(pb, v, delay=1e-9).end_s
+    slack = pb.horizon.duration - build_schedule(pb, v, delay=0.0).end_s
     # whole planning steps: the windows then fall on the nodes as the schedule's do
     h = pb.horizon.dt
     return max(0.0, math.floor(slack / h) * h)
@@ -565,15 +570,15 @@ def planner_schedule(pb: PlanningProblem) -> Schedule:
     delay = lead_in_seconds(pb)
     if delay <= 0:
         return base
-    fit, _, _ = _slowest_fit(pb, delay)
+    fit, _, end = _slowest_fit(pb, delay)
     if fit is None:
-        _, hi = pb.mission.speed_band(pb.limits.speed)  # type: ignore[union-attr]
-        room = pb.horizon.duration - build_schedule(pb, hi, delay=1e-9).end_s
+        # the shortest mission after the lead-in leaves this much of the horizon for it
+        room = pb.horizon.duration - (end - delay)
         raise field_error(
             "mission.lead_in",
-            f"{delay:g} s does not fit: with the lines at the top of mission.speed the mission "
-            f"leaves {max(room, 0.0):.0f} s; use mission.lead_in <= {max(math.floor(room), 0)} "
-            'or "auto", or a longer horizon.duration',
+            f"{delay:g} s does not fit: at its fastest the mission leaves "
+            f"{max(math.floor(room), 0)} s of the horizon for it; use mission.lead_in <= that, "
+            '"auto", or a longer horizon.duration',
         )
     return build_schedule(pb, fit, delay=delay)
 
