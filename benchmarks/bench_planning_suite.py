@@ -78,7 +78,7 @@ def run_one(
     res = plan(pb, runs=runs, max_runs=max_runs)
     wall = time.perf_counter() - t0
     row: dict = {
-        "problem": str(path.relative_to(ROOT)),
+        "problem": str(path.relative_to(ROOT) if path.is_relative_to(ROOT) else path),
         "objective": f"{pb.objective.kind}"
         + (f"/{pb.objective_mode}" if pb.objective.kind.endswith(("position", "std")) else ""),
         "status": res.solve.status,
