@@ -1,18 +1,19 @@
-"""Solve time of every Gramian objective (windowed default and the paper's form) by grid size.
+"""Solve time of every observability objective (default and the paper's form) by grid size.
 
 Run (minutes):
 
     MPLBACKEND=Agg python benchmarks/bench_gramian_objectives.py [--starts K] [--quick]
 
 Cases: 2D range-only (``problems/suite/gramian-offset-beacon.toml``) at N = 200 and N = 1000, and
-3D range + bottom-lock DVL (``problems/range-dvl3d.toml``) at N = 600; for each, ``gramian-min-eig``
-and ``gramian-log-det`` with their default (windowed, information-weighted) settings and with
-``window = "mission"``, ``weights = "none"`` (the paper's). Each row is one ``solve`` as ``obsplan
-plan`` runs it (multi-start, coarse-to-fine above N = 250) with ``--starts`` starts in one process,
-and prints its wall and CPU time (the machine may be shared: the load average is printed
-before and after), its IPOPT iterations and status, the windows and the budget of the issue
-(2D N = 200: 20 s, N = 1000: 60 s; 3D DVL N = 600: 90 s), flagging a row whose wall time is
-over it and a solve that did not converge (any status but ``Solve_Succeeded``).
+3D range + bottom-lock DVL (``problems/range-dvl3d.toml``) at N = 600; for each,
+``gramian-min-eig``, ``gramian-log-det`` and ``lwo-condition`` with their default
+(information-weighted; windowed for the Gramians) settings and with ``window = "mission"``,
+``weights = "none"`` (the paper's; for ``lwo-condition`` the scale-free conditioning). Each row is
+one ``solve`` as ``obsplan plan`` runs it (multi-start, coarse-to-fine above N = 250) with
+``--starts`` starts in one process, and prints its wall and CPU time (the machine may be shared:
+the load average is printed before and after), its IPOPT iterations and status, the windows and the
+budget of the issue (2D N = 200: 20 s, N = 1000: 60 s; 3D DVL N = 600: 90 s), flagging a row whose
+wall time is over it and a solve that did not converge (any status but ``Solve_Succeeded``).
 ``--quick`` runs the N = 200 case only; ``--kind K`` (repeatable) only those objectives.
 """
 
@@ -40,7 +41,7 @@ CASES = (
     ("2D range, N=1000", "problems/suite/gramian-offset-beacon.toml", 1000, 60.0),
     ("3D range+DVL, N=600", "problems/range-dvl3d.toml", 600, 90.0),
 )
-KINDS = ("gramian-min-eig", "gramian-log-det")
+KINDS = ("gramian-min-eig", "gramian-log-det", "lwo-condition")
 FORMS = (("windowed", {}), ("paper", {"window": "mission", "weights": "none"}))
 
 
@@ -66,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
                 pb = replace(base, objective=obj)
                 ws = window_settings(pb)
                 nw = "1" if paper_form(pb) else f"{len(ws.starts)}x{ws.window_s:.0f}s"
+                if kind == "lwo-condition":  # node by node, over one past window each
+                    nw = "-" if paper_form(pb) else f"{ws.window_s:.0f}s"
                 t0, c0 = time.perf_counter(), time.process_time()
                 res = solve(pb, processes=1)
                 wall, cpu = time.perf_counter() - t0, time.process_time() - c0

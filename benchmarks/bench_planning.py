@@ -40,13 +40,14 @@ from obsplan.planning.schema import MINIMISED  # noqa: E402
 from obsplan.trajectory import Trajectory  # noqa: E402
 
 PROBLEMS = {
-    # (dim, objective) -> problem file; 3D LWO needs a DVL (eq. 44), 3D range-only cannot (eq. 38)
-    (2, "pcrb-position"): "default",
+    # (dim, objective) -> problem file; 3D LWO needs a DVL (eq. 44), 3D range-only cannot (eq. 38);
+    # 2D: the free-localisation problem (default.toml is a survey since it gained a mission)
+    (2, "pcrb-position"): "localise",
     (3, "pcrb-position"): "range3d",
-    (2, "gramian-min-eig"): "default",
-    (2, "gramian-log-det"): "default",
-    (2, "lwo-condition"): "default",
-    (2, "kf-position-std"): "default",
+    (2, "gramian-min-eig"): "localise",
+    (2, "gramian-log-det"): "localise",
+    (2, "lwo-condition"): "localise",
+    (2, "kf-position-std"): "localise",
     (3, "gramian-min-eig"): "range3d",
     (3, "gramian-log-det"): "range3d",
     (3, "lwo-condition"): "range-dvl3d",

@@ -21,6 +21,7 @@ from obsplan.model import make_model
 from obsplan.observability.lwo import (
     LWO_RANK_TOL,
     LWOReport,
+    local_information_function,
     lwo_matrices,
     lwo_matrix_function,
     lwo_orders,
@@ -28,6 +29,7 @@ from obsplan.observability.lwo import (
     lwo_report,
     lwo_structural_max_rank,
     ranks_of,
+    taylor_moments,
 )
 from obsplan.planning import load_problem
 from obsplan.planning.guesses import random_guess, reference_path
@@ -408,3 +410,47 @@ def test_lwo_condition_ranks_paths_against_the_bound():
     best = max(paths, key=lambda tr: lwo.value(tr, pb))
     assert best is not paths[0]
     assert pcrb.value(best, bound_pb) > 1.5 * pcrb.value(paths[0], bound_pb)
+
+
+@pytest.mark.parametrize(
+    ("dim", "sensors", "current"),
+    [
+        (2, ("range",), False),
+        (3, ("range", "dvl-water"), True),
+        (3, ("range", "dvl-bottom", "depth"), False),
+    ],
+)
+def test_local_information_is_the_gramian_of_the_held_input_flow(dim, sensors, current):
+    # independent route: the outputs along the explicit flow of the held input
+    # (p(s) = p + (v + v_f) s + u s²/2, v(s) = v + u s), differentiated with respect to the state
+    # now and integrated over [-τ, 0] by Gauss-Legendre (exact: the integrand is a polynomial)
+    model = make_model(dim=dim, sensors=sensors, current=current)
+    tau = 1.7
+    rng = np.random.default_rng(dim + len(sensors))
+    x0 = rng.normal(size=model.state_dim)
+    u0 = rng.normal(size=dim)
+    w = rng.uniform(0.5, 2.0, size=model.output_dim)
+    I = np.asarray(local_information_function(model, tau)(x0, u0, w))
+    x = ca.SX.sym("x", model.state_dim)
+    s = ca.SX.sym("s")
+    u = ca.DM(u0)
+    p, v = x[:dim], x[dim : 2 * dim]
+    nu = v + x[2 * dim :] if current else v
+    xs = ca.vertcat(p + nu * s + 0.5 * u * s**2, v + u * s, *([x[2 * dim :]] if current else []))
+    J = ca.Function("J", [x, s], [ca.jacobian(model.h_expr(xs), x)])
+    nodes, weights = np.polynomial.legendre.leggauss(8)
+    ref = np.zeros_like(I)
+    for z, q in zip(nodes, weights, strict=True):
+        Jz = np.asarray(J(x0, 0.5 * tau * (z - 1.0)))
+        ref += 0.5 * tau * q * (Jz.T * w) @ Jz
+    assert np.allclose(I, ref, rtol=0, atol=1e-10 * np.max(np.abs(ref)))
+    assert np.allclose(I, I.T) and np.min(np.linalg.eigvalsh(I)) > -1e-9 * np.max(np.abs(I))
+
+
+def test_taylor_moments():
+    H = taylor_moments(3, 2.0)
+    assert H[0, 0] == pytest.approx(2.0)  # ∫ ds
+    assert H[0, 1] == pytest.approx(-2.0)  # ∫ s ds over [-2, 0]
+    assert H[1, 1] == pytest.approx(8.0 / 3.0)
+    assert H[3, 3] == pytest.approx(2.0**7 / 7 / 36)
+    assert np.all(np.linalg.eigvalsh(H) > 0)

@@ -28,8 +28,15 @@ from obsplan.planning.grid import Grid
 from obsplan.planning.guesses import initial_guesses, random_guess, reference_path
 from obsplan.planning.ipopt import make_projection
 from obsplan.planning.ipopt import project as _project
-from obsplan.planning.lwo_objective import LWO_BETA, lwo_condition, lwo_conditions, lwo_softmin
+from obsplan.planning.lwo_objective import (
+    LWO_BETA,
+    lwo_condition,
+    lwo_conditions,
+    lwo_softmin,
+    lwo_value,
+)
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict
+from obsplan.planning.plan import plan
 from obsplan.planning.problem import Horizon, Limits
 from obsplan.planning.starts import run_forked
 from obsplan.planning.validation import validate_paths
@@ -188,8 +195,24 @@ def test_kf_objective_predicts_the_validation_filter():
     assert mc.kf.final_pos_std == pytest.approx(kf_final_pos_std(lm, pb), rel=0.02)
 
 
-def test_lwo_condition_is_a_soft_minimum_of_the_node_conditioning():
+def test_lwo_condition_information_form_is_the_harmonic_mean_of_the_nodes():
     pb = small("lwo-condition", steps=20, starts=1)
+    assert pb.objective.weights == "information"  # the default
+    res = solve(pb, processes=1)
+    grid = Grid.from_problem(pb)
+    q = lwo_conditions(grid, pb, grid.from_trajectory(res.trajectory)).ravel()
+    assert np.all(q > 0)
+    assert res.objective == pytest.approx(q.size / np.sum(1.0 / q), rel=1e-12)
+    assert q.min() <= res.objective <= q.mean()  # harmonic mean: between the worst and the mean
+    assert res.objective >= max(s.initial_objective for s in res.starts)
+    assert_limits_and_dynamics(res.trajectory, pb)
+    # it sees the range's distance: the same path, the beacon moved away, holds less information
+    far = replace(pb, beacon=(400.0, -300.0))
+    assert lwo_value(res.trajectory, far) < 0.5 * lwo_value(res.trajectory, pb)
+
+
+def test_lwo_condition_scale_free_is_a_soft_minimum_of_the_node_conditioning():
+    pb = small("lwo-condition", steps=20, starts=1, weights="none")
     res = solve(pb, processes=1)
     grid = Grid.from_problem(pb)
     g = lwo_conditions(grid, pb, grid.from_trajectory(res.trajectory)).ravel()
@@ -348,7 +371,6 @@ ACCEPT = {"ekf.rmse_pos": 0.6, "ekf.final_pos_err": 0.7, "kf.rmse_pos": 0.5}
 
 @pytest.mark.slow
 def test_default_problem_beats_the_lawnmower_and_the_circle():
-    from obsplan.planning.plan import plan
     from obsplan.planning.verdict import metric_value
 
     res = plan(load_problem(LOCALISE_PROBLEM))

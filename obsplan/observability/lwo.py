@@ -68,6 +68,7 @@ the half-squared one, which is rank deficient there (the row ``(p - b, 0)`` vani
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from functools import cache
 from typing import Protocol
@@ -108,27 +109,67 @@ def _check_m(input_derivatives: int) -> int:
     return m
 
 
-@cache
-def _lwo_function(model: VehicleModel, m: int, orders: int) -> ca.Function:
-    x = ca.SX.sym("x", model.state_dim)
-    us = [ca.SX.sym(f"u{i}" if i else "u", model.dim) for i in range(m + 1)]
+def _lie_gradients(model: VehicleModel, x, us, orders: int) -> list[list]:
+    """Per output, the gradient rows ``∇_x L^k h_j`` for ``k = 0..orders`` (SX, zeros kept)."""
+    m = len(us) - 1
     xdot = model.f_expr(x, us[0])
     h = model.h_expr(x)
-    rows = []
+    out = []
     for j in range(h.shape[0]):
         L = h[j]
+        rows = []
         for _k in range(orders + 1):
-            g = ca.jacobian(L, x)
-            if g.nnz() > 0:
-                rows.append(ca.densify(g))
+            rows.append(ca.jacobian(L, x))
             # extended Lie derivative: d/dt through x and through u, u', ... (u^(m+1) = 0)
             dL = ca.jtimes(L, x, xdot)
             for i in range(m):
                 dL += ca.jtimes(L, us[i], us[i + 1])
             L = ca.simplify(dL) if dL.is_scalar() else dL
+        out.append(rows)
+    return out
+
+
+@cache
+def _lwo_function(model: VehicleModel, m: int, orders: int) -> ca.Function:
+    x = ca.SX.sym("x", model.state_dim)
+    us = [ca.SX.sym(f"u{i}" if i else "u", model.dim) for i in range(m + 1)]
+    rows = [ca.densify(g) for out in _lie_gradients(model, x, us, orders) for g in out if g.nnz()]
     O = ca.vertcat(*rows) if rows else ca.SX.zeros(0, model.state_dim)
     names = ["x"] + [f"u{i}" if i else "u" for i in range(m + 1)]
     return ca.Function("lwo_matrix", [x, *us], [O], names, ["O"])
+
+
+def taylor_moments(orders: int, tau: float) -> np.ndarray:
+    """``H_ik = ∫_{-τ}^0 s^(i+k) / (i! k!) ds``, shape ``(orders + 1, orders + 1)``: the second
+    moments of the Taylor coefficients ``s^k / k!`` over the past window ``[-τ, 0]``."""
+    i = np.arange(orders + 1)
+    n = i[:, None] + i[None, :]
+    fact = np.array([math.factorial(int(k)) for k in i], float)
+    return (-1.0) ** n * tau ** (n + 1) / ((n + 1) * fact[:, None] * fact[None, :])
+
+
+@cache
+def local_information_function(model: VehicleModel, tau: float) -> ca.Function:
+    """CasADi ``I(x, u, w)``: the information about the state now from the outputs over the
+    past ``τ``, with the input held (the LWO matrix, eq. 9, with its rows weighted).
+
+    Under a held input every output is a finite Taylor sum in its Lie derivatives (module
+    docstring, "Held inputs"): ``h_j(x(t + s)) = Σ_k s^k/k! L^k h_j(x(t))``, so its gradient
+    with respect to ``x(t)`` is ``Σ_k s^k/k! ∇L^k h_j``. Read continuously with ``w_j``
+    information per unit time (rate / variance) over ``s ∈ [-τ, 0]``, the Fisher information is
+    ``Σ_j w_j O_jᵀ H(τ) O_j`` with ``O_j`` the rows ``∇L^k h_j``, ``k = 0..3`` (:func:`lwo_orders`)
+    and ``H`` of :func:`taylor_moments`. Inputs ``x`` (state_dim,), ``u`` (n,), ``w``
+    (output_dim,); output ``I`` (state_dim × state_dim), in the units of ``x``, ``u``, ``τ``.
+    """
+    x = ca.SX.sym("x", model.state_dim)
+    u = ca.SX.sym("u", model.dim)
+    w = ca.SX.sym("w", model.output_dim)
+    H = ca.DM(taylor_moments(lwo_orders(model), float(tau)))
+    info = ca.SX.zeros(model.state_dim, model.state_dim)
+    for j, rows in enumerate(_lie_gradients(model, x, [u], lwo_orders(model))):
+        O = ca.vertcat(*rows)
+        info = info + w[j] * (O.T @ H @ O)
+    return ca.Function("lwo_information", [x, u, w], [info], ["x", "u", "w"], ["I"])
 
 
 def lwo_matrix_function(

@@ -40,6 +40,7 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
+from obsplan.model import VehicleModel
 from obsplan.observability.gramian import AugmentedModel, interval_gramians
 from obsplan.observability.scaling import Scales
 from obsplan.trajectory import Trajectory
@@ -87,7 +88,7 @@ def mean_square_range(traj: Trajectory, beacon: np.ndarray) -> np.ndarray:
 
 
 def row_weight_factors(
-    aug: AugmentedModel, info: SensorInformation, scales: Scales
+    aug: AugmentedModel | VehicleModel, info: SensorInformation, scales: Scales
 ) -> tuple[float, np.ndarray]:
     """``(c_range, w_other)``: the range row's weight is ``c_range * range_information(r²)``, the
     other rows' (DVL axes, then depth) are the constants ``w_other``; all in the metric scales

@@ -1,22 +1,46 @@
-"""The ``lwo-condition`` objective: the conditioning of the LWO matrix (eq. 9) along the path.
+"""The ``lwo-condition`` objective: the LWO matrix (eq. 9) along the path, node by node.
 
-``max`` the soft minimum over the nodes, ``-log(mean_k exp(-β g_k))/β``, of the conditioning
-``g_k`` of the LWO matrix at node ``k`` (:func:`lwo_node_function`: geometric over arithmetic mean
-of the eigenvalues of ``OᵀO``, in [0, 1]). Written as ``min Σ_k exp(-β g_k)``, it is separable over
-the nodes: no lifting variables, a banded exact Hessian, and so it scales to N = 1000 (an epigraph
-with a Cholesky factor per node did not).
+Two forms (``objective.weights``), both separable over the nodes (no lifting variables, a banded
+exact Hessian, so they scale to N = 1000; an epigraph with a Cholesky factor per node did not):
+
+* ``"information"`` (default): at every node the LWO matrix with its rows weighted by what they
+  carry for a filter, ``I_k = Σ_j w_j O_jᵀ H(τ) O_j``
+  (:func:`~obsplan.observability.lwo.local_information_function`): the Fisher information about
+  the state at the node from each output over the past window ``τ`` (``objective.window``,
+  ``"auto"``: the Gramian objectives' ``2 τ_f``), the input held, ``w_j`` its rate / variance
+  (the range's ``1/(r²σ_r² + ½σ_r⁴)`` at the node's distance). The node criterion is the
+  geometric mean of its eigenvalues, ``q_k = det(I_k + εI)^(1/m)``, and the objective
+  ``max K / Σ_k 1/q_k``, their harmonic mean over the ``K`` nodes (dominated by the worst
+  nodes: the paper's rule that the matrix be well conditioned at all times).
+* ``"none"``: the scale-free form, ``max`` the soft minimum ``-log(mean_k exp(-β g_k))/β`` of the
+  conditioning ``g_k`` (:func:`lwo_node_function`: geometric over arithmetic mean of the
+  eigenvalues of ``OᵀO``, in [0, 1]). It ignores the range's distance, the rates and the
+  process noise, keeps away from the beacon and does not serve the filters (README, "Choosing
+  the objective"): a diagnostic, kept for research and comparison.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
 
 from obsplan.model import VehicleModel
-from obsplan.observability.lwo import lwo_matrices, lwo_matrix_function
+from obsplan.observability.lwo import (
+    local_information_function,
+    lwo_matrices,
+    lwo_matrix_function,
+)
+from obsplan.observability.windowed import (
+    range_information,
+    row_weight_factors,
+    window_criteria_function,
+)
 from obsplan.planning.blocks import NLPContext, Objective, ObjectiveTerm
 from obsplan.planning.grid import Grid
 from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.windowed_gramian import sensor_information, window_floor, window_settings
 from obsplan.trajectory import Trajectory
 
 #: Temperature of the soft minimum over nodes of the LWO conditioning: within log(N + 1) / β of
@@ -59,8 +83,39 @@ def lwo_node_function(pb: PlanningProblem) -> ca.Function:
     return ca.Function("lwo_condition", [x, u], [ca.exp(logdet / m)])
 
 
+def scale_free(pb: PlanningProblem) -> bool:
+    """True for the scale-free, diagnostic form (``objective.weights = "none"``)."""
+    return pb.objective.weights == "none"
+
+
+def _nd_model(pb: PlanningProblem) -> VehicleModel:
+    """The model at the beacon (the nodes are passed relative to it), half-squared range."""
+    m = pb.model
+    return VehicleModel(dim=m.dim, sensors=m.sensors, current=m.current)
+
+
+def lwo_information_node_function(pb: PlanningProblem) -> ca.Function:
+    """``q(x, u)``: geometric mean of the eigenvalues of the weighted LWO information at one node
+    (module docstring), in the metric scales; ``x`` relative to the beacon."""
+    nd = _nd_model(pb)
+    ws = window_settings(pb)
+    T, L = pb.scales.time_s, pb.scales.length_m
+    info = sensor_information(pb)
+    c_range, other = row_weight_factors(nd, replace(info, start_range=None), pb.scales)
+    x = ca.SX.sym("x", nd.state_dim)
+    u = ca.SX.sym("u", nd.dim)
+    r2 = ca.sumsqr(x[: nd.dim]) * L**2
+    w = ca.vertcat(c_range * range_information(r2, info.range_std), ca.DM(other))
+    I = local_information_function(nd, ws.window_s / T)(x, u, w)
+    m = nd.state_dim
+    _, logdet = window_criteria_function(m)(I, window_floor(pb, ws))
+    return ca.Function("lwo_information_mean", [x, u], [ca.exp(logdet / m)])
+
+
 def lwo_conditions(grid: Grid, pb: PlanningProblem, W):
-    """Row ``(1, N+1)`` of the node conditionings ``g_k`` (:func:`lwo_node_function`) of ``W``."""
+    """Row ``(1, N+1)`` of the node criteria of ``W``: ``q_k`` of the information form
+    (:func:`lwo_information_node_function`), or the conditioning ``g_k`` of the scale-free one
+    (:func:`lwo_node_function`)."""
     L, T = pb.scales.length_m, pb.scales.time_s
     uu, p, v = grid.si_nodes(W)
     numeric = isinstance(W, np.ndarray)
@@ -69,21 +124,29 @@ def lwo_conditions(grid: Grid, pb: PlanningProblem, W):
         parts.append(np.zeros((grid.n, grid.N + 1)) if numeric else ca.DM.zeros(grid.n, grid.N + 1))
     X = np.vstack(parts) if numeric else ca.vertcat(*parts)
     Uext = (np.hstack([uu, uu[:, -1:]]) if numeric else ca.horzcat(uu, uu[:, -1])) * (T**2 / L)
-    g = lwo_node_function(pb).map(grid.N + 1)(X, Uext)
+    node = lwo_node_function(pb) if scale_free(pb) else lwo_information_node_function(pb)
+    g = node.map(grid.N + 1)(X, Uext)
     return np.asarray(g) if numeric else g
 
 
 def lwo_softmin(g) -> float:
-    """``-log(mean exp(-β g)) / β``, the soft minimum the ``lwo-condition`` objective maximises."""
+    """``-log(mean exp(-β g)) / β``, the soft minimum the scale-free form maximises."""
     g = np.asarray(g, float).ravel()
     lo = float(g.min())  # shifted for a stable log-sum-exp
     return lo - float(np.log(np.mean(np.exp(-LWO_BETA * (g - lo))))) / LWO_BETA
 
 
+def lwo_harmonic_mean(q) -> float:
+    """``K / Σ_k 1/q_k``, what the information form maximises."""
+    q = np.asarray(q, float).ravel()
+    return float(q.size / np.sum(1.0 / q))
+
+
 def lwo_value(traj: Trajectory, pb: PlanningProblem) -> float:
-    """The ``lwo-condition`` objective on ``traj`` (on the planning grid): the soft minimum."""
+    """The ``lwo-condition`` objective on ``traj`` (on the planning grid)."""
     grid = Grid.from_problem(pb)
-    return lwo_softmin(lwo_conditions(grid, pb, grid.from_trajectory(traj)))
+    g = lwo_conditions(grid, pb, grid.from_trajectory(traj))
+    return lwo_softmin(g) if scale_free(pb) else lwo_harmonic_mean(g)
 
 
 def lwo_condition(traj: Trajectory, pb: PlanningProblem) -> float:
@@ -101,14 +164,21 @@ def lwo_condition(traj: Trajectory, pb: PlanningProblem) -> float:
 
 
 def lwo_term(ctx: NLPContext) -> ObjectiveTerm:
-    """``min Σ_k exp(-β g_k) / s_ref`` (module docstring), ``s_ref`` its value on the reference.
+    """The node sum of the form in force over its value on the reference ``s_ref``: ``min Σ_k
+    1/q_k / s_ref`` (information) or ``min Σ_k exp(-β g_k) / s_ref`` (scale-free).
 
     Separable over the nodes, so the exact Hessian keeps the stage-wise sparsity (no lifting).
     """
     pb, grid = ctx.problem, ctx.grid
     g_nodes = lwo_conditions(grid, pb, ctx.W)
-    s_ref = float(np.sum(np.exp(-LWO_BETA * lwo_conditions(grid, pb, ctx.W_ref))))
+    g_ref = lwo_conditions(grid, pb, ctx.W_ref)
     K = grid.N + 1
+    if not scale_free(pb):
+        s_ref = float(np.sum(1.0 / g_ref))
+        return ObjectiveTerm(
+            f=ca.sum2(1.0 / g_nodes) / s_ref, to_objective=lambda fv: float(K / (fv * s_ref))
+        )
+    s_ref = float(np.sum(np.exp(-LWO_BETA * g_ref)))
     return ObjectiveTerm(
         f=ca.sum2(ca.exp(-LWO_BETA * g_nodes)) / s_ref,
         to_objective=lambda fv: float(-np.log(fv * s_ref / K) / LWO_BETA),

@@ -17,7 +17,13 @@ from obsplan.planning.problem import PlanningProblem
 from obsplan.planning.solve import SolveResult
 from obsplan.planning.stress import Robustness, stress_active, stress_validate
 from obsplan.planning.validation import PathValidation
-from obsplan.planning.verdict import Verdict, ekf_diverges, validate_until_decided, verdict
+from obsplan.planning.verdict import (
+    Verdict,
+    ekf_diverges,
+    objective_notes,
+    validate_until_decided,
+    verdict,
+)
 from obsplan.trajectory import Trajectory
 
 
@@ -69,7 +75,7 @@ class PlanResult:
                 del val[name]
                 not_fitted[name] = "does not complete the mission (not compared)"
         survey = self.problem.mission is not None and bool(self.problem.mission.lines)
-        return verdict(val, not_fitted, self.problem.objective.kind, lines=survey)
+        return verdict(val, not_fitted, objective_notes(self.problem), lines=survey)
 
     @property
     def success(self) -> bool:

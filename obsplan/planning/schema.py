@@ -322,11 +322,12 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "str",
             "information",
             "-",
-            'For gramian-min-eig and gramian-log-det: "information" (each output row scaled by '
-            "its information rate, rate / variance; for the range 1/(r^2 sigma_r^2 + sigma_r^4/2) "
-            "with r from the path, for gramian-log-det 1/((r^2 + r_0^2) sigma_r^2 + sigma_r^4) "
-            "with r_0 the start's: the augmented output subtracts the first range) or "
-            '"none" (the paper\'s unit weights).',
+            'For gramian-min-eig, gramian-log-det and lwo-condition: "information" (each output '
+            "row scaled by its information rate, rate / variance; for the range "
+            "1/(r^2 sigma_r^2 + sigma_r^4/2) with r from the path, for gramian-log-det "
+            "1/((r^2 + r_0^2) sigma_r^2 + sigma_r^4) with r_0 the start's: the augmented output "
+            'subtracts the first range) or "none" (the paper\'s unit weights; for lwo-condition '
+            "the scale-free conditioning of the LWO matrix, a diagnostic).",
         ),
         FieldSpec(
             "window",
@@ -334,7 +335,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "auto",
             "s",
             "For gramian-min-eig and gramian-log-det: length of the sliding windows whose "
-            'Gramians are scored; "auto" is 2 tau_f, tau_f = (3 sigma_r^2 / q_v)^(1/3) from the '
+            "Gramians are scored (for lwo-condition: the past window each node's information "
+            'is gathered over); "auto" is 2 tau_f, tau_f = (3 sigma_r^2 / q_v)^(1/3) from the '
             "validation's velocity process noise q_v (at least 10 range samples, at most the "
             'horizon); "mission" is one window over the whole horizon (with weights = "none" '
             "the paper's G(t_N, t_0), eq. 25).",

@@ -294,30 +294,36 @@ class Verdict:
         }
 
 
-#: What the verdict of an ``lwo-condition`` plan says: the kind is a diagnostic, not a plan to fly.
+#: What the verdict of a scale-free ``lwo-condition`` plan (``objective.weights = "none"``) says:
+#: that form is a diagnostic, not a plan to fly.
 LWO_NOTE = (
-    "lwo-condition is a diagnostic of local, node-by-node observability: scale-free, it ignores "
-    "the range's distance, the rates and the process noise, and its plans do not serve the "
-    "filters (suite/lwo-dvl3d.toml: EKF final error 3.7x, final bound 4.2x the lawn-mower's); "
-    "to fly, plan with pcrb-position or a Gramian objective"
+    'lwo-condition with weights = "none" is a diagnostic of local, node-by-node observability: '
+    "scale-free, it ignores the range's distance, the rates and the process noise, and its plans "
+    "do not serve the filters (suite/lwo-dvl3d.toml: EKF final error 3.7x, final bound 4.2x the "
+    'lawn-mower\'s); to fly, keep the default weights = "information"'
 )
+
+
+def objective_notes(pb: PlanningProblem) -> tuple[str, ...]:
+    """What the verdict says about the objective itself, whatever the numbers."""
+    obj = pb.objective
+    return (LWO_NOTE,) if obj.kind == "lwo-condition" and obj.weights == "none" else ()
 
 
 def verdict(
     validation: Mapping[str, PathValidation],
     not_fitted: Mapping[str, str],
-    objective: str | None = None,
+    notes: Sequence[str] = (),
     lines: bool = False,
 ) -> Verdict:
     """Compare ``validation["planned"]`` with every other validated path (intervals seeded by the
-    validation's seed; ``objective``: the problem's ``objective.kind``, for the notes;
-    ``lines``: also on :data:`LINES_METRICS`, for a survey)."""
+    validation's seed; ``notes``: said first, e.g. :func:`objective_notes`; ``lines``: also on
+    :data:`LINES_METRICS`, for a survey)."""
     metrics = (*METRICS, *LINES_METRICS) if lines else METRICS
     comps: dict[str, dict[str, Comparison]] = {}
     plan = validation.get("planned")
-    notes = (LWO_NOTE,) if objective == "lwo-condition" else ()
     if plan is None:
-        return Verdict(comps, dict(not_fitted), notes=notes)
+        return Verdict(comps, dict(not_fitted), notes=tuple(notes))
     for b, (name, v) in enumerate(validation.items()):
         if name == "planned":
             continue
@@ -329,8 +335,9 @@ def verdict(
             else:  # a computed bound: no sampling noise
                 ci = None if pv is None or bv is None or bv == 0 else (pv / bv, pv / bv)
             comps[name][key] = Comparison(key, pv, bv, paired_noise(plan, v, key), ci)
-    notes = (*notes, *filter_notes(validation))
-    return Verdict(comps, dict(not_fitted), int(plan.result.runs), notes)
+    return Verdict(
+        comps, dict(not_fitted), int(plan.result.runs), (*notes, *filter_notes(validation))
+    )
 
 
 def ekf_diverges(v: PathValidation) -> bool:
