@@ -345,3 +345,20 @@ def test_speed_reserve_is_checked():
     with pytest.raises(ConfigError, match="speed_k"):
         Guidance(accel=(0.05,), speed=1.0, kp=0.01, kd=0.2, speed_k=-1.0)
     assert Guidance.from_limits(0.05, speed=1.0, speed_k=2.0).to_dict()["speed_k"] == 2.0
+
+
+def test_guidance_on_the_truth_flies_the_plan_and_leaves_the_filter_passive(long_circle):
+    """The diagnostic ``on_truth``: the true state is fed back, so the truth keeps to the plan far
+    closer than when it follows its estimate (then off by about the EKF's error). Measured (seed 0,
+    50 runs): final drift 0.0038 m RMS against 0.18 m; EKF final error 0.149 m RMS in both modes
+    (the same runs' noise: the filter does not care who steers on a well-observed circle)."""
+    traj = gen.circle(51.0, 1.0, 1200.0, 0.1, center=(0.0, 2.0))  # the fixture's
+    cfg = EstimationConfig(model=make_model(2, "range"), rates_hz={"range": 1.0})
+    g = replace(GUIDANCE, on_truth=True)
+    res = monte_carlo(traj, cfg, runs=50, seed=0, guidance=g)
+    closed = long_circle["closed"]
+    assert res.truth.final_drift_rms_m <= 0.25 * closed.truth.final_drift_rms_m
+    ekf_rms = np.sqrt(np.mean(res.ekf.final_pos_err_runs**2))
+    ekf_closed = np.sqrt(np.mean(closed.ekf.final_pos_err_runs**2))
+    assert 0.5 * ekf_closed <= ekf_rms <= 2.0 * ekf_closed
+    assert res.to_dict()["guidance"]["on_truth"] is True

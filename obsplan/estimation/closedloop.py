@@ -66,7 +66,7 @@ NavPath = namedtuple(
     "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon n cur half_sq second sig_r L "
     "expo scaled box has_box alim",
 )
-NavGains = namedtuple("NavGains", "kp kd amax vmax kv")
+NavGains = namedtuple("NavGains", "kp kd amax vmax kv truth")
 NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
 NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt tm xb ex ex_run")
 
@@ -219,7 +219,9 @@ class ClosedLoop:
     def _gains_bundle(self):
         g, n = self.guidance, self.config.model.dim
         vmax = np.inf if g.speed is None else float(g.speed)
-        return NavGains(kp=g.kp, kd=g.kd, amax=g.bounds(n), vmax=vmax, kv=g.speed_k)
+        return NavGains(
+            kp=g.kp, kd=g.kd, amax=g.bounds(n), vmax=vmax, kv=g.speed_k, truth=float(g.on_truth)
+        )
 
     def _state_bundles(self):
         from obsplan.estimation import kernels

@@ -91,6 +91,11 @@ class Guidance:
         Velocity gain [1/s].
     speed_k
         Velocity stds kept below the speed bound (module docstring, "Speed reserve"); 0: none.
+    on_truth
+        A diagnostic, not a vehicle: feed back the *true* state instead of the estimate (perfect
+        navigation, the filter passive). Flying the plan's geometry faithfully without feeding
+        the filter's error into the truth separates the two
+        (``benchmarks/bench_closed_loop_divergence.py``).
     """
 
     accel: tuple[float, ...]
@@ -98,6 +103,7 @@ class Guidance:
     kp: float
     kd: float
     speed_k: float = 0.0
+    on_truth: bool = False
 
     def __post_init__(self) -> None:
         acc = _axes(self.accel)
@@ -170,6 +176,7 @@ class Guidance:
             "kp": self.kp,
             "kd": self.kd,
             "speed_k": self.speed_k,
+            "on_truth": self.on_truth,
         }
 
 

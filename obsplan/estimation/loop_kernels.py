@@ -198,7 +198,7 @@ def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gain
     """The commands of every run at sample ``k`` into ``U`` (n, B) (guidance.py): ``gains`` are
     ``(Kp, Kd, v_max)``, ``vl`` (B,) the per-run bound on the estimated speed; ``sat`` (B,) is 1
     where a run's command saturated, ``V`` (n, B) receives the estimated inertial velocities
-    ``p̂'``."""
+    ``p̂'``. ``d`` is the estimate's offset (or, for ``Guidance.on_truth``, the truth's ``δ``)."""
     B = c.shape[1]
     kp, kd, vmax = gains
     for b in range(B):
@@ -277,6 +277,7 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
     vl = st.vl
     tm, xb = io.tm, io.xb
     gains = (gn.kp, gn.kd, gn.vmax)
+    on_truth = gn.truth != 0.0
     m = L.shape[0]
     for k in range(k_from, k_to):
         hk = h[k]
@@ -290,7 +291,7 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
             V,
             sat,
             c,
-            d,
+            dl if on_truth else d,
             ref,
             kr,
             has_ref,
