@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--kind", action="append", choices=KINDS, help="only this objective")
     args = ap.parse_args(argv)
     head = (
-        f"{'case':22s} {'objective':16s} {'form':9s} {'windows':>8s} {'wall s':>7s} "
+        f"{'case':22s} {'objective':16s} {'form':11s} {'windows':>8s} {'wall s':>7s} "
         f"{'cpu s':>6s} {'budget':>6s} {'iters':>5s}  status"
     )
     print("load average (1, 5, 15 min): " + ", ".join(f"{x:.2f}" for x in os.getloadavg()))
@@ -69,13 +69,14 @@ def main(argv: list[str] | None = None) -> int:
                 nw = "1" if paper_form(pb) else f"{len(ws.starts)}x{ws.window_s:.0f}s"
                 if kind == "lwo-condition":  # node by node, over one past window each
                     nw = "-" if paper_form(pb) else f"{ws.window_s:.0f}s"
+                    form = "scale-free" if paper_form(pb) else "information"
                 t0, c0 = time.perf_counter(), time.process_time()
                 res = solve(pb, processes=1)
                 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
                 flags = [] if res.status == SUCCESS_STATUS else ["NOT CONVERGED"]
                 flags += [] if wall <= budget else ["OVER BUDGET"]
                 print(
-                    f"{label:22s} {kind:16s} {form:9s} {nw:>8s} {wall:7.1f} {cpu:6.1f} "
+                    f"{label:22s} {kind:16s} {form:11s} {nw:>8s} {wall:7.1f} {cpu:6.1f} "
                     f"{budget:6.0f} {res.iterations:5d}  {res.status}"
                     + "".join(f"  {f}" for f in flags),
                     flush=True,

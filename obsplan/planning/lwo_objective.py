@@ -26,7 +26,7 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
-from obsplan.model import VehicleModel
+from obsplan.model import RangeForm, VehicleModel
 from obsplan.observability.lwo import (
     local_information_function,
     lwo_matrices,
@@ -51,35 +51,30 @@ LWO_BETA = 20.0
 LWO_RIDGE = 1e-9
 
 
+def _at_beacon(pb: PlanningProblem, range_form: RangeForm | None = None) -> VehicleModel:
+    """``pb``'s model with the beacon at the origin (the nodes are passed relative to it), in
+    ``range_form`` (default: the model's)."""
+    m = pb.model
+    form = m.range_form if range_form is None else range_form
+    return VehicleModel(dim=m.dim, sensors=m.sensors, current=m.current, range_form=form)
+
+
 def lwo_node_function(pb: PlanningProblem) -> ca.Function:
     """``g(x, u)``: conditioning of the LWO matrix at one node, in the metric scales.
 
     ``g = det(M̃)^(1/m)`` with ``M̃ = OᵀO / (tr(OᵀO)/m) + LWO_RIDGE I``: the ratio of the geometric
     to the arithmetic mean of the eigenvalues of ``OᵀO`` (``O`` of eq. 9 with the input held),
     1 for a perfectly conditioned node and 0 for a rank-deficient one. The determinant comes
-    from the pivots of an unpivoted LDLᵀ (``M̃`` is positive definite), so ``g`` is smooth.
+    from an unpivoted Cholesky factor (``M̃`` is positive definite), so ``g`` is smooth.
     """
-    model = pb.model
-    nd = VehicleModel(
-        dim=model.dim, sensors=model.sensors, current=model.current, range_form=model.range_form
-    )
+    nd = _at_beacon(pb)
     O = lwo_matrix_function(nd, 0)
     x = ca.SX.sym("x", nd.state_dim)
     u = ca.SX.sym("u", nd.dim)
     Ox = O(x, u)
     M = Ox.T @ Ox
     m = nd.state_dim
-    M = M / (ca.trace(M) / m) + LWO_RIDGE * ca.SX.eye(m)
-    logdet = ca.SX(0)
-    A = [[M[i, j] for j in range(m)] for i in range(m)]
-    for k in range(m):  # LDLᵀ without pivoting: A[k][k] is the k-th pivot
-        piv = A[k][k]
-        logdet = logdet + ca.log(piv)
-        for i in range(k + 1, m):
-            f = A[i][k] / piv
-            for j in range(k + 1, i + 1):
-                A[i][j] = A[i][j] - f * A[j][k]
-                A[j][i] = A[i][j]
+    _, logdet = window_criteria_function(m)(M / (ca.trace(M) / m), LWO_RIDGE)
     return ca.Function("lwo_condition", [x, u], [ca.exp(logdet / m)])
 
 
@@ -88,16 +83,10 @@ def scale_free(pb: PlanningProblem) -> bool:
     return pb.objective.weights == "none"
 
 
-def _nd_model(pb: PlanningProblem) -> VehicleModel:
-    """The model at the beacon (the nodes are passed relative to it), half-squared range."""
-    m = pb.model
-    return VehicleModel(dim=m.dim, sensors=m.sensors, current=m.current)
-
-
 def lwo_information_node_function(pb: PlanningProblem) -> ca.Function:
     """``q(x, u)``: geometric mean of the eigenvalues of the weighted LWO information at one node
     (module docstring), in the metric scales; ``x`` relative to the beacon."""
-    nd = _nd_model(pb)
+    nd = _at_beacon(pb, "half-squared")  # the weights are those of y = |p - b|²/2
     ws = window_settings(pb)
     T, L = pb.scales.time_s, pb.scales.length_m
     info = sensor_information(pb)
@@ -155,9 +144,7 @@ def lwo_condition(traj: Trajectory, pb: PlanningProblem) -> float:
     L, T = pb.scales.length_m, pb.scales.time_s
     b = np.asarray(pb.beacon, float)
     tr = Trajectory(t=traj.t / T, p=(traj.p - b) / L, v=traj.v * T / L, u=traj.u * T**2 / L)
-    m = pb.model
-    nd = VehicleModel(dim=m.dim, sensors=m.sensors, current=m.current, range_form=m.range_form)
-    O = lwo_matrices(tr, nd, 0)
+    O = lwo_matrices(tr, _at_beacon(pb), 0)
     M = np.swapaxes(O, 1, 2) @ O
     ev = np.linalg.eigvalsh(M)
     return float(np.min(ev[:, 0] / (np.trace(M, axis1=1, axis2=2) / M.shape[-1])))
