@@ -4,16 +4,17 @@
         [--every S]
 
 Plans the problem as ``obsplan plan`` does (keep-out margins included), then flies the plan ``N``
-times three times with the same seeded noise: in closed loop (the validation's guidance on the
-EKF's estimate), open loop (the same kernel with zero gains and no speed bound: the planned
-accelerations flown blind) and, as a diagnostic, with the same guidance fed the *true* state
-(``Guidance.on_truth``: the plan's geometry flown faithfully, the EKF passive), which separates the
-geometry from the feedback of the filter's error into the truth. Every ``S`` seconds it takes a
-snapshot of every run and prints, for the runs whose EKF ends more than 1 m off in closed loop, the
-median position error and the median error of the velocity across the line of sight (the direction
-a range does not see), in closed and open loop, beside the plan's range to the beacon; then the
-runs that end diverged, inside ``min_range`` and their EKF errors in each mode. Default problem:
-``problems/suite/short-horizon.toml``.
+times four times with the same seeded noise: in closed loop steered on the EKF's estimate, open
+loop (the same kernel with zero gains and no speed bound: the planned accelerations flown blind),
+as a diagnostic with the same guidance fed the *true* state (``Guidance.on_truth``: the plan's
+geometry flown faithfully, the EKF passive), which separates the geometry from the feedback of the
+filter's error into the truth, and in closed loop steered on the Gaussian sum's mixture mean
+(``validation.navigation = "gsf"``, the default: the EKF passive on the path it flies). Every ``S``
+seconds it takes a snapshot of every run and prints, for the runs whose EKF ends more than 1 m off
+when steered on it, the median position error and the median error of the velocity across the line
+of sight (the direction a range does not see), in closed and open loop, beside the plan's range to
+the beacon; then the runs whose EKF ends diverged, inside ``min_range`` and the EKF's errors in
+each mode. Default problem: ``problems/suite/short-horizon.toml``.
 """
 
 from __future__ import annotations
@@ -87,14 +88,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"no plan: {res.status}")
         return 1
     fine = resample(res.trajectory, pb.validation.dt)
-    closed = validation_guidance(pb, at_sea=True)
-    assert closed is not None
-    blind = Guidance(accel=closed.accel, speed=None, kp=0.0, kd=0.0)
+    law = validation_guidance(pb, at_sea=True)
+    assert law is not None
+    closed = replace(law, navigation="ekf")
+    blind = Guidance(accel=closed.accel, speed=None, kp=0.0, kd=0.0, navigation="ekf")
     on_truth = replace(closed, on_truth=True)
+    on_gsf = replace(law, navigation="gsf")
     n, b = pb.dim, np.asarray(pb.beacon, float)
     t, e_cl, x_cl, r_cl = fly(fine, pb, closed, args.runs, args.every)
     _, e_ol, x_ol, r_ol = fly(fine, pb, blind, args.runs, args.every)
     *_, r_tr = fly(fine, pb, on_truth, args.runs, args.every)
+    *_, r_gs = fly(fine, pb, on_gsf, args.runs, args.every)
     err_cl = np.linalg.norm(e_cl[..., :n] - x_cl[..., :n], axis=-1)
     err_ol = np.linalg.norm(e_ol[..., :n] - x_ol[..., :n], axis=-1)
     bad = r_cl.ekf.final_pos_err_runs > DIVERGED_M
@@ -121,7 +125,13 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print("| mode | runs diverged | runs inside min_range | EKF RMSE [m] | EKF final [m] |")
     print("|---|---:|---:|---:|---:|")
-    for name, r in (("closed loop", r_cl), ("open loop", r_ol), ("guided on the truth", r_tr)):
+    modes = (
+        ("closed loop, steered on the EKF", r_cl),
+        ("open loop", r_ol),
+        ("guided on the truth", r_tr),
+        ("closed loop, steered on the Gaussian sum", r_gs),
+    )
+    for name, r in modes:
         print(
             f"| {name} | {int(np.sum(r.ekf.final_pos_err_runs > DIVERGED_M))} | "
             f"{r.truth.runs_inside_min_range} | {r.ekf.rmse_pos:.3f} | {r.ekf.final_pos_err:.3f} |"

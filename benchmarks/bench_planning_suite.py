@@ -3,7 +3,8 @@
 Run (minutes; the full validation Monte Carlo of every path):
 
     MPLBACKEND=Agg python benchmarks/bench_planning_suite.py [--runs N] [--max-runs N]
-        [--open-loop] [--ekf-update second-order] [--json out.json] [FILES...]
+        [--open-loop] [--ekf-update second-order] [--navigation gsf] [--json out.json]
+        [FILES...]
 
 For each problem (default: ``problems/*.toml`` then ``problems/suite/*.toml``) this runs
 ``obsplan.plan`` exactly as ``obsplan plan`` does and prints: solver status, solve time, and the
@@ -68,8 +69,11 @@ def run_one(
     open_loop: bool,
     truth_runs: int = 0,
     ekf_update: str | None = None,
+    navigation: str | None = None,
 ) -> dict:
     pb = load_problem(path)
+    if navigation:
+        pb = replace(pb, validation=replace(pb.validation, navigation=navigation))
     if open_loop:
         pb = replace(pb, validation=replace(pb.validation, mode="open-loop"))
     if ekf_update:
@@ -162,6 +166,11 @@ def main(argv: list[str] | None = None) -> int:
         choices=("first-order", "second-order"),
         help="override validation.ekf_update (the EKF's range update)",
     )
+    ap.add_argument(
+        "--navigation",
+        choices=("ekf", "gsf"),
+        help="override validation.navigation (the filter the vehicle steers on)",
+    )
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     ap.add_argument(
         "--objective",
@@ -185,7 +194,15 @@ def main(argv: list[str] | None = None) -> int:
     print(head)
     print("-" * len(head))
     for f in files:
-        r = run_one(f, args.runs, args.max_runs, args.open_loop, args.truth_runs, args.ekf_update)
+        r = run_one(
+            f,
+            args.runs,
+            args.max_runs,
+            args.open_loop,
+            args.truth_runs,
+            args.ekf_update,
+            args.navigation,
+        )
         rows.append(r)
         cells = "  ".join(
             f"{fmt(r['lawnmower'].get(k))}|{fmt(r['best'].get(k))}" for _, k in RATIOS

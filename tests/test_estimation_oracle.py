@@ -20,6 +20,7 @@ measured ~1e-12 over these runs).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import replace
 
 import numpy as np
@@ -29,6 +30,7 @@ from filterpy.kalman import KalmanFilter as FpKF
 
 from obsplan import generators as gen
 from obsplan.estimation import EstimationConfig, Guidance, monte_carlo
+from obsplan.estimation.gsf import DEFAULT_SPLIT, split_1d, split_columns
 from obsplan.estimation.schedule import make_schedule
 from obsplan.model import SENSORS, make_model
 from obsplan.trajectory import Trajectory
@@ -81,10 +83,36 @@ def path_metrics(traj, model, X):
     return np.array([close, np.sqrt(np.mean(err**2)), err[-1], np.linalg.norm(nu, axis=1).max()])
 
 
-def reference(traj, cfg, runs, seed, record_every, backend="numpy", guidance=None):
+def mixture_prior(model, P0):
+    """The Gaussian sum's members at the prior (gsf.py): offsets (G, m), the members'
+    covariance and log weights, from the library's 1D split and split columns."""
+    n = model.dim
+    k, s = DEFAULT_SPLIT[n]
+    w1, mu = split_1d(k, s)
+    D = np.linalg.cholesky(P0)[:, split_columns(model)]
+    idx = list(itertools.product(range(k), repeat=n))
+    offsets = np.array([D @ mu[list(i)] for i in idx])
+    lw = np.log([np.prod(w1[list(i)]) for i in idx])
+    return offsets, P0 - (1.0 - s * s) * D @ D.T, lw
+
+
+def mixture(xs, Ps, lw):
+    """Mean and covariance of a Gaussian sum (members' spread included)."""
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    x = w @ xs
+    dx = xs - x
+    return x, np.einsum("g,gij->ij", w, Ps + dx[:, :, None] * dx[:, None, :])
+
+
+def reference(
+    traj, cfg, runs, seed, record_every, backend="numpy", guidance=None, navigation="ekf"
+):
     """Per-step Monte Carlo of the EKF and the augmented KF (module docstring); with a
     ``guidance`` the EKF's estimate steers the truth (closed loop) and the KF filters the
-    applied inputs."""
+    applied inputs. ``navigation = "gsf"``: a Gaussian sum of such EKFs (members weighted by
+    their innovations' likelihoods) steers instead, its mixture is reported as ``gsf`` and the
+    EKF runs afterwards on the same readings and applied inputs."""
     model = cfg.model
     n, mx, N = model.dim, model.state_dim, traj.n_samples
     dt = float(np.median(traj.dt))
@@ -137,7 +165,8 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy", guidance=Non
     sig = dict(cfg.noise)
     sr = sig["range"]
     aug = cfg.y0_mode == "augment"
-    out = {f: {"se": [], "var": [], "nees": [], "est": None, "std": None} for f in ("ekf", "kf")}
+    names = ("ekf", "kf") + (("gsf",) if navigation == "gsf" else ())
+    out = {f: {"se": [], "var": [], "nees": [], "est": None, "std": None} for f in names}
     out["truth"] = {"metrics": [], "sat": []}
     truth0 = None
     for r in range(runs):
@@ -275,11 +304,51 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy", guidance=Non
             return np.array(H), np.array(y), np.diag(R)
 
         res = {}
-        # truth and EKF, step by step (in closed loop the EKF's estimate steers the truth)
         X = np.zeros((N, mx))
         X[0] = x0
         u_app = np.array(traj.u, dtype=float)
         n_sat = 0
+
+        def advance(k, x_nav, steer, truth, X=X, u_app=u_app, z=z):
+            """Step k -> k + 1: the command from the estimate ``x_nav`` (with a guidance
+            ``steer``), the truth (if ``truth``); returns F, G, the step's Q and the saturation."""
+            h = traj.t[k + 1] - traj.t[k]
+            F, G = model.transition(h)
+            Lk, Qe = step_noise(h)
+            sat = False
+            if steer is not None:
+                u_app[k], sat = guide_step(traj, model, steer, x_nav, k, h)
+            if truth:
+                X[k + 1] = F @ X[k] + G @ u_app[k] + (Lk @ z[k] if z.shape[1] else 0.0)
+            return F, G, Qe, sat
+
+        if navigation == "gsf":  # truth and the Gaussian sum step by step, then the EKF
+            assert backend == "numpy"
+            offsets, Pc, lw = mixture_prior(model, P0e)
+            xs, Ps = xhat0 + offsets, np.repeat(Pc[None], offsets.shape[0], axis=0)
+            ests, covs = [], []
+            for k in range(N):
+                read(k, X[k])
+                for g in range(xs.shape[0]):
+                    H, hx, y, R = ekf_rows(xs[g], k)
+                    if H.size:
+                        S = H @ Ps[g] @ H.T + R
+                        nu = y - hx
+                        lw[g] -= 0.5 * (np.linalg.slogdet(S)[1] + nu @ np.linalg.solve(S, nu))
+                        xs[g], Ps[g] = joint_update(xs[g], Ps[g], H, y, hx, R)
+                xm, Pm = mixture(xs, Ps, lw)
+                if rec[k]:
+                    ests.append(Tn @ xm)
+                    covs.append(Tn @ Pm @ Tn.T)
+                if k < N - 1:
+                    F, G, Qe, sat = advance(k, xm, guidance, True)
+                    n_sat += sat
+                    xs = xs @ F.T + G @ u_app[k]
+                    Ps = F @ Ps @ F.T + Qe
+            res["gsf"] = (np.array(ests), np.array(covs))
+        # truth and EKF, step by step (in closed loop the EKF's estimate steers the truth, unless
+        # the Gaussian sum did: then the EKF runs on its path and readings)
+        steer = guidance if navigation == "ekf" else None
         x, P = xhat0.copy(), P0e.copy()
         fp = None
         if backend == "filterpy":
@@ -287,7 +356,8 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy", guidance=Non
             fp.x, fp.P, fp.Q = x.copy(), P.copy(), q
         ests, covs = [], []
         for k in range(N):
-            read(k, X[k])
+            if navigation == "ekf":
+                read(k, X[k])
             H, hx, y, R = ekf_rows(fp.x if fp else x, k)
             if H.size:
                 if fp:
@@ -299,13 +369,8 @@ def reference(traj, cfg, runs, seed, record_every, backend="numpy", guidance=Non
                 ests.append(Tn @ xx)
                 covs.append(Tn @ PP @ Tn.T)
             if k < N - 1:
-                h = traj.t[k + 1] - traj.t[k]
-                F, G = model.transition(h)
-                Lk, Qe = step_noise(h)
-                if guidance is not None:
-                    u_app[k], sat = guide_step(traj, model, guidance, fp.x if fp else x, k, h)
-                    n_sat += sat
-                X[k + 1] = F @ X[k] + G @ u_app[k] + (Lk @ z[k] if z.shape[1] else 0.0)
+                F, G, Qe, sat = advance(k, fp.x if fp else x, steer, navigation == "ekf")
+                n_sat += sat
                 if fp:
                     fp.F, fp.B, fp.Q = F, G, Qe
                     fp.predict(u=u_app[k])
@@ -451,11 +516,15 @@ def close(a, b, name):
 
 
 def check(traj, cfg, runs=3, seed=7, record_every=7, backend="numpy", guidance=None):
-    mc = monte_carlo(traj, cfg, runs=runs, seed=seed, record_every=record_every, guidance=guidance)
-    ref, truth0, t_rec = reference(traj, cfg, runs, seed, record_every, backend, guidance)
+    nav = "ekf" if guidance is None else guidance.navigation
+    names = ("ekf", "kf") + (("gsf",) if nav == "gsf" else ())
+    mc = monte_carlo(
+        traj, cfg, runs=runs, seed=seed, record_every=record_every, guidance=guidance, filters=names
+    )
+    ref, truth0, t_rec = reference(traj, cfg, runs, seed, record_every, backend, guidance, nav)
     np.testing.assert_array_equal(mc.t, t_rec)
     close(mc.example.truth, truth0, "truth of run 0")
-    for f in ("ekf", "kf"):
+    for f in names:
         st, o = mc.stats(f), ref[f]
         close(mc.example.estimate[f], o["est"], f"{f} estimate of run 0")
         close(mc.example.std[f], o["std"], f"{f} std of run 0")
@@ -616,6 +685,22 @@ def test_closed_loop_equals_the_per_step_loop(case):
     mc = check(circle(dim=dim), cfg, guidance=GUIDANCE)
     assert mc.mode == "closed-loop"
     assert np.all(mc.truth.saturated_fraction_runs > 0)  # the saturation was exercised
+
+
+@pytest.mark.parametrize("case", ["2d-range-1hz", "2d-current-water", "3d-current-bottom"])
+def test_closed_loop_steered_on_the_gaussian_sum(case):
+    """The vehicle steers on the Gaussian sum's mixture mean: in numpy, every member an EKF
+    (joint update at its prior, weight times its innovations' likelihood), the guidance from the
+    mixture, the EKF afterwards on the same true path, readings and applied inputs; against the
+    kernel (the members shifted by the corrections' response, the EKF passive); to 1e-9."""
+    dim, sensors, current, form, rates = CASES[case]
+    model = make_model(
+        dim, sensors, current=current, beacon=[2.0, -1.0, -4.0][:dim], range_form=form
+    )
+    cfg = EstimationConfig(model=model, rates_hz=rates, accel_noise=3e-3)
+    mc = check(circle(dim=dim), cfg, guidance=replace(GUIDANCE, navigation="gsf"))
+    assert mc.to_dict()["guidance"]["navigation"] == "gsf"
+    assert np.all(mc.truth.saturated_fraction_runs > 0)
 
 
 def test_closed_loop_with_the_paper_noise_and_filterpy():

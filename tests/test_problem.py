@@ -18,7 +18,7 @@ from obsplan.planning.parse import (
     problem_to_dict,
 )
 from obsplan.planning.schema import SCHEMA
-from obsplan.planning.validation_setup import estimation_config
+from obsplan.planning.validation_setup import estimation_config, validation_guidance
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "problem-files.md"
 
@@ -118,6 +118,7 @@ def test_minimal_dict_fills_defaults():
         ("limits.accel", 1e-12, "limits.accel", "range noise"),
         ("validation.runs", 100000, "validation.runs", "at most"),
         ("validation.ekf_update", "third-order", "validation.ekf_update", "second-order"),
+        ("validation.navigation", "ukf", "validation.navigation", "ekf, gsf"),
         ("beacon.position", [-80.0, 60.0], "start.position", "inside limits.min_range"),
     ],
 )
@@ -134,6 +135,12 @@ def test_ekf_update_reaches_the_validation_filters():
     pb = problem_from_dict(_with("validation.ekf_update", "first-order"))
     cfg = estimation_config(pb)
     assert cfg.ekf_update == "first-order" and cfg.to_dict()["ekf_update"] == "first-order"
+
+
+def test_navigation_reaches_the_guidance():
+    assert validation_guidance(problem_from_dict(BASE)).navigation == "gsf"
+    g = validation_guidance(problem_from_dict(_with("validation.navigation", "ekf")))
+    assert g.navigation == "ekf" and g.to_dict()["navigation"] == "ekf"
 
 
 def test_objective_mode_only_for_timed_objectives():

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from obsplan.errors import ProblemError
+from obsplan.estimation.guidance import Guidance
 from obsplan.observability import windowed as wd
 from obsplan.observability.gramian import augmented_model, gramian, interval_gramians
 from obsplan.planning import load_problem
@@ -296,12 +297,13 @@ def test_lwo_condition_information_form_earns_its_verdict():
     assert scale_free["ekf.final_pos_err"] > 1.5
 
 
-def _fake(ekf_flagged, ekf_final, kf_flagged, kf_final, runs=30, gsf=None):
+def _fake(ekf_flagged, ekf_final, kf_flagged, kf_final, runs=30, gsf=None, guidance=None):
     stats = SimpleNamespace
     return PathValidation(
         "x",
         SimpleNamespace(
             runs=runs,
+            guidance=guidance,
             ekf=stats(flagged_runs=ekf_flagged, final_pos_err=ekf_final, rmse_pos=1.0),
             kf=stats(flagged_runs=kf_flagged, final_pos_err=kf_final, rmse_pos=0.5),
             filters=None if gsf is None else {"gsf": stats(rmse_pos=gsf[0], final_pos_err=gsf[1])},
@@ -318,6 +320,10 @@ def test_an_ekf_lost_on_the_plan_is_said_in_words():
     assert "the EKF diverges on the plan while the KF converges: 5 of 30" in notes[0]
     assert "Gaussian-sum filter" in notes[1] and "plan 0.3 / 0.2 m" in notes[1]
     assert filter_notes({"planned": _fake(0, 1.0, 0, 0.5)}) == ()
+    assert "steers on the Gaussian sum" not in notes[0]
+    on_gsf = Guidance.from_limits(0.05, navigation="gsf")
+    notes = filter_notes({"planned": _fake(5, 1.0, 0, 0.5, guidance=on_gsf)})
+    assert "steers on the Gaussian sum: the EKF's errors stay out of its true path" in notes[0]
 
 
 def test_scale_free_lwo_condition_is_reported_as_a_diagnostic():

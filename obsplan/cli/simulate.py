@@ -1,9 +1,10 @@
 """``obsplan simulate TRAJ.csv``: EKF and augmented KF Monte Carlo along a trajectory CSV.
 
-In closed loop by default, as ``obsplan plan`` validates: the simulated vehicle steers its EKF
-estimate onto the trajectory (:class:`~obsplan.estimation.guidance.Guidance`); ``--open-loop``
-flies its accelerations blind. Process noise is the physical white acceleration noise
-(``--accel-noise``, m/s²/√Hz) unless ``--paper-noise`` selects the paper's per-step ``Q``.
+In closed loop by default, as ``obsplan plan`` validates: the simulated vehicle steers its
+estimate onto the trajectory (:class:`~obsplan.estimation.guidance.Guidance`; ``--navigation``
+the filter it steers on, the Gaussian sum by default, whose statistics are always reported);
+``--open-loop`` flies its accelerations blind. Process noise is the physical white acceleration
+noise (``--accel-noise``, m/s²/√Hz) unless ``--paper-noise`` selects the paper's per-step ``Q``.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from obsplan.cli.common import (
 )
 from obsplan.errors import InputError
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE, EstimationConfig
-from obsplan.estimation.guidance import Guidance, TruthLimits
+from obsplan.estimation.guidance import NAVIGATION_FILTERS, Guidance, TruthLimits
 from obsplan.estimation.schedule import sample_rate
 from obsplan.estimation.simulate import DEFAULT_FILTERS, FILTERS, MonteCarloResult, monte_carlo
 from obsplan.model import make_model
@@ -134,7 +135,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--open-loop",
         action="store_true",
         help="fly the trajectory's accelerations blind (default: closed loop, the vehicle "
-        "steers its EKF estimate onto the trajectory)",
+        "steers its estimate onto the trajectory)",
+    )
+    p.add_argument(
+        "--navigation",
+        choices=NAVIGATION_FILTERS,
+        default=None,
+        help="closed loop: the filter the vehicle steers on (default gsf, the Gaussian sum, or "
+        "validation.navigation with --problem)",
     )
     p.add_argument(
         "--accel-noise",
@@ -223,9 +231,10 @@ def format_result(res: MonteCarloResult, path: str) -> str:
     )
     tr = res.truth
     if tr is not None:
+        steer = f" (steered on the {res.guidance.navigation.upper()})" if res.guidance else ""
         lines.append(
-            f"{res.mode}: true paths' closest approach {tr.closest_range_m:.2f} m over all runs, "
-            f"tracking error {tr.tracking_rmse_m:.3f} m RMS, final drift "
+            f"{res.mode}{steer}: true paths' closest approach {tr.closest_range_m:.2f} m over all "
+            f"runs, tracking error {tr.tracking_rmse_m:.3f} m RMS, final drift "
             f"{tr.final_drift_rms_m:.3f} m RMS, {100 * tr.any_violation_fraction:.1f} % of runs "
             f"break a limit"
             + (
@@ -275,6 +284,8 @@ def _problem_mode(args: argparse.Namespace, traj):
         pb = replace(pb, validation=replace(pb.validation, seed=args.seed))
     if args.open_loop:
         pb = replace(pb, validation=replace(pb.validation, mode="open-loop"))
+    if args.navigation is not None:
+        pb = replace(pb, validation=replace(pb.validation, navigation=args.navigation))
     return pb
 
 
@@ -300,7 +311,15 @@ def _guidance(args: argparse.Namespace, traj) -> tuple[Guidance | None, TruthLim
     limits = TruthLimits(accel=accel, speed=args.speed)
     if args.open_loop:
         return None, limits
-    return Guidance.from_limits(accel, args.speed, error_scale_m=1.0), limits
+    nav = args.navigation or "gsf"
+    return Guidance.from_limits(accel, args.speed, error_scale_m=1.0, navigation=nav), limits
+
+
+def _filters(args: argparse.Namespace) -> tuple[str, ...]:
+    """``--filters`` (default: the EKF and the augmented KF)."""
+    if args.filters is None:
+        return DEFAULT_FILTERS
+    return tuple(s.strip() for s in args.filters.split(",") if s.strip())
 
 
 def run(args: argparse.Namespace) -> int:
@@ -324,7 +343,12 @@ def run(args: argparse.Namespace) -> int:
         if pb is not None:
             from obsplan.planning.validation import validate_paths
 
-            val = validate_paths({"trajectory": traj}, pb, runs=runs, progress=_progress(args))
+            filters = _filters(args)
+            if pb.validation.mode == "closed-loop" and pb.validation.navigation not in filters:
+                filters = (*filters, pb.validation.navigation)  # the vehicle's own filter
+            val = validate_paths(
+                {"trajectory": traj}, pb, runs=runs, progress=_progress(args), filters=filters
+            )
             res = val["trajectory"].result
             from obsplan.trajectory import resample
 
@@ -350,9 +374,9 @@ def run(args: argparse.Namespace) -> int:
                 cfg = EstimationConfig.paper(model, 1.0 / sample_rate(fine), **common)
             else:
                 cfg = EstimationConfig(model=model, accel_noise=args.accel_noise, **common)
-            filters = DEFAULT_FILTERS
-            if args.filters is not None:
-                filters = tuple(s.strip() for s in args.filters.split(",") if s.strip())
+            filters = _filters(args)
+            if guidance is not None and guidance.navigation not in filters:
+                filters = (*filters, guidance.navigation)  # the vehicle's own filter
             res = monte_carlo(
                 fine,
                 cfg,

@@ -40,6 +40,7 @@ from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.crlb import CRLBResult, posterior_crlb
 from obsplan.estimation.ekf import ExtendedKalmanFilter
 from obsplan.estimation.epochs import segment_table
+from obsplan.estimation.gsf import GaussianSumFilter
 from obsplan.estimation.guidance import Guidance, TruthLimits
 from obsplan.estimation.results import MonteCarloResult, build_result
 from obsplan.estimation.runs import (
@@ -64,7 +65,7 @@ GRID_RTOL = 1e-9
 NavPath = namedtuple(
     "NavPath",
     "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon n cur half_sq second sig_r L "
-    "expo scaled box has_box alim",
+    "expo scaled box has_box alim G",
 )
 NavGains = namedtuple("NavGains", "kp kd amax vmax kv truth")
 NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
@@ -163,10 +164,19 @@ class ClosedLoop:
         self.traj, self.config, self.guidance, self.limits = traj, config, guidance, limits
         self.seed, self.run_start = seed, run_start
         self.run_ids = np.arange(run_start, run_start + runs)
-        nav = setup.filters.get("ekf")
-        if not isinstance(nav, ExtendedKalmanFilter):
-            nav = ExtendedKalmanFilter.from_config(config, setup.cov, setup.noise)
-        self.nav_filter = nav
+        self.nav_name = guidance.navigation
+        nav = setup.filters.get(self.nav_name)
+        if self.nav_name == "gsf":
+            if not isinstance(nav, GaussianSumFilter):
+                nav = GaussianSumFilter.from_config(config, setup.cov, setup.noise)
+            self.nav_mixture: GaussianSumFilter | None = nav
+            nav = nav.ekf  # the members' filter: prediction, rows, noise
+        else:
+            self.nav_mixture = None
+            if not isinstance(nav, ExtendedKalmanFilter):
+                nav = ExtendedKalmanFilter.from_config(config, setup.cov, setup.noise)
+        self.nav_filter: ExtendedKalmanFilter = nav
+        self.members = 1 if self.nav_mixture is None else self.nav_mixture.components
         self._draws = [draw_run(setup, seed, int(r)) for r in self.run_ids]
         self._procs = [run_rng(seed, int(r), STREAM_PROCESS) for r in self.run_ids]
         self._refs: list | None = None
@@ -214,6 +224,7 @@ class ClosedLoop:
             box=s.box,
             has_box=bool(np.any(np.isfinite(s.box))),
             alim=lim.accel_bounds(model.dim),
+            G=self.members,
         )
 
     def _gains_bundle(self):
@@ -231,24 +242,33 @@ class ClosedLoop:
         E, Nr = s.plan.n_epochs, s.records.size
         x0 = s.states[0]
         err0 = np.stack([dr.err0 for dr in self._draws], axis=1)
-        P0 = np.repeat(np.asarray(s.cov["p0_ekf"], float)[:, :, None], R, axis=2)
-        ws, iw, nw = kernels.workspaces(m, R, n, np.zeros(n), self.nav_filter.q_nav)
+        G = self.members
+        if self.nav_mixture is None:
+            X0 = x0[:, None] + err0
+            P0 = np.repeat(np.asarray(s.cov["p0_ekf"], float)[:, :, None], R, axis=2)
+            lw0 = np.zeros(R)
+        else:  # the members of run b are columns b G .. b G + G - 1 (the kernels' layout)
+            starts = [self.nav_mixture.start(x0 + dr.err0) for dr in self._draws]
+            X0 = np.concatenate([a[0] for a in starts], axis=0).T
+            P0 = np.concatenate([a[1] for a in starts], axis=0).transpose(1, 2, 0)
+            lw0 = np.concatenate([a[2] for a in starts])
+        ws, iw, nw = kernels.workspaces(m, R * G, n, np.zeros(n), self.nav_filter.q_nav)
         st = NavState(
             pos=np.zeros(4, dtype=np.int64),
-            X=np.ascontiguousarray(x0[:, None] + err0),
+            X=np.ascontiguousarray(X0),
             P=np.ascontiguousarray(P0),
             c=np.zeros((2 * n, R)),
             d=np.ascontiguousarray(err0),
             dl=np.zeros((m, R)),
-            Q=np.zeros((m, m, R)),
+            Q=np.zeros((m, m, R * G)),
             Sp=-np.ones(3),
             ws=ws,
             iw=iw,
             nw=nw,
             xm=np.empty(m),
             Pm=np.empty((m, m)),
-            lw=np.zeros(R),
-            w=np.ones(R),
+            lw=lw0,
+            w=np.ones(R * G),
             sc=np.ones(m),
             hp=-np.ones(1),
             u=np.zeros((n, R)),
@@ -279,7 +299,7 @@ class ClosedLoop:
         from obsplan.estimation.loop_kernels import speed_bounds
 
         gn = self._gn  # the prior's, until the first update
-        speed_bounds(st.P, st.vl, gn.kv, gn.vmax, n, bool(model.current))
+        speed_bounds(st.X, st.P, st.lw, st.w, G, st.vl, gn.kv, gn.vmax, n, bool(model.current))
         return st, io
 
     # ------------------------------------------------------------------ stepping
@@ -374,6 +394,17 @@ class ClosedLoop:
         c[: 2 * n] = st.c
         xplan = s.states[k][:, None]
         P = np.moveaxis(st.P, 2, 0).copy()
+        G = self.members
+        if G > 1:  # each run's mixture covariance about its mean (the members' spread included)
+            R = st.c.shape[1]
+            lw = st.lw.reshape(R, G)
+            w = np.exp(lw - lw.max(axis=1, keepdims=True))
+            w /= w.sum(axis=1, keepdims=True)
+            X = st.X.T.reshape(R, G, m)
+            dev = X - np.einsum("rg,rgi->ri", w, X)[:, None, :]
+            P = np.einsum(
+                "rg,rgij->rij", w, P.reshape(R, G, m, m) + dev[..., :, None] * dev[..., None, :]
+            )
         ke = int(s.plan.epochs[e_last])
         if k > ke:  # the prior, predicted from the last epoch (exact)
             seg = segment_table(self.traj, np.array([ke]), np.array([k]), False, s.noise.continuous)
@@ -422,7 +453,8 @@ class ClosedLoop:
 
         s, io, model = self.setup, self._io, self.config.model
         n, ctx = model.dim, self.setup.ctx
-        if "ekf" in self.names:
+        nav = self.nav_name
+        if nav in self.names:
             for b in range(self.run_ids.size):
                 kernels.finish_run(
                     io.buf[b],
@@ -432,18 +464,18 @@ class ClosedLoop:
                     ctx.window_s,
                     io.run_nis[b],
                     io.run_cnt[b],
-                    s.sums["ekf"],
-                    s.info["ekf"][b],
+                    s.sums[nav],
+                    s.info[nav][b],
                     ctx.rec_w,
                 )
             if io.ex_run >= 0:
-                s.hist["ekf"] = io.ex
+                s.hist[nav] = io.ex
         x0 = s.states[0]
         starts = [start_of(model, x0, dr, io.Y[0, 0, b]) for b, dr in enumerate(self._draws)]
         truth_rec = np.ascontiguousarray(io.rec[:, :, kernels.TAB_G + 2 * n :])
         Nr = s.records.size
         for name in self.names:
-            if name == "ekf":
+            if name == nav:
                 continue
             f = s.filters[name]
             states = [f.start(*st) for st in starts]

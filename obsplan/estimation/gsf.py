@@ -14,7 +14,9 @@ assumption: 60–128 m and 52–94 m); a Gaussian sum does (5–21 m, consistent
 
 What
 ----
-The prior ``N(x̂0, P0)`` is split along the velocity columns ``d_j = L e_j`` of ``L = chol(P0)``:
+The prior ``N(x̂0, P0)`` is split along the velocity columns ``d_j = L e_j`` of ``L = chol(P0)``
+(:func:`split_columns`: the current's, with a water-profiling DVL that reads the velocity through
+the water):
 with a 1D split ``Σ_i w_i N(μ_i, s²) ≈ N(0, 1)`` (``k`` points on a grid, weights ``∝ N(μ_i; 0,
 1 - s²)``, ``Σ w_i μ_i² = 1 - s²`` so the mixture keeps the prior's covariance exactly), component
 ``(i_1..i_n)`` has mean ``x̂0 + Σ_j μ_{i_j} d_j``, covariance ``P0 - (1 - s²) Σ_j d_j d_jᵀ`` and
@@ -57,6 +59,17 @@ def split_1d(k: int, s: float) -> tuple[np.ndarray, np.ndarray]:
     return w, mu
 
 
+def split_columns(model: VehicleModel) -> slice:
+    """The columns of ``chol(P0)`` the prior is split along: the part of the inertial velocity
+    ``p' = v (+ v_f)`` no linear sensor reads. A water-profiling DVL reads ``v`` to the mm/s,
+    which would merge a split over ``v`` at its first reading: with a current it is ``v_f``'s
+    (the lower-triangular factor's columns from ``2n`` move only ``v_f``, hence ``p'``)."""
+    n = model.dim
+    if model.current and "dvl-water" in model.sensors:
+        return slice(2 * n, 3 * n)
+    return slice(n, 2 * n)
+
+
 @register
 class GaussianSumFilter(Filter):
     """Gaussian-sum EKF (module docstring).
@@ -90,7 +103,7 @@ class GaussianSumFilter(Filter):
         n = model.dim
         w1, mu = split_1d(int(k), float(s))
         L = np.linalg.cholesky(np.asarray(p0, float))
-        D = L[:, n : 2 * n]  # the velocity columns
+        D = L[:, split_columns(model)]
         offsets, weights = [], []
         for idx in itertools.product(range(len(w1)), repeat=n):
             offsets.append(D @ mu[list(idx)])

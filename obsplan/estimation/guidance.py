@@ -6,9 +6,12 @@ plan. :class:`Guidance` is the law the closed-loop Monte Carlo
 
     u = sat(u_ref + Kp (p_ref - p̂) + Kd (v_ref - v̂))
 
-with ``p̂``, ``v̂`` the navigation filter's (EKF's) estimate of the position and inertial velocity
+with ``p̂``, ``v̂`` the navigation filter's estimate of the position and inertial velocity
 ``p' = v (+ v_f)`` after the update at ``k`` and ``(p_ref, v_ref, u_ref)`` the reference (the plan,
-or a replanned path). Saturation, in this order:
+or a replanned path). The navigation filter (:attr:`Guidance.navigation`) is the EKF or the
+Gaussian sum (its mixture's mean): where the range geometry is ambiguous an EKF can lock onto a
+wrong branch, and a vehicle steering on it flies its error into the true path (measured on three
+plans in ``benchmarks/bench_closed_loop_divergence.py``). Saturation, in this order:
 
 1. per axis, ``|u_i| <= accel_i`` (the vehicle's acceleration bound);
 2. with a speed bound, if the estimated velocity at the step's end ``v⁺ = v̂ + h u`` is faster
@@ -24,19 +27,19 @@ or a replanned path). Saturation, in this order:
 position error ``e`` uses half of the smallest acceleration bound, ``Kp e = a_min / 2``:
 ``ω = sqrt(a_min / (2 e))``. The other half is left for the plan's own acceleration and the
 velocity feedback. With the default problem (0.05 m/s², ``e`` = 1 m, the validation's prior
-position std) ``ω = 0.16 rad/s``: the loop corrects drifts within ~30 s while the EKF's error,
-which it cannot see, passes into the truth filtered at that bandwidth.
+position std) ``ω = 0.16 rad/s``: the loop corrects drifts within ~30 s while the estimate's
+error, which it cannot see, passes into the truth filtered at that bandwidth.
 
-**Speed reserve** (per run, recomputed from the EKF's covariance after every update): the
-estimated speed is bounded by ``v_max - speed_k σ_v`` instead of ``v_max`` (``σ_v`` the largest
+**Speed reserve** (per run, recomputed from the navigation filter's covariance after every update):
+the estimated speed is bounded by ``v_max - speed_k σ_v`` instead of ``v_max`` (``σ_v`` the largest
 per-axis std of the estimated inertial velocity). The true velocity is the estimate's minus its
 error, so the *true* speed then holds ``v_max`` at the confidence of ``speed_k`` (the validation
 sets it from ``limits.keepout_confidence``; the planner keeps the same reserve in the plan,
 :mod:`obsplan.planning.margins`). Bounding the estimated speed at ``v_max`` itself lets the true
 vehicle exceed it by its velocity error in most runs. The reserve takes at most
-:data:`SPEED_RESERVE_CAP` of the bound: slowing a path more than that (a prior's wide velocity
-std) makes its tracking error, not its speed, the larger risk. A path planned at the bound
-without the reserve (a baseline) lags it by a few metres instead.
+:data:`SPEED_RESERVE_CAP` of the bound: slowing a path more than that (a prior's wide velocity std)
+makes its tracking error, not its speed, the larger risk. A path planned at the bound without the
+reserve (a baseline) lags it by a few metres instead.
 """
 
 from __future__ import annotations
@@ -52,6 +55,8 @@ from obsplan.errors import ConfigError
 
 #: Largest fraction of the speed bound the speed reserve takes (module docstring).
 SPEED_RESERVE_CAP = 0.3
+#: Filters a vehicle can steer on (:attr:`Guidance.navigation`).
+NAVIGATION_FILTERS = ("ekf", "gsf")
 
 
 def _axes(value: float | Sequence[float]) -> tuple[float, ...]:
@@ -96,6 +101,10 @@ class Guidance:
         navigation, the filter passive). Flying the plan's geometry faithfully without feeding
         the filter's error into the truth separates the two
         (``benchmarks/bench_closed_loop_divergence.py``).
+    navigation
+        The filter the vehicle steers on (:data:`NAVIGATION_FILTERS`): ``"ekf"``, or ``"gsf"``
+        (the Gaussian-sum EKF's mixture mean and covariance: an EKF that locks onto a wrong
+        branch of the range geometry steers the true vehicle away with it).
     """
 
     accel: tuple[float, ...]
@@ -104,6 +113,7 @@ class Guidance:
     kd: float
     speed_k: float = 0.0
     on_truth: bool = False
+    navigation: str = "ekf"
 
     def __post_init__(self) -> None:
         acc = _axes(self.accel)
@@ -121,6 +131,11 @@ class Guidance:
         if not (math.isfinite(k) and k >= 0):
             raise ConfigError(f"guidance speed_k must be >= 0, got {self.speed_k!r}")
         object.__setattr__(self, "speed_k", k)
+        if self.navigation not in NAVIGATION_FILTERS:
+            raise ConfigError(
+                f"guidance navigation must be one of {', '.join(NAVIGATION_FILTERS)}, "
+                f"got {self.navigation!r}"
+            )
 
     @classmethod
     def from_limits(
@@ -129,6 +144,7 @@ class Guidance:
         speed: float | None = None,
         error_scale_m: float = 1.0,
         speed_k: float = 0.0,
+        navigation: str = "ekf",
     ) -> Guidance:
         """Critically damped gains from the limits (module docstring).
 
@@ -143,6 +159,8 @@ class Guidance:
             half of the smallest acceleration bound.
         speed_k
             Velocity stds kept below the speed bound (module docstring, "Speed reserve").
+        navigation
+            The filter steered on (:attr:`navigation`).
         """
         acc = _axes(accel)
         a_min = min(_positive(a, "guidance accel") for a in acc)
@@ -153,6 +171,7 @@ class Guidance:
             kp=omega**2,
             kd=2.0 * omega,
             speed_k=speed_k,
+            navigation=navigation,
         )
 
     @property
@@ -177,6 +196,7 @@ class Guidance:
             "kd": self.kd,
             "speed_k": self.speed_k,
             "on_truth": self.on_truth,
+            "navigation": self.navigation,
         }
 
 

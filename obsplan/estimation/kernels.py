@@ -546,36 +546,47 @@ def workspaces(m, B, n, nw_off, qz):
     return ws, iw, nw
 
 
+@inline
+def mixture_weights(lw, w, g, G):
+    """``w`` of run ``g``'s ``G`` members (``g G .. g G + G - 1``): ``exp(lw)`` normalised;
+    returns the largest log weight (subtracted before the exponential)."""
+    b0 = g * G
+    top = lw[b0]
+    for c in range(1, G):
+        top = max(top, lw[b0 + c])
+    tot = 0.0
+    for c in range(G):
+        w[b0 + c] = math.exp(lw[b0 + c] - top)
+        tot += w[b0 + c]
+    for c in range(G):
+        w[b0 + c] /= tot
+    return top
+
+
 @jit
-def record_batch(X, P, lw, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr):
+def record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr):
     """Record sample ``ri`` (based at epoch ``e``) for every run of the batch (its members'
-    mixture: weights ``exp(lw)`` over its ``G`` members; one member: the member itself), with
-    each run's input correction ``cr[ri] - F ce[e]`` (none when ``ce`` is empty)."""
+    mixture: weights ``exp(lw)`` over its ``G`` members, ``w`` (B,) scratch; one member: the
+    member itself), with each run's input correction ``cr[ri] - F ce[e]`` (none when ``ce`` is
+    empty)."""
     m, B = X.shape
     corr = ce.shape[0] > 0
     for g in range(B // G):
         b0 = g * G
-        top = lw[b0]
-        for c in range(1, G):
-            top = max(top, lw[b0 + c])
-        tot = 0.0
-        for c in range(G):
-            tot += math.exp(lw[b0 + c] - top)
+        mixture_weights(lw, w, g, G)
         for i in range(m):
             acc = 0.0
             for c in range(G):
-                acc += math.exp(lw[b0 + c] - top) * X[i, b0 + c]
-            xm[i] = acc / tot
+                acc += w[b0 + c] * X[i, b0 + c]
+            xm[i] = acc
         for i in range(m):
             for j in range(i, m):
                 acc = 0.0
                 for c in range(G):
                     b = b0 + c
-                    acc += math.exp(lw[b] - top) * (
-                        P[i, j, b] + (X[i, b] - xm[i]) * (X[j, b] - xm[j])
-                    )
-                Pm[i, j] = acc / tot
-                Pm[j, i] = acc / tot
+                    acc += w[b] * (P[i, j, b] + (X[i, b] - xm[i]) * (X[j, b] - xm[j]))
+                Pm[i, j] = acc
+                Pm[j, i] = acc
         T = rec[g, ri, TAB_T]
         for i in range(n):
             if corr:
@@ -677,15 +688,9 @@ def ekf_measure(
         return
     for g in range(R):
         b0 = g * G
-        top = lw[b0]
-        for c in range(1, G):
-            top = max(top, lw[b0 + c])
-        tot = 0.0
+        top = mixture_weights(lw, w, g, G)
         for c in range(G):
-            w[b0 + c] = math.exp(lw[b0 + c] - top)
-            tot += w[b0 + c]
-        for c in range(G):
-            run_nis[g] += w[b0 + c] / tot * ws[WS_SC, SC_NIS, b0 + c]
+            run_nis[g] += w[b0 + c] * ws[WS_SC, SC_NIS, b0 + c]
             lw[b0 + c] += ws[WS_SC, SC_LL, b0 + c] - top
         run_cnt[g] += ws[WS_SC, SC_CNT, b0]
 
@@ -752,7 +757,7 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
             X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt
         )
         while ri < n_rec and rec_base[ri] == e:
-            record_batch(X, P, lw, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
+            record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
             ri += 1
     for g in range(R):
         finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g], rec_w)
@@ -953,6 +958,7 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     ws, iw, nw = workspaces(m, B, n, mdl.beacon, rcd.qz)
     kw = np.zeros((8, mdl.qk.shape[0], B))
     lw = np.zeros(B)
+    w = np.ones(B)
     xm = np.empty(m)
     Pm = np.empty((m, m))
     buf = np.zeros((B, rec_base.shape[0], COL_AXES + 2 * n))
@@ -966,7 +972,7 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
             kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp)
         kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt)
         while ri < n_rec and rec_base[ri] == e:
-            record_batch(X, P, lw, 1, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
+            record_batch(X, P, lw, w, 1, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
             ri += 1
     for g in range(B):
         finish_run(

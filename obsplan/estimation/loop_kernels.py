@@ -46,6 +46,7 @@ from obsplan.estimation.kernels import (
     ekf_measure,
     inline,
     jit,
+    mixture_weights,
     noise_terms,
     predict,
     record_batch,
@@ -75,11 +76,23 @@ def nav_measure(pt, gn, st, io, k, e):
             st.Sp[0], st.Sp[1], st.Sp[2] = S0, S1, S2
             noise_terms(st.Q, pt.qt, S0, S1, S2, m)
         predict(X, P, pt.tab, e, n, pt.tr, st.Q, st.ws)
-    for i in range(m):
-        for b in range(B):
-            X[i, b] = pt.xplan[k, i] + st.d[i, b] + (st.c[i, b] if i < n2 else 0.0)
+    G = pt.G
+    R = B // G
+    if G == 1:
+        for i in range(m):
+            for b in range(B):
+                X[i, b] = pt.xplan[k, i] + st.d[i, b] + (st.c[i, b] if i < n2 else 0.0)
+    else:  # the members predicted with the plan's inputs, shifted by the corrections' response
+        for g in range(R):
+            mixture_weights(st.lw, st.w, g, G)
+            for i in range(m):
+                sh = pt.xplan[k, i] + st.d[i, g] + (st.c[i, g] if i < n2 else 0.0)
+                for c in range(G):
+                    sh -= st.w[g * G + c] * X[i, g * G + c]
+                for c in range(G):
+                    X[i, g * G + c] += sh
     Y = io.Y
-    for b in range(B):  # device readings at the true state x_plan + c + δ
+    for b in range(R):  # device readings at the true state x_plan + c + δ
         rho2 = 0.0
         for i in range(n):
             rel = pt.xplan[k, i] + st.c[i, b] + st.dl[i, b] - pt.beacon[i]
@@ -98,7 +111,7 @@ def nav_measure(pt, gn, st, io, k, e):
         e,
         st.lw,
         st.w,
-        1,
+        G,
         st.iw,
         st.ws,
         n,
@@ -110,37 +123,61 @@ def nav_measure(pt, gn, st, io, k, e):
         io.run_nis,
         io.run_cnt,
     )
-    for i in range(m):
-        for b in range(B):
-            st.d[i, b] = X[i, b] - pt.xplan[k, i] - (st.c[i, b] if i < n2 else 0.0)
+    for g in range(R):  # the estimate's offset: the run's member, or its mixture's mean
+        if G == 1:
+            for i in range(m):
+                st.d[i, g] = X[i, g] - pt.xplan[k, i] - (st.c[i, g] if i < n2 else 0.0)
+        else:
+            mixture_weights(st.lw, st.w, g, G)
+            for i in range(m):
+                acc = 0.0
+                for c in range(G):
+                    acc += st.w[g * G + c] * X[i, g * G + c]
+                st.d[i, g] = acc - pt.xplan[k, i] - (st.c[i, g] if i < n2 else 0.0)
     for i in range(n2):
-        for b in range(B):
+        for b in range(R):
             io.ce[e, i, b] = st.c[i, b]
-    speed_bounds(P, st.vl, gn.kv, gn.vmax, n, pt.cur)
+    speed_bounds(X, P, st.lw, st.w, G, st.vl, gn.kv, gn.vmax, n, pt.cur)
 
 
 @inline
-def speed_bounds(P, vl, kv, vmax, n, cur):
-    """Per run, from its covariance ``P`` (m, m, B) after an update, the bound ``vl`` (B,) on the
-    estimated speed: ``vmax`` less ``kv`` stds of the inertial velocity's noisiest axis
-    (guidance.py, "Speed reserve"), at least ``SPEED_FLOOR vmax``."""
+def speed_bounds(X, P, lw, w, G, vl, kv, vmax, n, cur):
+    """Per run, from its members' ``X`` (m, B), covariances ``P`` (m, m, B) and log weights
+    ``lw`` after an update (``w`` (B,) scratch), the bound ``vl`` (B / G,) on the estimated
+    speed: ``vmax`` less ``kv`` stds of the inertial velocity's noisiest axis (guidance.py,
+    "Speed reserve"; of a Gaussian sum, the mixture's variance), at least ``SPEED_FLOOR vmax``."""
     if vmax == math.inf:
         return
-    for b in range(P.shape[2]):
+    for g in range(P.shape[2] // G):
+        if G > 1:
+            mixture_weights(lw, w, g, G)
         sv = 0.0
         for i in range(n):
-            var = P[n + i, n + i, b]
-            if cur:  # inertial velocity v + v_f
-                var += P[2 * n + i, 2 * n + i, b] + 2.0 * P[n + i, 2 * n + i, b]
+            var = 0.0
+            if G > 1:
+                mean = 0.0
+                for c in range(G):
+                    b = g * G + c
+                    mean += w[b] * (X[n + i, b] + (X[2 * n + i, b] if cur else 0.0))
+            for c in range(G):
+                b = g * G + c
+                vb = P[n + i, n + i, b]
+                if cur:  # inertial velocity v + v_f
+                    vb += P[2 * n + i, 2 * n + i, b] + 2.0 * P[n + i, 2 * n + i, b]
+                if G > 1:
+                    dv = X[n + i, b] + (X[2 * n + i, b] if cur else 0.0) - mean
+                    var += w[b] * (vb + dv * dv)
+                else:
+                    var = vb
             sv = max(sv, var)
-        vl[b] = max(vmax - kv * math.sqrt(max(sv, 0.0)), SPEED_FLOOR * vmax)
+        vl[g] = max(vmax - kv * math.sqrt(max(sv, 0.0)), SPEED_FLOOR * vmax)
 
 
 @jit
 def nav_record(pt, st, io, k, ri, e_last):
     """Record ``ri`` at sample ``k``: the truth's ``(p, p')``, ``cr[ri] = c``, the statistics."""
     n = pt.n
-    B = st.X.shape[1]
+    B = st.X.shape[1] // pt.G
     g0 = TAB_G + 2 * n
     for b in range(B):
         for i in range(n):
@@ -153,7 +190,8 @@ def nav_record(pt, st, io, k, ri, e_last):
         st.X,
         st.P,
         st.lw,
-        1,
+        st.w,
+        pt.G,
         e_last,
         ri,
         n,

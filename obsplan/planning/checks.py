@@ -23,6 +23,7 @@ import numpy as np
 from obsplan import budget
 from obsplan.errors import ConfigError, ProblemError
 from obsplan.estimation.config import EKF_UPDATES
+from obsplan.estimation.guidance import NAVIGATION_FILTERS
 from obsplan.model import VehicleModel, parse_sensors
 from obsplan.observability.gramian import augmented_model, gramian, rank_scales
 from obsplan.observability.lwo import lwo_structural_max_rank
@@ -446,6 +447,11 @@ def _check_validation(pb: PlanningProblem) -> None:
         raise field_error(
             "validation.ekf_update",
             f"must be one of {', '.join(EKF_UPDATES)}, got {val.ekf_update!r}",
+        )
+    if val.navigation not in NAVIGATION_FILTERS:
+        raise field_error(
+            "validation.navigation",
+            f"must be one of {', '.join(NAVIGATION_FILTERS)}, got {val.navigation!r}",
         )
     if val.max_runs < 1:
         raise field_error("validation.max_runs", f"must be at least 1, got {val.max_runs}")

@@ -246,7 +246,9 @@ def _validate(
     validation = validate_until_decided(
         paths, pb, runs=runs, max_runs=max_runs, progress=progress, lines=lines or None
     )
-    if "planned" in validation and ekf_diverges(validation["planned"]):
+    planned = validation.get("planned")
+    has_gsf = planned is not None and "gsf" in (planned.result.filters or {})
+    if planned is not None and ekf_diverges(planned) and not has_gsf:
         # the EKF is lost on the plan while the KF is not: validate the Gaussian-sum filter
         # beside them on every path (same seeds and runs), so the report says what a robust
         # filter does there

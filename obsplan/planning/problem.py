@@ -136,6 +136,7 @@ class ValidationSpec:
     process_noise_model: str = "physical"
     mode: str = "closed-loop"
     ekf_update: str = "second-order"
+    navigation: str = "gsf"
     max_runs: int = 400
     stress_prior: float = 1.0
     stress_range_noise: float = 1.0

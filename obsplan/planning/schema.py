@@ -589,20 +589,31 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "str",
             "closed-loop",
             "-",
-            'How the Monte Carlo flies every path: "closed-loop" (the vehicle steers its EKF '
-            "estimate onto the path: feed-forward of the path's acceleration plus feedback "
-            'saturated at the limits) or "open-loop" (the accelerations flown blind).',
+            'How the Monte Carlo flies every path: "closed-loop" (the vehicle steers its '
+            "estimate (`navigation`) onto the path: feed-forward of the path's acceleration plus "
+            'feedback saturated at the limits) or "open-loop" (the accelerations flown blind).',
         ),
         FieldSpec(
             "ekf_update",
             "str",
             "second-order",
             "-",
-            "The range update of the EKF the vehicle steers on (and of the Gaussian sum's "
-            'components): "second-order" (the Gaussian second-order filter: the range\'s '
-            "curvature over the prior adds its mean to the prediction and its variance to the "
-            "reading's; steadier where the position std nears sqrt(2 r sigma_r): wide priors, "
-            'long range-only legs, close passes) or "first-order" (the paper\'s EKF).',
+            "The range update of the EKF and of the Gaussian sum's components (the filters "
+            'the vehicle steers on, `navigation`): "second-order" (the Gaussian second-order '
+            "filter: the range's curvature over the prior adds its mean to the prediction and "
+            "its variance to the reading's; steadier where the position std nears "
+            "sqrt(2 r sigma_r): wide priors, long range-only legs, close passes) or "
+            '"first-order" (the paper\'s EKF).',
+        ),
+        FieldSpec(
+            "navigation",
+            "str",
+            "gsf",
+            "-",
+            'The filter the vehicle steers on in closed loop: "gsf" (the Gaussian-sum EKF\'s '
+            'mixture mean: it keeps the branches of the range geometry) or "ekf" (a vehicle '
+            "whose EKF locks onto a wrong branch flies off with it: its error enters the true "
+            "path). The EKF and KF of the verdicts run on the same true path and readings.",
         ),
         FieldSpec(
             "max_runs",

@@ -93,7 +93,8 @@ def validate_paths(
     progress
         Progress bar over runs.
     filters
-        Estimators to run (names of :data:`obsplan.estimation.simulate.FILTERS`).
+        Estimators to run (names of :data:`obsplan.estimation.simulate.FILTERS`); in closed
+        loop the filter the vehicle steers on (``validation.navigation``) is always reported.
     run_start
         First run of the seed's streams (runs ``run_start .. run_start + runs - 1``; the same
         runs on every path, so that results of several calls merge exactly).
@@ -106,6 +107,9 @@ def validate_paths(
     n_runs = val.runs if runs is None else int(runs)
     if not paths:
         return {}
+    guidance = validation_guidance(pb)
+    if guidance is not None and guidance.navigation not in filters:
+        filters = (*filters, guidance.navigation)  # computed in the loop anyway
     fine = [resample(traj, val.dt) for traj in paths.values()]
     masks = [None if lines is None else lines.get(name) for name in paths]
     results = monte_carlo_paths(
@@ -116,7 +120,7 @@ def validate_paths(
         progress=progress,
         filters=filters,
         run_start=run_start,
-        guidance=validation_guidance(pb),
+        guidance=guidance,
         limits=truth_limits(pb),
         lines=masks if any(m is not None for m in masks) else None,
     )

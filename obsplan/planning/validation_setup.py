@@ -88,7 +88,10 @@ def validation_guidance(pb: PlanningProblem, *, at_sea: bool = False) -> Guidanc
         return None
     lim = pb.limits
     k = confidence_quantile(lim.keepout_confidence)
-    return Guidance.from_limits(lim.accel, lim.speed, pb.validation.init_pos_error, speed_k=k)
+    val = pb.validation
+    return Guidance.from_limits(
+        lim.accel, lim.speed, val.init_pos_error, speed_k=k, navigation=val.navigation
+    )
 
 
 def truth_limits(pb: PlanningProblem) -> TruthLimits:

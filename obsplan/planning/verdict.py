@@ -365,6 +365,12 @@ def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
         f"runs flagged by the divergence monitor (KF {k.flagged_runs}), EKF final error "
         f"{e.final_pos_err:.3g} m against the KF's {k.final_pos_err:.3g} m; fly it with the KF "
         "or a Gaussian-sum filter"
+        + (
+            " (the vehicle of this validation steers on the Gaussian sum: the EKF's errors "
+            "stay out of its true path)"
+            if r.guidance is not None and r.guidance.navigation == "gsf"
+            else ""
+        )
     ]
     gsf = {n: (v.result.filters or {}).get("gsf") for n, v in validation.items()}
     if gsf.get("planned") is not None:
