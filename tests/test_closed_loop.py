@@ -1,4 +1,4 @@
-"""Closed-loop Monte Carlo: the vehicle steers its EKF estimate onto the plan.
+"""Closed-loop Monte Carlo: the vehicle steers its estimate onto the plan.
 
 The per-step numpy oracle of the closed loop (EKF + guidance + truth, and the KF on the applied
 inputs) is in tests/test_estimation_oracle.py; here: the plan reproduced without noise, the

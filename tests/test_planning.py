@@ -18,6 +18,7 @@ import pytest
 
 from obsplan.estimation.crlb import posterior_crlb
 from obsplan.observability.gramian import gramian
+from obsplan.observability.lwo import taylor_moments
 from obsplan.planning import load_problem, solve
 from obsplan.planning.baselines import baselines, lawnmower_baseline
 from obsplan.planning.estimator_objectives import covariance_stds
@@ -34,6 +35,7 @@ from obsplan.planning.lwo_objective import (
     lwo_conditions,
     lwo_softmin,
     lwo_value,
+    node_windows,
 )
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict
 from obsplan.planning.plan import plan
@@ -41,6 +43,7 @@ from obsplan.planning.problem import Horizon, Limits
 from obsplan.planning.starts import run_forked
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.validation_setup import estimation_config
+from obsplan.planning.windowed_gramian import window_settings
 from obsplan.trajectory import Trajectory, resample
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -207,8 +210,42 @@ def test_lwo_condition_information_form_is_the_harmonic_mean_of_the_nodes():
     assert res.objective >= max(s.initial_objective for s in res.starts)
     assert_limits_and_dynamics(res.trajectory, pb)
     # it sees the range's distance: the same path, the beacon moved away, holds less information
+    # at every node past the first (measured 0.17-0.97 of it, 0.34 at the median; at the first
+    # node only the prior counts), and the objective is lower
     far = replace(pb, beacon=(400.0, -300.0))
-    assert lwo_value(res.trajectory, far) < 0.5 * lwo_value(res.trajectory, pb)
+    g_far = Grid.from_problem(far)
+    q_far = lwo_conditions(g_far, far, g_far.from_trajectory(res.trajectory)).ravel()
+    assert q_far[0] == pytest.approx(q[0], rel=1e-12)
+    assert np.all(q_far[1:] < q[1:]) and np.median(q_far[1:] / q[1:]) < 0.5
+    assert lwo_value(res.trajectory, far) < lwo_value(res.trajectory, pb)
+
+
+def test_lwo_condition_node_windows_start_at_the_mission_and_carry_the_prior():
+    """The information form's window is clipped at the start (no reading precedes the mission)
+    and the prior, propagated to the node, adds its information: at the first node only the
+    prior counts (the same criterion on every path), a node past one window has the full window,
+    and the prior's position variance grows as its velocity error spreads it."""
+    pb = small("lwo-condition", steps=20, starts=1)
+    grid = Grid.from_problem(pb)
+    Hk, Ik = node_windows(grid, pb)
+    tau = window_settings(pb).window_s / pb.scales.time_s
+    t = grid.times / pb.scales.time_s
+    assert np.all(Hk[:, 0] == 0.0)
+    full = t >= tau
+    assert full.any() and not full.all()
+    want = np.broadcast_to(taylor_moments(3, tau).ravel()[:, None], Hk[:, full].shape)
+    np.testing.assert_allclose(Hk[:, full], want, rtol=1e-14)
+    m = pb.model.state_dim
+    L, T = pb.scales.length_m, pb.scales.time_s
+    S = np.diag([1.0 / L] * 2 + [T / L] * 2)
+    P0 = np.asarray(estimation_config(pb).p0_ekf, float)
+    np.testing.assert_allclose(Ik[:, 0].reshape(m, m), np.linalg.inv(S @ P0 @ S), rtol=1e-12)
+    pos_var = [np.linalg.inv(Ik[:, k].reshape(m, m))[0, 0] for k in range(Ik.shape[1])]
+    assert np.all(np.diff(pos_var) > 0)  # the velocity's prior error spreads the position
+    q_ref = lwo_conditions(grid, pb, grid.from_trajectory(reference_path(pb))).ravel()
+    q_rand = lwo_conditions(grid, pb, grid.from_trajectory(random_guess(pb, 3))).ravel()
+    assert q_ref[0] == pytest.approx(q_rand[0], rel=1e-12)
+    assert not np.allclose(q_ref[1:], q_rand[1:])
 
 
 def test_lwo_condition_scale_free_is_a_soft_minimum_of_the_node_conditioning():

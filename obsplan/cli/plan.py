@@ -73,7 +73,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         type=float,
         metavar="EVERY",
         help="also validate with receding-horizon replanning: every EVERY s (a multiple of the "
-        "planning step) each run re-solves from its EKF estimate (report.json key 'replan')",
+        "planning step) each run re-solves from its estimate (report.json key 'replan')",
     )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--verbose", action="store_true", help="show IPOPT's output")

@@ -149,7 +149,7 @@ def taylor_moments(orders: int, tau: float) -> np.ndarray:
 
 
 @cache
-def local_information_function(model: VehicleModel, tau: float) -> ca.Function:
+def local_information_function(model: VehicleModel, tau: float | None) -> ca.Function:
     """CasADi ``I(x, u, w)``: the information about the state now from the outputs over the
     past ``τ``, with the input held (the LWO matrix, eq. 9, with its rows weighted).
 
@@ -159,16 +159,22 @@ def local_information_function(model: VehicleModel, tau: float) -> ca.Function:
     information per unit time (rate / variance) over ``s ∈ [-τ, 0]``, the Fisher information is
     ``Σ_j w_j O_jᵀ H(τ) O_j`` with ``O_j`` the rows ``∇L^k h_j``, ``k = 0..3`` (:func:`lwo_orders`)
     and ``H`` of :func:`taylor_moments`. Inputs ``x`` (state_dim,), ``u`` (n,), ``w``
-    (output_dim,); output ``I`` (state_dim × state_dim), in the units of ``x``, ``u``, ``τ``.
+    (output_dim,), and with ``tau = None`` a fourth, ``H`` itself (``(K + 1)²``, column-major:
+    a window per call); output ``I`` (state_dim × state_dim), in the units of ``x``, ``u``,
+    ``τ``.
     """
     x = ca.SX.sym("x", model.state_dim)
     u = ca.SX.sym("u", model.dim)
     w = ca.SX.sym("w", model.output_dim)
-    H = ca.DM(taylor_moments(lwo_orders(model), float(tau)))
+    K = lwo_orders(model) + 1
+    Hs = ca.SX.sym("H", K * K)
+    H = ca.reshape(Hs, K, K) if tau is None else ca.DM(taylor_moments(K - 1, float(tau)))
     info = ca.SX.zeros(model.state_dim, model.state_dim)
     for j, rows in enumerate(_lie_gradients(model, x, [u], lwo_orders(model))):
         O = ca.vertcat(*rows)
         info = info + w[j] * (O.T @ H @ O)
+    if tau is None:
+        return ca.Function("lwo_information", [x, u, w, Hs], [info], ["x", "u", "w", "H"], ["I"])
     return ca.Function("lwo_information", [x, u, w], [info], ["x", "u", "w"], ["I"])
 
 

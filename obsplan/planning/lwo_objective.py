@@ -8,7 +8,12 @@ exact Hessian, so they scale to N = 1000; an epigraph with a Cholesky factor per
   (:func:`~obsplan.observability.lwo.local_information_function`): the Fisher information about
   the state at the node from each output over the past window ``τ`` (``objective.window``,
   ``"auto"``: the Gramian objectives' ``2 τ_f``), the input held, ``w_j`` its rate / variance
-  (the range's ``1/(r²σ_r² + ½σ_r⁴)`` at the node's distance). The node criterion is the
+  (the range's ``1/(r²σ_r² + ½σ_r⁴)`` at the node's distance). Two things a filter has at the
+  node complete it (:func:`node_windows`): the window is clipped at the start, ``τ_k = min(τ,
+  t_k)`` (no reading precedes the mission: a full window at the first nodes credited them with
+  readings never taken, and the plan spent its first minute rushing at the beacon while both
+  filters' errors doubled), and the validation's prior, propagated to ``t_k``, adds its
+  information ``(Φ(t_k) P0 Φ(t_k)ᵀ)⁻¹`` (process noise left out). The node criterion is the
   geometric mean of its eigenvalues, ``q_k = det(I_k + εI)^(1/m)``, and the objective
   ``max K / Σ_k 1/q_k``, their harmonic mean over the ``K`` nodes (dominated by the worst
   nodes: the paper's rule that the matrix be well conditioned at all times).
@@ -31,6 +36,8 @@ from obsplan.observability.lwo import (
     local_information_function,
     lwo_matrices,
     lwo_matrix_function,
+    lwo_orders,
+    taylor_moments,
 )
 from obsplan.observability.windowed import (
     range_information,
@@ -40,6 +47,7 @@ from obsplan.observability.windowed import (
 from obsplan.planning.blocks import NLPContext, Objective, ObjectiveTerm
 from obsplan.planning.grid import Grid
 from obsplan.planning.problem import PlanningProblem
+from obsplan.planning.validation_setup import estimation_config
 from obsplan.planning.windowed_gramian import sensor_information, window_floor, window_settings
 from obsplan.trajectory import Trajectory
 
@@ -84,21 +92,46 @@ def scale_free(pb: PlanningProblem) -> bool:
 
 
 def lwo_information_node_function(pb: PlanningProblem) -> ca.Function:
-    """``q(x, u)``: geometric mean of the eigenvalues of the weighted LWO information at one node
-    (module docstring), in the metric scales; ``x`` relative to the beacon."""
+    """``q(x, u, h, ip)``: geometric mean of the eigenvalues of the weighted LWO information at
+    one node (module docstring), in the metric scales; ``x`` relative to the beacon, ``h`` the
+    node's Taylor moments and ``ip`` its prior information (:func:`node_windows`, one column)."""
     nd = _at_beacon(pb, "half-squared")  # the weights are those of y = |p - b|²/2
     ws = window_settings(pb)
-    T, L = pb.scales.time_s, pb.scales.length_m
+    L = pb.scales.length_m
     info = sensor_information(pb)
     c_range, other = row_weight_factors(nd, replace(info, start_range=None), pb.scales)
     x = ca.SX.sym("x", nd.state_dim)
     u = ca.SX.sym("u", nd.dim)
+    m = nd.state_dim
+    K = lwo_orders(nd) + 1
+    h = ca.SX.sym("h", K * K)
+    ip = ca.SX.sym("ip", m * m)
     r2 = ca.sumsqr(x[: nd.dim]) * L**2
     w = ca.vertcat(c_range * range_information(r2, info.range_std), ca.DM(other))
-    I = local_information_function(nd, ws.window_s / T)(x, u, w)
-    m = nd.state_dim
+    I = local_information_function(nd, None)(x, u, w, h) + ca.reshape(ip, m, m)
     _, logdet = window_criteria_function(m)(I, window_floor(pb, ws))
-    return ca.Function("lwo_information_mean", [x, u], [ca.exp(logdet / m)])
+    return ca.Function("lwo_information_mean", [x, u, h, ip], [ca.exp(logdet / m)])
+
+
+def node_windows(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.ndarray]:
+    """Per node ``k``: the Taylor moments of its window clipped at the start,
+    ``τ_k = min(τ, t_k)`` (no reading precedes the mission), flattened ``(K², N+1)``, and the
+    prior's information about the state at ``t_k`` (the validation's prior propagated without
+    process noise), flattened ``(m², N+1)``; both in the metric scales."""
+    nd = _at_beacon(pb, "half-squared")
+    T, L = pb.scales.time_s, pb.scales.length_m
+    tau = window_settings(pb).window_s
+    K = lwo_orders(nd) + 1
+    m, n = nd.state_dim, nd.dim
+    P0 = np.asarray(estimation_config(pb).p0_ekf, float)[:m, :m]
+    S = np.diag([1.0 / L] * n + [T / L] * (m - n))
+    Hk, Ik = [], []
+    for t in grid.times:
+        Hk.append(taylor_moments(K - 1, min(tau, float(t)) / T).ravel(order="F"))
+        F, _ = nd.transition(float(t))
+        Pt = S @ F @ P0 @ F.T @ S.T
+        Ik.append(np.linalg.inv(0.5 * (Pt + Pt.T)).ravel(order="F"))
+    return np.array(Hk).T, np.array(Ik).T
 
 
 def lwo_conditions(grid: Grid, pb: PlanningProblem, W):
@@ -113,8 +146,11 @@ def lwo_conditions(grid: Grid, pb: PlanningProblem, W):
         parts.append(np.zeros((grid.n, grid.N + 1)) if numeric else ca.DM.zeros(grid.n, grid.N + 1))
     X = np.vstack(parts) if numeric else ca.vertcat(*parts)
     Uext = (np.hstack([uu, uu[:, -1:]]) if numeric else ca.horzcat(uu, uu[:, -1])) * (T**2 / L)
-    node = lwo_node_function(pb) if scale_free(pb) else lwo_information_node_function(pb)
-    g = node.map(grid.N + 1)(X, Uext)
+    if scale_free(pb):
+        g = lwo_node_function(pb).map(grid.N + 1)(X, Uext)
+    else:
+        Hk, Ik = node_windows(grid, pb)
+        g = lwo_information_node_function(pb).map(grid.N + 1)(X, Uext, Hk, Ik)
     return np.asarray(g) if numeric else g
 
 

@@ -1,8 +1,9 @@
 """Receding-horizon replanning inside the closed-loop Monte Carlo.
 
 Every ``every`` seconds each run of the closed loop stops, and the planner re-solves from that
-run's EKF estimate over the remaining horizon; the vehicle then steers its estimate onto the new
-plan (the guidance law of :mod:`obsplan.estimation.guidance`) until the next replan.
+run's estimate (of its navigation filter, ``validation.navigation``) over the remaining horizon;
+the vehicle then steers its estimate onto the new plan (the guidance law of
+:mod:`obsplan.estimation.guidance`) until the next replan.
 
 Shrinking horizon on the planning grid
 --------------------------------------
@@ -95,7 +96,7 @@ def replan_guidance(pb: PlanningProblem) -> Guidance:
     g = validation_guidance(pb)
     if g is None:
         raise ConfigError(
-            "--replan re-solves from the EKF estimate the vehicle steers on: it needs "
+            "--replan re-solves from the estimate the vehicle steers on: it needs "
             'validation.mode = "closed-loop" (the default), not "open-loop"'
         )
     return g
@@ -535,7 +536,7 @@ def replan_monte_carlo(
     """Closed-loop Monte Carlo with receding-horizon replanning every ``every`` s.
 
     Every run flies ``plan`` in closed loop (:func:`replan_guidance`); at each replan time it
-    re-solves from its EKF estimate over the remaining horizon (:class:`Replanner`) and flies
+    re-solves from its estimate over the remaining horizon (:class:`Replanner`) and flies
     the new plan from there. The one-shot plan and every baseline are flown in closed loop with
     the same guidance, runs and seed, so all comparisons are paired.
 

@@ -336,10 +336,10 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "s",
             "For gramian-min-eig and gramian-log-det: length of the sliding windows whose "
             "Gramians are scored (for lwo-condition: the past window each node's information "
-            'is gathered over); "auto" is 2 tau_f, tau_f = (3 sigma_r^2 / q_v)^(1/3) from the '
-            "validation's velocity process noise q_v (at least 10 range samples, at most the "
-            'horizon); "mission" is one window over the whole horizon (with weights = "none" '
-            "the paper's G(t_N, t_0), eq. 25).",
+            'is gathered over, clipped at the start); "auto" is 2 tau_f, '
+            "tau_f = (3 sigma_r^2 / q_v)^(1/3) from the validation's velocity process noise "
+            'q_v (at least 10 range samples, at most the horizon); "mission" is one window '
+            'over the whole horizon (with weights = "none" the paper\'s G(t_N, t_0), eq. 25).',
         ),
         FieldSpec(
             "stride",

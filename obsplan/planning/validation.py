@@ -1,7 +1,7 @@
 """Validation of a plan against its baselines: EKF and KF Monte Carlo under identical conditions.
 
 By default (``validation.mode = "closed-loop"``) every path, plan and baselines alike, is flown as
-a vehicle at sea flies it: steering its EKF estimate onto the path with the guidance law of
+a vehicle at sea flies it: steering its estimate onto the path with the guidance law of
 :func:`~obsplan.planning.validation_setup.validation_guidance` (gains and saturation from the
 limits), so the true path is the path minus the estimation and tracking errors; ``"open-loop"``
 flies the accelerations blind. Either way each run's true path is checked against the problem's
