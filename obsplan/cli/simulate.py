@@ -343,11 +343,12 @@ def run(args: argparse.Namespace) -> int:
         if pb is not None:
             from obsplan.planning.validation import validate_paths
 
-            filters = _filters(args)
-            if pb.validation.mode == "closed-loop" and pb.validation.navigation not in filters:
-                filters = (*filters, pb.validation.navigation)  # the vehicle's own filter
             val = validate_paths(
-                {"trajectory": traj}, pb, runs=runs, progress=_progress(args), filters=filters
+                {"trajectory": traj},
+                pb,
+                runs=runs,
+                progress=_progress(args),
+                filters=_filters(args),
             )
             res = val["trajectory"].result
             from obsplan.trajectory import resample
@@ -374,16 +375,13 @@ def run(args: argparse.Namespace) -> int:
                 cfg = EstimationConfig.paper(model, 1.0 / sample_rate(fine), **common)
             else:
                 cfg = EstimationConfig(model=model, accel_noise=args.accel_noise, **common)
-            filters = _filters(args)
-            if guidance is not None and guidance.navigation not in filters:
-                filters = (*filters, guidance.navigation)  # the vehicle's own filter
             res = monte_carlo(
                 fine,
                 cfg,
                 runs=runs,
                 seed=args.seed or 0,
                 progress=_progress(args),
-                filters=filters,
+                filters=_filters(args),
                 guidance=guidance,
                 limits=limits,
             )

@@ -31,6 +31,7 @@ import time
 from collections import namedtuple
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -155,9 +156,11 @@ class ClosedLoop:
     ) -> None:
         self._t0 = time.perf_counter()
         runs, seed, run_start = check_runs(runs, seed, run_start)
-        self.names = check_filters(filters)
         if not isinstance(guidance, Guidance):
             raise ConfigError("guidance must be a Guidance (e.g. Guidance.from_limits(accel))")
+        self.names = check_filters(filters)
+        if guidance.navigation not in self.names:  # computed in the loop: always reported
+            self.names = (*self.names, guidance.navigation)
         if limits is not None and not isinstance(limits, TruthLimits):
             raise ConfigError("limits must be a TruthLimits or None")
         self.setup = setup = PathSetup(traj, config, self.names, record_every, runs, lines, limits)
@@ -165,17 +168,12 @@ class ClosedLoop:
         self.seed, self.run_start = seed, run_start
         self.run_ids = np.arange(run_start, run_start + runs)
         self.nav_name = guidance.navigation
-        nav = setup.filters.get(self.nav_name)
-        if self.nav_name == "gsf":
-            if not isinstance(nav, GaussianSumFilter):
-                nav = GaussianSumFilter.from_config(config, setup.cov, setup.noise)
-            self.nav_mixture: GaussianSumFilter | None = nav
-            nav = nav.ekf  # the members' filter: prediction, rows, noise
-        else:
-            self.nav_mixture = None
-            if not isinstance(nav, ExtendedKalmanFilter):
-                nav = ExtendedKalmanFilter.from_config(config, setup.cov, setup.noise)
-        self.nav_filter: ExtendedKalmanFilter = nav
+        nav = setup.filters[self.nav_name]
+        self.nav_mixture = nav if isinstance(nav, GaussianSumFilter) else None
+        # the members' filter (prediction, rows, noise): the EKF, or the Gaussian sum's
+        self.nav_filter: ExtendedKalmanFilter = cast(
+            ExtendedKalmanFilter, nav if self.nav_mixture is None else self.nav_mixture.ekf
+        )
         self.members = 1 if self.nav_mixture is None else self.nav_mixture.components
         self._draws = [draw_run(setup, seed, int(r)) for r in self.run_ids]
         self._procs = [run_rng(seed, int(r), STREAM_PROCESS) for r in self.run_ids]

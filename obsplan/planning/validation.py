@@ -94,7 +94,8 @@ def validate_paths(
         Progress bar over runs.
     filters
         Estimators to run (names of :data:`obsplan.estimation.simulate.FILTERS`); in closed
-        loop the filter the vehicle steers on (``validation.navigation``) is always reported.
+        loop the filter the vehicle steers on (``validation.navigation``) is always reported
+        (:class:`~obsplan.estimation.closedloop.ClosedLoop`).
     run_start
         First run of the seed's streams (runs ``run_start .. run_start + runs - 1``; the same
         runs on every path, so that results of several calls merge exactly).
@@ -108,8 +109,6 @@ def validate_paths(
     if not paths:
         return {}
     guidance = validation_guidance(pb)
-    if guidance is not None and guidance.navigation not in filters:
-        filters = (*filters, guidance.navigation)  # computed in the loop anyway
     fine = [resample(traj, val.dt) for traj in paths.values()]
     masks = [None if lines is None else lines.get(name) for name in paths]
     results = monte_carlo_paths(
