@@ -34,6 +34,7 @@ from obsplan.planning.windowed_gramian import (
     auto_window_s,
     paper_form,
     sensor_information,
+    start_information,
     velocity_noise_density,
     window_settings,
     windowed_expr,
@@ -60,6 +61,18 @@ def _with(pb, **fields):
     return replace(pb, objective=replace(pb.objective, **fields))
 
 
+def _interval_gramians(path: str, seed: int):
+    """``(pb, traj, aug, Gk, tau)``: a random path of ``path``'s problem and its weighted
+    interval Gramians, node times in the metric scale."""
+    pb = load_problem(ROOT / path)
+    traj = random_guess(pb, seed)
+    aug = augmented_model(pb.model)
+    Gk = wd.weighted_interval_gramians(
+        traj, aug, np.asarray(pb.beacon), sensor_information(pb), pb.scales
+    )
+    return pb, traj, aug, Gk, (traj.t - traj.t[0]) / pb.scales.time_s
+
+
 @pytest.mark.parametrize("anchor", ["start", "current"])
 @pytest.mark.parametrize("path", SENSOR_CASES)
 def test_prefix_sum_windows_equal_the_quadrature(path, anchor):
@@ -84,6 +97,67 @@ def test_prefix_sum_windows_equal_the_quadrature(path, anchor):
     assert ends[-1] == Gk.shape[0]  # the last window ends at the end of the horizon
 
 
+@pytest.mark.parametrize("anchor", ["start", "current"])
+def test_a_prior_is_the_prior_propagated_to_each_anchor(anchor):
+    # information I about z(t_0) is information Φ(-τ_s)ᵀ I Φ(-τ_s) about z(t_s): checked against
+    # the covariance route, (Φ(τ_s) I⁻¹ Φ(τ_s)ᵀ)⁻¹, for every window
+    pb, traj, aug, Gk, tau = _interval_gramians("problems/suite/gramian-current-water-dvl.toml", 2)
+    starts, ends = wd.window_layout(Gk.shape[0], 30, 7)
+    prior = start_information(pb)
+    G0 = wd.windowed_gramians(Gk, tau, aug, starts, ends, anchor)
+    G1 = wd.windowed_gramians(Gk, tau, aug, starts, ends, anchor, prior)
+    P0 = np.linalg.inv(prior)
+    for j, ts in enumerate(wd.anchor_times(tau, starts, ends, anchor)):
+        F = np.eye(aug.state_dim) + aug.A * ts  # eq. 26
+        expect = np.linalg.inv(F @ P0 @ F.T)
+        assert np.allclose(G1[j] - G0[j], expect, rtol=0, atol=1e-9 * np.max(np.abs(expect)))
+
+
+def test_start_information_is_the_validation_prior_in_the_metric_scales():
+    pb = load_problem(ROOT / "problems/suite/gramian-current-water-dvl.toml")
+    L, T, n, val = pb.scales.length_m, pb.scales.time_s, pb.dim, pb.validation
+    d = np.diag(np.linalg.inv(start_information(pb)))
+    # position p/L and velocity v T/L: their standard deviations are init_pos/vel_error
+    assert np.allclose(np.sqrt(d[:n]) * L, val.init_pos_error, rtol=1e-12)
+    assert np.allclose(np.sqrt(d[n : 2 * n]) * L / T, val.init_vel_error, rtol=1e-12)
+
+
+def test_log_det_scores_the_opening_windows_and_min_eig_does_not():
+    pb = load_problem(ROOT / "problems/suite/gramian-current-water-dvl.toml")
+    assert pb.objective.kind == "gramian-log-det"
+    ws = window_settings(pb)
+    h = pb.horizon.dt
+    full = [(a, b) for a, b in zip(ws.starts, ws.ends, strict=True) if (b - a) * h >= ws.window_s]
+    opening = [(a, b) for a, b in zip(ws.starts, ws.ends, strict=True) if (a, b) not in full]
+    assert ws.opening and opening
+    # [t_0, t_0 + k stride] for every k before the first full window ends
+    stride = int(round(ws.stride_s / h))
+    assert opening == [(0, k * stride) for k in range(1, len(opening) + 1)]
+    assert opening[-1][1] < full[0][1] <= opening[-1][1] + stride
+    # the full windows are the layout of a plain window / stride
+    a, b = wd.window_layout(pb.horizon.steps, int(round(ws.window_s / h)), stride)
+    assert full == list(zip(a.tolist(), b.tolist(), strict=True))
+    eig = window_settings(_with(pb, kind="gramian-min-eig"))
+    assert not eig.opening and min(e - s for s, e in zip(eig.starts, eig.ends, strict=True)) * h
+    assert len(eig.starts) == len(full)
+    # nested windows with the prior: log det (anchor-free, det Φ = 1) grows from the prior's
+    # alone with every stride of readings, up to the first full window
+    _, _, aug, Gk, tau = _interval_gramians("problems/suite/gramian-current-water-dvl.toml", 5)
+    k = len(opening) + 1
+    G = wd.windowed_gramians(
+        Gk,
+        tau,
+        aug,
+        np.asarray(ws.starts[:k]),
+        np.asarray(ws.ends[:k]),
+        ws.anchor,
+        start_information(pb),
+    )
+    _, ld = wd.window_criteria(G, 0.0)
+    prior_ld = float(np.linalg.slogdet(start_information(pb))[1])
+    assert prior_ld < ld[0] and np.all(np.diff(ld) > 0)
+
+
 def test_unit_weights_and_one_window_are_the_paper_gramian():
     pb = load_problem(ROOT / "problems/range3d.toml")
     traj = random_guess(pb, 1)
@@ -98,13 +172,7 @@ def test_unit_weights_and_one_window_are_the_paper_gramian():
 
 def test_the_anchor_keeps_log_det_and_moves_the_trace():
     # det Φ = 1 (A nilpotent): log det is the same about the window's start or end; tr G⁻¹ not
-    pb = load_problem(ROOT / "problems/suite/gramian-offset-beacon.toml")
-    traj = random_guess(pb, 2)
-    aug = augmented_model(pb.model)
-    Gk = wd.weighted_interval_gramians(
-        traj, aug, np.asarray(pb.beacon), sensor_information(pb), pb.scales
-    )
-    tau = (traj.t - traj.t[0]) / pb.scales.time_s
+    _, _, aug, Gk, tau = _interval_gramians("problems/suite/gramian-offset-beacon.toml", 2)
     s, e = wd.window_layout(Gk.shape[0], 40, 10)
     trs, lds = wd.window_criteria(wd.windowed_gramians(Gk, tau, aug, s, e, "start"), 0.0)
     trc, ldc = wd.window_criteria(wd.windowed_gramians(Gk, tau, aug, s, e, "current"), 0.0)

@@ -154,6 +154,7 @@ def windowed_gramians(
     starts: np.ndarray,
     ends: np.ndarray,
     anchor: str,
+    prior: np.ndarray | None = None,
 ) -> np.ndarray:
     """Window Gramians about the anchor state from interval contributions, by prefix sums.
 
@@ -166,6 +167,9 @@ def windowed_gramians(
     starts, ends : ndarray of int
         :func:`window_layout`.
     anchor : {"start", "current"}
+    prior : ndarray, shape (m, m), optional
+        Information about ``z(t_0)`` (a prior) added to every window before it is re-anchored:
+        the prior propagated to the anchor without process noise.
 
     Returns
     -------
@@ -174,6 +178,8 @@ def windowed_gramians(
     C = np.zeros((Gk.shape[0] + 1, *Gk.shape[1:]))
     np.cumsum(Gk, axis=0, out=C[1:])
     G = C[ends] - C[starts]
+    if prior is not None:
+        G = G + prior
     P = np.stack([reanchor_matrix(aug, s) for s in anchor_times(tau, starts, ends, anchor)])
     G = np.swapaxes(P, 1, 2) @ G @ P
     return 0.5 * (G + np.swapaxes(G, 1, 2))

@@ -13,7 +13,9 @@ rate and the path is scored window by window (:mod:`obsplan.observability.window
 * ``gramian-log-det`` (D-optimal): ``log det(G_w + εI)`` per window, the volume with a floor.
 
 ``agg`` is the mean over the windows; with ``anchor = "current"`` it is the mean of that mean
-and the final window (the state at the end is the one the mission delivers). The window
+and the final window (the state at the end is the one the mission delivers). ``gramian-log-det``
+also scores the opening windows ``[t_0, t_0 + k·stride]`` before the first full window ends, and
+every one of its windows holds the validation's prior (:data:`OPENING_CRITERIA`). The window
 ``"auto"`` is ``2 τ_f`` with ``τ_f = (3 σ_r² / q_v)^{1/3}``: the time after which a velocity
 random walk of density ``q_v`` (the validation's process noise) has moved the position by one
 range standard deviation, so older ranges no longer pin it.
@@ -82,6 +84,19 @@ HESSIAN: dict[str, Hessian] = {
 #: Hz ranges: EKF RMSE 0.62× -> 1.02×; ``bench_planning_suite.py --runs 30``), so it keeps
 #: ``y``'s variance alone.
 START_RANGE_CRITERIA: frozenset[str] = frozenset({"log-det"})
+#: Criteria scored also on the opening windows ``[t_0, t_0 + k·stride]`` shorter than a window,
+#: every window holding the validation's prior (:func:`start_information`) propagated to its
+#: anchor without process noise, as ``lwo-condition``'s nodes do. The full windows alone score
+#: nothing before ``t_0 + window``: ``log det`` on ``suite/gramian-current-water-dvl.toml`` let
+#: the plan creep radially for its first minute while the EKF beside the vehicle's filter lost the
+#: tangential position (4 of 400 runs diverged: EKF RMSE 5.3x the lawn-mower's; with the opening
+#: windows and the prior 0.95x, none diverged, the other log-det problems still winning; the prior
+#: held only by the windows that start at ``t_0``: 8 of 400 diverged). ``tr G⁻¹`` of a short
+#: opening window is dominated by the directions only the prior holds, the mean over the windows
+#: then follows the opening minute, and its plans lost (``suite/gramian-depth3d.toml`` EKF RMSE
+#: 0.88x -> 1.50x, ``suite/gramian-slow-range.toml`` 0.78x -> 1.10x): the E-optimal kind keeps
+#: full windows and no prior.
+OPENING_CRITERIA: frozenset[str] = frozenset({"log-det"})
 #: Fewest range samples an ``"auto"`` window spans.
 MIN_WINDOW_SAMPLES = 10.0
 #: ``"auto"`` stride: this fraction of the window.
@@ -125,6 +140,9 @@ class WindowSettings:
     anchor : {"start", "current"}
     weighted : bool
         Information weights (``objective.weights = "information"``).
+    opening : bool
+        The opening windows are scored and every window holds the prior
+        (:data:`OPENING_CRITERIA`).
     """
 
     window_s: float
@@ -133,6 +151,7 @@ class WindowSettings:
     ends: tuple[int, ...]
     anchor: str
     weighted: bool
+    opening: bool = False
 
 
 def window_settings(pb: PlanningProblem) -> WindowSettings:
@@ -148,13 +167,20 @@ def window_settings(pb: PlanningProblem) -> WindowSettings:
     w_steps = max(1, int(round(w / h)))
     s_steps = max(1, int(round(stride / h)))
     a, b = window_layout(N, w_steps, s_steps)
+    weighted = obj.weights == "information"
+    opening = weighted and CRITERIA.get(obj.kind) in OPENING_CRITERIA
+    if opening and a.size > 1:
+        # the opening windows [t_0, t_b], t_b < the first full window's end (OPENING_CRITERIA)
+        b0 = np.arange(s_steps, b[0], s_steps)
+        a, b = np.concatenate([np.zeros_like(b0), a]), np.concatenate([b0, b])
     return WindowSettings(
         window_s=w_steps * h,
         stride_s=s_steps * h,
         starts=tuple(int(x) for x in a),
         ends=tuple(int(x) for x in b),
         anchor=obj.anchor,
-        weighted=obj.weights == "information",
+        weighted=weighted,
+        opening=opening,
     )
 
 
@@ -168,6 +194,19 @@ def sensor_information(pb: PlanningProblem) -> SensorInformation:
     return SensorInformation(
         v.range_rate, v.range_std, v.dvl_rate, v.dvl_std, v.depth_rate, v.depth_std, r0
     )
+
+
+def start_information(pb: PlanningProblem) -> np.ndarray:
+    """What is known about the augmented state ``z(t_0)`` at the start: the validation's
+    augmented-KF prior as information, ``(S P_0 Sᵀ)⁻¹`` with ``S`` the metric scaling of ``z``
+    (``p/L``, ``v T/L``, ``v_f T/L``, ``p_0ᵀν_0 T/L²``, ``|ν_0|² T²/L²``), shape ``(m, m)``."""
+    L, T = pb.scales.length_m, pb.scales.time_s
+    n = pb.dim
+    m = augmented_model(pb.model).state_dim
+    P0 = np.asarray(estimation_config(pb).p0_kf, float)
+    S = np.diag([1.0 / L] * n + [T / L] * (m - 2 - n) + [T / L**2, T**2 / L**2])
+    P = S @ P0 @ S.T
+    return np.linalg.inv(0.5 * (P + P.T))
 
 
 def window_floor(pb: PlanningProblem, ws: WindowSettings) -> float:
@@ -195,7 +234,8 @@ def windowed_aggregate(traj: Trajectory, pb: PlanningProblem) -> float:
     Gk = weighted_interval_gramians(traj, aug, np.asarray(pb.beacon), info, pb.scales)
     tau = (traj.t - traj.t[0]) / pb.scales.time_s
     a, b = np.asarray(ws.starts), np.asarray(ws.ends)
-    G = windowed_gramians(Gk, tau, aug, a, b, ws.anchor)
+    prior = start_information(pb) if ws.opening else None
+    G = windowed_gramians(Gk, tau, aug, a, b, ws.anchor, prior)
     tr, ld = window_criteria(G, window_floor(pb, ws))
     vals = tr if CRITERIA[pb.objective.kind] == "trace-inverse" else ld
     return float(_aggregate(vals, ws.anchor, np.mean))
@@ -253,6 +293,8 @@ def window_gramians_expr(ctx: NLPContext):
     # each interval built once; every window is a sum of columns: one sparse product (the
     # symbolic counterpart of the prefix sums of windowed_gramians)
     Gw = ca.reshape(Gk, m * m, N) @ ca.DM(_window_matrix(N, ws))
+    if ws.opening:  # the prior, propagated to each anchor by the re-anchoring below
+        Gw = Gw + ca.repmat(ca.DM(start_information(pb).ravel(order="F")), 1, len(ws.starts))
     ts = anchor_times(
         np.arange(N + 1) * grid.h / T, np.asarray(ws.starts), np.asarray(ws.ends), ws.anchor
     )
