@@ -17,7 +17,7 @@ from obsplan.planning.parse import (
     problem_from_dict,
     problem_to_dict,
 )
-from obsplan.planning.schema import SCHEMA
+from obsplan.planning.schema import KF_PCRB_WEIGHT, SCHEMA
 from obsplan.planning.validation_setup import estimation_config, validation_guidance
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "problem-files.md"
@@ -119,6 +119,7 @@ def test_minimal_dict_fills_defaults():
         ("validation.runs", 100000, "validation.runs", "at most"),
         ("validation.ekf_update", "third-order", "validation.ekf_update", "second-order"),
         ("validation.navigation", "ukf", "validation.navigation", "ekf, gsf"),
+        ("objective.pcrb_weight", 1.0, "objective.pcrb_weight", "only kf-position-std"),
         ("beacon.position", [-80.0, 60.0], "start.position", "inside limits.min_range"),
     ],
 )
@@ -128,6 +129,18 @@ def test_bad_field_is_named(path, value, field, hint):
     msg = str(exc.value)
     assert field in msg, msg
     assert hint in msg, msg
+
+
+@pytest.mark.parametrize("value", [-1.0, float("nan")])
+def test_kf_pcrb_weight_is_a_finite_non_negative_number(value):
+    d = _with("objective.kind", "kf-position-std")
+    d["objective"]["pcrb_weight"] = value
+    with pytest.raises(ProblemError, match=r"objective\.pcrb_weight.*finite"):
+        problem_from_dict(d)
+    d["objective"]["pcrb_weight"] = 0.0
+    assert problem_from_dict(d).objective.resolved_pcrb_weight == 0.0
+    del d["objective"]["pcrb_weight"]
+    assert problem_from_dict(d).objective.resolved_pcrb_weight == KF_PCRB_WEIGHT
 
 
 def test_ekf_update_reaches_the_validation_filters():

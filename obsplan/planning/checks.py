@@ -371,6 +371,17 @@ def _check_objective(pb: PlanningProblem) -> None:
     budget.check_iterations(obj.max_iter, "objective.max_iter", ProblemError)
     if obj.tol is not None and not 0 < obj.tol < 1:
         raise field_error("objective.tol", f"must be in (0, 1), got {obj.tol}")
+    if obj.pcrb_weight is not None:
+        if obj.kind != "kf-position-std":
+            raise field_error(
+                "objective.pcrb_weight",
+                f"only kf-position-std has a posterior-CRB weight, not {obj.kind}; remove it",
+            )
+        if not (np.isfinite(obj.pcrb_weight) and obj.pcrb_weight >= 0):
+            raise field_error(
+                "objective.pcrb_weight",
+                f"must be a finite number >= 0 (0: the KF's std alone), got {obj.pcrb_weight}",
+            )
     if obj.robust_aggregate not in ("worst", "mean"):
         raise field_error(
             "objective.robust_aggregate", f'must be "worst" or "mean", got {obj.robust_aggregate!r}'

@@ -22,7 +22,7 @@ from obsplan.observability.scaling import Scales
 from obsplan.planning.checks import check_values
 from obsplan.planning.mission_order import free_order
 from obsplan.planning.mission_spec import Mission
-from obsplan.planning.schema import OBJECTIVE_KINDS
+from obsplan.planning.schema import KF_PCRB_WEIGHT, OBJECTIVE_KINDS
 
 
 @dataclass(frozen=True)
@@ -103,6 +103,15 @@ class ObjectiveSpec:
     robust_prior: tuple[float, ...] = ()
     robust_range_noise: tuple[float, ...] = ()
     robust_aggregate: str = "worst"
+    pcrb_weight: float | None = None
+
+    @property
+    def resolved_pcrb_weight(self) -> float:
+        """The posterior CRB's weight in ``kf-position-std``'s objective (``pcrb_weight``, or
+        :data:`~obsplan.planning.schema.KF_PCRB_WEIGHT`); 0 for every other kind."""
+        if self.kind != "kf-position-std":
+            return 0.0
+        return KF_PCRB_WEIGHT if self.pcrb_weight is None else float(self.pcrb_weight)
 
     @property
     def solver_tol(self) -> float:

@@ -35,11 +35,7 @@ from obsplan.planning.blocks import (
     ObjectiveTerm,
     VariableBlock,
 )
-from obsplan.planning.estimator_objectives import (
-    covariance_objective,
-    covariance_value,
-    timed_value,
-)
+from obsplan.planning.estimator_objectives import covariance_expr, covariance_value
 from obsplan.planning.grid import Grid
 from obsplan.planning.guesses import reference_path
 from obsplan.planning.problem import PlanningProblem
@@ -103,10 +99,7 @@ def robust_term(ctx: NLPContext) -> ObjectiveTerm:
     refs = _reference_values(pb)
     terms = []
     for cpb, ref in zip(condition_problems(pb), refs, strict=True):
-        cobj = covariance_objective(cpb)
-        avg, final, on = cobj.evaluate_all(grid, ctx.W)
-        value = timed_value(cpb.objective_mode, avg, final, cobj.evaluate_all(grid, ctx.W_ref), on)
-        terms.append(value / ref)
+        terms.append(covariance_expr(cpb, grid, ctx.W) / ref)
     if pb.objective.robust_aggregate == "mean":
         return ObjectiveTerm(
             f=sum(terms) / len(terms), to_objective=float, hessian="limited-memory"

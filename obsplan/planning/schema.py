@@ -79,6 +79,10 @@ OBJECTIVE_KINDS: dict[str, ObjectiveKind] = {
     )
 }
 OBJECTIVES: tuple[str, ...] = tuple(OBJECTIVE_KINDS)
+#: Default ``objective.pcrb_weight`` of ``kf-position-std``: the posterior CRB's weight beside
+#: the KF's std, each relative to the reference path
+#: (:func:`~obsplan.planning.estimator_objectives.covariance_expr` has the evidence).
+KF_PCRB_WEIGHT = 1.0
 #: Objectives that follow an estimator's covariance along the path and so have a time mode.
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
 #: Objectives for which a smaller value is better.
@@ -394,6 +398,18 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "-",
             'How the conditions combine: "worst" (the largest of the objectives, each relative '
             'to its value on the lawn-mower; an epigraph) or "mean" (their mean).',
+        ),
+        FieldSpec(
+            "pcrb_weight",
+            "float",
+            _NONE,
+            "-",
+            "For kf-position-std: weight of the posterior CRB of the position (the nonlinear "
+            "model's bound, what an EKF can reach; as pcrb-position in its default mode) beside "
+            "the KF's position std (in objective.mode), each relative to its value on the "
+            "lawn-mower: the objective is K/K_lm + w B/B_lm (1 + w on the lawn-mower); default "
+            "1; 0: the KF's std alone. The KF's augmented model alone plans paths the EKF "
+            "cannot follow (docs/problem-files.md).",
         ),
     ),
     "scales": (
