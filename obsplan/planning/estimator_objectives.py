@@ -377,12 +377,12 @@ def covariance_expr(pb: PlanningProblem, grid: Grid, W):
     ``K`` in its time mode and ``B`` the ``pcrb-position`` objective in its default mode
     (:func:`pcrb_problem`: the posterior CRB, the nonlinear model's bound, what an EKF can
     reach, over the mission and at its end), each relative to the reference path's (``1 + w``
-    there) [-]. The KF's
-    model is linear in an augmented state whose range rows grow near the beacon
-    (``R = r² σ_r² + ½σ_r⁴``) and which has no absolute range: alone, its plans closed
+    there) [-]. The KF's model is linear in an augmented state whose range rows grow near the
+    beacon (``R = r² σ_r² + ½σ_r⁴``) and which has no absolute range: alone, its plans closed
     radially on the beacon first, where the EKF beside the vehicle's filter cannot see the
     tangential position (``suite/short-horizon.toml``: EKF RMSE 1.38× the lawn-mower's; with
-    ``w = 1`` 0.46×, the KF's own 0.22× against 0.19×).
+    ``w = 1`` 0.46×, the KF's own 0.22× against 0.19×), or with ``mode = "final"`` left the
+    path between start and end free (docs/problem-files.md has six more problems).
     """
     kind = pb.objective.kind
     value = _timed(pb, kind, grid, W)
