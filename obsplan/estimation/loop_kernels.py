@@ -78,7 +78,7 @@ def nav_measure(pt, gn, st, io, k, e):
         predict(X, P, pt.tab, e, n, pt.tr, st.Q, st.ws)
     G = pt.G
     R = B // G
-    if G == 1:
+    if G == 1:  # set exactly (X + (target - X) is not target to the last bit)
         for i in range(m):
             for b in range(B):
                 X[i, b] = pt.xplan[k, i] + st.d[i, b] + (st.c[i, b] if i < n2 else 0.0)
@@ -123,17 +123,13 @@ def nav_measure(pt, gn, st, io, k, e):
         io.run_nis,
         io.run_cnt,
     )
-    for g in range(R):  # the estimate's offset: the run's member, or its mixture's mean
-        if G == 1:
-            for i in range(m):
-                st.d[i, g] = X[i, g] - pt.xplan[k, i] - (st.c[i, g] if i < n2 else 0.0)
-        else:
-            mixture_weights(st.lw, st.w, g, G)
-            for i in range(m):
-                acc = 0.0
-                for c in range(G):
-                    acc += st.w[g * G + c] * X[i, g * G + c]
-                st.d[i, g] = acc - pt.xplan[k, i] - (st.c[i, g] if i < n2 else 0.0)
+    for g in range(R):  # the estimate's offset: its mixture's mean (one member: w = 1 exactly)
+        mixture_weights(st.lw, st.w, g, G)
+        for i in range(m):
+            acc = 0.0
+            for c in range(G):
+                acc += st.w[g * G + c] * X[i, g * G + c]
+            st.d[i, g] = acc - pt.xplan[k, i] - (st.c[i, g] if i < n2 else 0.0)
     for i in range(n2):
         for b in range(R):
             io.ce[e, i, b] = st.c[i, b]
@@ -149,26 +145,21 @@ def speed_bounds(X, P, lw, w, G, vl, kv, vmax, n, cur):
     if vmax == math.inf:
         return
     for g in range(P.shape[2] // G):
-        if G > 1:
-            mixture_weights(lw, w, g, G)
+        mixture_weights(lw, w, g, G)  # one member: w = 1 and the spread 0, exactly
         sv = 0.0
         for i in range(n):
+            mean = 0.0
+            for c in range(G):
+                b = g * G + c
+                mean += w[b] * (X[n + i, b] + (X[2 * n + i, b] if cur else 0.0))
             var = 0.0
-            if G > 1:
-                mean = 0.0
-                for c in range(G):
-                    b = g * G + c
-                    mean += w[b] * (X[n + i, b] + (X[2 * n + i, b] if cur else 0.0))
             for c in range(G):
                 b = g * G + c
                 vb = P[n + i, n + i, b]
                 if cur:  # inertial velocity v + v_f
                     vb += P[2 * n + i, 2 * n + i, b] + 2.0 * P[n + i, 2 * n + i, b]
-                if G > 1:
-                    dv = X[n + i, b] + (X[2 * n + i, b] if cur else 0.0) - mean
-                    var += w[b] * (vb + dv * dv)
-                else:
-                    var = vb
+                dv = X[n + i, b] + (X[2 * n + i, b] if cur else 0.0) - mean
+                var += w[b] * (vb + dv * dv)
             sv = max(sv, var)
         vl[g] = max(vmax - kv * math.sqrt(max(sv, 0.0)), SPEED_FLOOR * vmax)
 

@@ -108,7 +108,6 @@ def validate_paths(
     n_runs = val.runs if runs is None else int(runs)
     if not paths:
         return {}
-    guidance = validation_guidance(pb)
     fine = [resample(traj, val.dt) for traj in paths.values()]
     masks = [None if lines is None else lines.get(name) for name in paths]
     results = monte_carlo_paths(
@@ -119,7 +118,7 @@ def validate_paths(
         progress=progress,
         filters=filters,
         run_start=run_start,
-        guidance=guidance,
+        guidance=validation_guidance(pb),
         limits=truth_limits(pb),
         lines=masks if any(m is not None for m in masks) else None,
     )
