@@ -6,14 +6,19 @@ Run (minutes):
                                                      [--processes 2] [--json out.json]
 
 The problem defaults to the *median suite problem*: ``problems/suite/*.toml`` sorted by
-``(horizon.steps, horizon.duration, file name)``, the middle one (``moving-start``: 2D range-only,
-600 s, N = 200, the size of the speed requirement). The script
+``(horizon.steps, horizon.duration, file name)``, the middle one (with the 19 suite problems
+``gramian-depth3d``: 3D range + depth gauge, 600 s, N = 200, ``gramian-min-eig``; N = 200 is
+the size of the speed requirement). The script
 
 1. plans it one-shot as ``obsplan plan`` does (:func:`obsplan.planning.margins
    .solve_with_keepout`) and builds the replanning NLP once (with the plan's keep-out margins);
-2. flies the replanned closed-loop Monte Carlo (:func:`~obsplan.planning.replan
-   .replan_monte_carlo`): every ``--every`` s each run re-solves from its EKF estimate;
-3. prints the re-solve times (wall and CPU: the machine is shared, CPU time is what one solve
+2. flies the one-shot plan in closed loop (the same runs and seed) and prints, at every replan
+   time, the spread over the runs of the navigation filter's position std: what a re-solve
+   started from the filter's covariance could adapt to;
+3. flies the replanned closed-loop Monte Carlo (:func:`~obsplan.planning.replan
+   .replan_monte_carlo`): every ``--every`` s each run re-solves from its navigation filter's
+   estimate;
+4. prints the re-solve times (wall and CPU: the machine is shared, CPU time is what one solve
    costs on an idle core), iterations and failures, then the EKF/KF errors of the replanned plan,
    the one-shot plan and every baseline (same runs and seed, all in closed loop), the paired
    difference of the EKF final error (replanned - one-shot, with two standard errors), and the
@@ -34,11 +39,19 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from obsplan.estimation.closedloop import ClosedLoop  # noqa: E402
 from obsplan.planning import load_problem  # noqa: E402
 from obsplan.planning.baselines import baselines  # noqa: E402
 from obsplan.planning.margins import solve_with_keepout  # noqa: E402
-from obsplan.planning.replan import Replanner, replan_monte_carlo  # noqa: E402
+from obsplan.planning.replan import (  # noqa: E402
+    Replanner,
+    replan_guidance,
+    replan_monte_carlo,
+    replan_nodes,
+)
+from obsplan.planning.validation_setup import estimation_config, truth_limits  # noqa: E402
 from obsplan.planning.verdict import metric_value, paired_noise  # noqa: E402
+from obsplan.trajectory import resample  # noqa: E402
 
 COLUMNS = (
     ("EKF rmse", "ekf.rmse_pos"),
@@ -57,6 +70,31 @@ def median_suite_problem() -> Path:
         keyed.append((pb.horizon.steps, pb.horizon.duration, f.name, f))
     keyed.sort()
     return keyed[len(keyed) // 2][3]
+
+
+def covariance_spread(pb, plan, every: float, runs: int) -> list[tuple[float, ...]]:
+    """What a re-solve could learn from the filter: at every replan time, the spread over the
+    one-shot plan's closed-loop runs of the navigation filter's position std ``sqrt(tr P_pp)``
+    (median, 10th and 90th percentiles) and the RMS of its true position error."""
+    val = pb.validation
+    loop = ClosedLoop(
+        resample(plan, val.dt),
+        estimation_config(pb),
+        runs,
+        val.seed,
+        0,
+        guidance=replan_guidance(pb),
+        limits=truth_limits(pb),
+    )
+    n, rows = pb.dim, []
+    for k in replan_nodes(pb, every):
+        t = float(k) * pb.horizon.dt
+        loop.advance(t)
+        snap = loop.snapshot()
+        std = np.sqrt(np.trace(snap.covariance[:, :n, :n], axis1=1, axis2=2))
+        err = np.linalg.norm(snap.estimate[:, :n] - snap.truth[:, :n], axis=1)
+        rows.append((t, _q(std, 0.5), _q(std, 0.1), _q(std, 0.9), float(np.sqrt(np.mean(err**2)))))
+    return rows
 
 
 def _q(x: np.ndarray, q: float) -> float:
@@ -87,6 +125,14 @@ def main() -> int:
     if res.trajectory is None:
         print("no one-shot plan: nothing to replan")
         return 1
+    spread = covariance_spread(pb, res.trajectory, args.every, args.runs)
+    print()
+    print("what a re-solve could learn: the navigation filter's position std over the one-shot")
+    print("plan's closed-loop runs at each replan time (a covariance-started re-solve adapts only")
+    print("to how much it varies from run to run)")
+    print(f"{'t [s]':>8} {'median [m]':>11} {'p10':>8} {'p90':>8} {'p90/p10':>8} {'err rms':>8}")
+    for t, med, lo, hi, rms in spread:
+        print(f"{t:>8.0f} {med:>11.4f} {lo:>8.4f} {hi:>8.4f} {hi / lo:>8.3f} {rms:>8.4f}")
     rp = Replanner(pb, plan=res.trajectory)
     out = replan_monte_carlo(
         pb,
