@@ -61,6 +61,14 @@ class Scales:
 DEFAULT_SCALES = Scales()
 
 
+def augmented_state_scale(state_dim: int, dim: int, length, time) -> list:
+    """``z_nd / z`` for every state of the augmented model in the scales ``length`` [m] and
+    ``time`` [s]: ``p/L``, ``v T/L`` (and ``v_f T/L``), ``α T/L²``, ``β T²/L²``; plain
+    arithmetic, so floats give floats and ``Fraction`` s exact fractions."""
+    L, T = length, time
+    return [1 / L] * dim + [T / L] * (state_dim - dim - 2) + [T / L**2, T**2 / L**2]
+
+
 def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Symmetric diagonal equilibration of PSD matrices.
 

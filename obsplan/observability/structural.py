@@ -81,7 +81,7 @@ from scipy.spatial import cKDTree
 
 from obsplan.model import VehicleModel
 from obsplan.observability.gramian import AugmentedModel, augmented_model
-from obsplan.observability.scaling import Scales
+from obsplan.observability.scaling import Scales, augmented_state_scale
 from obsplan.trajectory import Trajectory
 
 #: Intervals whose coefficient vectors are built at once (doubling from the first block).
@@ -474,12 +474,10 @@ def _output_weights(aug: AugmentedModel, scales: Scales | None) -> list[Fraction
 
 def _state_scale(aug: AugmentedModel, scales: Scales | None) -> list[Fraction]:
     """``z_nd / z`` per state (``scaling.py``): p/L, v T/L, [v_f T/L], α T/L², β T²/L²."""
-    m, n = aug.state_dim, aug.dim
     if scales is None:
-        return [Fraction(1)] * m
+        return [Fraction(1)] * aug.state_dim
     L, T = Fraction(scales.length_m), Fraction(scales.time_s)
-    s = [1 / L] * n + [T / L] * (m - n - 2) + [T / L**2, T**2 / L**2]
-    return s
+    return augmented_state_scale(aug.state_dim, aug.dim, L, T)
 
 
 def exact_gramian(

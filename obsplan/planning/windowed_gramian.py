@@ -34,6 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from obsplan.observability.gramian import augmented_model, weighted_interval_gramian_function
+from obsplan.observability.scaling import augmented_state_scale
 from obsplan.observability.windowed import (
     SensorInformation,
     anchor_times,
@@ -200,11 +201,9 @@ def start_information(pb: PlanningProblem) -> np.ndarray:
     """What is known about the augmented state ``z(t_0)`` at the start: the validation's
     augmented-KF prior as information, ``(S P_0 Sᵀ)⁻¹`` with ``S`` the metric scaling of ``z``
     (``p/L``, ``v T/L``, ``v_f T/L``, ``p_0ᵀν_0 T/L²``, ``|ν_0|² T²/L²``), shape ``(m, m)``."""
-    L, T = pb.scales.length_m, pb.scales.time_s
-    n = pb.dim
     m = augmented_model(pb.model).state_dim
     P0 = np.asarray(estimation_config(pb).p0_kf, float)
-    S = np.diag([1.0 / L] * n + [T / L] * (m - 2 - n) + [T / L**2, T**2 / L**2])
+    S = np.diag(augmented_state_scale(m, pb.dim, pb.scales.length_m, pb.scales.time_s))
     P = S @ P0 @ S.T
     return np.linalg.inv(0.5 * (P + P.T))
 
