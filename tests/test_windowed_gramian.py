@@ -395,6 +395,23 @@ def test_an_ekf_lost_on_the_plan_is_said_in_words():
     assert "steers on the Gaussian sum: the EKF's errors stay out of its true path" in notes[0]
 
 
+def test_a_few_ekf_runs_lost_on_the_plan_are_said_in_words():
+    # fewer flagged runs than a diverging EKF, but they dominate the RMSE over runs: the words
+    # give both groups' RMSE beside the verdict's, and the Gaussian sum's
+    group = SimpleNamespace
+    v = _fake(1, 0.06, 0, 0.5, runs=200, gsf=(0.31, 0.06))
+    v.result.ekf.unflagged, v.result.ekf.flagged = group(rmse_pos=0.49), group(rmse_pos=21.1)
+    v.result.ekf.rmse_pos = 1.47
+    assert not ekf_diverges(v)
+    notes = filter_notes({"planned": v})
+    assert notes[0] == (
+        "the EKF lost track on 1 of 200 runs of the plan (flagged by the divergence monitor): "
+        "their position RMSE 21.1 m, the other runs' 0.49 m, all runs' 1.47 m (the verdict "
+        "counts every run)"
+    )
+    assert "plan 0.31 / 0.06 m" in notes[1]
+
+
 def test_scale_free_lwo_condition_is_reported_as_a_diagnostic():
     pb = load_problem(ROOT / "problems/suite/lwo-dvl3d.toml")
     assert objective_notes(pb) == ()  # the default information weights: a plan to fly
