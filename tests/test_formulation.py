@@ -19,6 +19,7 @@ from obsplan.planning.blocks import ConstraintBlock, FormulationPart, VariableBl
 from obsplan.planning.formulation import PARTS, build_formulation
 from obsplan.planning.grid import Grid
 from obsplan.planning.guesses import reference_path
+from obsplan.planning.linearisation import linearisation_part
 from obsplan.planning.mission_part import mission_part
 from obsplan.planning.objectives import REGISTRY
 from obsplan.planning.parse import LOCALISE_PROBLEM
@@ -51,7 +52,8 @@ def test_a_part_is_appended_after_the_objective(kind):
     pb = _problem(kind)
     plain = build_formulation(pb)
     form = build_formulation(pb, parts=(_part, lambda pb, grid, W: None))
-    assert PARTS == (mission_part,)  # a mission's constraints: None without a [mission]
+    assert PARTS == (mission_part, linearisation_part)
+    # a mission's constraints: None without a [mission]
     assert mission_part(pb, Grid.from_problem(pb), ca.MX.sym("W", 3 * pb.dim, 4)) is None
     # variables: the path, the objective's lifting, then the part's two
     n_plain = plain.w.numel()
@@ -85,7 +87,8 @@ def test_a_term_is_normalised_on_the_reference_path(kind):
     pb = _problem(kind)
     form = build_formulation(pb)
     ref = reference_path(pb)
-    f = float(ca.Function("f", [form.w], [form.f])(form.pack(ref)))
+    # (f - penalty: the linearisation penalty is not the objective's)
+    f = float(ca.Function("f", [form.w], [form.f - form.penalty])(form.pack(ref)))
     # tolerances: the same floating-point operations in another order (CasADi against numpy)
     assert f == pytest.approx(1.0, rel=1e-12)
     assert form.lifted_value(f) == pytest.approx(REGISTRY[kind].value(ref, pb), rel=1e-9)

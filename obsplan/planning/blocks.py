@@ -8,8 +8,9 @@ The NLP is assembled by :func:`obsplan.planning.formulation.build_formulation` f
   (:class:`VariableBlock`) and constraints (:class:`ConstraintBlock`), its Hessian mode and the
   map from the solver's ``f`` back to the objective's value;
 * then every :class:`FormulationPart` that a module adds to the problems it applies to (survey
-  lines with timing variables, a covariance-dependent keep-out margin, ...): variables appended
-  after the objective's, constraints after the objective's.
+  lines with timing variables, a covariance-dependent keep-out margin, a penalty on the EKF's
+  linearisation stress, ...): variables appended after the objective's, constraints after the
+  objective's, penalties added to ``f`` (and left out of the objective's value).
 
 An objective plugs in as an :class:`Objective` registered by kind in
 :data:`obsplan.planning.objectives.REGISTRY`: ``nlp(ctx)`` gives the symbolic part, ``value(traj,
@@ -89,11 +90,13 @@ class ConstraintBlock:
 
 @dataclass(frozen=True, eq=False)
 class FormulationPart:
-    """Variables and constraints that a module appends to the NLP (after the objective's)."""
+    """Variables and constraints that a module appends to the NLP (after the objective's), and a
+    penalty (scalar, in the units of the normalised objective, ``None``: none) added to ``f``."""
 
     name: str
     variables: tuple[VariableBlock, ...] = ()
     constraints: tuple[ConstraintBlock, ...] = ()
+    penalty: ca.MX | None = None
 
 
 #: ``(problem, grid, W) -> part or None`` (None: the part does not apply to this problem).

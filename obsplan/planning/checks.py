@@ -382,6 +382,12 @@ def _check_objective(pb: PlanningProblem) -> None:
                 "objective.pcrb_weight",
                 f"must be a finite number >= 0 (0: the KF's std alone), got {obj.pcrb_weight}",
             )
+    lb = obj.linearisation_bound
+    if lb is not None and not (np.isfinite(lb) and lb >= 0):
+        raise field_error(
+            "objective.linearisation_bound",
+            f"must be a finite number of range stds >= 0 (0: off), got {lb}",
+        )
     if obj.robust_aggregate not in ("worst", "mean"):
         raise field_error(
             "objective.robust_aggregate", f'must be "worst" or "mean", got {obj.robust_aggregate!r}'

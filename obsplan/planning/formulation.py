@@ -22,7 +22,7 @@ Limits on the continuous path
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -37,6 +37,7 @@ from obsplan.planning.blocks import (
 )
 from obsplan.planning.grid import Grid, dynamics_residual, midpoints
 from obsplan.planning.guesses import reference_path
+from obsplan.planning.linearisation import linearisation_part
 from obsplan.planning.mission_part import mission_part
 from obsplan.planning.objectives import objective_of
 from obsplan.planning.problem import PlanningProblem
@@ -46,8 +47,9 @@ from obsplan.trajectory import Trajectory
 #: conservative by at most ``τ sqrt(eps)`` = 1e-4 τ v_max).
 _SPEED_EPS = 1e-8
 #: Builders of the parts appended to every NLP after the objective, in order (each returns None
-#: for a problem it does not apply to); e.g. a mission's survey lines with their timing variables.
-PARTS: tuple[PartBuilder, ...] = (mission_part,)
+#: for a problem it does not apply to): a mission's survey lines with their timing variables, the
+#: penalty on the EKF's linearisation stress.
+PARTS: tuple[PartBuilder, ...] = (mission_part, linearisation_part)
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,7 +57,8 @@ class Formulation:
     """The NLP of a problem: symbols, bounds and helpers to pack/unpack and evaluate.
 
     ``f`` is the objective divided by its magnitude on the reference path and signed so that
-    IPOPT minimises it; ``to_objective`` maps the solver's ``f`` back to the objective.
+    IPOPT minimises it, plus the parts' ``penalty``; ``to_objective`` maps the solver's ``f``
+    without the penalty back to the objective.
     ``variables`` and ``constraints`` are the blocks after ``W`` and in ``g``, in order (the path
     constraints first: ``n_path_constraints`` rows, on ``W`` only). ``parameters`` are the
     NLP's parameters (``nlpsol``'s ``p``) with ``parameter_values`` their values; none yet (a
@@ -78,6 +81,7 @@ class Formulation:
     n_path_constraints: int  # the first rows of g: dynamics and limits (no lifting)
     parameters: ca.MX
     parameter_values: np.ndarray
+    penalty: ca.MX = field(default_factory=lambda: ca.MX(0.0))
 
     @property
     def n_w(self) -> int:
@@ -96,9 +100,17 @@ class Formulation:
         W = x[: self.n_w].reshape(3 * n, N, order="F")
         return self.grid.to_trajectory(W), x[self.n_w :]
 
-    def lifted_value(self, f: float) -> float:
-        """The solver's objective ``f`` in the user's sign and units."""
-        return float(self.to_objective(float(f)))
+    def lifted_value(self, f: float, x: np.ndarray | None = None) -> float:
+        """The solver's objective ``f`` in the user's sign and units; with the solution ``x``,
+        the parts' penalty there is taken out of ``f`` first."""
+        return float(self.to_objective(float(f) - self.penalty_value(x)))
+
+    def penalty_value(self, x: np.ndarray | None) -> float:
+        """The parts' penalty at the solution vector ``x`` (0 without ``x`` or penalty)."""
+        if x is None or self.penalty.is_constant():  # no part adds one: the constant 0
+            return 0.0
+        fn = ca.Function("obsplan_penalty", [self.w, self.parameters], [self.penalty])
+        return float(fn(np.asarray(x, float).reshape(-1), self.parameter_values))
 
 
 def box_bounds(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.ndarray]:
@@ -189,11 +201,13 @@ def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS)
     term = objective_of(pb).nlp(ctx)
     variables = (*term.variables, *(v for part in built for v in part.variables))
     constraints = (*path, *term.constraints, *(c for part in built for c in part.constraints))
+    penalties = [part.penalty for part in built if part.penalty is not None]
+    penalty = sum(penalties[1:], penalties[0]) if penalties else ca.MX(0.0)
     return Formulation(
         problem=pb,
         grid=grid,
         w=ca.vertcat(ca.vec(Wsym), *(v.sym for v in variables)),
-        f=term.f,
+        f=term.f + penalty,
         g=ca.vertcat(*(c.g for c in constraints)),
         lbx=np.concatenate([lbW.reshape(-1, order="F"), *(v.lb for v in variables)]),
         ubx=np.concatenate([ubW.reshape(-1, order="F"), *(v.ub for v in variables)]),
@@ -202,8 +216,11 @@ def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS)
         variables=variables,
         constraints=constraints,
         to_objective=term.to_objective,
-        hessian=term.hessian,
+        # a penalty's covariance recursion has a dense exact Hessian (a 3D DVL problem ran out of
+        # 24 GB building it): quasi-Newton then, as the covariance objectives
+        hessian="limited-memory" if penalties and term.hessian == "exact" else term.hessian,
         n_path_constraints=int(sum(c.size for c in path)),
         parameters=ca.MX.sym("p", 0),
         parameter_values=np.zeros(0),
+        penalty=penalty,
     )

@@ -22,7 +22,12 @@ from obsplan.observability.scaling import Scales
 from obsplan.planning.checks import check_values
 from obsplan.planning.mission_order import free_order
 from obsplan.planning.mission_spec import Mission
-from obsplan.planning.schema import KF_PCRB_WEIGHT, OBJECTIVE_KINDS
+from obsplan.planning.schema import (
+    KF_PCRB_WEIGHT,
+    LINEARISATION_BOUND,
+    LINEARISATION_KINDS,
+    OBJECTIVE_KINDS,
+)
 
 
 @dataclass(frozen=True)
@@ -104,6 +109,18 @@ class ObjectiveSpec:
     robust_range_noise: tuple[float, ...] = ()
     robust_aggregate: str = "worst"
     pcrb_weight: float | None = None
+    linearisation_bound: float | None = None
+
+    @property
+    def resolved_linearisation_bound(self) -> float:
+        """``linearisation_bound`` [range stds], or its default: 0.25 for the kinds of
+        :data:`~obsplan.planning.schema.LINEARISATION_KINDS` weighted by information, 0 (off)
+        otherwise."""
+        if self.linearisation_bound is not None:
+            return float(self.linearisation_bound)
+        if self.kind in LINEARISATION_KINDS and self.weights == "information":
+            return LINEARISATION_BOUND
+        return 0.0
 
     @property
     def resolved_pcrb_weight(self) -> float:

@@ -83,6 +83,18 @@ OBJECTIVES: tuple[str, ...] = tuple(OBJECTIVE_KINDS)
 #: the KF's std, each relative to the reference path
 #: (:func:`~obsplan.planning.estimator_objectives.covariance_expr` has the evidence).
 KF_PCRB_WEIGHT = 1.0
+#: Default ``objective.linearisation_bound`` [range stds] of the kinds in
+#: :data:`LINEARISATION_KINDS` with ``weights = "information"`` (:mod:`obsplan.planning.
+#: linearisation` has the evidence); 0 (off) for every other kind and form.
+LINEARISATION_BOUND = 0.25
+#: The objectives whose default bounds the EKF's linearisation stress: ``gramian-log-det``
+#: (measured by ``benchmarks/bench_linearisation.py``, 1000 closed-loop runs: its plans lost the
+#: EKF on 8 runs of 1000 on two suite geometries unbounded, 0-3 bounded). ``gramian-min-eig``
+#: lost more with it (1 -> 5 and 2 -> 5 runs, EKF RMSE 0.34 -> 0.40 and 0.63 -> 0.74 m: its plans
+#: close on the beacon along the line of sight however it is bounded, and the bound moved them to
+#: worse local optima), so it is off there; ``lwo-condition`` holds the prior at every node, and
+#: its exact Hessian would take in the recursion's dense one (its 3D DVL problem ran out of 24 GB).
+LINEARISATION_KINDS: tuple[str, ...] = ("gramian-log-det",)
 #: Objectives that follow an estimator's covariance along the path and so have a time mode.
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
 #: Objectives for which a smaller value is better.
@@ -410,6 +422,20 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "lawn-mower: the objective is K/K_lm + w B/B_lm (1 + w on the lawn-mower); default "
             "1; 0: the KF's std alone. The KF's augmented model alone plans paths the EKF "
             "cannot follow (docs/problem-files.md).",
+        ),
+        FieldSpec(
+            "linearisation_bound",
+            "float",
+            _NONE,
+            "sigma_r",
+            "Bound on the EKF's linearisation stress b = tr((I - u u^T) P_pp) / (2 r), the mean "
+            "of the range's curvature over the prior (u the line of sight, r the range, P_pp "
+            "the predicted position covariance of the posterior CRB at every range epoch), in "
+            "range standard deviations: the plan pays a quadratic penalty where b "
+            'exceeds it. Default 0.25 for gramian-log-det with weights = "information" (its '
+            "plans crept along the line of sight and lost the EKF on a few runs in 1000), 0 "
+            "(off) otherwise (gramian-min-eig lost more with it); set for an objective with an "
+            "exact Hessian (lwo-condition, the paper's forms), IPOPT uses L-BFGS instead.",
         ),
     ),
     "scales": (

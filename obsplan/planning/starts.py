@@ -161,7 +161,7 @@ def run_start(
         ), None
     x = np.asarray(sol["x"]).reshape(-1)
     traj, _ = form.unpack(x)
-    lifted = form.lifted_value(float(sol["f"]))
+    lifted = form.lifted_value(float(sol["f"]), x)
     limits = check_limits(traj, pb)
     projected = False
     if not (limits.ok() and completes_mission(traj, pb)):
