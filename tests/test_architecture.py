@@ -80,8 +80,8 @@ PLANNING_ORDER: tuple[str, ...] = (
     "estimator_objectives",
     "robust",  # an estimator objective over a family of conditions (worst case or mean)
     "objectives",  # the registry by objective.kind
-    "evaluate",  # objective values and path metrics on a path
     "linearisation",  # the EKF's linearisation stress along a path, the planner's penalty on it
+    "evaluate",  # objective values and path metrics on a path
     "formulation",  # path constraints, bounds, assembly
     "ipopt",  # nlpsol construction and calls, projection, Ctrl-C
     "starts",  # one IPOPT run per guess, serial or in processes

@@ -15,6 +15,7 @@ from obsplan.planning.baselines import baselines
 from obsplan.planning.estimator_objectives import covariance_stds
 from obsplan.planning.evaluate import objective_value, path_metrics
 from obsplan.planning.feasibility import check_limits
+from obsplan.planning.linearisation import linearisation_stress
 from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon
 
@@ -101,6 +102,7 @@ def test_metrics_are_computed_the_same_way_for_every_path():
         mean, final = covariance_stds(b.trajectory, pb, "pcrb-position")
         assert (m.pcrb_mean_pos_std, m.pcrb_final_pos_std) == (mean, final)
         assert 0 < m.pcrb_final_pos_std and m.closest_approach_m >= pb.limits.min_range
+        assert m.ekf_linearisation_stress == linearisation_stress(b.trajectory, pb).max() > 0
         d = m.to_dict()
         assert set(d) >= {
             "min_eig",
@@ -110,6 +112,7 @@ def test_metrics_are_computed_the_same_way_for_every_path():
             "pcrb_final_pos_std",
             "pcrb_mean_pos_std",
             "closest_approach_m",
+            "ekf_linearisation_stress",
         }
 
 
