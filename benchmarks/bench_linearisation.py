@@ -9,7 +9,8 @@ Run (minutes per problem):
 For each problem file (with ``--kind``, its ``objective.kind`` replaced: e.g.
 ``problems/suite/gramian-offset-beacon.toml --kind gramian-log-det``) the script plans twice as
 ``obsplan plan`` does (keep-out margins included), with the bound off (``linearisation_bound =
-0``) and with the problem's own (the default for its kind), validates both plans and the
+0``) and on (the file's ``linearisation_bound`` if it sets one above 0, else 0.25, whatever
+the kind's default), validates both plans and the
 baselines over the same ``--runs`` closed-loop runs (one batch, no adaptive runs: rare losses
 need many runs), and prints per path: the peak and mean linearisation stress ``b / σ_r``
 (:mod:`obsplan.planning.linearisation`) over the range epochs, the EKF's position RMSE (the
@@ -36,6 +37,7 @@ from obsplan.planning import load_problem  # noqa: E402
 from obsplan.planning.baselines import baselines  # noqa: E402
 from obsplan.planning.linearisation import linearisation_stress  # noqa: E402
 from obsplan.planning.margins import solve_with_keepout  # noqa: E402
+from obsplan.planning.schema import LINEARISATION_BOUND  # noqa: E402
 from obsplan.planning.validation import validate_paths  # noqa: E402
 
 #: The baselines of the acceptance (validated once: every path flies the same runs).
@@ -67,7 +69,9 @@ def run(path: str, kind: str | None, runs: int) -> list[dict]:
         pb = replace(pb, objective=replace(pb.objective, kind=kind))
     rows: list[dict] = []
     base = None
-    for label, bound in (("bound off", 0.0), ("bound on", None)):
+    own = pb.objective.linearisation_bound
+    on = own if own is not None and own > 0 else LINEARISATION_BOUND
+    for label, bound in (("bound off", 0.0), ("bound on", on)):
         q = replace(pb, objective=replace(pb.objective, linearisation_bound=bound))
         t0 = time.perf_counter()
         res, _ = solve_with_keepout(q)
