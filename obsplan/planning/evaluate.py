@@ -14,7 +14,8 @@ objective's two modes, the same recursion as the validation's bound).
 ``closest_approach_m`` / ``farthest_m``: exact extremes of ``|p(t) - b|`` on the continuous path.
 ``ekf_linearisation_stress``: the peak over the range epochs of the range's curvature over the
 EKF's prior in range stds, ``tr((I - u uᵀ) P_pp) / (2 r σ_r)`` (:mod:`obsplan.planning
-.linearisation`): above ~0.3 the EKF lost track on a few runs in 1000.
+.linearisation`): unbounded log-det plans peaking at 0.48-0.68 lost the EKF on 8 runs in 1000,
+the lawn-mower and the circle (at most 0.24) on none.
 """
 
 from __future__ import annotations
@@ -120,6 +121,7 @@ def path_metrics(traj: Trajectory, pb: PlanningProblem) -> PathMetrics:
 
 
 def _peak_stress(traj: Trajectory, pb: PlanningProblem) -> float:
-    """The largest EKF linearisation stress ``b / σ_r`` along ``traj`` (NaN without ranges)."""
+    """The largest EKF linearisation stress ``b / σ_r`` along ``traj`` (NaN with no range epoch
+    after the first)."""
     b = linearisation_stress(traj, pb)
     return float(b.max()) if b.size else math.nan
