@@ -15,7 +15,8 @@ baselines over the same ``--runs`` closed-loop runs (one batch, no adaptive runs
 need many runs), and prints per path: the peak and mean linearisation stress ``b / σ_r``
 (:mod:`obsplan.planning.linearisation`) over the range epochs, the EKF's position RMSE (the
 verdict's), the median of its per-run RMSEs, the runs whose RMSE is over 5x that median
-("lost"), the worst run, and the Gaussian-sum filter's RMSE beside it. A lost run of a few
+("lost"), the worst run, the Gaussian-sum filter's RMSE beside it, and the EKF's mean final
+position error. A lost run of a few
 percent of the runs decides an RMSE verdict: 50 runs do not see a 1 % loss (0.6 chance).
 """
 
@@ -56,6 +57,7 @@ def _row(name: str, traj, v, pb) -> dict:
         "stress_max": float(b.max()),
         "stress_mean": float(b.mean()),
         "ekf_rmse": float(f["ekf"].rmse_pos),
+        "ekf_final": float(f["ekf"].final_pos_err),
         "ekf_median_run": med,
         "lost": int(np.sum(e > LOST_FACTOR * med)),
         "worst_run": float(e.max()),
@@ -104,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     head = (
         f"{'problem / path':44s} {'b/sr max':>8s} {'mean':>6s} {'EKF rmse':>8s} "
-        f"{'median':>7s} {'lost':>5s} {'worst':>7s} {'GSF rmse':>8s}"
+        f"{'median':>7s} {'lost':>5s} {'worst':>7s} {'GSF rmse':>8s} {'EKF final':>9s}"
     )
     out: list[dict] = []
     for f in args.files:
@@ -121,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
             print(
                 f"{name[:44]:44s} {r['stress_max']:8.3f} {r['stress_mean']:6.3f} "
                 f"{r['ekf_rmse']:8.3f} {r['ekf_median_run']:7.3f} {r['lost']:5d} "
-                f"{r['worst_run']:7.2f} {gsf:>8s}"
+                f"{r['worst_run']:7.2f} {gsf:>8s} {r['ekf_final']:9.3f}"
             )
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))

@@ -5,12 +5,15 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
 from obsplan.errors import ProblemError
 from obsplan.planning import load_problem
 from obsplan.planning.formulation import build_formulation
+from obsplan.planning.guesses import reference_path
+from obsplan.planning.ipopt import _hessian_without_penalty
 from obsplan.planning.linearisation import linearisation_stress
 from obsplan.planning.parse import problem_from_dict, problem_to_dict
 from obsplan.planning.problem import Horizon
@@ -70,12 +73,42 @@ def test_default_bound_applies_to_log_det_weighted_by_information():
     on = build_formulation(small)
     assert off.penalty.is_constant() and not on.penalty.is_constant()
     assert on.w.numel() == off.w.numel() and on.g.numel() == off.g.numel()
-    # lwo-condition (exact Hessian) only when asked, and then with L-BFGS
+    # lwo-condition (exact Hessian) only when asked, and then with its exact Hessian without the
+    # penalty's (the recursion's is dense)
     lwo = _objective(small, kind="lwo-condition")
     assert lwo.objective.resolved_linearisation_bound == 0.0
     assert build_formulation(lwo).hessian == "exact"
     asked = build_formulation(_objective(lwo, linearisation_bound=0.25))
-    assert asked.hessian == "limited-memory" and not asked.penalty.is_constant()
+    assert asked.hessian == "exact-without-penalty" and not asked.penalty.is_constant()
+
+
+def test_the_solver_hessian_is_the_unbounded_problems():
+    # IPOPT gets the exact Hessian of the Lagrangian without the penalty's curvature: the same
+    # matrix, to round-off, as the unbounded formulation's (same variables and constraints).
+    # A bound of 0.01 σ_r is active on the lawn-mower, so the penalty's curvature is not zero there.
+    lwo = load_problem(ROOT / "problems/suite/lwo-offset-beacon.toml")
+    pb = _objective(replace(lwo, horizon=Horizon(600.0, 12)), linearisation_bound=0.01)
+    on = build_formulation(pb)
+    off = build_formulation(_objective(pb, linearisation_bound=0.0))
+    assert on.hessian == "exact-without-penalty" and off.hessian == "exact"
+    rng = np.random.default_rng(0)
+    x = on.pack(reference_path(pb)) + 1e-3 * rng.standard_normal(on.w.numel())
+    assert on.penalty_value(x) > 0
+    lam_g = rng.standard_normal(on.g.numel())
+    lam_f, lam = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", on.g.numel())
+
+    def triu_hessian(form, f):
+        lag = lam_f * f + ca.dot(lam, form.g)
+        fn = ca.Function("h", [form.w, lam_f, lam], [ca.triu(ca.hessian(lag, form.w)[0])])
+        return np.asarray(ca.DM(fn(x, 0.7, lam_g)))
+
+    ours = _hessian_without_penalty(on, expand=True)
+    H_ours = np.asarray(ca.DM(ours(x, on.parameter_values, 0.7, lam_g)))
+    H_off, H_full = triu_hessian(off, off.f), triu_hessian(on, on.f)
+    scale = np.abs(H_off).max()
+    # double round-off on entries of order max |H|
+    np.testing.assert_allclose(H_ours, H_off, rtol=0, atol=1e-12 * scale)
+    assert np.abs(H_full - H_off).max() > 1e-6 * scale
 
 
 @pytest.mark.parametrize("value", [-0.1, float("nan"), float("inf")])

@@ -31,7 +31,7 @@ from obsplan.planning.grid import Grid
 from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
 
-Hessian = Literal["exact", "limited-memory", "limited-memory-sr1"]
+Hessian = Literal["exact", "exact-without-penalty", "limited-memory", "limited-memory-sr1"]
 
 
 def no_variables(W: np.ndarray) -> np.ndarray:

@@ -334,15 +334,13 @@ def _kf_range_rows(pb: PlanningProblem, s: np.ndarray, sigma: float, extra: floa
     return rows
 
 
+@cache
 def covariance_objective(pb: PlanningProblem, kind: str | None = None) -> CovarianceObjective:
-    """The :class:`CovarianceObjective` of ``kind`` (default: the problem's objective)."""
+    """The :class:`CovarianceObjective` of ``kind`` (default: the problem's objective), built
+    once per problem (its CasADi functions are shared by the planner, the metrics and the
+    margins)."""
     kind = pb.objective.kind if kind is None else kind
     return kf_objective(pb) if kind == "kf-position-std" else pcrb_objective(pb)
-
-
-@cache
-def _covariance(pb: PlanningProblem, kind: str) -> CovarianceObjective:
-    return covariance_objective(pb, kind)
 
 
 def covariance_stds(traj: Trajectory, pb: PlanningProblem, kind: str) -> tuple[float, float]:
@@ -352,19 +350,21 @@ def covariance_stds(traj: Trajectory, pb: PlanningProblem, kind: str) -> tuple[f
     planning grid (N + 1 samples).
     """
     grid = Grid.from_problem(pb)
-    return _covariance(pb, kind).evaluate(grid, grid.from_trajectory(traj))
+    return covariance_objective(pb, kind).evaluate(grid, grid.from_trajectory(traj))
 
 
 @cache
 def _reference_stds(pb: PlanningProblem, kind: str) -> tuple:
     """``(mission-average, final, lines)`` std [m] on the reference path (lines: None without)."""
     grid = Grid.from_problem(pb)
-    return _covariance(pb, kind).evaluate_all(grid, grid.from_trajectory(reference_path(pb)))
+    return covariance_objective(pb, kind).evaluate_all(
+        grid, grid.from_trajectory(reference_path(pb))
+    )
 
 
 def _timed(pb: PlanningProblem, kind: str, grid: Grid, W):
     """The ``kind`` recursion on ``W`` in the problem's time mode (CasADi or number)."""
-    avg, final, on = _covariance(pb, kind).evaluate_all(grid, W)
+    avg, final, on = covariance_objective(pb, kind).evaluate_all(grid, W)
     return timed_value(pb.objective_mode, avg, final, _reference_stds(pb, kind), on)
 
 

@@ -217,8 +217,10 @@ def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS)
         constraints=constraints,
         to_objective=term.to_objective,
         # a penalty's covariance recursion has a dense exact Hessian (a 3D DVL problem ran out of
-        # 24 GB building it): quasi-Newton then, as the covariance objectives
-        hessian="limited-memory" if penalties and term.hessian == "exact" else term.hessian,
+        # 24 GB building it): the objective's and constraints' exact one without the penalty's
+        # curvature then (its gradient is exact). L-BFGS instead left lwo-condition at
+        # Maximum_Iterations at N = 1000 (benchmarks/bench_gramian_objectives.py)
+        hessian="exact-without-penalty" if penalties and term.hessian == "exact" else term.hessian,
         n_path_constraints=int(sum(c.size for c in path)),
         parameters=ca.MX.sym("p", 0),
         parameter_values=np.zeros(0),

@@ -78,9 +78,36 @@ def make_solver(
         ipopt.update(WARM_START_LBFGS if limited else WARM_START)
 
     ipopt.update(ipopt_options or {})
-    opts = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
+    opts: dict[str, Any] = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
+    if form.hessian == "exact-without-penalty":
+        opts["hess_lag"] = _hessian_without_penalty(form, expand)
     nlp = {"x": form.w, "p": form.parameters, "f": form.f, "g": form.g}
     return ca.nlpsol("obsplan_planner", "ipopt", nlp, opts)  # type: ignore[arg-type]
+
+
+def _hessian_without_penalty(form: Formulation, expand: bool) -> ca.Function:
+    """IPOPT's ``hess_lag``: the upper triangle of the exact Hessian of the Lagrangian with
+    the penalty (``form.penalty``) left out of the objective.
+
+    The penalty is a covariance recursion's, whose exact Hessian is dense (building it for a 3D
+    DVL problem ran out of 24 GB); IPOPT still has its exact gradient, so a step that raises it
+    is cut back by the line search. Against L-BFGS on the whole (``lwo-condition`` bounded,
+    ``benchmarks/bench_gramian_objectives.py``): Solve_Succeeded at N = 200, 1000 and 3D
+    N = 600 where L-BFGS ended at an acceptable level and at its iteration limit.
+    """
+    x, p = form.w, form.parameters
+    lam_f = ca.MX.sym("lam_f")
+    lam_g = ca.MX.sym("lam_g", form.g.numel())
+    lagrangian = lam_f * (form.f - form.penalty) + ca.dot(lam_g, form.g)
+    hess = ca.triu(ca.hessian(lagrangian, x)[0])
+    fn = ca.Function(
+        "nlp_hess_l",
+        [x, p, lam_f, lam_g],
+        [hess],
+        ["x", "p", "lam_f", "lam_g"],
+        ["triu_hess_gamma_x_x"],
+    )
+    return fn.expand() if expand else fn
 
 
 def make_projection(pb: PlanningProblem, form: Formulation) -> ca.Function:

@@ -50,7 +50,7 @@ import numpy as np
 
 from obsplan.estimation.riccati import run_recursion
 from obsplan.planning.blocks import FormulationPart
-from obsplan.planning.estimator_objectives import pcrb_objective
+from obsplan.planning.estimator_objectives import covariance_objective
 from obsplan.planning.grid import Grid
 from obsplan.planning.problem import PlanningProblem
 from obsplan.trajectory import Trajectory
@@ -75,7 +75,7 @@ def _stress_function(n: int, m: int) -> ca.Function:
 def stress_expr(pb: PlanningProblem, grid: Grid, W):
     """``b / σ_r`` (module docstring) at every range epoch after the first, from the path ``W``
     (intrinsic units): an ndarray of shape (J,) for an ndarray ``W``, else a CasADi column."""
-    cov = pcrb_objective(pb)
+    cov = covariance_objective(pb, "pcrb-position")
     h, rho = cov.rows(grid, W)  # h: the positions relative to the beacon at the epochs
     P_prior, _ = run_recursion(cov.model, cov.epochs, cov.P0, h, rho, cov.mask)
     n, m, J = cov.model.n, cov.model.m, cov.epochs.count

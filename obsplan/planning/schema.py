@@ -92,8 +92,11 @@ LINEARISATION_BOUND = 0.25
 #: EKF on 8 runs of 1000 on two suite geometries unbounded, 0-3 bounded). ``gramian-min-eig``
 #: lost more with it (1 -> 5 and 2 -> 5 runs, EKF RMSE 0.34 -> 0.40 and 0.63 -> 0.74 m: its plans
 #: close on the beacon along the line of sight however it is bounded, and the bound moved them to
-#: worse local optima), so it is off there; ``lwo-condition`` holds the prior at every node, and
-#: its exact Hessian would take in the recursion's dense one (its 3D DVL problem ran out of 24 GB).
+#: worse local optima), so it is off there. ``lwo-condition`` bounded at 0.25 moved its two 2D
+#: suite plans from behind the lawn-mower to ahead of it at 1000 runs (EKF RMSE 0.573 -> 0.474
+#: and 0.765 -> 0.642 m against 0.488 and 0.718), but on ``suite/lwo-current-water-dvl.toml``
+#: its EKF final error went from 0.017 to 0.035 m (the lawn-mower's 0.016) and it took 2-9x the
+#: solve time, so it is off there too.
 LINEARISATION_KINDS: tuple[str, ...] = ("gramian-log-det",)
 #: Objectives that follow an estimator's covariance along the path and so have a time mode.
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
@@ -434,8 +437,10 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "range standard deviations: the plan pays a quadratic penalty where b "
             'exceeds it. Default 0.25 for gramian-log-det with weights = "information" (its '
             "plans crept along the line of sight and lost the EKF on a few runs in 1000), 0 "
-            "(off) otherwise (gramian-min-eig lost more with it); set for an objective with an "
-            "exact Hessian (lwo-condition, the paper's forms), IPOPT uses L-BFGS instead.",
+            "(off) otherwise (gramian-min-eig lost more with it, lwo-condition won and lost "
+            "with it: docs/problem-files.md); set for an objective with an exact Hessian "
+            "(lwo-condition, the paper's forms), IPOPT gets that Hessian without the "
+            "penalty's curvature (the recursion's is dense).",
         ),
     ),
     "scales": (
