@@ -207,7 +207,12 @@ def main(argv: list[str] | None = None) -> int:
         cells = "  ".join(
             f"{fmt(r['lawnmower'].get(k))}|{fmt(r['best'].get(k))}" for _, k in RATIOS
         )
-        verdict = "beats all" if r["beats_all"] else "LOSES"
+        letters = "/".join(
+            "".join(_letter_of(d) for d in r["verdicts"].get(b, {}).values()) or "-"
+            for b in VERDICT_BASELINES
+        )
+        # behind on a mean but not decided worse is a tie, not a loss
+        verdict = "beats all" if r["beats_all"] else ("LOSES" if "W" in letters else "ties")
         if r["not_fitted"]:
             verdict += f" (not fitted: {', '.join(r['not_fitted'])})"
         closest = "-" if r["closest_m"] is None else f"{r['closest_m']:.1f}"
@@ -217,10 +222,6 @@ def main(argv: list[str] | None = None) -> int:
                 f"{r['runs']:5d} {r['true_closest_m']:8.2f} {r['runs_inside_min_range']:3d} "
                 f"{100 * r['any_violation_fraction']:4.0f}%"
             )
-        letters = "/".join(
-            "".join(_letter_of(d) for d in r["verdicts"].get(b, {}).values()) or "-"
-            for b in VERDICT_BASELINES
-        )
         print(
             f"{r['problem'][-34:]:34s} {r['objective'][:34]:34s} {r['status'][:26]:26s} "
             f"{r['solve_s']:6.1f}  {cells}  {closest:>7s} {truth}  {letters:9s}  {verdict}",
