@@ -57,8 +57,9 @@ class Formulation:
     """The NLP of a problem: symbols, bounds and helpers to pack/unpack and evaluate.
 
     ``f`` is the objective divided by its magnitude on the reference path and signed so that
-    IPOPT minimises it, plus the parts' ``penalty``; ``to_objective`` maps the solver's ``f``
-    without the penalty back to the objective.
+    IPOPT minimises it, plus the parts' ``penalty`` (``objective_f`` the same without it, when
+    there is one); ``to_objective`` maps the solver's ``f`` without the penalty back to the
+    objective.
     ``variables`` and ``constraints`` are the blocks after ``W`` and in ``g``, in order (the path
     constraints first: ``n_path_constraints`` rows, on ``W`` only). ``parameters`` are the
     NLP's parameters (``nlpsol``'s ``p``) with ``parameter_values`` their values; none yet (a
@@ -82,6 +83,9 @@ class Formulation:
     parameters: ca.MX
     parameter_values: np.ndarray
     penalty: ca.MX = field(default_factory=lambda: ca.MX(0.0))
+    # f without the penalty, its own graph (the Hessian IPOPT gets need not rely on CasADi
+    # cancelling the penalty out of f - penalty); None: f is the objective alone
+    objective_f: ca.MX | None = None
 
     @property
     def n_w(self) -> int:
@@ -225,4 +229,5 @@ def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS)
         parameters=ca.MX.sym("p", 0),
         parameter_values=np.zeros(0),
         penalty=penalty,
+        objective_f=term.f if penalties else None,
     )

@@ -98,7 +98,8 @@ def _hessian_without_penalty(form: Formulation, expand: bool) -> ca.Function:
     x, p = form.w, form.parameters
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", form.g.numel())
-    lagrangian = lam_f * (form.f - form.penalty) + ca.dot(lam_g, form.g)
+    f = form.f if form.objective_f is None else form.objective_f
+    lagrangian = lam_f * f + ca.dot(lam_g, form.g)
     hess = ca.triu(ca.hessian(lagrangian, x)[0])
     fn = ca.Function(
         "nlp_hess_l",
