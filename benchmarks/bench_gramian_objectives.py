@@ -14,7 +14,9 @@ one ``solve`` as ``obsplan plan`` runs it (multi-start, coarse-to-fine above N =
 the load average is printed before and after), its IPOPT iterations and status, the windows and the
 budget of the issue (2D N = 200: 20 s, N = 1000: 60 s; 3D DVL N = 600: 90 s), flagging a row whose
 wall time is over it and a solve that did not converge (any status but ``Solve_Succeeded``).
-``--quick`` runs the N = 200 case only; ``--kind K`` (repeatable) only those objectives.
+``--quick`` runs the N = 200 case only; ``--kind K`` (repeatable) only those objectives;
+``--linearisation-bound K`` sets ``objective.linearisation_bound`` on every row (a bound on an
+exact-Hessian objective is solved with that Hessian without the penalty's curvature).
 """
 
 from __future__ import annotations
@@ -50,6 +52,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--starts", type=int, default=1, help="starts per solve (default 1)")
     ap.add_argument("--quick", action="store_true", help="the N = 200 case only")
     ap.add_argument("--kind", action="append", choices=KINDS, help="only this objective")
+    ap.add_argument(
+        "--linearisation-bound",
+        type=float,
+        default=None,
+        metavar="K",
+        help="objective.linearisation_bound of every row (default: each kind's own)",
+    )
     args = ap.parse_args(argv)
     head = (
         f"{'case':22s} {'objective':16s} {'form':11s} {'windows':>8s} {'wall s':>7s} "
@@ -64,6 +73,8 @@ def main(argv: list[str] | None = None) -> int:
         for kind in args.kind or KINDS:
             for form, fields in FORMS:
                 obj = replace(base.objective, kind=kind, starts=args.starts, **fields)
+                if args.linearisation_bound is not None:
+                    obj = replace(obj, linearisation_bound=args.linearisation_bound)
                 pb = replace(base, objective=obj)
                 ws = window_settings(pb)
                 nw = "1" if paper_form(pb) else f"{len(ws.starts)}x{ws.window_s:.0f}s"
