@@ -22,7 +22,10 @@ lawn-mower and the circle on EKF RMSE, EKF final, KF RMSE and KF final: ``B`` be
 decided at 95 %, ``W`` worse and decided, ``t`` a tie (not decided at the cap). The verdict's
 notes (an EKF that diverges on the plan, with the Gaussian-sum filter beside it; a diagnostic
 objective) follow their row. ``--objective gramian`` keeps the problems whose objective kind
-starts with ``gramian``.
+starts with ``gramian``. ``--set SECTION.FIELD=VALUE`` (repeatable; VALUE a TOML value, a bare
+word taken as a string) changes a field of every problem, checked as the problem file's are:
+e.g. ``--set objective.kind=pcrb-position --set objective.mode=final`` plans every problem for
+its final bound.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import json
 import statistics
 import sys
 import time
+import tomllib
 from dataclasses import replace
 from pathlib import Path
 
@@ -39,6 +43,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
+from obsplan.planning.parse import problem_from_dict, problem_to_dict  # noqa: E402
 from obsplan.planning.plan import plan  # noqa: E402
 from obsplan.planning.validation import validate_paths  # noqa: E402
 from obsplan.planning.verdict import metric_value  # noqa: E402
@@ -62,6 +67,30 @@ def _letter_of(d: dict) -> str:
     return {"better": "B", "worse": "W"}.get(d["outcome"], "t")
 
 
+def parse_set(item: str) -> tuple[str, str, object]:
+    """``SECTION.FIELD=VALUE`` -> ``(section, field, value)``, VALUE read as TOML (a bare word
+    as a string)."""
+    key, sep, text = item.partition("=")
+    section, dot, name = key.strip().partition(".")
+    if not sep or not dot or not section or not name:
+        raise SystemExit(f"--set {item!r}: expected SECTION.FIELD=VALUE, e.g. objective.mode=final")
+    try:
+        value = tomllib.loads(f"v = {text.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = text.strip()
+    return section, name, value
+
+
+def with_fields(pb, sets: list[tuple[str, str, object]]):
+    """``pb`` with the ``--set`` fields, through the problem file's own checks."""
+    if not sets:
+        return pb
+    d = problem_to_dict(pb)
+    for section, name, value in sets:
+        d.setdefault(section, {})[name] = value
+    return problem_from_dict(d)
+
+
 def run_one(
     path: Path,
     runs: int | None,
@@ -70,8 +99,9 @@ def run_one(
     truth_runs: int = 0,
     ekf_update: str | None = None,
     navigation: str | None = None,
+    sets: list[tuple[str, str, object]] | None = None,
 ) -> dict:
-    pb = load_problem(path)
+    pb = with_fields(load_problem(path), sets or [])
     if navigation:
         pb = replace(pb, validation=replace(pb.validation, navigation=navigation))
     if open_loop:
@@ -177,7 +207,15 @@ def main(argv: list[str] | None = None) -> int:
         metavar="PREFIX",
         help="only the problems whose objective.kind starts with PREFIX (e.g. gramian, lwo)",
     )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.FIELD=VALUE",
+        help="change a field of every problem (repeatable), e.g. objective.mode=final",
+    )
     args = ap.parse_args(argv)
+    sets = [parse_set(item) for item in args.set]
     files = [Path(f).resolve() for f in args.files] or sorted((ROOT / "problems").glob("*.toml"))
     if not args.files:
         files += sorted((ROOT / "problems" / "suite").glob("*.toml"))
@@ -202,6 +240,7 @@ def main(argv: list[str] | None = None) -> int:
             args.truth_runs,
             args.ekf_update,
             args.navigation,
+            sets,
         )
         rows.append(r)
         cells = "  ".join(
