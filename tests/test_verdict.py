@@ -143,3 +143,33 @@ def test_rms_interval_of_squares():
     a = 0.7 * b
     lo, hi = ratio_interval(a, b, seed=0, rms=True)
     assert lo == pytest.approx(0.7) and hi == pytest.approx(0.7)
+
+
+def test_a_stressed_plan_is_warned_of_losses_too_rare_for_its_runs():
+    from dataclasses import replace
+
+    from obsplan.planning import load_problem
+    from obsplan.planning.evaluate import path_metrics
+    from obsplan.planning.guesses import reference_path
+    from obsplan.planning.problem import Horizon
+    from obsplan.planning.verdict import STRESS_NOTE_LEVEL, STRESS_NOTE_RUNS, stress_notes
+
+    pb = load_problem("problems/localise.toml")
+    pb = replace(pb, horizon=Horizon(pb.horizon.duration, 40))
+    m = path_metrics(reference_path(pb), pb)
+
+    def paths(plan: float, *others: float):
+        out = {"planned": replace(m, ekf_linearisation_stress=plan)}
+        out.update({f"b{i}": replace(m, ekf_linearisation_stress=x) for i, x in enumerate(others)})
+        return out
+
+    (note,) = stress_notes(paths(0.45, 0.24, 0.2, 0.8, float("nan")), 50)
+    assert "0.45" in note and "b1's at 0.20" in note and "50 runs" in note
+    # enough runs to see a loss in a few hundred; below the level; every baseline as stressed;
+    # no stress at all (no range epoch after the first); nothing to compare with
+    assert stress_notes(paths(0.45, 0.2), STRESS_NOTE_RUNS) == ()
+    assert stress_notes(paths(STRESS_NOTE_LEVEL, 0.2), 50) == ()
+    assert stress_notes(paths(0.45, 0.5, 0.45), 50) == ()
+    assert stress_notes(paths(float("nan"), 0.2), 50) == ()
+    assert stress_notes(paths(0.45), 50) == ()
+    assert stress_notes({}, 50) == ()

@@ -21,6 +21,7 @@ from obsplan.planning.verdict import (
     Verdict,
     ekf_diverges,
     objective_notes,
+    stress_notes,
     validate_until_decided,
     verdict,
 )
@@ -75,7 +76,9 @@ class PlanResult:
                 del val[name]
                 not_fitted[name] = "does not complete the mission (not compared)"
         survey = self.problem.mission is not None and bool(self.problem.mission.lines)
-        return verdict(val, not_fitted, objective_notes(self.problem), lines=survey)
+        runs = int(val["planned"].result.runs) if "planned" in val else 0
+        notes = (*objective_notes(self.problem), *stress_notes(self.metrics, runs))
+        return verdict(val, not_fitted, notes, lines=survey)
 
     @property
     def success(self) -> bool:
