@@ -1,0 +1,53 @@
+"""The README's suite table covers every shipped problem, once, with the objective it names."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from obsplan.planning import load_problem
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text(encoding="utf-8")
+SECTION = "## The planner's verdict on the problem suite"
+NUMBERS = (
+    "zero one two three four five six seven eight nine ten eleven twelve thirteen "
+    "fourteen fifteen sixteen seventeen eighteen nineteen twenty twenty-one twenty-two "
+    "twenty-three twenty-four twenty-five"
+).split()
+
+
+def _section() -> str:
+    start = README.index(SECTION)
+    end = README.find("\n## ", start + len(SECTION))
+    return README[start : end if end > 0 else None]
+
+
+def _rows() -> dict[str, list[str]]:
+    rows: dict[str, list[str]] = {}
+    for line in _section().splitlines():
+        m = re.match(r"\| `([\w/.-]+\.toml)` \|", line)
+        if m:
+            assert m.group(1) not in rows, f"two README rows for {m.group(1)}"
+            rows[m.group(1)] = [c.strip() for c in line.strip().strip("|").split("|")]
+    return rows
+
+
+def _shipped() -> dict[str, Path]:
+    files = {p.name: p for p in sorted((ROOT / "problems").glob("*.toml"))}
+    files |= {f"suite/{p.name}": p for p in sorted((ROOT / "problems/suite").glob("*.toml"))}
+    return files
+
+
+def test_every_shipped_problem_has_one_row_naming_its_objective():
+    rows, files = _rows(), _shipped()
+    assert sorted(rows) == sorted(files)
+    for name, path in files.items():
+        # "pcrb-position/average-and-final": the kind, then the time mode of a timed objective
+        assert rows[name][1].split("/")[0] == load_problem(path).objective.kind, name
+
+
+def test_the_section_counts_the_suite_as_it_is():
+    n = len(list((ROOT / "problems/suite").glob("*.toml")))
+    assert f"{NUMBERS[n]} of `problems/suite/`" in _section()
+    assert f"Medians over the {NUMBERS[n]} suite rows" in _section()
