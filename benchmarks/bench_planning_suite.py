@@ -47,6 +47,7 @@ from obsplan.planning.parse import problem_from_dict, problem_to_dict  # noqa: E
 from obsplan.planning.plan import plan  # noqa: E402
 from obsplan.planning.validation import validate_paths  # noqa: E402
 from obsplan.planning.verdict import metric_value  # noqa: E402
+from obsplan.sweeps.spec import parse_path, set_fields  # noqa: E402
 
 #: The verdicts shown against these baselines, on these metrics.
 VERDICT_BASELINES = ("lawnmower", "circle")
@@ -67,28 +68,25 @@ def _letter_of(d: dict) -> str:
     return {"better": "B", "worse": "W"}.get(d["outcome"], "t")
 
 
-def parse_set(item: str) -> tuple[str, str, object]:
-    """``SECTION.FIELD=VALUE`` -> ``(section, field, value)``, VALUE read as TOML (a bare word
-    as a string)."""
-    key, sep, text = item.partition("=")
-    section, dot, name = key.strip().partition(".")
-    if not sep or not dot or not section or not name:
+def parse_set(item: str) -> tuple[str, object]:
+    """``SECTION.FIELD=VALUE`` -> ``(path, value)``, VALUE read as TOML (a bare word as a
+    string); the path as a sweep axis's (:func:`obsplan.sweeps.spec.parse_path`)."""
+    path, sep, text = item.partition("=")
+    if not sep:
         raise SystemExit(f"--set {item!r}: expected SECTION.FIELD=VALUE, e.g. objective.mode=final")
     try:
         value = tomllib.loads(f"v = {text.strip()}")["v"]
     except tomllib.TOMLDecodeError:
         value = text.strip()
-    return section, name, value
+    parse_path(path.strip())
+    return path.strip(), value
 
 
-def with_fields(pb, sets: list[tuple[str, str, object]]):
+def with_fields(pb, sets: list[tuple[str, object]]):
     """``pb`` with the ``--set`` fields, through the problem file's own checks."""
     if not sets:
         return pb
-    d = problem_to_dict(pb)
-    for section, name, value in sets:
-        d.setdefault(section, {})[name] = value
-    return problem_from_dict(d)
+    return problem_from_dict(set_fields(problem_to_dict(pb), dict(sets)))
 
 
 def run_one(
@@ -99,7 +97,7 @@ def run_one(
     truth_runs: int = 0,
     ekf_update: str | None = None,
     navigation: str | None = None,
-    sets: list[tuple[str, str, object]] | None = None,
+    sets: list[tuple[str, object]] | None = None,
 ) -> dict:
     pb = with_fields(load_problem(path), sets or [])
     if navigation:

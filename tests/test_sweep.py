@@ -19,7 +19,7 @@ import pytest
 from obsplan.cli import main
 from obsplan.planning.parse import problem_from_dict
 from obsplan.sweeps import SweepFileError, expand, load_sweep, sweep, sweep_from_dict
-from obsplan.sweeps.spec import apply_axes, combinations, parse_path, unique_tasks
+from obsplan.sweeps.spec import apply_axes, combinations, parse_path, set_fields, unique_tasks
 from obsplan.sweeps.table import build_table, comparable, flatten
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -391,3 +391,16 @@ def test_default_workers_follow_the_cpu_affinity():
         check=True,
     )
     assert out.stdout.strip() == "1"
+
+
+def test_set_fields_writes_paths_as_axes_do():
+    from obsplan.planning import load_problem
+    from obsplan.planning.parse import problem_from_dict, problem_to_dict
+
+    base = problem_to_dict(load_problem(ROOT / "problems/range3d.toml"))
+    out = set_fields(base, {"limits.accel.2": 0.01, "objective.kind": "pcrb-position"})
+    pb = problem_from_dict(out)
+    assert pb.limits.accel[2] == 0.01 and pb.objective.kind == "pcrb-position"
+    assert base == problem_to_dict(load_problem(ROOT / "problems/range3d.toml"))  # not mutated
+    with pytest.raises(SweepFileError, match="objective"):
+        set_fields(base, {"objective.kinds": "pcrb-position"})

@@ -3,16 +3,25 @@ in batches until decided (merged exactly)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
+from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
+from obsplan.planning.evaluate import path_metrics
+from obsplan.planning.guesses import reference_path
+from obsplan.planning.problem import Horizon
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.verdict import (
     RUN_METRICS,
+    STRESS_NOTE_LEVEL,
+    STRESS_NOTE_RUNS,
     Comparison,
     Verdict,
     ratio_interval,
+    stress_notes,
     validate_until_decided,
     verdict,
 )
@@ -146,14 +155,6 @@ def test_rms_interval_of_squares():
 
 
 def test_a_stressed_plan_is_warned_of_losses_too_rare_for_its_runs():
-    from dataclasses import replace
-
-    from obsplan.planning import load_problem
-    from obsplan.planning.evaluate import path_metrics
-    from obsplan.planning.guesses import reference_path
-    from obsplan.planning.problem import Horizon
-    from obsplan.planning.verdict import STRESS_NOTE_LEVEL, STRESS_NOTE_RUNS, stress_notes
-
     pb = load_problem("problems/localise.toml")
     pb = replace(pb, horizon=Horizon(pb.horizon.duration, 40))
     m = path_metrics(reference_path(pb), pb)

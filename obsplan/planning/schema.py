@@ -95,8 +95,8 @@ LINEARISATION_BOUND = 0.25
 #: worse local optima), so it is off there. ``lwo-condition`` bounded at 0.25 moved its two 2D
 #: suite plans from behind the lawn-mower to ahead of it at 1000 runs (EKF RMSE 0.573 -> 0.474
 #: and 0.765 -> 0.642 m against 0.488 and 0.718), but on ``suite/lwo-current-water-dvl.toml``
-#: its EKF final error went from 0.017 to 0.035 m (the lawn-mower's 0.016) and it took 2-9x the
-#: solve time, so it is off there too.
+#: its EKF final error went from 0.017 to 0.035 m (the lawn-mower's 0.016), and the four suite
+#: solves took 1.4-11x as long, so it is off there too.
 LINEARISATION_KINDS: tuple[str, ...] = ("gramian-log-det",)
 #: Objectives that follow an estimator's covariance along the path and so have a time mode.
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)

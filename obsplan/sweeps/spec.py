@@ -469,9 +469,20 @@ def apply_axes(base: Mapping[str, Any], spec: SweepSpec, values: Mapping[str, An
     ``vehicle.dim`` is applied first, so that a component axis (``limits.accel.2``) on a scalar
     or omitted field expands it to the task's dimension.
     """
+    return _write(base, spec.axes, values)
+
+
+def set_fields(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict:
+    """``base`` (a raw problem mapping) with each dotted field path of ``values``
+    (:func:`parse_path`: ``"objective.mode"``, ``"limits.accel.2"``) set to its value, as a
+    sweep's axes are; check the result with ``problem_from_dict``."""
+    axes = [Axis(path=p, keys=parse_path(p), values=(v,)) for p, v in values.items()]
+    return _write(base, axes, values)
+
+
+def _write(base: Mapping[str, Any], axes: Sequence[Axis], values: Mapping[str, Any]) -> dict:
     data = copy.deepcopy(dict(base))
-    order = sorted(spec.axes, key=lambda a: a.keys[:2] != ("vehicle", "dim"))
-    for axis in order:
+    for axis in sorted(axes, key=lambda a: a.keys[:2] != ("vehicle", "dim")):
         _set(data, axis, copy.deepcopy(values[axis.path]))
     return data
 
