@@ -294,6 +294,15 @@ def main(argv: list[str] | None = None) -> int:
         f"plan better than the lawn-mower and the circle on EKF/KF RMSE and final, every verdict "
         f"decided at 95 %: {len(decided)} of {len(rows)} problems"
     )
+    worse = [
+        Path(r["problem"]).stem
+        for r in rows
+        if any(d["outcome"] == "worse" for b in (r["verdicts"] or {}).values() for d in b.values())
+    ]
+    print(
+        f"a verdict decided against the plan (W) on {len(worse)} of {len(rows)} problems"
+        + (f": {', '.join(worse)}" if worse else "")
+    )
     kept = []
     for r in rows:  # the plan-alone runs when there are, else the validation's
         t = r.get("truth_runs") or (

@@ -1,0 +1,116 @@
+"""Seeded random problems of the suite's kinds, for checking the planner on problems it was not
+tuned on.
+
+Run:
+
+    python benchmarks/unseen_problems.py --seed 36 --out /tmp/unseen
+    MPLBACKEND=Agg python benchmarks/bench_planning_suite.py /tmp/unseen/*.toml
+
+For each geometry (2D range-only, 2D with 0.2 Hz ranges, 2D with an unknown current and a
+water-profiling DVL, 3D with a depth gauge, 3D with a bottom-lock DVL, 3D range-only) and each
+observability objective (``gramian-min-eig``, ``gramian-log-det``, ``lwo-condition``, or the
+kinds given with ``--kinds``), a problem is drawn with probability ``--keep``: the beacon
+anywhere within 40 m of the origin (3D: 30-60 m deep), the start 50-110 m from it in a random
+direction (3D: 3-15 m deep), a square area 20-50 m beyond both, a horizon of 480, 600 or 900 s
+at one node per 3 s, ranges at 0.5 or 1 Hz (0.2 Hz for the slow geometry) with 0.1 or 0.2 m
+noise. Every file is read back with the planner's loader; one it rejects (e.g. ``lwo-condition``
+on 3D range-only, whose LWO matrix is rank deficient) is not written, and its error is printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from obsplan.errors import ProblemError  # noqa: E402
+from obsplan.planning import load_problem  # noqa: E402
+
+GEOMETRIES = ("2d-range", "2d-range-slow", "2d-current", "3d-depth", "3d-dvl", "3d-range")
+KINDS = ("gramian-min-eig", "gramian-log-det", "lwo-condition")
+
+
+def _vec(x) -> str:
+    return "[" + ", ".join(f"{float(v):.1f}" for v in np.atleast_1d(x)) + "]"
+
+
+def problem_text(rng: np.random.Generator, geometry: str, kind: str) -> str:
+    """One problem file (TOML) of ``geometry`` and ``kind``, drawn from ``rng``."""
+    dim = 3 if geometry.startswith("3d") else 2
+    ang = rng.uniform(0.0, 2.0 * np.pi)
+    dist = rng.uniform(50.0, 110.0)
+    beacon = rng.uniform(-40.0, 40.0, 2)
+    start = beacon + dist * np.array([np.cos(ang), np.sin(ang)])
+    half = float(np.max(np.abs(np.r_[beacon, start])) + rng.uniform(20.0, 50.0))
+    duration = float(rng.choice([480.0, 600.0, 900.0]))
+    sensors = ["range"] + {"2d-current": ["dvl-water"], "3d-depth": ["depth"]}.get(geometry, [])
+    if geometry == "3d-dvl":
+        sensors.append("dvl-bottom")
+    vehicle = [f"dim = {dim}", "sensors = [" + ", ".join(f'"{s}"' for s in sensors) + "]"]
+    if geometry == "2d-current":
+        current = rng.uniform(-0.12, 0.12, 2).round(3).tolist()
+        vehicle += ["current = true", f"current_velocity = {current}"]
+    limits = ["accel = 0.05", "speed = 1.0"]
+    if dim == 3:
+        bz, sz = rng.uniform(30.0, 60.0), rng.uniform(3.0, 15.0)
+        beacon, start = np.r_[beacon, bz], np.r_[start, sz]
+        limits = ["accel = [0.05, 0.05, 0.02]", "speed = 1.0", f"depth = [2.0, {bz - 10.0:.1f}]"]
+    limits.append(f"area = {{ x = [{-half:.1f}, {half:.1f}], y = [{-half:.1f}, {half:.1f}] }}")
+    rate = 0.2 if geometry == "2d-range-slow" else float(rng.choice([0.5, 1.0]))
+    validation = ["runs = 50", "dt = 0.1", f"range_rate = {rate}"]
+    validation.append(f"range_std = {float(rng.choice([0.1, 0.2]))}")
+    if geometry == "3d-depth":
+        validation += ["depth_rate = 1.0", "depth_std = 0.05"]
+    if geometry in ("2d-current", "3d-dvl"):
+        validation += ["dvl_rate = 5.0", f"dvl_std = {0.001 if geometry == '2d-current' else 0.01}"]
+    sections = {
+        "problem": [f'name = "unseen: {geometry}, {kind}"'],
+        "vehicle": vehicle,
+        "beacon": [f"position = {_vec(beacon)}"],
+        "start": [f"position = {_vec(start)}", f"velocity = {_vec(np.zeros(dim))}"],
+        "limits": limits,
+        "horizon": [f"duration = {duration}", f"steps = {int(duration / 3.0)}"],
+        "objective": [f'kind = "{kind}"', "starts = 3"],
+        "validation": validation,
+    }
+    return "\n".join(f"[{k}]\n" + "\n".join(v) + "\n" for k, v in sections.items())
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seed", type=int, default=36)
+    ap.add_argument("--out", type=Path, required=True, help="folder to write the problems to")
+    ap.add_argument("--kinds", nargs="+", default=list(KINDS), help="objective kinds")
+    ap.add_argument("--keep", type=float, default=0.55, help="chance of each geometry x kind")
+    args = ap.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    args.out.mkdir(parents=True, exist_ok=True)
+    n = 0
+    for geometry in GEOMETRIES:
+        for kind in args.kinds:
+            if rng.random() >= args.keep:
+                continue
+            text = problem_text(rng, geometry, kind)
+            path = args.out / f"{n + 1:02d}-{geometry}-{kind}.toml"
+            if path.exists():
+                print(f"{path} exists: not replaced", file=sys.stderr)
+                continue
+            path.write_text(text)
+            try:
+                load_problem(path)
+            except ProblemError as e:
+                path.unlink()  # this script wrote it a moment ago
+                print(f"skipped {geometry}, {kind}: {e}", file=sys.stderr)
+                continue
+            n += 1
+            print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
