@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import tomllib
 from dataclasses import replace
 
 import numpy as np
@@ -11,14 +12,19 @@ import pytest
 from obsplan.errors import ProblemError
 from obsplan.estimation.guidance import Guidance
 from obsplan.planning import load_problem
+from obsplan.planning.baselines import baselines
 from obsplan.planning.feasibility import check_limits, range_extremes
 from obsplan.planning.formulation import build_formulation
+from obsplan.planning.grid import Grid
 from obsplan.planning.margins import (
+    BOX_SHARE,
     RESERVE_ATOL,
     RESERVE_CAP,
     RESERVE_FLOOR,
+    START_REACH_SHARE,
     LoopResponse,
     PathCovariance,
+    box_margins,
     confidence_quantile,
     deviation_bound,
     keep_out,
@@ -26,6 +32,8 @@ from obsplan.planning.margins import (
     keeps_margins,
     path_covariance,
     path_loop_covariance,
+    start_limited_s,
+    start_reach,
     tighten,
 )
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
@@ -274,3 +282,65 @@ def test_keep_out_drops_only_the_speed_reserve_when_it_does_not_fit(
     else:
         assert best is None and kept is lawnmower and len(asked) == 2
         assert "nominal plan is returned" in report.note
+
+
+#: 3D range-only (no depth gauge: the depth is known only as well as the ranges pin it), 2 m
+#: below the depth band's top with a 1 m prior: its depth margin at 99.9 % is wider than that.
+SURFACE_START = """
+[vehicle]
+dim = 3
+sensors = ["range"]
+[beacon]
+position = [0.0, 0.0, 40.0]
+[start]
+position = [-60.0, 50.0, 4.0]
+velocity = [0.0, 0.0, 0.0]
+[limits]
+accel = [0.05, 0.05, 0.02]
+speed = 1.0
+depth = [2.0, 30.0]
+area = { x = [-100.0, 100.0], y = [-100.0, 100.0] }
+[horizon]
+duration = 150.0
+steps = 50
+[objective]
+starts = 1
+"""
+
+
+def test_start_reach_is_the_accelerated_then_cruising_distance():
+    pb = problem_from_dict(tomllib.loads(SURFACE_START))
+    grid = Grid.from_problem(pb)
+    t = grid.times[1:]
+    d = start_reach(grid, 2, 1.0, 0.02)  # from rest: 1 m/s after 50 s
+    np.testing.assert_allclose(d, np.where(t <= 50.0, 0.01 * t**2, 25.0 + (t - 50.0)), rtol=1e-12)
+    moving = replace(grid, v0=np.array([0.0, 0.0, -0.5]))  # heading for the limit: back first
+    early = -0.5 * t[:3] + 0.01 * t[:3] ** 2
+    np.testing.assert_allclose(start_reach(moving, 2, 1.0, 0.02)[:3], early, rtol=1e-12)
+
+
+def test_a_start_inside_its_margin_gets_margins_that_grow_in_and_a_plan_that_keeps_them():
+    pb = problem_from_dict(tomllib.loads(SURFACE_START))
+    form = build_formulation(pb)
+    plan = baselines(pb)["lawnmower"].trajectory
+    m = keepout_margins(plan, pb)
+    grid = form.grid
+    accel = 0.02 * (1.0 - m.accel_reserve[2].max())
+    reach = start_reach(grid, 2, 1.0, accel)
+    full = np.minimum(m.box[2], BOX_SHARE * 28.0)
+    # the precondition: the full depth margin is out of the vehicle's reach at some nodes
+    assert np.any(2.0 + full > 4.0 + reach)
+    lo, hi = box_margins(form, m)[2]
+    room = 4.0 - 2.0 - form.grid.a[2] * grid.h**2 / 8.0 + START_REACH_SHARE * reach
+    np.testing.assert_allclose(lo, np.minimum(full, room), atol=1e-9)
+    assert np.all(2.0 + lo < 4.0 + reach) and np.any(lo < full)
+    # far from the limits (the area; the band's deep side) the margins are the full ones
+    np.testing.assert_allclose(hi, np.minimum(m.box[2], BOX_SHARE * 28.0))
+    for axis in (0, 1):
+        a_lo, a_hi = box_margins(form, m)[axis]
+        np.testing.assert_allclose(a_lo, np.minimum(m.box[axis], BOX_SHARE * 200.0))
+    path, rep, outcome = keep_out(pb, plan)
+    assert outcome is not None, rep.note  # the tightened re-solve ran: it was infeasible before
+    assert check_limits(path, pb).ok()
+    assert "the start is closer to the limit than its margin" in rep.note
+    assert start_limited_s(form, m) > 0.0
