@@ -39,8 +39,12 @@ def _vec(x) -> str:
     return "[" + ", ".join(f"{float(v):.1f}" for v in np.atleast_1d(x)) + "]"
 
 
-def problem_text(rng: np.random.Generator, geometry: str, kind: str) -> str:
-    """One problem file (TOML) of ``geometry`` and ``kind``, drawn from ``rng``."""
+def problem_text(
+    rng: np.random.Generator, geometry: str, kind: str, edge_start: bool = False
+) -> str:
+    """One problem file (TOML) of ``geometry`` and ``kind``, drawn from ``rng``; with
+    ``edge_start`` the start 1-5 m inside the area's edge (3D: 0.5-3 m below the depth band's
+    top), as a survey from a corner or a vehicle at the surface."""
     dim = 3 if geometry.startswith("3d") else 2
     ang = rng.uniform(0.0, 2.0 * np.pi)
     dist = rng.uniform(50.0, 110.0)
@@ -48,6 +52,10 @@ def problem_text(rng: np.random.Generator, geometry: str, kind: str) -> str:
     start = beacon + dist * np.array([np.cos(ang), np.sin(ang)])
     half = float(np.max(np.abs(np.r_[beacon, start])) + rng.uniform(20.0, 50.0))
     duration = float(rng.choice([480.0, 600.0, 900.0]))
+    if edge_start:  # drawn last: without the flag a seed writes the problems it always did
+        i = int(np.argmax(np.abs(start)))  # the area keeps the beacon 10 m inside its edge
+        start[i] = np.sign(start[i]) * max(abs(start[i]), float(np.max(np.abs(beacon))) + 10.0)
+        half = float(np.max(np.abs(start))) + rng.uniform(1.0, 5.0)
     sensors = ["range"] + {"2d-current": ["dvl-water"], "3d-depth": ["depth"]}.get(geometry, [])
     if geometry == "3d-dvl":
         sensors.append("dvl-bottom")
@@ -58,6 +66,8 @@ def problem_text(rng: np.random.Generator, geometry: str, kind: str) -> str:
     limits = ["accel = 0.05", "speed = 1.0"]
     if dim == 3:
         bz, sz = rng.uniform(30.0, 60.0), rng.uniform(3.0, 15.0)
+        if edge_start:
+            sz = 2.0 + rng.uniform(0.5, 3.0)
         beacon, start = np.r_[beacon, bz], np.r_[start, sz]
         limits = ["accel = [0.05, 0.05, 0.02]", "speed = 1.0", f"depth = [2.0, {bz - 10.0:.1f}]"]
     limits.append(f"area = {{ x = [{-half:.1f}, {half:.1f}], y = [{-half:.1f}, {half:.1f}] }}")
@@ -87,6 +97,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="folder to write the problems to")
     ap.add_argument("--kinds", nargs="+", default=list(KINDS), help="objective kinds")
     ap.add_argument("--keep", type=float, default=0.55, help="chance of each geometry x kind")
+    ap.add_argument(
+        "--edge-start",
+        action="store_true",
+        help="start 1-5 m inside the area's edge (3D: 0.5-3 m below the depth band's top)",
+    )
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -95,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         for kind in args.kinds:
             if rng.random() >= args.keep:
                 continue
-            text = problem_text(rng, geometry, kind)
+            text = problem_text(rng, geometry, kind, args.edge_start)
             path = args.out / f"{n + 1:02d}-{geometry}-{kind}.toml"
             if path.exists():
                 print(f"{path} exists: not replaced", file=sys.stderr)

@@ -48,3 +48,21 @@ def test_the_seed_fixes_the_problems_and_nothing_is_replaced(tmp_path):
     mine.write_text("# the user's file\n")
     mod.main(["--seed", "7", "--out", str(tmp_path / "a")])
     assert mine.read_text() == "# the user's file\n"
+
+
+def test_edge_starts_are_near_the_area_and_the_surface_and_leave_the_default_alone(tmp_path):
+    mod = _script()
+    mod.main(["--seed", "3", "--out", str(tmp_path / "a")])
+    mod.main(["--seed", "3", "--out", str(tmp_path / "e"), "--edge-start", "--keep", "1.0"])
+    mod.main(["--seed", "3", "--out", str(tmp_path / "b")])
+    a = {f.name: f.read_text() for f in (tmp_path / "a").glob("*.toml")}
+    assert a == {f.name: f.read_text() for f in (tmp_path / "b").glob("*.toml")}
+    files = sorted((tmp_path / "e").glob("*.toml"))
+    assert len(files) == 17
+    for f in files:
+        pb = load_problem(f)
+        p, area = pb.p0, pb.limits.area
+        slack = min(p[0] - area.x[0], area.x[1] - p[0], p[1] - area.y[0], area.y[1] - p[1])
+        assert 1.0 - 0.1 <= slack <= 5.0 + 0.1, f  # written to 0.1 m
+        if pb.dim == 3:
+            assert 0.5 - 0.1 <= p[2] - pb.limits.depth[0] <= 3.0 + 0.1, f
