@@ -493,6 +493,27 @@ def start_reach(grid: Grid, axis: int, sign: float, accel: float) -> np.ndarray:
     )
 
 
+def _box_margin_limits(
+    form: Formulation, margins: KeepoutMargins
+) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Per area/depth axis: the margin [m] at most :data:`BOX_SHARE` of the width, and the room
+    the start leaves below and above (:func:`box_margins`), each ``(N,)``."""
+    grid = form.grid
+    n, N = grid.n, grid.N
+    lbW = form.lbx[: form.n_w].reshape(3 * n, N, order="F")
+    ubW = form.ubx[: form.n_w].reshape(3 * n, N, order="F")
+    out = {}
+    for axis, (lo, hi) in _box_axes(form.problem):
+        full = np.minimum(margins.box[axis], BOX_SHARE * (hi - lo))
+        reserve = float(np.max(margins.accel_reserve[axis], initial=0.0))
+        accel = float(grid.a[axis]) * (1.0 - reserve)
+        p0 = float(grid.p0[axis])
+        up = START_REACH_SHARE * start_reach(grid, axis, 1.0, accel)
+        down = START_REACH_SHARE * start_reach(grid, axis, -1.0, accel)
+        out[axis] = (full, p0 - lbW[n + axis] * grid.Lp + up, ubW[n + axis] * grid.Lp - p0 + down)
+    return out
+
+
 def box_margins(
     form: Formulation, margins: KeepoutMargins
 ) -> dict[int, tuple[np.ndarray, np.ndarray]]:
@@ -500,42 +521,20 @@ def box_margins(
     ``(N,)``: ``margins.box`` at most :data:`BOX_SHARE` of the width, and at most the start's
     distance to the limit plus :data:`START_REACH_SHARE` of what the vehicle can add to it by
     each node (:func:`start_reach`, at the acceleration the reserve leaves)."""
-    grid = form.grid
-    n, N = grid.n, grid.N
-    lbW = form.lbx[: form.n_w].reshape(3 * n, N, order="F")
-    ubW = form.ubx[: form.n_w].reshape(3 * n, N, order="F")
-    out = {}
-    for axis, (lo, hi) in _box_axes(form.problem):
-        m = np.minimum(margins.box[axis], BOX_SHARE * (hi - lo))
-        accel = float(grid.a[axis]) * (
-            1.0 - float(np.max(margins.accel_reserve[axis], initial=0.0))
-        )
-        p0 = float(grid.p0[axis])
-        room_lo = (
-            p0 - lbW[n + axis] * grid.Lp + START_REACH_SHARE * start_reach(grid, axis, 1.0, accel)
-        )
-        room_hi = (
-            ubW[n + axis] * grid.Lp - p0 + START_REACH_SHARE * start_reach(grid, axis, -1.0, accel)
-        )
-        out[axis] = (
-            np.minimum(m, np.maximum(room_lo, 0.0)),
-            np.minimum(m, np.maximum(room_hi, 0.0)),
-        )
-    return out
+    return {
+        axis: (np.minimum(full, np.maximum(lo, 0.0)), np.minimum(full, np.maximum(hi, 0.0)))
+        for axis, (full, lo, hi) in _box_margin_limits(form, margins).items()
+    }
 
 
 def start_limited_s(form: Formulation, margins: KeepoutMargins) -> float:
     """Time [s] of the last node whose area or depth margin the start limits
     (:func:`box_margins`; 0 when none)."""
-    grid = form.grid
     last = 0.0
-    for axis, (lo_m, hi_m) in box_margins(form, margins).items():
-        full = np.minimum(
-            margins.box[axis], BOX_SHARE * np.ptp(dict(_box_axes(form.problem))[axis])
-        )
-        short = np.flatnonzero((lo_m < full - MARGIN_ATOL_M) | (hi_m < full - MARGIN_ATOL_M))
+    for full, lo, hi in _box_margin_limits(form, margins).values():
+        short = np.flatnonzero((lo < full - MARGIN_ATOL_M) | (hi < full - MARGIN_ATOL_M))
         if short.size:
-            last = max(last, float(grid.times[1 + short[-1]]))
+            last = max(last, float(form.grid.times[1 + short[-1]]))
     return last
 
 
