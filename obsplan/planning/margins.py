@@ -696,32 +696,26 @@ def keep_out(
             held = True
             break
         margins = margins.maximum(again, 1.0 + INFLATE)
-    note = "" if held else "no re-solve kept the margins computed on its own path"
-    if unreserved and best is not None:
-        note = "; ".join(
-            n
-            for n in (
+    if best is None:
+        notes = [f"the tightened re-solve failed ({statuses[-1]}); the nominal plan is returned"]
+    else:
+        notes = []
+        if unreserved:
+            notes.append(
                 "the speed reserve did not fit the plan (the guidance still keeps it, so the "
                 "vehicle lags the plan where the plan flies above it); planned with every other "
-                "margin",
-                note,
+                "margin"
             )
-            if n
-        )
-    if best is None:
-        note = f"the tightened re-solve failed ({statuses[-1]}); the nominal plan is returned"
-    limited = start_limited_s(form, margins)
-    if limited > 0 and best is not None:
-        note = "; ".join(
-            n
-            for n in (
-                note,
+        if not held:
+            notes.append("no re-solve kept the margins computed on its own path")
+        limited = start_limited_s(form, margins)
+        if limited > 0:
+            notes.append(
                 f"the area/depth margins are narrower than k sigma for the first {limited:.0f} s: "
                 "the start is closer to the limit than its margin (they grow in at half what "
-                "the vehicle can reach)",
+                "the vehicle can reach)"
             )
-            if n
-        )
+    note = "; ".join(notes)
     rep = _report(pb, margins, path, len(statuses), held, tuple(statuses), t0, note)
     return path, replace(rep, confidence=conf, k=k), best
 
