@@ -33,9 +33,11 @@ from obsplan.planning.lwo_objective import (
     LWO_BETA,
     lwo_condition,
     lwo_conditions,
+    lwo_information_node_function,
     lwo_softmin,
     lwo_value,
     node_windows,
+    window_mean_inputs,
 )
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict
 from obsplan.planning.plan import plan
@@ -293,6 +295,47 @@ def test_lwo_condition_node_windows_start_at_the_mission_and_carry_the_prior():
     q_rand = lwo_conditions(grid, pb, grid.from_trajectory(random_guess(pb, 3))).ravel()
     assert q_ref[0] == pytest.approx(q_rand[0], rel=1e-12)
     assert not np.allclose(q_ref[1:], q_rand[1:])
+
+
+def test_lwo_condition_holds_the_input_that_crosses_each_window():
+    """The information form holds, over each node's window, the constant input that carries the
+    velocity across the window: a constant acceleration is itself, a path that weaves every
+    step holds about none over an even number of steps (its own input would read as a turn
+    sustained over the whole window), and the node criteria are built from it."""
+    pb = small("lwo-condition", steps=20, starts=1)
+    grid = Grid.from_problem(pb)
+    n, N, h = grid.n, grid.N, grid.h
+    w = int(round(window_settings(pb).window_s / h))
+    assert 2 <= w < N
+    t = np.arange(N + 1) * h
+    c = np.array([0.03, -0.02])
+    u = np.repeat(c[:, None], N, axis=1)
+    v = 0.1 + c[:, None] * t
+    np.testing.assert_allclose(
+        window_mean_inputs(grid, pb, u, v), np.repeat(c[:, None], N + 1, 1), rtol=1e-12
+    )
+    sign = (-1.0) ** np.arange(N)
+    u = 0.05 * np.vstack([sign, -sign])
+    v = np.hstack([np.zeros((n, 1)), np.cumsum(u * h, axis=1)])
+    um = window_mean_inputs(grid, pb, u, v)
+    span = np.minimum(np.arange(N + 1), w)
+    even = (span % 2 == 0) & (span > 0)
+    assert even.any()
+    np.testing.assert_allclose(um[:, even], 0.0, atol=1e-15)
+    odd = np.abs(um[:, ~even][:, 1:])  # the first node holds its own input
+    np.testing.assert_allclose(odd, np.broadcast_to(0.05 / span[~even][1:], odd.shape), rtol=1e-12)
+    # the criteria of a path are those of its window inputs, not of its own
+    W = grid.from_trajectory(random_guess(pb, 3))
+    uu, p, vv = grid.si_nodes(W)
+    L, T = pb.scales.length_m, pb.scales.time_s
+    X = np.vstack([p / L, vv * (T / L)])
+    Hk, Ik = node_windows(grid, pb)
+    f = lwo_information_node_function(pb).map(N + 1)
+    q = lwo_conditions(grid, pb, W)
+    mean_in = np.asarray(f(X, window_mean_inputs(grid, pb, uu, vv) * (T**2 / L), Hk, Ik))
+    own_in = np.asarray(f(X, np.hstack([uu, uu[:, -1:]]) * (T**2 / L), Hk, Ik))
+    np.testing.assert_allclose(q, mean_in, rtol=1e-12)
+    assert not np.allclose(q, own_in, rtol=1e-3)
 
 
 def test_lwo_condition_scale_free_is_a_soft_minimum_of_the_node_conditioning():

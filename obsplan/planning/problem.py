@@ -136,7 +136,10 @@ class ObjectiveSpec:
         if self.tol is not None:
             return self.tol
         kind = OBJECTIVE_KINDS[self.kind]
-        paper = self.window == "mission" and self.weights == "none"
+        # the paper's form; lwo-condition's scale-free form reads no window
+        paper = self.weights == "none" and (
+            self.window == "mission" or self.kind == "lwo-condition"
+        )
         if kind.windowed_tol is not None and not paper:
             return kind.windowed_tol
         return kind.default_tol

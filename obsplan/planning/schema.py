@@ -53,7 +53,8 @@ class ObjectiveKind:
         :mod:`obsplan.planning.checks`): of the LWO matrix, of the augmented Gramian, or none.
     windowed_tol : float or None
         IPOPT ``tol`` of the kind's windowed form (``objective.window``/``weights`` other than
-        the paper's ``"mission"``/``"none"``), solved with L-BFGS; None: ``default_tol``.
+        the paper's ``"mission"``/``"none"``; for ``lwo-condition`` its information form);
+        None: ``default_tol``.
     """
 
     name: str
@@ -74,7 +75,9 @@ OBJECTIVE_KINDS: dict[str, ObjectiveKind] = {
         ObjectiveKind("pcrb-position", "min", True, "average-and-final", 1e-4, None),
         ObjectiveKind("gramian-min-eig", "max", False, "average-and-final", 1e-8, "gramian", 1e-4),
         ObjectiveKind("gramian-log-det", "max", False, "average-and-final", 1e-8, "gramian", 1e-4),
-        ObjectiveKind("lwo-condition", "max", False, "average-and-final", 1e-8, "lwo"),
+        # lwo-condition's information form (exact Hessian): at N = 1000 (2D range-only), tol
+        # 1e-8 took 580 iterations, 69 s CPU, 1e-6 231 and 30 s for a 5e-5 smaller objective
+        ObjectiveKind("lwo-condition", "max", False, "average-and-final", 1e-8, "lwo", 1e-6),
         ObjectiveKind("kf-position-std", "min", True, "final", 1e-4, None),
     )
 }
@@ -92,11 +95,11 @@ LINEARISATION_BOUND = 0.25
 #: EKF on 8 runs of 1000 on two suite geometries unbounded, 0-3 bounded). ``gramian-min-eig``
 #: lost more with it (1 -> 5 and 2 -> 5 runs, EKF RMSE 0.34 -> 0.40 and 0.63 -> 0.74 m: its plans
 #: close on the beacon along the line of sight however it is bounded, and the bound moved them to
-#: worse local optima), so it is off there. ``lwo-condition`` bounded at 0.25 moved its two 2D
-#: suite plans from behind the lawn-mower to ahead of it at 1000 runs (EKF RMSE 0.573 -> 0.474
-#: and 0.765 -> 0.642 m against 0.488 and 0.718), but on ``suite/lwo-current-water-dvl.toml``
-#: its EKF final error went from 0.017 to 0.035 m (the lawn-mower's 0.016), and the four suite
-#: solves took 1.4-11x as long, so it is off there too.
+#: worse local optima), so it is off there. ``lwo-condition``'s two 2D suite plans are ahead of
+#: the lawn-mower at 1000 runs unbounded (EKF RMSE 0.270 and 0.548 m against 0.488 and 0.718, no
+#: run lost) since its node criterion holds the window's input; with each node's own input the
+#: bound had moved them ahead (0.573 -> 0.474, 0.765 -> 0.642 m) but doubled the EKF final error
+#: of ``suite/lwo-current-water-dvl.toml`` and took 1.4-11x the solve time, so it is off there.
 LINEARISATION_KINDS: tuple[str, ...] = ("gramian-log-det",)
 #: Objectives that follow an estimator's covariance along the path and so have a time mode.
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
@@ -386,7 +389,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "the lawn-mower; default 1e-8, or 1e-4 for pcrb-position, kf-position-std and the "
             "windowed Gramian objectives (L-BFGS "
             "converges slowly: at N = 1000, 1e-5 takes 5x the iterations for a 0.4 % better "
-            "bound).",
+            "bound), or 1e-6 for lwo-condition's information form (at N = 1000, 1e-8 took "
+            "2.3x the CPU time for a 0.005 % better objective).",
         ),
         FieldSpec(
             "robust_prior",
