@@ -338,6 +338,18 @@ def test_lwo_condition_holds_the_input_that_crosses_each_window():
     assert not np.allclose(q, own_in, rtol=1e-3)
 
 
+def test_lwo_condition_forms_have_their_own_tolerance():
+    """The information form (exact Hessian, coupled to each window's start) is solved to 1e-6;
+    the scale-free form is the paper's and keeps 1e-8 whatever its (unread) window; a user's
+    tol wins."""
+    info = small("lwo-condition", steps=20, starts=1)
+    free = small("lwo-condition", steps=20, starts=1, weights="none")
+    assert not info.objective.paper_form and free.objective.paper_form
+    assert free.objective.window == info.objective.window == "auto"
+    assert info.objective.solver_tol == 1e-6 and free.objective.solver_tol == 1e-8
+    assert small("lwo-condition", steps=20, tol=1e-3).objective.solver_tol == 1e-3
+
+
 def test_lwo_condition_scale_free_is_a_soft_minimum_of_the_node_conditioning():
     pb = small("lwo-condition", steps=20, starts=1, weights="none")
     res = solve(pb, processes=1)

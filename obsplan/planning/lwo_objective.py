@@ -97,7 +97,7 @@ def lwo_node_function(pb: PlanningProblem) -> ca.Function:
 
 def scale_free(pb: PlanningProblem) -> bool:
     """True for the scale-free, diagnostic form (``objective.weights = "none"``)."""
-    return pb.objective.weights == "none"
+    return pb.objective.paper_form
 
 
 def lwo_information_node_function(pb: PlanningProblem) -> ca.Function:

@@ -112,6 +112,15 @@ class ObjectiveSpec:
     linearisation_bound: float | None = None
 
     @property
+    def paper_form(self) -> bool:
+        """The paper's formulation: unit weights (``weights = "none"``) and, for the Gramian
+        kinds, one window over the mission (``G(t_N, t_0)``); ``lwo-condition``'s scale-free form
+        reads no window."""
+        if self.weights != "none":
+            return False
+        return self.kind == "lwo-condition" or self.window == "mission"
+
+    @property
     def resolved_linearisation_bound(self) -> float:
         """``linearisation_bound`` [range stds], or its default: 0.25 for the kinds of
         :data:`~obsplan.planning.schema.LINEARISATION_KINDS` weighted by information, 0 (off)
@@ -136,11 +145,7 @@ class ObjectiveSpec:
         if self.tol is not None:
             return self.tol
         kind = OBJECTIVE_KINDS[self.kind]
-        # the paper's form; lwo-condition's scale-free form reads no window
-        paper = self.weights == "none" and (
-            self.window == "mission" or self.kind == "lwo-condition"
-        )
-        if kind.windowed_tol is not None and not paper:
+        if kind.windowed_tol is not None and not self.paper_form:
             return kind.windowed_tol
         return kind.default_tol
 

@@ -309,7 +309,7 @@ LWO_NOTE = (
 def objective_notes(pb: PlanningProblem) -> tuple[str, ...]:
     """What the verdict says about the objective itself, whatever the numbers."""
     obj = pb.objective
-    return (LWO_NOTE,) if obj.kind == "lwo-condition" and obj.weights == "none" else ()
+    return (LWO_NOTE,) if obj.kind == "lwo-condition" and obj.paper_form else ()
 
 
 #: Peak EKF linearisation stress [range stds] (:mod:`obsplan.planning.linearisation`) above which

@@ -105,8 +105,9 @@ AUTO_STRIDE_FRACTION = 1.0 / 8.0
 
 
 def paper_form(pb: PlanningProblem) -> bool:
-    """True when the objective is the paper's ``G(t_N, t_0)``: one window, unit weights."""
-    return pb.objective.window == "mission" and pb.objective.weights == "none"
+    """True when the objective is the paper's ``G(t_N, t_0)``: one window, unit weights
+    (:attr:`~obsplan.planning.problem.ObjectiveSpec.paper_form`)."""
+    return pb.objective.paper_form
 
 
 def velocity_noise_density(pb: PlanningProblem) -> float:
