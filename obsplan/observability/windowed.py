@@ -42,6 +42,7 @@ import numpy as np
 
 from obsplan.model import VehicleModel
 from obsplan.observability.gramian import AugmentedModel, interval_gramians
+from obsplan.observability.local_gramian import LinearisedModel
 from obsplan.observability.scaling import Scales
 from obsplan.trajectory import Trajectory
 
@@ -88,7 +89,7 @@ def mean_square_range(traj: Trajectory, beacon: np.ndarray) -> np.ndarray:
 
 
 def row_weight_factors(
-    aug: AugmentedModel | VehicleModel, info: SensorInformation, scales: Scales
+    aug: AugmentedModel | LinearisedModel | VehicleModel, info: SensorInformation, scales: Scales
 ) -> tuple[float, np.ndarray]:
     """``(c_range, w_other)``: the range row's weight is ``c_range * range_information(r²)``, the
     other rows' (DVL axes, then depth) are the constants ``w_other``; all in the metric scales
@@ -101,6 +102,15 @@ def row_weight_factors(
     if "depth" in aug.sensors:
         other.append(info.depth_rate * T * L**2 / info.depth_std**2)
     return c_range, np.asarray(other, float)
+
+
+def local_row_weights(lm: LinearisedModel, info: SensorInformation, scales: Scales) -> np.ndarray:
+    """Row weights ``(n_outputs,)`` of the local Gramian (:mod:`obsplan.observability.
+    local_gramian`) in the metric scales: ``rate T L² / σ_r²`` for the range (output ``r/L``;
+    a range carries ``1/σ_r²`` at any distance), the augmented model's for the other rows."""
+    _, other = row_weight_factors(lm, info, scales)
+    L, T = scales.length_m, scales.time_s
+    return np.concatenate([[info.range_rate * T * L**2 / info.range_std**2], other])
 
 
 def information_weights(
@@ -142,15 +152,16 @@ def anchor_times(tau: np.ndarray, starts: np.ndarray, ends: np.ndarray, anchor: 
     return tau[starts] if anchor == "start" else tau[ends]
 
 
-def reanchor_matrix(aug: AugmentedModel, tau_s):
-    """``Φ(-τ_s) = I - A τ_s`` (eq. 26): ``z(t_0) = Φ(-τ_s) z(t_s)`` up to input terms."""
+def reanchor_matrix(aug: AugmentedModel | LinearisedModel, tau_s):
+    """``Φ(-τ_s) = I - A τ_s`` (eq. 26): ``z(t_0) = Φ(-τ_s) z(t_s)`` up to input terms (either
+    model: both have ``A² = 0``)."""
     return np.eye(aug.state_dim) - aug.A * tau_s
 
 
 def windowed_gramians(
     Gk: np.ndarray,
     tau: np.ndarray,
-    aug: AugmentedModel,
+    aug: AugmentedModel | LinearisedModel,
     starts: np.ndarray,
     ends: np.ndarray,
     anchor: str,

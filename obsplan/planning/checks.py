@@ -414,6 +414,11 @@ def _check_windows(pb: PlanningProblem) -> None:
         raise field_error(
             "objective.weights", f'must be "information" or "none", got {obj.weights!r}'
         )
+    if obj.system not in ("auto", "linearised", "augmented"):
+        raise field_error(
+            "objective.system",
+            f'must be "auto", "linearised" or "augmented", got {obj.system!r}',
+        )
     if obj.anchor not in ("start", "current"):
         raise field_error("objective.anchor", f'must be "start" or "current", got {obj.anchor!r}')
     for name, names in (("window", ("auto", "mission")), ("stride", ("auto",))):

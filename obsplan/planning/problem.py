@@ -26,6 +26,7 @@ from obsplan.planning.schema import (
     KF_PCRB_WEIGHT,
     LINEARISATION_BOUND,
     LINEARISATION_KINDS,
+    LINEARISED_KINDS,
     OBJECTIVE_KINDS,
 )
 
@@ -102,6 +103,7 @@ class ObjectiveSpec:
     max_iter: int = 1000
     tol: float | None = None
     weights: str = "information"
+    system: str = "auto"
     window: float | str = "auto"
     stride: float | str = "auto"
     anchor: str = "current"
@@ -118,7 +120,24 @@ class ObjectiveSpec:
         reads no window."""
         if self.weights != "none":
             return False
-        return self.kind == "lwo-condition" or self.window == "mission"
+        if self.kind == "lwo-condition":
+            return True
+        return self.window == "mission" and self.resolved_system == "augmented"
+
+    @property
+    def resolved_system(self) -> str:
+        """The model whose Gramian the Gramian kinds score (``system``): ``"auto"`` is the
+        vehicle's model linearised about the path (``"linearised"``) for the kinds of
+        :data:`~obsplan.planning.schema.LINEARISED_KINDS` with information weights, otherwise
+        the paper's augmented model (``"augmented"``); every other kind reads ``"augmented"``
+        (``lwo-condition`` and the estimator kinds have their own models)."""
+        if not self.kind.startswith("gramian-"):
+            return "augmented"
+        if self.system != "auto":
+            return self.system
+        if self.kind in LINEARISED_KINDS and self.weights == "information":
+            return "linearised"
+        return "augmented"
 
     @property
     def resolved_linearisation_bound(self) -> float:

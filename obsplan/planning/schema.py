@@ -101,6 +101,18 @@ LINEARISATION_BOUND = 0.25
 #: bound had moved them ahead (0.573 -> 0.474, 0.765 -> 0.642 m) but doubled the EKF final error
 #: of ``suite/lwo-current-water-dvl.toml`` and took 1.4-11x the solve time, so it is off there.
 LINEARISATION_KINDS: tuple[str, ...] = ("gramian-log-det",)
+#: The Gramian kinds whose ``objective.system = "auto"`` (with information weights) is the
+#: vehicle's model linearised about the path (:mod:`obsplan.observability.local_gramian`); the
+#: others score the augmented model. Measured with ``benchmarks/bench_planning_suite.py`` (50
+#: runs, batches to 400) on the 22 ``gramian-min-eig`` problems of ``problems/``,
+#: ``problems/suite/`` and ``benchmarks/unseen_problems.py`` seeds 5, 36, 7, 101, 102: augmented,
+#: 19 won every verdict and 3 lost (two 2D current problems, a 3D depth one); linearised with
+#: its opening windows, 20 won, 2 lost (2D current with a water-profiling DVL: KF RMSE 1.10x
+#: the lawn-mower's, where ``pcrb-position`` loses it too, 1.06x; KF final error 1.19x the
+#: circle's), none with a diverging EKF. On the 22 ``gramian-log-det`` problems the augmented
+#: model decided every verdict on 20 (2 ties), the linearised on 18 (4 ties, none lost, 8 solves
+#: at the iteration limit): log-det stays augmented.
+LINEARISED_KINDS: tuple[str, ...] = ("gramian-min-eig",)
 #: Objectives that follow an estimator's covariance along the path and so have a time mode.
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
 #: Objectives for which a smaller value is better.
@@ -345,11 +357,26 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "information",
             "-",
             'For gramian-min-eig, gramian-log-det and lwo-condition: "information" (each output '
-            "row scaled by its information rate, rate / variance; for the range "
-            "1/(r^2 sigma_r^2 + sigma_r^4/2) with r from the path, for gramian-log-det "
-            "1/((r^2 + r_0^2) sigma_r^2 + sigma_r^4) with r_0 the start's: the augmented output "
-            'subtracts the first range) or "none" (the paper\'s unit weights; for lwo-condition '
-            "the scale-free conditioning of the LWO matrix, a diagnostic).",
+            "row scaled by its information rate, rate / variance; for the range of the "
+            "linearised system 1/sigma_r^2, of the augmented one 1/(r^2 sigma_r^2 + sigma_r^4/2) "
+            "with r from the path, for gramian-log-det 1/((r^2 + r_0^2) sigma_r^2 + sigma_r^4) "
+            'with r_0 the start\'s: the augmented output subtracts the first range) or "none" '
+            "(the paper's unit weights; for lwo-condition the scale-free conditioning of the LWO "
+            "matrix, a diagnostic).",
+        ),
+        FieldSpec(
+            "system",
+            "str",
+            "auto",
+            "-",
+            "For gramian-min-eig and gramian-log-det: the model whose Gramian is scored. "
+            '"linearised": the vehicle\'s own model linearised about the path (the local '
+            "observability Gramian, what an EKF on the path extracts: a range informs the "
+            'position along its line of sight, 1/sigma_r^2 at any distance); "augmented": the '
+            "paper's augmented LTV model (eqs. 14-27, the augmented KF's model); \"auto\" is "
+            'linearised for gramian-min-eig with weights = "information", augmented otherwise '
+            "(gramian-log-det won as often on the augmented model, with fewer ties: "
+            "docs/problem-files.md).",
         ),
         FieldSpec(
             "window",

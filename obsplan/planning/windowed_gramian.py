@@ -1,5 +1,5 @@
-"""Information-weighted, windowed Gramian objectives (``objective.weights``, ``window``, ``stride``,
-``anchor`` of ``gramian-min-eig`` and ``gramian-log-det``).
+"""Information-weighted, windowed Gramian objectives (``objective.system``, ``weights``, ``window``,
+``stride``, ``anchor`` of ``gramian-min-eig`` and ``gramian-log-det``).
 
 The paper's objectives score ``G(t_N, t_0)`` (eq. 25): information about the *initial* state over
 the whole horizon, every output row alike. With process noise a filter only keeps the last few
@@ -12,10 +12,15 @@ rate and the path is scored window by window (:mod:`obsplan.observability.window
   the eigenvalues (between ``λ_min`` and ``m λ_min``), larger is better;
 * ``gramian-log-det`` (D-optimal): ``log det(G_w + εI)`` per window, the volume with a floor.
 
+The Gramian is of the augmented model (:mod:`obsplan.observability.gramian`, the augmented KF's)
+or of the vehicle's model linearised about the path (:mod:`obsplan.observability.local_gramian`,
+the EKF's: the local observability Gramian), ``objective.system`` (:func:`gramian_model`; the
+evidence for each kind's default is at :data:`~obsplan.planning.schema.LINEARISED_KINDS`).
 ``agg`` is the mean over the windows; with ``anchor = "current"`` it is the mean of that mean
 and the final window (the state at the end is the one the mission delivers). ``gramian-log-det``
-also scores the opening windows ``[t_0, t_0 + k·stride]`` before the first full window ends, and
-every one of its windows holds the validation's prior (:data:`OPENING_CRITERIA`). The window
+and the linearised ``gramian-min-eig`` also score the opening windows ``[t_0, t_0 + k·stride]``
+before the first full window ends, and every one of their windows holds the validation's prior
+(:data:`OPENING_CRITERIA`). The window
 ``"auto"`` is ``2 τ_f`` with ``τ_f = (3 σ_r² / q_v)^{1/3}``: the time after which a velocity
 random walk of density ``q_v`` (the validation's process noise) has moved the position by one
 range standard deviation, so older ranges no longer pin it.
@@ -33,11 +38,22 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
-from obsplan.observability.gramian import augmented_model, weighted_interval_gramian_function
+from obsplan.observability.gramian import (
+    AugmentedModel,
+    augmented_model,
+    weighted_interval_gramian_function,
+)
+from obsplan.observability.local_gramian import (
+    LinearisedModel,
+    linearised_model,
+    local_interval_gramian_function,
+    local_interval_gramians,
+)
 from obsplan.observability.scaling import augmented_state_scale
 from obsplan.observability.windowed import (
     SensorInformation,
     anchor_times,
+    local_row_weights,
     range_information,
     row_weight_factors,
     simpson_mean,
@@ -85,19 +101,25 @@ HESSIAN: dict[str, Hessian] = {
 #: Hz ranges: EKF RMSE 0.62× -> 1.02×; ``bench_planning_suite.py --runs 30``), so it keeps
 #: ``y``'s variance alone.
 START_RANGE_CRITERIA: frozenset[str] = frozenset({"log-det"})
-#: Criteria scored also on the opening windows ``[t_0, t_0 + k·stride]`` shorter than a window,
+#: ``(criterion, system)`` pairs scored also on the opening windows ``[t_0, t_0 + k·stride]``
+#: shorter than a window,
 #: every window holding the validation's prior (:func:`start_information`) propagated to its
 #: anchor without process noise, as ``lwo-condition``'s nodes do. The full windows alone score
 #: nothing before ``t_0 + window``: ``log det`` on ``suite/gramian-current-water-dvl.toml`` let
 #: the plan creep radially for its first minute while the EKF beside the vehicle's filter lost the
 #: tangential position (4 of 400 runs diverged: EKF RMSE 5.3x the lawn-mower's; with the opening
 #: windows and the prior 0.95x, none diverged, the other log-det problems still winning; the prior
-#: held only by the windows that start at ``t_0``: 8 of 400 diverged). ``tr G⁻¹`` of a short
-#: opening window is dominated by the directions only the prior holds, the mean over the windows
-#: then follows the opening minute, and its plans lost (``suite/gramian-depth3d.toml`` EKF RMSE
-#: 0.88x -> 1.50x, ``suite/gramian-slow-range.toml`` 0.78x -> 1.10x): the E-optimal kind keeps
-#: full windows and no prior.
-OPENING_CRITERIA: frozenset[str] = frozenset({"log-det"})
+#: held only by the windows that start at ``t_0``: 8 of 400 diverged). On the augmented model
+#: ``tr G⁻¹`` of a short opening window is dominated by the directions only the prior holds, the
+#: mean over the windows then follows the opening minute, and its plans lost
+#: (``suite/gramian-depth3d.toml`` EKF RMSE 0.88x -> 1.50x, ``suite/gramian-slow-range.toml``
+#: 0.78x -> 1.10x): the augmented E-optimal kind keeps full windows and no prior. On the
+#: linearised model (the EKF's prior) it wins with them: without, the EKF diverged on 2-4 % of
+#: the runs of two of three unseen 2D current problems (EKF RMSE 4.6x and 6.6x the lawn-mower's),
+#: with them on none (:data:`~obsplan.planning.schema.LINEARISED_KINDS` has the counts).
+OPENING_CRITERIA: frozenset[tuple[str, str]] = frozenset(
+    {("log-det", "augmented"), ("log-det", "linearised"), ("trace-inverse", "linearised")}
+)
 #: Fewest range samples an ``"auto"`` window spans.
 MIN_WINDOW_SAMPLES = 10.0
 #: ``"auto"`` stride: this fraction of the window.
@@ -149,6 +171,8 @@ class WindowSettings:
     anchor : {"start", "current"}
     weighted : bool
         Information weights (``objective.weights = "information"``).
+    system : {"augmented", "linearised"}
+        The model whose Gramian is scored (``objective.system``, resolved).
     opening : bool
         The opening windows are scored and every window holds the prior
         (:data:`OPENING_CRITERIA`).
@@ -161,6 +185,7 @@ class WindowSettings:
     anchor: str
     weighted: bool
     opening: bool = False
+    system: str = "augmented"
 
 
 def window_settings(pb: PlanningProblem) -> WindowSettings:
@@ -177,7 +202,8 @@ def window_settings(pb: PlanningProblem) -> WindowSettings:
     s_steps = max(1, int(round(stride / h)))
     a, b = window_layout(N, w_steps, s_steps)
     weighted = obj.weights == "information"
-    opening = weighted and CRITERIA.get(obj.kind) in OPENING_CRITERIA
+    system = obj.resolved_system
+    opening = weighted and (CRITERIA.get(obj.kind), system) in OPENING_CRITERIA
     if opening and a.size > 1:
         # the opening windows [t_0, t_b], t_b < the first full window's end (OPENING_CRITERIA)
         b0 = np.arange(s_steps, b[0], s_steps)
@@ -190,7 +216,15 @@ def window_settings(pb: PlanningProblem) -> WindowSettings:
         anchor=obj.anchor,
         weighted=weighted,
         opening=opening,
+        system=system,
     )
+
+
+def gramian_model(pb: PlanningProblem) -> AugmentedModel | LinearisedModel:
+    """The model whose Gramian the objective scores (``objective.system``, resolved)."""
+    if pb.objective.resolved_system == "linearised":
+        return linearised_model(pb.model)
+    return augmented_model(pb.model)
 
 
 def sensor_information(pb: PlanningProblem) -> SensorInformation:
@@ -198,7 +232,8 @@ def sensor_information(pb: PlanningProblem) -> SensorInformation:
     :data:`START_RANGE_CRITERIA`, the start's range."""
     v = pb.validation
     r0 = None
-    if CRITERIA.get(pb.objective.kind) in START_RANGE_CRITERIA:
+    start_range = CRITERIA.get(pb.objective.kind) in START_RANGE_CRITERIA
+    if start_range and pb.objective.resolved_system == "augmented":
         r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon)))
     return SensorInformation(
         v.range_rate, v.range_std, v.dvl_rate, v.dvl_std, v.depth_rate, v.depth_std, r0
@@ -206,12 +241,16 @@ def sensor_information(pb: PlanningProblem) -> SensorInformation:
 
 
 def start_information(pb: PlanningProblem) -> np.ndarray:
-    """What is known about the augmented state ``z(t_0)`` at the start: the validation's
-    augmented-KF prior as information, ``(S P_0 Sᵀ)⁻¹`` with ``S`` the metric scaling of ``z``
-    (``p/L``, ``v T/L``, ``v_f T/L``, ``p_0ᵀν_0 T/L²``, ``|ν_0|² T²/L²``), shape ``(m, m)``."""
-    m = augmented_model(pb.model).state_dim
-    P0 = np.asarray(estimation_config(pb).p0_kf, float)
-    S = np.diag(augmented_state_scale(m, pb.dim, pb.scales.length_m, pb.scales.time_s))
+    """What is known about the scored model's state at the start: the validation's prior as
+    information, ``(S P_0 Sᵀ)⁻¹`` with ``S`` the metric scaling of the state (``p/L``, ``v T/L``,
+    ``v_f T/L``, and for the augmented ``z`` ``p_0ᵀν_0 T/L²``, ``|ν_0|² T²/L²``): the augmented
+    KF's prior, or the EKF's for the linearised model; shape ``(m, m)``."""
+    cfg = estimation_config(pb)
+    linearised = pb.objective.resolved_system == "linearised"
+    P0 = np.asarray(cfg.p0_ekf if linearised else cfg.p0_kf, float)
+    m_aug = augmented_model(pb.model).state_dim
+    scale = augmented_state_scale(m_aug, pb.dim, pb.scales.length_m, pb.scales.time_s)
+    S = np.diag(scale[: P0.shape[0]])  # the linearised state is z's leading (p, v[, v_f])
     P = S @ P0 @ S.T
     return np.linalg.inv(0.5 * (P + P.T))
 
@@ -220,7 +259,10 @@ def window_floor(pb: PlanningProblem, ws: WindowSettings) -> float:
     """``ε`` of every window Gramian (:data:`FLOOR_REL`), in the metric scales."""
     L, T = pb.scales.length_m, pb.scales.time_s
     unit = 1.0
-    if ws.weighted:
+    if ws.weighted and ws.system == "linearised":
+        lm = linearised_model(pb.model)
+        unit = float(local_row_weights(lm, sensor_information(pb), pb.scales)[0])
+    elif ws.weighted:
         info = sensor_information(pb)
         c_range, _ = row_weight_factors(augmented_model(pb.model), info, pb.scales)
         unit = c_range * float(range_information(L**2, info.range_std, info.start_range))
@@ -236,13 +278,18 @@ def _aggregate(values, anchor: str, mean):
 def windowed_aggregate(traj: Trajectory, pb: PlanningProblem) -> float:
     """The aggregated window criterion of ``traj`` (module docstring), computed numerically."""
     ws = window_settings(pb)
-    aug = augmented_model(pb.model)
+    model = gramian_model(pb)
+    beacon = np.asarray(pb.beacon)
     info = sensor_information(pb) if ws.weighted else None
-    Gk = weighted_interval_gramians(traj, aug, np.asarray(pb.beacon), info, pb.scales)
+    if isinstance(model, LinearisedModel):
+        w = local_row_weights(model, info, pb.scales) if info else np.ones(model.n_outputs)
+        Gk = local_interval_gramians(traj, model, beacon, w, pb.scales)
+    else:
+        Gk = weighted_interval_gramians(traj, model, beacon, info, pb.scales)
     tau = (traj.t - traj.t[0]) / pb.scales.time_s
     a, b = np.asarray(ws.starts), np.asarray(ws.ends)
     prior = start_information(pb) if ws.opening else None
-    G = windowed_gramians(Gk, tau, aug, a, b, ws.anchor, prior)
+    G = windowed_gramians(Gk, tau, model, a, b, ws.anchor, prior)
     tr, ld = window_criteria(G, window_floor(pb, ws))
     vals = tr if CRITERIA[pb.objective.kind] == "trace-inverse" else ld
     return float(_aggregate(vals, ws.anchor, np.mean))
@@ -252,7 +299,7 @@ def windowed_value(traj: Trajectory, pb: PlanningProblem) -> float:
     """The objective's value on a path: ``m / agg`` (E-optimal) or ``agg`` (D-optimal)."""
     agg = windowed_aggregate(traj, pb)
     if CRITERIA[pb.objective.kind] == "trace-inverse":
-        return float(augmented_model(pb.model).state_dim / agg) if np.isfinite(agg) else 0.0
+        return float(gramian_model(pb).state_dim / agg) if np.isfinite(agg) else 0.0
     return agg
 
 
@@ -284,19 +331,29 @@ def window_gramians_expr(ctx: NLPContext):
     ``j`` the column-major ``Φ(-τ_s)ᵀ G_j Φ(-τ_s)`` of window ``j`` (metric scales, no floor)."""
     pb, grid, W = ctx.problem, ctx.grid, ctx.W
     ws = window_settings(pb)
-    aug = augmented_model(pb.model)
-    m, N = aug.state_dim, grid.N
+    model = gramian_model(pb)
+    m, N = model.state_dim, grid.N
     L, T = pb.scales.length_m, pb.scales.time_s
     u, p, v = grid.si_nodes(W)
     tau = ca.DM(np.arange(N) * grid.h).T
-    D = (p[:, :N] - ca.repmat(ca.DM(grid.p0), 1, N) - ca.DM(grid.v0) @ tau) / L  # eq. 15
-    E = (v[:, :N] - ca.repmat(ca.DM(grid.v0), 1, N)) * (T / L)
-    if ws.weighted:
-        w = _interval_weights(grid, pb, u, p, v)
+    hs = ca.DM.ones(1, N) * (grid.h / T)
+    if isinstance(model, LinearisedModel):
+        mid = p[:, :N] + 0.5 * grid.h * v[:, :N] + 0.125 * grid.h**2 * u
+        if ws.weighted:
+            wl = local_row_weights(model, sensor_information(pb), pb.scales)
+        else:
+            wl = np.ones(model.n_outputs)
+        g = local_interval_gramian_function(model).map("local_gramians", "serial", N, [], [])
+        Gk = g(p[:, :N] / L, mid / L, p[:, 1:] / L, tau / T, hs, ca.repmat(ca.DM(wl), 1, N))
     else:
-        w = ca.DM.ones(aug.n_outputs, N)
-    g = weighted_interval_gramian_function(aug).map("interval_gramians", "serial", N, [], [])
-    Gk = g(D, E, u * (T**2 / L), tau / T, ca.DM.ones(1, N) * (grid.h / T), w)  # m × (m N)
+        D = (p[:, :N] - ca.repmat(ca.DM(grid.p0), 1, N) - ca.DM(grid.v0) @ tau) / L  # eq. 15
+        E = (v[:, :N] - ca.repmat(ca.DM(grid.v0), 1, N)) * (T / L)
+        if ws.weighted:
+            w = _interval_weights(grid, pb, u, p, v)
+        else:
+            w = ca.DM.ones(model.n_outputs, N)
+        g = weighted_interval_gramian_function(model).map("interval_gramians", "serial", N, [], [])
+        Gk = g(D, E, u * (T**2 / L), tau / T, hs, w)  # m × (m N)
     # each interval built once; every window is a sum of columns: one sparse product (the
     # symbolic counterpart of the prefix sums of windowed_gramians)
     Gw = ca.reshape(Gk, m * m, N) @ ca.DM(_window_matrix(N, ws))
@@ -305,7 +362,7 @@ def window_gramians_expr(ctx: NLPContext):
     ts = anchor_times(
         np.arange(N + 1) * grid.h / T, np.asarray(ws.starts), np.asarray(ws.ends), ws.anchor
     )
-    re = _reanchor_function(aug).map("reanchor", "serial", len(ws.starts), [], [])
+    re = _reanchor_function(model).map("reanchor", "serial", len(ws.starts), [], [])
     return re(Gw, ca.DM(ts).T)
 
 
@@ -313,7 +370,7 @@ def windowed_expr(ctx: NLPContext):
     """The aggregated criterion of the symbolic path ``ctx.W`` (MX scalar), unlifted."""
     pb = ctx.problem
     ws = window_settings(pb)
-    m = augmented_model(pb.model).state_dim
+    m = gramian_model(pb).state_dim
     crit = _vec_criteria_function(m).map("window_criteria", "serial", len(ws.starts), [], [])
     tr, ld = crit(window_gramians_expr(ctx), window_floor(pb, ws))
     vals = tr if CRITERIA[pb.objective.kind] == "trace-inverse" else ld
@@ -349,7 +406,7 @@ def windowed_term(ctx: NLPContext) -> ObjectiveTerm:
     pb = ctx.problem
     agg = windowed_expr(ctx)
     agg_ref = float(ca.Function("agg", [ctx.W], [agg])(ctx.W_ref))
-    m = augmented_model(pb.model).state_dim
+    m = gramian_model(pb).state_dim
     crit = CRITERIA[pb.objective.kind]
     hessian = HESSIAN[crit]
     if crit == "trace-inverse":
