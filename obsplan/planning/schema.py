@@ -95,7 +95,9 @@ LINEARISATION_BOUND = 0.25
 #: EKF on 8 runs of 1000 on two suite geometries unbounded, 0-3 bounded). ``gramian-min-eig``
 #: lost more with it (1 -> 5 and 2 -> 5 runs, EKF RMSE 0.34 -> 0.40 and 0.63 -> 0.74 m: its plans
 #: close on the beacon along the line of sight however it is bounded, and the bound moved them to
-#: worse local optima), so it is off there. ``lwo-condition``'s two 2D suite plans are ahead of
+#: worse local optima; those were its plans on the augmented system: on the linearised one, its
+#: default, the bound changed nothing, 0.257 / 0.551 m unbounded, 0.250 / 0.552 bounded, none
+#: lost), so it is off there. ``lwo-condition``'s two 2D suite plans are ahead of
 #: the lawn-mower at 1000 runs unbounded (EKF RMSE 0.270 and 0.548 m against 0.488 and 0.718, no
 #: run lost) since its node criterion holds the window's input; with each node's own input the
 #: bound had moved them ahead (0.573 -> 0.474, 0.765 -> 0.642 m) but doubled the EKF final error
