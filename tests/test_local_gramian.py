@@ -14,6 +14,7 @@ from obsplan.errors import ProblemError
 from obsplan.observability import windowed as wd
 from obsplan.observability.gramian import augmented_model, interval_gramians
 from obsplan.observability.local_gramian import (
+    LOS_FLOOR_M,
     linearised_model,
     local_interval_gramian_function,
     local_interval_gramians,
@@ -113,7 +114,8 @@ def test_symbolic_interval_equals_numpy(path):
         h = traj.dt[k]
         pa = traj.p[k] - b
         pm = pa + 0.5 * h * traj.v[k] + 0.125 * h**2 * traj.u[k]
-        g = f(pa / L, pm / L, (traj.p[k + 1] - b) / L, (traj.t[k] - traj.t[0]) / T, h / T, w)
+        tk = (traj.t[k] - traj.t[0]) / T
+        g = f(pa / L, pm / L, (traj.p[k + 1] - b) / L, tk, h / T, w, (LOS_FLOOR_M / L) ** 2)
         Gs = np.reshape(np.asarray(g), (lm.state_dim, lm.state_dim), order="F")
         assert np.allclose(Gs, G[k], rtol=0, atol=1e-12 * np.max(np.abs(G[k])))
 
@@ -210,7 +212,8 @@ def test_linearised_windows_hold_the_ekf_prior_from_the_start():
 
 def test_a_range_informs_the_same_at_any_distance():
     # the linearised range row is the unit line of sight: moving the whole path away from the
-    # beacon along the line of sight of a radial leg changes nothing
+    # beacon along the line of sight of a radial leg changes nothing but the line of sight's
+    # 1 mm floor (LOS_FLOOR_M: (δ/r)² = 1e-8 at 10 m, the tolerance)
     pb = load_problem(ROOT / "problems/suite/gramian-offset-beacon.toml")
     lm = linearised_model(pb.model)
     t = np.linspace(0.0, 60.0, 31)
@@ -221,13 +224,33 @@ def test_a_range_informs_the_same_at_any_distance():
         p = b + np.outer(r + 0.5 * t, e)
         paths.append(Trajectory(t=t, p=p, v=np.tile(0.5 * e, (31, 1)), u=np.zeros((31, 2))))
     G = [local_interval_gramians(tr, lm, b, _weights(pb), pb.scales).sum(0) for tr in paths]
-    assert np.allclose(G[0], G[1], rtol=1e-12, atol=1e-12 * np.max(np.abs(G[0])))
+    assert np.allclose(G[0], G[1], rtol=0, atol=1e-8 * np.max(np.abs(G[0])))
     # per unit time, a range carries rate / σ_r² along its line of sight (metric scales)
     info = sensor_information(pb)
     L = pb.scales.length_m
-    assert G[0][0, 0] + G[0][1, 1] == pytest.approx(
-        info.range_rate * 60.0 * L**2 / info.range_std**2, rel=1e-12
+    assert G[1][0, 0] + G[1][1, 1] == pytest.approx(
+        info.range_rate * 60.0 * L**2 / info.range_std**2, rel=1e-10
     )
+
+
+def test_a_path_through_the_beacon_stays_finite():
+    # limits.min_range = 0 lets a path cross the beacon, where the line of sight is undefined:
+    # the floor keeps the rows finite there (and the NLP's derivatives with them)
+    pb = load_problem(ROOT / "problems/suite/gramian-offset-beacon.toml")
+    lm = linearised_model(pb.model)
+    b = np.asarray(pb.beacon, float)
+    t = np.linspace(0.0, 20.0, 11)
+    p = b + np.outer(t - 10.0, [0.5, 0.0])  # node 5 exactly at the beacon
+    traj = Trajectory(t=t, p=p, v=np.tile([0.5, 0.0], (11, 1)), u=np.zeros((11, 2)))
+    G = local_interval_gramians(traj, lm, b, _weights(pb), pb.scales)
+    assert np.all(np.isfinite(G))
+    L = pb.scales.length_m
+    q = ca.SX.sym("q", 2)
+    d2 = (LOS_FLOOR_M / L) ** 2
+    g = local_interval_gramian_function(lm)(q, q, q, 0.1, 0.02, _weights(pb), d2)
+    J = ca.Function("J", [q], [g, ca.jacobian(g, q)])
+    for val in J(np.zeros(2)):
+        assert np.all(np.isfinite(np.asarray(val)))
 
 
 def test_bad_system_names_the_field():

@@ -44,6 +44,10 @@ from obsplan.trajectory import Trajectory
 #: Simpson's rule: the nodes of an interval as fractions of it, and their weights.
 SIMPSON_NODES = (0.0, 0.5, 1.0)
 SIMPSON_WEIGHTS = (1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0)
+#: The line of sight is ``q / sqrt(|q|² + δ²)`` with this ``δ`` [m]: the direction is undefined at
+#: the beacon itself, which a plan with ``limits.min_range = 0`` may cross; 1 mm, far inside any
+#: range noise, changes the rows by ``(δ/r)²/2`` (2e-8 at 5 m) and keeps them finite and smooth.
+LOS_FLOOR_M = 1e-3
 
 
 @dataclass(frozen=True)
@@ -144,27 +148,31 @@ def local_interval_gramians(
     h = tr.dt
     tau = tr.t - tr.t[0]
     w = np.asarray(row_weights, float)
+    d2 = (LOS_FLOOR_M / L) ** 2
     G = np.zeros((h.size, lm.state_dim, lm.state_dim))
     for s, c in zip(SIMPSON_NODES, SIMPSON_WEIGHTS, strict=True):
         sh = (s * h)[:, None]
         q = p[:-1] + sh * tr.v[:-1] + 0.5 * sh**2 * tr.u[:-1]
-        R = lm.rows(q / np.linalg.norm(q, axis=1, keepdims=True), tau[:-1] + s * h)
+        los = q / np.sqrt(np.sum(q**2, axis=1, keepdims=True) + d2)
+        R = lm.rows(los, tau[:-1] + s * h)
         G += (c * h)[:, None, None] * np.einsum("kri,r,krj->kij", R, w, R)
     return G
 
 
 @cache
 def local_interval_gramian_function(lm: LinearisedModel) -> ca.Function:
-    """CasADi ``vec G_k = g(p_a, p_m, p_b, tau0, h, w)``: :func:`local_interval_gramians` of one
-    interval from its positions relative to the beacon at its start, midpoint and end (n each),
-    its start time from ``t_0`` and its length, and the row weights (n_outputs), all in the
-    metric scales. Output: column-major ``vec`` of the ``m × m`` contribution."""
+    """CasADi ``vec G_k = g(p_a, p_m, p_b, tau0, h, w, d2)``: :func:`local_interval_gramians` of
+    one interval from its positions relative to the beacon at its start, midpoint and end (n
+    each), its start time from ``t_0`` and its length, the row weights (n_outputs) and the line of
+    sight's floor ``(LOS_FLOOR_M / L)²``, all in the metric scales. Output: column-major ``vec``
+    of the ``m × m`` contribution."""
     n = lm.dim
     ps = [ca.SX.sym(f"p{i}", n) for i in range(3)]
     tau0, h = ca.SX.sym("tau0"), ca.SX.sym("h")
     w = ca.SX.sym("w", lm.n_outputs)
+    d2 = ca.SX.sym("d2")
     G = ca.SX.zeros(lm.state_dim, lm.state_dim)
     for q, s, c in zip(ps, SIMPSON_NODES, SIMPSON_WEIGHTS, strict=True):
-        R = lm.rows(q / ca.norm_2(q), tau0 + s * h)
+        R = lm.rows(q / ca.sqrt(ca.sumsqr(q) + d2), tau0 + s * h)
         G += c * h * (R.T @ ca.diag(w) @ R)
-    return ca.Function("local_interval_gramian", [*ps, tau0, h, w], [ca.vec(G)])
+    return ca.Function("local_interval_gramian", [*ps, tau0, h, w, d2], [ca.vec(G)])

@@ -44,6 +44,7 @@ from obsplan.observability.gramian import (
     weighted_interval_gramian_function,
 )
 from obsplan.observability.local_gramian import (
+    LOS_FLOOR_M,
     LinearisedModel,
     linearised_model,
     local_interval_gramian_function,
@@ -344,7 +345,8 @@ def window_gramians_expr(ctx: NLPContext):
         else:
             wl = np.ones(model.n_outputs)
         g = local_interval_gramian_function(model).map("local_gramians", "serial", N, [], [])
-        Gk = g(p[:, :N] / L, mid / L, p[:, 1:] / L, tau / T, hs, ca.repmat(ca.DM(wl), 1, N))
+        W_rows = ca.repmat(ca.DM(wl), 1, N)
+        Gk = g(p[:, :N] / L, mid / L, p[:, 1:] / L, tau / T, hs, W_rows, (LOS_FLOOR_M / L) ** 2)
     else:
         D = (p[:, :N] - ca.repmat(ca.DM(grid.p0), 1, N) - ca.DM(grid.v0) @ tau) / L  # eq. 15
         E = (v[:, :N] - ca.repmat(ca.DM(grid.v0), 1, N)) * (T / L)
