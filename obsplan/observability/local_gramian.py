@@ -45,9 +45,11 @@ from obsplan.trajectory import Trajectory
 SIMPSON_NODES = (0.0, 0.5, 1.0)
 SIMPSON_WEIGHTS = (1.0 / 6.0, 4.0 / 6.0, 1.0 / 6.0)
 #: The line of sight is ``q / sqrt(|q|² + δ²)`` with this ``δ`` [m]: the direction is undefined at
-#: the beacon itself, which a plan with ``limits.min_range = 0`` may cross; 1 mm, far inside any
-#: range noise, changes the rows by ``(δ/r)²/2`` (2e-8 at 5 m) and keeps them finite and smooth.
-LOS_FLOOR_M = 1e-3
+#: the beacon itself, which a plan with ``limits.min_range = 0`` may cross. A guard against the
+#: 0/0, not a model: 1 nm is below double precision's resolution of ``|q|²`` (in the metric
+#: scales) for any point more than 0.1 m from the beacon, so the rows there are bit-identical to
+#: the unguarded ones, and at the beacon they and their derivatives stay finite.
+LOS_FLOOR_M = 1e-9
 
 
 @dataclass(frozen=True)
