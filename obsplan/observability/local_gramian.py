@@ -116,9 +116,10 @@ class LinearisedModel:
         def kinematic_sx(vec):
             return ca.vertcat(vec, *([tau * vec] * nv)).T
 
+        vel = self.velocity_rows()
         parts = [kinematic_sx(los)]
-        if self.velocity_rows().shape[0]:
-            parts.append(ca.DM(self.velocity_rows()))
+        if vel.shape[0]:
+            parts.append(ca.DM(vel))
         if depth:
             parts.append(kinematic_sx(ca.DM(ez)))
         return ca.vertcat(*parts)

@@ -256,13 +256,21 @@ def start_information(pb: PlanningProblem) -> np.ndarray:
     return np.linalg.inv(0.5 * (P + P.T))
 
 
+def local_weights(pb: PlanningProblem, ws: WindowSettings) -> np.ndarray:
+    """Row weights ``(n_outputs,)`` of the linearised model: information rates
+    (:func:`~obsplan.observability.windowed.local_row_weights`) or, unweighted, ones."""
+    lm = linearised_model(pb.model)
+    if ws.weighted:
+        return local_row_weights(lm, sensor_information(pb), pb.scales)
+    return np.ones(lm.n_outputs)
+
+
 def window_floor(pb: PlanningProblem, ws: WindowSettings) -> float:
     """``ε`` of every window Gramian (:data:`FLOOR_REL`), in the metric scales."""
     L, T = pb.scales.length_m, pb.scales.time_s
     unit = 1.0
     if ws.weighted and ws.system == "linearised":
-        lm = linearised_model(pb.model)
-        unit = float(local_row_weights(lm, sensor_information(pb), pb.scales)[0])
+        unit = float(local_weights(pb, ws)[0])
     elif ws.weighted:
         info = sensor_information(pb)
         c_range, _ = row_weight_factors(augmented_model(pb.model), info, pb.scales)
@@ -283,8 +291,7 @@ def windowed_aggregate(traj: Trajectory, pb: PlanningProblem) -> float:
     beacon = np.asarray(pb.beacon)
     info = sensor_information(pb) if ws.weighted else None
     if isinstance(model, LinearisedModel):
-        w = local_row_weights(model, info, pb.scales) if info else np.ones(model.n_outputs)
-        Gk = local_interval_gramians(traj, model, beacon, w, pb.scales)
+        Gk = local_interval_gramians(traj, model, beacon, local_weights(pb, ws), pb.scales)
     else:
         Gk = weighted_interval_gramians(traj, model, beacon, info, pb.scales)
     tau = (traj.t - traj.t[0]) / pb.scales.time_s
@@ -308,15 +315,21 @@ def _interval_weights(grid: Grid, pb: PlanningProblem, u, p, v):
     """Row weights of every interval, ``(n_outputs, N)``, of the symbolic path (``p`` from the
     beacon, SI): the formulas of :func:`~obsplan.observability.windowed.information_weights`."""
     aug = augmented_model(pb.model)
-    N, h = grid.N, grid.h
+    N = grid.N
     info = sensor_information(pb)
     c_range, other = row_weight_factors(aug, info, pb.scales)
     sq = ca.sum1(p**2)
-    mid = p[:, :N] + 0.5 * h * v[:, :N] + 0.125 * h**2 * u
-    r2 = simpson_mean(sq[:, :N], ca.sum1(mid**2), sq[:, 1:])
+    r2 = simpson_mean(sq[:, :N], ca.sum1(_midpoints(grid, u, p, v) ** 2), sq[:, 1:])
     rows = [c_range * range_information(r2, info.range_std, info.start_range)]
     rows += [ca.DM.ones(1, N) * float(w) for w in other]
     return ca.vertcat(*rows)
+
+
+def _midpoints(grid: Grid, u, p, v):
+    """Positions ``(n, N)`` at the middle of every interval of the symbolic path (exact: the
+    input is constant on each)."""
+    N, h = grid.N, grid.h
+    return p[:, :N] + 0.5 * h * v[:, :N] + 0.125 * h**2 * u
 
 
 def _window_matrix(N: int, ws: WindowSettings) -> sp.csc_matrix:
@@ -339,13 +352,9 @@ def window_gramians_expr(ctx: NLPContext):
     tau = ca.DM(np.arange(N) * grid.h).T
     hs = ca.DM.ones(1, N) * (grid.h / T)
     if isinstance(model, LinearisedModel):
-        mid = p[:, :N] + 0.5 * grid.h * v[:, :N] + 0.125 * grid.h**2 * u
-        if ws.weighted:
-            wl = local_row_weights(model, sensor_information(pb), pb.scales)
-        else:
-            wl = np.ones(model.n_outputs)
+        mid = _midpoints(grid, u, p, v)
         g = local_interval_gramian_function(model).map("local_gramians", "serial", N, [], [])
-        W_rows = ca.repmat(ca.DM(wl), 1, N)
+        W_rows = ca.repmat(ca.DM(local_weights(pb, ws)), 1, N)
         Gk = g(p[:, :N] / L, mid / L, p[:, 1:] / L, tau / T, hs, W_rows, (LOS_FLOOR_M / L) ** 2)
     else:
         D = (p[:, :N] - ca.repmat(ca.DM(grid.p0), 1, N) - ca.DM(grid.v0) @ tau) / L  # eq. 15
