@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +67,10 @@ def test_a_small_plan_writes_plan_report_and_figures(default_run, capsys):
         assert truth["closest_range_m"] > 0 and truth["tracking_rmse_m"] > 0
         assert 0 <= truth["runs_inside_min_range"] <= v["runs"]
         assert 0 <= truth["any_violation_fraction"] <= 1
+        # every checked limit has its worst excess, positive exactly where some run broke it
+        assert set(truth["worst_excess"]) == set(truth["violation_fraction"])
+        for lim, frac in truth["violation_fraction"].items():
+            assert (truth["worst_excess"][lim] > 0) == (frac > 0), (name, lim)
     # the straight line has a singular Gramian: log_det is null, not -Infinity
     assert rep["metrics"]["straight"]["log_det"] is None
 
@@ -306,3 +311,28 @@ def test_force_never_deletes_the_problem_file(tmp_path, capsys):
     assert main(["plan", str(prob), "--out", str(res), "--force", *SMALL]) == 2
     assert "holds the input" in capsys.readouterr().err
     assert prob.is_file()
+
+
+def test_limit_breaks_names_each_limit_its_share_of_runs_and_worst_excess():
+    from obsplan.cli.common import limit_breaks
+    from obsplan.estimation.guidance import TruthLimits
+    from obsplan.estimation.stats import TruthStats
+
+    z = np.zeros(4)
+    tr = TruthStats(
+        closest_range_runs=np.array([6.0, 4.5, 7.0, 8.0]),  # one run 0.5 m inside 5 m
+        farthest_range_runs=np.full(4, 50.0),
+        tracking_rmse_runs=z,
+        final_drift_runs=z,
+        max_speed_runs=np.array([0.99, 1.0009, 1.002, 0.5]),  # two runs over 1 m/s
+        area_excursion_runs=z,
+        depth_excursion_runs=z,
+        saturated_fraction_runs=z,
+        accel_ratio_runs=np.full(4, 0.9),
+        limits=TruthLimits(accel=0.05, speed=1.0, min_range=5.0, area=((-9, 9), (-9, 9))),
+    )
+    assert limit_breaks(tr) == (
+        "speed in 50.0 % (by up to 0.002 m/s), min_range in 25.0 % (by up to 0.5 m)"
+    )
+    within = replace(tr, max_speed_runs=np.full(4, 0.9), closest_range_runs=np.full(4, 9.0))
+    assert limit_breaks(within) == ""

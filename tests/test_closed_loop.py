@@ -134,6 +134,10 @@ def test_truth_statistics_and_limits(long_circle):
     closed = long_circle["closed"].truth
     assert 0.0 < closed.violation_fraction["speed"] < 1.0
     assert np.all(closed.max_speed_runs < 1.2 + 3 * np.sqrt(2 * 0.1))
+    worst = closed.worst_excess
+    assert worst["speed"] == pytest.approx(np.max(closed.max_speed_runs) - 1.2, rel=1e-12)
+    assert worst["min_range"] == 0.0  # no run enters the keep-out: no excess, not a negative one
+    assert long_circle["open"].truth.worst_excess["speed"] == 0.0
     # a keep-out the open-loop drift breaks: radius 49 m around the beacon (the circle's 51 m)
     open_ = replace(long_circle["open"].truth, limits=TruthLimits(min_range=49.0))
     assert open_.runs_inside_min_range > 0
@@ -310,6 +314,16 @@ def test_every_truth_metric_against_run_0s_path(guidance):
     assert set(v) == {"accel", "speed", "area", "depth", "min_range", "max_range"}
     assert v["area"][0] and v["depth"][0] and v["min_range"][0] and v["max_range"][0]
     np.testing.assert_array_equal(v["max_range"], tr.farthest_range_runs > 22.0)
+    # the excess past each limit: positive exactly where the run breaks it (rtol = atol = 0),
+    # and in the limit's own unit
+    ex = tr.excess_runs()
+    assert set(ex) == set(v)
+    for name in v:
+        np.testing.assert_array_equal(ex[name] > 0, v[name], err_msg=name)
+    assert ex["min_range"][0] == pytest.approx(18.0 - want["closest_range_runs"], rel=1e-12)
+    assert ex["max_range"][0] == pytest.approx(want["farthest_range_runs"] - 22.0, rel=1e-12)
+    assert ex["depth"][0] == pytest.approx(want["depth_excursion_runs"], rel=1e-12)
+    assert tr.worst_excess["area"] == pytest.approx(np.max(tr.area_excursion_runs), rel=1e-15)
     if guidance is None:  # the plan's inputs (0.05 m/s² centripetal, plus z) flown blind
         ratio = np.max(np.abs(traj.u[:-1]) / 0.06)
         np.testing.assert_array_equal(tr.accel_ratio_runs, ratio)

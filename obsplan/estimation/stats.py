@@ -466,6 +466,36 @@ class TruthStats:
             out["max_range"] = self.farthest_range_runs > lim.max_range * r
         return out
 
+    def excess_runs(self) -> dict[str, np.ndarray]:
+        """Per limit that is set, by how much each run's true path goes past it, (runs,), 0
+        where it stays within: the acceleration as a fraction of its bound (``max_i |u_i| /
+        accel_i - 1``), the speed [m/s], the area box and the depth band [m, the excursions],
+        ``min_range`` and ``max_range`` [m, radial]. The same comparisons as
+        :meth:`violations`: a run breaks a limit exactly where its excess is positive (at
+        ``rtol = atol_m = 0``)."""
+        lim = self.limits
+        out: dict[str, np.ndarray] = {}
+        if lim is None:
+            return out
+        if lim.accel is not None:
+            out["accel"] = self.accel_ratio_runs - 1.0
+        if lim.speed is not None:
+            out["speed"] = self.max_speed_runs - lim.speed
+        if lim.area is not None:
+            out["area"] = self.area_excursion_runs.copy()
+        if lim.depth is not None:
+            out["depth"] = self.depth_excursion_runs.copy()
+        if lim.min_range is not None:
+            out["min_range"] = lim.min_range - self.closest_range_runs
+        if lim.max_range is not None:
+            out["max_range"] = self.farthest_range_runs - lim.max_range
+        return {k: np.maximum(v, 0.0) for k, v in out.items()}
+
+    @property
+    def worst_excess(self) -> dict[str, float]:
+        """Per limit, the largest excess over the runs (:meth:`excess_runs`; 0: never broken)."""
+        return {k: float(np.max(v, initial=0.0)) for k, v in self.excess_runs().items()}
+
     @property
     def violation_fraction(self) -> dict[str, float]:
         """Per limit, the fraction of runs that break it."""
@@ -489,6 +519,7 @@ class TruthStats:
             "max_speed": _num(float(np.max(self.max_speed_runs))),
             "saturated_fraction": _num(float(np.mean(self.saturated_fraction_runs))),
             "violation_fraction": self.violation_fraction,
+            "worst_excess": {k: _num(v) for k, v in self.worst_excess.items()},
             "any_violation_fraction": self.any_violation_fraction,
             "limits": None if self.limits is None else self.limits.to_dict(),
         }
