@@ -21,7 +21,11 @@ from obsplan.observability.gramian import gramian
 from obsplan.observability.lwo import taylor_moments
 from obsplan.planning import load_problem, solve
 from obsplan.planning.baselines import baselines, lawnmower_baseline
-from obsplan.planning.estimator_objectives import covariance_stds, covariance_value
+from obsplan.planning.estimator_objectives import (
+    covariance_objective,
+    covariance_stds,
+    covariance_value,
+)
 from obsplan.planning.evaluate import better, kf_final_pos_std, objective_value
 from obsplan.planning.feasibility import LIMIT_RTOL, check_limits
 from obsplan.planning.formulation import build_formulation
@@ -118,6 +122,25 @@ def test_pcrb_objective_is_the_validation_bound(pcrb_result):
     assert res.objective == pytest.approx(avg / ref_avg + final / ref_final, rel=1e-12)
     # the solver's own value of the objective is the same number
     assert res.lifted_objective == pytest.approx(res.objective, rel=1e-9)
+
+
+def test_std_series_is_what_the_time_modes_average_and_end_on(pcrb_result):
+    # the per-sample std of both recursions: its mean and last sample are the objective's
+    # average and final std, and the PCRB's is the validation bound's at every filter sample
+    pb, traj = pcrb_result.problem, pcrb_result.trajectory
+    grid = Grid.from_problem(pb)
+    W = grid.from_trajectory(traj)
+    series = {}
+    for kind in ("pcrb-position", "kf-position-std"):
+        std = covariance_objective(pb, kind).std_series(grid, W)
+        assert std.shape == pb.filter_times.shape, kind
+        avg, final = covariance_stds(traj, pb, kind)
+        assert np.mean(std) == pytest.approx(avg, rel=1e-12), kind
+        assert std[-1] == pytest.approx(final, rel=1e-12), kind
+        series[kind] = std
+    crlb = posterior_crlb(resample(traj, pb.validation.dt), estimation_config(pb))
+    np.testing.assert_allclose(series["pcrb-position"], crlb.pos_std_t, rtol=1e-9)
+    assert not np.allclose(series["kf-position-std"], series["pcrb-position"], rtol=0.05)
 
 
 def test_pcrb_plan_improves_on_every_guess_and_keeps_the_limits(pcrb_result):

@@ -75,17 +75,24 @@ class CovarianceObjective:
         """``(mission-average std, final std)`` [m] as CasADi expressions or numbers."""
         return self.evaluate_all(grid, W)[:2]
 
+    def std_series(self, grid: Grid, W: np.ndarray) -> np.ndarray:
+        """The predicted position std ``sqrt(tr P_pp)`` [m] at every filter sample
+        (``PlanningProblem.filter_times``) of the path ``W`` (numbers, intrinsic units), shape
+        ``(samples,)``: what the time modes average and end on."""
+        h, rho = self.rows(grid, W)
+        _, D = run_recursion(self.model, self.epochs, self.P0, h, rho, self.mask)
+        return position_std(np.asarray(D), self.model.n, self.epochs) * self.scale
+
     def evaluate_all(self, grid: Grid, W):
         """``(mission-average, final, average over the lines)`` std [m] (the last None without
         lines), as CasADi expressions or numbers."""
+        if isinstance(W, np.ndarray):
+            std = self.std_series(grid, W)
+            on = None if self.lines is None else float(np.mean(std[self.lines]))
+            return float(np.mean(std)), float(std[-1]), on
         h, rho = self.rows(grid, W)
-        numeric = isinstance(W, np.ndarray)
         _, D = run_recursion(self.model, self.epochs, self.P0, h, rho, self.mask)
         n = self.model.n
-        if numeric:
-            std = position_std(np.asarray(D), n, self.epochs)
-            on = None if self.lines is None else float(np.mean(std[self.lines])) * self.scale
-            return float(np.mean(std)) * self.scale, float(std[-1]) * self.scale, on
         total, final = position_std(D, n, self.epochs)
         count = int(self.epochs.gap.sum())
         on = None
