@@ -218,8 +218,9 @@ def limit_breaks(truth: TruthStats) -> str:
         if frac <= 0:
             continue
         x = worst.get(name, 0.0)
-        by = f"{100 * x:.2g} % of the bound" if name == "accel" else f"{x:.2g} m"
-        if name == "speed":
-            by = f"{x:.2g} m/s"
+        if name == "accel":  # a ratio to the bound; the others in their own units
+            by = f"{100 * x:.2g} % of the bound"
+        else:
+            by = f"{x:.2g} {'m/s' if name == 'speed' else 'm'}"
         words.append(f"{name} in {100 * frac:.1f} % (by up to {by})")
     return ", ".join(words)

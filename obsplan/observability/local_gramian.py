@@ -31,7 +31,7 @@ Units are the metric scales of :mod:`obsplan.observability.scaling` (``p/L``, ``
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 
 import casadi as ca
 import numpy as np
@@ -61,9 +61,10 @@ class LinearisedModel:
     sensors: tuple[str, ...]
     current: bool
 
-    @property
+    @cached_property
     def _augmented(self) -> AugmentedModel:
-        # x is the augmented state's leading block: z = (x, p_0ᵀν_0, |ν_0|²) (eq. 20)
+        # x is the augmented state's leading block: z = (x, p_0ᵀν_0, |ν_0|²) (eq. 20); built
+        # once per model (every property below and each window's re-anchoring read it)
         return AugmentedModel(dim=self.dim, sensors=self.sensors, current=self.current)
 
     @property
