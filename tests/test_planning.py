@@ -35,6 +35,7 @@ from obsplan.planning.ipopt import make_projection
 from obsplan.planning.ipopt import project as _project
 from obsplan.planning.lwo_objective import (
     LWO_BETA,
+    clipped_windows,
     lwo_condition,
     lwo_conditions,
     lwo_information_node_function,
@@ -318,6 +319,25 @@ def test_lwo_condition_node_windows_start_at_the_mission_and_carry_the_prior():
     q_rand = lwo_conditions(grid, pb, grid.from_trajectory(random_guess(pb, 3))).ravel()
     assert q_ref[0] == pytest.approx(q_rand[0], rel=1e-12)
     assert not np.allclose(q_ref[1:], q_rand[1:])
+
+
+def test_lwo_condition_windows_are_one_rule_for_moments_and_held_input():
+    """The node windows' length and start node come from one place: the length is the window
+    clipped at the start, the start node the one nearest the window's start (at least one step
+    back), so the held input spans the window the moments integrate over, to half a step."""
+    pb = small("lwo-condition", steps=20, starts=1)
+    grid = Grid.from_problem(pb)
+    tau_k, start = clipped_windows(grid, pb)
+    tau = window_settings(pb).window_s
+    np.testing.assert_array_equal(tau_k, np.minimum(tau, grid.times))
+    k = np.arange(grid.N + 1)
+    assert start[0] == 0 and np.all(start[1:] < k[1:]) and np.all(start >= 0)
+    span = grid.times - grid.times[start]
+    assert np.all(np.abs(span[1:] - tau_k[1:]) <= 0.5 * grid.h + 1e-12)
+    Hk, _ = node_windows(grid, pb)
+    T = pb.scales.time_s
+    for j in (1, grid.N // 2, grid.N):
+        np.testing.assert_allclose(Hk[:, j], taylor_moments(3, tau_k[j] / T).ravel(), rtol=1e-14)
 
 
 def test_lwo_condition_holds_the_input_that_crosses_each_window():

@@ -122,6 +122,18 @@ def lwo_information_node_function(pb: PlanningProblem) -> ca.Function:
     return ca.Function("lwo_information_mean", [x, u, h, ip], [ca.exp(logdet / m)])
 
 
+def clipped_windows(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.ndarray]:
+    """Each node's past window clipped at the start (module docstring), the one rule
+    :func:`node_windows` and :func:`window_mean_inputs` share: its length ``τ_k = min(τ, t_k)``
+    [s], shape (N+1,), and the node where it starts, the one nearest ``t_k - τ_k`` and at least
+    one step before ``k`` (0 at the first nodes), int, shape (N+1,). The Taylor moments take the
+    exact length; the held input needs a node to difference the velocity against."""
+    tau = window_settings(pb).window_s
+    w = max(1, int(round(tau / grid.h)))
+    k = np.arange(grid.N + 1)
+    return np.minimum(tau, np.asarray(grid.times, float)), np.maximum(0, k - w)
+
+
 def node_windows(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.ndarray]:
     """Per node ``k``: the Taylor moments of its window clipped at the start,
     ``τ_k = min(τ, t_k)`` (no reading precedes the mission), flattened ``(K², N+1)``, and the
@@ -129,14 +141,14 @@ def node_windows(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.ndarra
     process noise), flattened ``(m², N+1)``; both in the metric scales."""
     nd = _at_beacon(pb, "half-squared")
     T, L = pb.scales.time_s, pb.scales.length_m
-    tau = window_settings(pb).window_s
+    tau_k, _ = clipped_windows(grid, pb)
     K = lwo_orders(nd) + 1
     m, n = nd.state_dim, nd.dim
     P0 = np.asarray(estimation_config(pb).p0_ekf, float)[:m, :m]
     S = np.diag([1.0 / L] * n + [T / L] * (m - n))
     Hk, Ik = [], []
-    for t in grid.times:
-        Hk.append(taylor_moments(K - 1, min(tau, float(t)) / T).ravel(order="F"))
+    for t, tau in zip(grid.times, tau_k, strict=True):
+        Hk.append(taylor_moments(K - 1, float(tau) / T).ravel(order="F"))
         F, _ = nd.transition(float(t))
         Pt = S @ F @ P0 @ F.T @ S.T
         Ik.append(np.linalg.inv(0.5 * (Pt + Pt.T)).ravel(order="F"))
@@ -149,10 +161,10 @@ def window_mean_inputs(grid: Grid, pb: PlanningProblem, u, v):
     constant acceleration that carries the velocity across the window; ``u_0`` at the first node
     (an empty window). ``u`` (n, N) and ``v`` (n, N+1) [SI], numpy or CasADi; shape (n, N+1)
     [m/s²]."""
-    w = max(1, int(round(window_settings(pb).window_s / grid.h)))
+    _, start = clipped_windows(grid, pb)
     cols = [u[:, 0]]
     for k in range(1, grid.N + 1):
-        a = max(0, k - w)
+        a = int(start[k])
         cols.append((v[:, k] - v[:, a]) / ((k - a) * grid.h))
     return np.column_stack(cols) if isinstance(u, np.ndarray) else ca.horzcat(*cols)
 
