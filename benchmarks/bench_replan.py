@@ -133,6 +133,8 @@ def main() -> int:
         help="with --stress: the replanner is built for the stressed world (module docstring)",
     )
     args = ap.parse_args()
+    if args.told and tuple(args.stress) == (1.0, 1.0):
+        ap.error("--told needs --stress PRIOR RANGE (a world other than the problem file's)")
     path = args.problem or median_suite_problem()
     pb = load_problem(path)
     world = scaled_problem(pb, *args.stress) if tuple(args.stress) != (1.0, 1.0) else pb
