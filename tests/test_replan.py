@@ -20,9 +20,11 @@ from obsplan.planning.replan import (
     recovery_steps,
     replan_monte_carlo,
     replan_nodes,
+    return_inputs,
     state_for_planner,
 )
 from obsplan.planning.solve import solve
+from obsplan.trajectory import Trajectory
 
 SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--quiet"]
 
@@ -88,6 +90,49 @@ def test_resolve_from_a_perturbed_estimate_keeps_the_past_and_the_limits(small):
         assert replace(check_limits(new.window(after), pb), start=0.0).ok()
         # the remaining path is dynamically consistent (exact double integrator)
         assert max(new.window(k).consistency_error()) < 1e-6
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_return_inputs_join_the_plan_in_the_window_with_least_energy(dim):
+    pb = load_problem("problems/suite/gramian-depth3d.toml" if dim == 3 else LOCALISE_PROBLEM)
+    n, h = pb.dim, 3.0
+    F, G = pb.model.transition(h)
+    F, G = F[: 2 * n, : 2 * n], G[: 2 * n]
+    rng = np.random.default_rng(5)
+    error = np.concatenate([rng.normal(0.0, 1.0, n), rng.normal(0.0, 0.02, n)])
+    c = return_inputs(F, G, error, 7, 20)
+    assert c.shape == (20, n)
+    np.testing.assert_array_equal(c[7:], 0.0)
+    # integrated exactly from the error, the corrections land on the plan at step 7 and stay
+    off = Trajectory.from_inputs(np.arange(21) * h, error[:n], error[n:], c)
+    np.testing.assert_allclose(off.p[7:], 0.0, atol=1e-9)
+    np.testing.assert_allclose(off.v[7:], 0.0, atol=1e-12)
+    # least energy: any other sequence that joins in 7 steps (plus a null-space move) costs more
+    C = np.hstack([np.linalg.matrix_power(F, 6 - i) @ G for i in range(7)])
+    null = np.linalg.svd(C)[2][-1]
+    other = c[:7].reshape(-1) + 0.01 * null
+    np.testing.assert_allclose(C @ other, C @ c[:7].reshape(-1), atol=1e-12)
+    assert np.sum(other**2) > np.sum(c[:7] ** 2)
+    # on the plan there is nothing to correct; one step left: the closest it can get
+    np.testing.assert_array_equal(return_inputs(F, G, np.zeros(2 * n), 7, 20), 0.0)
+    assert return_inputs(F, G, error, 7, 1).shape == (1, n)
+
+
+def test_warm_guess_flies_on_from_the_estimate_back_onto_the_plan_in_force(small):
+    pb, res, rp = small
+    plan = res.trajectory
+    n, k = pb.dim, 12
+    state = np.concatenate([plan.p[k] + 0.8, plan.v[k] - 0.03])
+    guess = rp.warm_guess(plan, k, state)
+    np.testing.assert_array_equal(guess.p[:k], plan.p[:k])
+    np.testing.assert_allclose(guess.p[k], state[:n], atol=1e-12)
+    np.testing.assert_allclose(guess.v[k], state[n:], atol=1e-12)
+    # joined within the recovery window (at least 2 steps): the plan in force after it, where
+    # re-integrating the plan's inputs would carry the velocity offset to the end
+    j = k + max(2, recovery_steps(pb))
+    np.testing.assert_allclose(guess.p[j:], plan.p[j:], atol=1e-9)
+    np.testing.assert_allclose(guess.v[j:], plan.v[j:], atol=1e-12)
+    assert max(guess.window(k).consistency_error()) < 1e-6
 
 
 def test_state_for_planner_adds_the_current_to_the_water_velocity():

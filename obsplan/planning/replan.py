@@ -17,8 +17,14 @@ changes bounds and the initial point:
 * the path constraints that involve only fixed variables (the dynamics steps before ``k``, the
   speed and range limits at nodes ``1..k`` and midpoints before ``k``) are relaxed to
   ``(-inf, inf)``: the estimate need not be where the plan was, and the past is not re-decided;
-* the initial point is the plan in force, its remaining inputs re-integrated from the estimate
-  (IPOPT's warm-start options, :data:`~obsplan.planning.ipopt.WARM_START`);
+* the initial point is *flying on*: from the estimate back onto the plan in force over the
+  recovery window below (the plan's inputs plus the least-energy correction that joins it,
+  :func:`return_inputs`), the plan in force after it (IPOPT's warm-start options,
+  :data:`~obsplan.planning.ipopt.WARM_START`). Re-integrating the plan's inputs from the
+  estimate instead carries the estimate's velocity offset to the end of the mission (a 1 cm/s
+  offset is 5 m after 500 s): on the median suite problem those drifted paths, kept or refined,
+  lost to the one-shot plan (EKF final error 1.13x, 200 runs); joined back, replanning ties it
+  (1.00x; ``benchmarks/bench_replan.py``, docs/replanning.md);
 * a run whose estimate is already too close to the beacon (or too fast) cannot meet the limits
   at once: over a *recovery window* of :func:`recovery_steps` steps after ``k`` (the time to
   shed the full speed at the smallest acceleration bound) the inequality limits are loosened to
@@ -154,8 +160,9 @@ class ReplanSolve:
     objective : float or None
         The objective of the new plan over the whole horizon (past included), numpy-evaluated.
     kept_warm_start : bool
-        The warm start (the plan in force re-integrated from the estimate) was strictly better
-        than IPOPT's path and is flown instead.
+        The warm start (flying on: from the estimate back onto the plan in force,
+        :meth:`Replanner.warm_guess`) was strictly better than IPOPT's path and is flown
+        instead.
     """
 
     t: float
@@ -188,6 +195,23 @@ def recovery_steps(pb: PlanningProblem) -> int:
     docstring): ``ceil(v_max / min(a) / h)``, at least 1."""
     shed = float(pb.limits.speed) / float(np.min(pb.accel))
     return max(1, math.ceil(shed / pb.horizon.dt - 1e-9))
+
+
+def return_inputs(
+    F: np.ndarray, G: np.ndarray, error: np.ndarray, steps: int, horizon: int
+) -> np.ndarray:
+    """Input corrections [m/s²] that bring the vehicle ``error`` = ``(dp, dv)`` [m, m/s] off its
+    plan back onto it in ``steps`` steps (at least 2, at most ``horizon``) of the exact
+    zero-order hold ``e' = F e + G c`` (:meth:`~obsplan.model.VehicleModel.transition`, its
+    ``(p, v)`` block): the least-energy sequence, zero after; shape ``(horizon, n)``."""
+    n = G.shape[1]
+    m = max(1, min(max(2, int(steps)), int(horizon)))
+    # e_m = F^m e_0 + sum_i F^(m-1-i) G c_i
+    C = np.hstack([np.linalg.matrix_power(F, m - 1 - i) @ G for i in range(m)])
+    c = -np.linalg.pinv(C) @ (np.linalg.matrix_power(F, m) @ np.asarray(error, float))
+    out = np.zeros((int(horizon), n))
+    out[:m] = c.reshape(m, n)
+    return out
 
 
 class Replanner:
@@ -239,8 +263,10 @@ class Replanner:
         self.build_s = time.perf_counter() - t0
 
     def warm_guess(self, plan: Trajectory, k: int, state: np.ndarray) -> Trajectory:
-        """The plan in force with node ``k`` moved to ``state`` = ``(p, v)`` [m, m/s] and its
-        inputs after ``k`` re-integrated from there (the initial point of a re-solve)."""
+        """Flying on from ``state`` = ``(p, v)`` [m, m/s] at node ``k``: the plan in force's
+        inputs plus :func:`return_inputs`, which join it within the recovery window
+        (:func:`recovery_steps`, at least 2 steps), then the plan in force to the end (the
+        initial point of a re-solve, and what is flown when no re-solve beats it)."""
         n = self.problem.dim
         x = np.asarray(state, float).reshape(-1)
         if x.size < 2 * n or plan.n_samples != self.form.grid.N + 1:
@@ -248,7 +274,12 @@ class Replanner:
                 f"replan: the state must hold (p, v) ({2 * n} values) and the plan "
                 f"{self.form.grid.N + 1} samples on the planning grid"
             )
-        future = Trajectory.from_inputs(plan.t[k:], x[:n], x[n : 2 * n], plan.u[k:-1])
+        F, G = self.problem.model.transition(self.form.grid.h)
+        error = x[: 2 * n] - np.concatenate([plan.p[k], plan.v[k]])
+        u = plan.u[k:-1] + return_inputs(
+            F[: 2 * n, : 2 * n], G[: 2 * n], error, self.recovery, len(plan.t) - 1 - k
+        )
+        future = Trajectory.from_inputs(plan.t[k:], x[:n], x[n : 2 * n], u)
         return Trajectory(
             t=plan.t.copy(),
             p=np.vstack([plan.p[:k], future.p]),
