@@ -91,6 +91,24 @@ def test_the_summary_says_beats_only_when_every_lead_is_decided():
     assert any("EKF position RMSE" in line and "[0.80, 1.20]" in line for line in tied[1:])
 
 
+def test_the_summary_calls_a_metric_not_won_a_loss_only_when_decided():
+    """Behind on the mean inside the interval is a tie, not a loss: the words say which."""
+    won = Comparison("ekf.final_pos_err", 1.0, 2.0, ci=(0.4, 0.6))
+    lost = Comparison("ekf.rmse_pos", 1.2, 1.0, ci=(1.1, 1.3))
+    behind = Comparison("kf.rmse_pos", 1.05, 1.0, ci=(0.9, 1.2))
+    lines = Verdict(
+        {"lawnmower": {"ekf.final_pos_err": won, "ekf.rmse_pos": lost, "kf.rmse_pos": behind}},
+        {},
+        runs=50,
+    ).summary()
+    assert "does NOT beat" in lines[0] and lines[0].endswith("it does not win here:")
+    (loss,) = [x for x in lines if "EKF position RMSE" in x and x.startswith("  - ")][:1]
+    assert loss.endswith(", a loss")
+    tie = [x for x in lines if "KF position RMSE" in x and "EKF" not in x][0]
+    assert tie.endswith(", a tie")
+    assert not any("EKF final" in x for x in lines[1:])  # a decided win is not listed
+
+
 @pytest.fixture(scope="module")
 def short(short_problem):
     pb = short_problem

@@ -218,7 +218,8 @@ class Verdict:
         return f"against the {name}: {dict((*METRICS, *LINES_METRICS))[key]} {pv} vs {bv}{ratio}"
 
     def losses(self) -> list[str]:
-        """One sentence per (baseline, metric) the plan does not win."""
+        """One sentence per (baseline, metric) the plan does not win, ending in what it is: a
+        loss (decided at :data:`CONFIDENCE`) or a tie."""
         out = []
         for name, comps in self.comparisons.items():
             for key, c in comps.items():
@@ -227,8 +228,8 @@ class Verdict:
                 noise = (
                     f", within the Monte Carlo noise (+-{c.noise:.2g} m)" if c.within_noise else ""
                 )
-                tie = "" if c.decided else ", a tie"
-                out.append(self._words(name, key, c) + noise + tie)
+                what = ", a loss" if c.decided else ", a tie"
+                out.append(self._words(name, key, c) + noise + what)
         return out
 
     def ties(self) -> list[str]:
@@ -257,7 +258,7 @@ class Verdict:
             head = "beats" if self.beats_all else "does NOT beat"
             lines.append(
                 f"the plan {head} every baseline on EKF RMSE, EKF final error and KF RMSE; "
-                "it loses here:"
+                "it does not win here:"
             )
             lines += [f"  - {s}" for s in self.losses()]
         ties = self.ties()
