@@ -102,8 +102,8 @@ def test_the_summary_calls_a_metric_not_won_a_loss_only_when_decided():
         runs=50,
     ).summary()
     assert "does NOT beat" in lines[0] and lines[0].endswith("it does not win here:")
-    (loss,) = [x for x in lines if "EKF position RMSE" in x and x.startswith("  - ")][:1]
-    assert loss.endswith(", a loss")
+    loss = [x for x in lines if "EKF position RMSE" in x][0]
+    assert loss.startswith("  - ") and loss.endswith(", a loss")
     tie = [x for x in lines if "KF position RMSE" in x and "EKF" not in x][0]
     assert tie.endswith(", a tie")
     assert not any("EKF final" in x for x in lines[1:])  # a decided win is not listed

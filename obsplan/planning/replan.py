@@ -260,6 +260,8 @@ class Replanner:
         )
         self._g = ca.Function("obsplan_replan_g", [self.form.w], [self.form.g])
         self.recovery = recovery_steps(pb)
+        F, G = pb.model.transition(self.form.grid.h)  # the (p, v) block: the plan's state
+        self._zoh = (F[: 2 * pb.dim, : 2 * pb.dim], G[: 2 * pb.dim])
         self.build_s = time.perf_counter() - t0
 
     def warm_guess(self, plan: Trajectory, k: int, state: np.ndarray) -> Trajectory:
@@ -274,11 +276,8 @@ class Replanner:
                 f"replan: the state must hold (p, v) ({2 * n} values) and the plan "
                 f"{self.form.grid.N + 1} samples on the planning grid"
             )
-        F, G = self.problem.model.transition(self.form.grid.h)
         error = x[: 2 * n] - np.concatenate([plan.p[k], plan.v[k]])
-        u = plan.u[k:-1] + return_inputs(
-            F[: 2 * n, : 2 * n], G[: 2 * n], error, self.recovery, len(plan.t) - 1 - k
-        )
+        u = plan.u[k:-1] + return_inputs(*self._zoh, error, self.recovery, len(plan.t) - 1 - k)
         future = Trajectory.from_inputs(plan.t[k:], x[:n], x[n : 2 * n], u)
         return Trajectory(
             t=plan.t.copy(),
