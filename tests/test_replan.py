@@ -11,6 +11,8 @@ import pytest
 
 from obsplan.cli import main
 from obsplan.errors import ConfigError
+from obsplan.estimation.closedloop import ClosedLoop
+from obsplan.estimation.simulate import DEFAULT_FILTERS
 from obsplan.planning.evaluate import better
 from obsplan.planning.feasibility import check_limits
 from obsplan.planning.parse import LOCALISE_PROBLEM, load_problem
@@ -18,13 +20,15 @@ from obsplan.planning.problem import Horizon
 from obsplan.planning.replan import (
     Replanner,
     recovery_steps,
+    replan_guidance,
     replan_monte_carlo,
     replan_nodes,
     return_inputs,
     state_for_planner,
 )
 from obsplan.planning.solve import solve
-from obsplan.trajectory import Trajectory
+from obsplan.planning.validation_setup import estimation_config, truth_limits
+from obsplan.trajectory import Trajectory, resample
 
 SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--quiet"]
 
@@ -162,6 +166,49 @@ def test_replanned_monte_carlo_is_paired_and_reported(small):
         "kf.final_pos_err",
     }
     assert out.summary()[0].startswith("replanning every 150 s: 6 re-solves")
+
+
+def test_clairvoyant_replanner_starts_from_the_truth_not_the_estimate(small, monkeypatch):
+    """``replan_from="truth"`` (the research bound) re-solves from the true state; the default
+    from the navigation filter's estimate. Both are checked against a closed loop flown
+    independently to the first replan (nothing differs before it: same runs, seed, plan)."""
+    pb, res, rp = small
+    seen: dict[str, list] = {}
+    resolve = rp.resolve
+
+    def recording(source):
+        def call(plan, k, state, run=0):
+            seen.setdefault(source, []).append((k, run, np.array(state)))
+            return resolve(plan, k, state, run=run)
+
+        return call
+
+    for source in ("estimate", "truth"):
+        monkeypatch.setattr(rp, "resolve", recording(source))
+        replan_monte_carlo(
+            pb, res.trajectory, 300.0, runs=2, replanner=rp, processes=1, replan_from=source
+        )
+    loop = ClosedLoop(
+        resample(res.trajectory, pb.validation.dt),
+        estimation_config(pb),
+        2,
+        pb.validation.seed,
+        0,
+        guidance=replan_guidance(pb),
+        limits=truth_limits(pb),
+        filters=DEFAULT_FILTERS,
+    )
+    loop.advance(300.0)
+    snap = loop.snapshot()
+    for source, known in (("estimate", snap.estimate), ("truth", snap.truth)):
+        first = [(run, x) for k, run, x in seen[source] if k == replan_nodes(pb, 300.0)[0]]
+        assert [run for run, _ in first] == [0, 1]
+        for run, x in first:
+            np.testing.assert_allclose(x, state_for_planner(pb, known[run]), rtol=0, atol=1e-12)
+    # the two differ by the filter's error (a run with an exact estimate would make this vacuous)
+    assert np.min(np.abs(snap.estimate[:, : pb.dim] - snap.truth[:, : pb.dim])) > 1e-6
+    with pytest.raises(ConfigError, match="replan_from"):
+        replan_monte_carlo(pb, res.trajectory, 300.0, runs=1, replanner=rp, replan_from="plan")
 
 
 def test_cli_replan_flag_writes_the_replan_report(tmp_path, capsys):

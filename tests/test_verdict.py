@@ -109,6 +109,21 @@ def test_the_summary_calls_a_metric_not_won_a_loss_only_when_decided():
     assert not any("EKF final" in x for x in lines[1:])  # a decided win is not listed
 
 
+def test_a_decided_loss_is_not_also_called_within_the_noise():
+    """Two standard errors of the mean difference and the bootstrap interval of the ratio can
+    disagree at the margin; the words follow the interval (what ``decided`` reports) alone."""
+    lost = Comparison("ekf.final_pos_err", 1.0001, 1.0, noise=0.001, ci=(1.00001, 1.0002))
+    tied = Comparison("kf.final_pos_err", 1.0001, 1.0, noise=0.001, ci=(0.999, 1.001))
+    assert lost.within_noise and tied.within_noise  # the premise: 2 SE call both noise
+    lines = Verdict(
+        {"one-shot": {"ekf.final_pos_err": lost, "kf.final_pos_err": tied}}, {}, runs=200
+    ).losses()
+    loss = [x for x in lines if "EKF final" in x][0]
+    tie = [x for x in lines if "KF final" in x and "EKF" not in x][0]
+    assert loss.endswith(", a loss") and "Monte Carlo noise" not in loss
+    assert tie.endswith("within the Monte Carlo noise (+-0.001 m), a tie")
+
+
 @pytest.fixture(scope="module")
 def short(short_problem):
     pb = short_problem

@@ -85,6 +85,9 @@ REPLAN_MAX_ITER = 60
 #: stopped by the iteration budget (its iterate is checked like any path, and never flown when
 #: flying on is better).
 FLOWN_STATUSES = (SUCCESS_STATUS, "Solved_To_Acceptable_Level", "Maximum_Iterations_Exceeded")
+#: What a re-solve starts from: the navigation filter's estimate, or (a research bound, no
+#: vehicle has it) the true state.
+REPLAN_FROM = ("estimate", "truth")
 #: Relative tolerance for ``every`` to be a multiple of the planning step.
 _STEP_RTOL = 1e-9
 #: Path-constraint blocks whose rows belong to nodes (and midpoints) of the grid.
@@ -525,8 +528,9 @@ def _fly_batch(
         loop.advance(float(k) * h, references=refs)
         snap = loop.snapshot()
         refs = []
+        known = snap.truth if job["replan_from"] == "truth" else snap.estimate
         for j in range(runs):
-            state = state_for_planner(pb, snap.estimate[j])
+            state = state_for_planner(pb, known[j])
             out, new = rp.resolve(plans[j], int(k), state, run=int(snap.runs[j]))
             solves.append(out)
             if new is not None:
@@ -562,6 +566,7 @@ def replan_monte_carlo(
     progress: bool = False,
     filters: Sequence[str] = DEFAULT_FILTERS,
     replanner: Replanner | None = None,
+    replan_from: str = "estimate",
 ) -> ReplanResult:
     """Closed-loop Monte Carlo with receding-horizon replanning every ``every`` s.
 
@@ -591,12 +596,21 @@ def replan_monte_carlo(
         Filters reported (the EKF navigates in any case).
     replanner
         A :class:`Replanner` of ``pb`` already built (e.g. by a benchmark).
+    replan_from
+        ``"estimate"`` (what a vehicle can do: its navigation filter's estimate) or
+        ``"truth"``: a clairvoyant replanner that re-solves from the true state, which no
+        vehicle has. A research bound: what re-solving could buy at best from knowing where the
+        vehicle is (the vehicle still steers its estimate onto the new plan).
 
     Returns
     -------
     ReplanResult
     """
     t0 = time.perf_counter()
+    if replan_from not in REPLAN_FROM:
+        raise ConfigError(
+            f"replan_from must be one of {', '.join(map(repr, REPLAN_FROM))}, got {replan_from!r}"
+        )
     nodes = replan_nodes(pb, every)
     val = pb.validation
     n_runs = val.runs if runs is None else int(runs)
@@ -620,6 +634,7 @@ def replan_monte_carlo(
         "filters": tuple(filters),
         "nodes": nodes,
         "crlb": posterior_crlb(fine, config),
+        "replan_from": replan_from,
     }
     batches = [(c, min(BATCH, n_runs - c)) for c in range(0, n_runs, BATCH)]
     nproc = default_processes(len(batches)) if processes is None else max(1, int(processes))

@@ -225,11 +225,13 @@ class Verdict:
             for key, c in comps.items():
                 if c.better:
                     continue
+                if c.decided:  # the interval decides; two standard errors may say otherwise
+                    out.append(self._words(name, key, c) + ", a loss")
+                    continue
                 noise = (
                     f", within the Monte Carlo noise (+-{c.noise:.2g} m)" if c.within_noise else ""
                 )
-                what = ", a loss" if c.decided else ", a tie"
-                out.append(self._words(name, key, c) + noise + what)
+                out.append(self._words(name, key, c) + noise + ", a tie")
         return out
 
     def ties(self) -> list[str]:
