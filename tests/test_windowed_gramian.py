@@ -24,6 +24,7 @@ from obsplan.planning.parse import problem_from_dict, problem_to_dict
 from obsplan.planning.plan import plan
 from obsplan.planning.validation import PathValidation
 from obsplan.planning.verdict import (
+    GRAMIAN_PAPER_NOTE,
     LWO_NOTE,
     ekf_diverges,
     filter_notes,
@@ -425,3 +426,17 @@ def test_scale_free_lwo_condition_is_reported_as_a_diagnostic():
     assert verdict(v, {}, objective_notes(scale_free)).notes[0] == LWO_NOTE
     assert LWO_NOTE in verdict(v, {}, objective_notes(scale_free)).summary()
     assert objective_notes(_with(pb, kind="gramian-min-eig", weights="none")) == ()
+
+
+@pytest.mark.parametrize("kind", ["gramian-min-eig", "gramian-log-det"])
+def test_the_papers_gramian_form_is_reported_as_not_serving_the_filters(kind):
+    """The paper's form (one mission window, unit weights) is said to be for research; the
+    windowed or information-weighted forms are plans to fly and get no such note."""
+    pb = _with(load_problem(ROOT / "problems/suite/gramian-offset-beacon.toml"), kind=kind)
+    paper = _with(pb, window="mission", weights="none")
+    assert paper.objective.paper_form
+    (note,) = objective_notes(paper)
+    assert note == GRAMIAN_PAPER_NOTE.format(kind=kind) and note.startswith(kind)
+    assert note in verdict({}, {}, objective_notes(paper)).summary()
+    for form in (pb, _with(pb, window="mission"), _with(pb, weights="none")):
+        assert not form.objective.paper_form and objective_notes(form) == ()

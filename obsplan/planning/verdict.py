@@ -309,10 +309,30 @@ LWO_NOTE = (
 )
 
 
+#: What the verdict of a plan on the paper's Gramian formulation (``window = "mission"``,
+#: ``weights = "none"``) says: kept for research and comparison, it does not serve the filters.
+#: The evidence is ``benchmarks/bench_planning_suite.py`` on the suite's seven Gramian problems
+#: with ``--set objective.window=mission --set objective.weights=none`` (their defaults win).
+GRAMIAN_PAPER_NOTE = (
+    '{kind} with window = "mission" and weights = "none" is the paper\'s formulation, kept '
+    "for research and comparison: it scores the information on the initial state over the whole "
+    "horizon, every output row alike and without process noise, and its plans do not serve the "
+    "filters (on 5 of the suite's 7 Gramian problems they lose a verdict to a baseline; "
+    "suite/gramian-current-water-dvl.toml: the EKF diverged on 10 of 400 runs, RMSE 26x the "
+    'lawn-mower\'s); to fly, keep the defaults window = "auto", weights = "information"'
+)
+
+
 def objective_notes(pb: PlanningProblem) -> tuple[str, ...]:
     """What the verdict says about the objective itself, whatever the numbers."""
     obj = pb.objective
-    return (LWO_NOTE,) if obj.kind == "lwo-condition" and obj.paper_form else ()
+    if not obj.paper_form:
+        return ()
+    if obj.kind == "lwo-condition":
+        return (LWO_NOTE,)
+    if obj.kind.startswith("gramian-"):
+        return (GRAMIAN_PAPER_NOTE.format(kind=obj.kind),)
+    return ()
 
 
 #: Peak EKF linearisation stress [range stds] (:mod:`obsplan.planning.linearisation`) above which
