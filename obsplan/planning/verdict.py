@@ -312,7 +312,8 @@ LWO_NOTE = (
 #: What the verdict of a plan on the paper's Gramian formulation (``window = "mission"``,
 #: ``weights = "none"``) says: kept for research and comparison, it does not serve the filters.
 #: The evidence is ``benchmarks/bench_planning_suite.py`` on the suite's seven Gramian problems
-#: with ``--set objective.window=mission --set objective.weights=none`` (their defaults win).
+#: with ``--set objective.window=mission --set objective.weights=none`` (with their defaults none
+#: loses a verdict).
 GRAMIAN_PAPER_NOTE = (
     '{kind} with window = "mission" and weights = "none" is the paper\'s formulation, kept '
     "for research and comparison: it scores the information on the initial state over the whole "
