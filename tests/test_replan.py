@@ -15,7 +15,7 @@ from obsplan.estimation.closedloop import ClosedLoop
 from obsplan.estimation.simulate import DEFAULT_FILTERS
 from obsplan.planning.evaluate import better
 from obsplan.planning.feasibility import check_limits
-from obsplan.planning.parse import LOCALISE_PROBLEM, load_problem
+from obsplan.planning.parse import LOCALISE_PROBLEM, PROBLEMS_DIR, load_problem
 from obsplan.planning.problem import Horizon
 from obsplan.planning.replan import (
     Replanner,
@@ -98,7 +98,7 @@ def test_resolve_from_a_perturbed_estimate_keeps_the_past_and_the_limits(small):
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_return_inputs_join_the_plan_in_the_window_with_least_energy(dim):
-    pb = load_problem("problems/suite/gramian-depth3d.toml" if dim == 3 else LOCALISE_PROBLEM)
+    pb = load_problem(PROBLEMS_DIR / "suite/gramian-depth3d.toml" if dim == 3 else LOCALISE_PROBLEM)
     n, h = pb.dim, 3.0
     F, G = pb.model.transition(h)
     F, G = F[: 2 * n, : 2 * n], G[: 2 * n]
@@ -140,7 +140,7 @@ def test_warm_guess_flies_on_from_the_estimate_back_onto_the_plan_in_force(small
 
 
 def test_state_for_planner_adds_the_current_to_the_water_velocity():
-    pb = load_problem("problems/range-dvl-water-current2d.toml")
+    pb = load_problem(PROBLEMS_DIR / "range-dvl-water-current2d.toml")
     est = np.array([1.0, 2.0, 0.3, -0.1, 0.05, 0.02])
     np.testing.assert_allclose(state_for_planner(pb, est), [1.0, 2.0, 0.35, -0.08])
 
