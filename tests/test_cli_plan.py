@@ -314,7 +314,6 @@ def test_force_never_deletes_the_problem_file(tmp_path, capsys):
 
 
 def test_limit_breaks_names_each_limit_its_share_of_runs_and_worst_excess():
-    from obsplan.cli.common import limit_breaks
     from obsplan.estimation.guidance import TruthLimits
     from obsplan.estimation.stats import TruthStats
 
@@ -331,8 +330,8 @@ def test_limit_breaks_names_each_limit_its_share_of_runs_and_worst_excess():
         accel_ratio_runs=np.full(4, 0.9),
         limits=TruthLimits(accel=0.05, speed=1.0, min_range=5.0, area=((-9, 9), (-9, 9))),
     )
-    assert limit_breaks(tr) == (
+    assert tr.breaks_words() == (
         "speed in 50.0 % (by up to 0.002 m/s), min_range in 25.0 % (by up to 0.5 m)"
     )
     within = replace(tr, max_speed_runs=np.full(4, 0.9), closest_range_runs=np.full(4, 9.0))
-    assert limit_breaks(within) == ""
+    assert within.breaks_words() == ""

@@ -32,12 +32,14 @@ from obsplan.planning.margins import (
     keeps_margins,
     path_covariance,
     path_loop_covariance,
+    solve_with_keepout,
     start_limited_s,
     start_reach,
     tighten,
 )
 from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
 from obsplan.planning.problem import Horizon
+from obsplan.planning.solve import SolveResult
 from obsplan.planning.validation_setup import validation_guidance
 
 
@@ -282,6 +284,39 @@ def test_keep_out_drops_only_the_speed_reserve_when_it_does_not_fit(
     else:
         assert best is None and kept is lawnmower and len(asked) == 2
         assert "nominal plan is returned" in report.note
+
+
+@pytest.mark.parametrize(
+    ("start", "resolve"),
+    [
+        ("Maximum_Iterations_Exceeded", "Solve_Succeeded"),
+        ("Solve_Succeeded", "Maximum_Iterations_Exceeded"),
+    ],
+)
+def test_the_headline_status_is_the_flown_paths(
+    short_problem, lawnmower, monkeypatch, start, resolve
+):
+    """The kept path's status and iterations are the keep-out re-solve's (the path flown), not
+    those of the start it was re-solved from, which the note and ``starts`` keep."""
+    from types import SimpleNamespace
+
+    import obsplan.planning.margins as margins_mod
+
+    nominal = SolveResult(
+        short_problem, lawnmower, True, start, 1000, 1.0, 0.5, 0.5, "circle", (), 0.1,
+        chosen="circle", note="from the start",
+    )  # fmt: skip
+    moved = replace(lawnmower, p=lawnmower.p + 0.0)
+    outcome = SimpleNamespace(status=resolve, iterations=17)
+    monkeypatch.setattr(margins_mod, "solve", lambda pb, **kw: nominal)
+    report = SimpleNamespace(wall_s=0.5)
+    monkeypatch.setattr(margins_mod, "keep_out", lambda pb, traj: (moved, report, outcome))
+    kept, _ = solve_with_keepout(short_problem)
+    assert kept.trajectory is moved
+    assert (kept.status, kept.iterations) == (resolve, 17)
+    assert kept.note == f"from the start; keep-out re-solve: {resolve}"
+    assert kept.chosen == "circle + keep-out margins" and kept.success
+    assert kept.to_dict()["status"] == resolve
 
 
 #: 3D range-only (no depth gauge: the depth is known only as well as the ranges pin it), 2 m

@@ -20,6 +20,7 @@ from obsplan.planning.verdict import (
     STRESS_NOTE_RUNS,
     Comparison,
     Verdict,
+    limit_notes,
     ratio_interval,
     stress_notes,
     validate_until_decided,
@@ -207,3 +208,45 @@ def test_a_stressed_plan_is_warned_of_losses_too_rare_for_its_runs():
     assert stress_notes(paths(float("nan"), 0.2), 50) == ()
     assert stress_notes(paths(0.45), 50) == ()
     assert stress_notes({}, 50) == ()
+
+
+def test_a_baseline_that_wins_by_breaking_the_limits_the_plan_keeps_is_named(short):
+    """The note names a baseline the plan does not beat whose true paths broke a limit more often
+    than the keep-out allows (one-sided binomial test at 95 %) and more often than the plan's;
+    never one the plan beats on every run metric, nor without margins (confidence 0)."""
+    pb, paths = short
+    val = validate_paths(paths, pb, runs=6)
+
+    def breaking(name: str, runs: int):
+        r = val[name].result
+        t = r.truth
+        speed = np.full(t.runs, 0.5 * t.limits.speed)
+        speed[:runs] = 1.01 * t.limits.speed  # 1 % over the bound on the first runs
+        return replace(val[name], result=replace(r, truth=replace(t, max_speed_runs=speed)))
+
+    def comps(plan_wins: bool) -> dict:
+        win = Comparison("ekf.rmse_pos", 1.0, 2.0, None, (0.4, 0.6))
+        loss = Comparison("ekf.rmse_pos", 2.0, 1.0, None, (1.8, 2.2))
+        return {"lawnmower": {"ekf.rmse_pos": win if plan_wins else loss}}
+
+    def notes(val, conf: float, plan_wins: bool = False) -> tuple[str, ...]:
+        clean = {"planned": breaking("planned", 0), "lawnmower": val["lawnmower"]}
+        return limit_notes({**clean, **val}, comps(plan_wins), conf)
+
+    three = {"lawnmower": breaking("lawnmower", 3)}
+    (note,) = notes(three, 0.9)  # 3 of 6 at an allowed share of 0.1: P = 0.016
+    assert note.startswith("the lawnmower's true path broke a limit on 50.0 % of the runs")
+    assert "speed in 50.0 % (by up to 0.01 m/s)" in note and "the plan's on 0.0 %" in note
+    assert "limits.keepout_confidence = 0.9, the lawnmower is flown" in note
+    assert notes({"lawnmower": breaking("lawnmower", 1)}, 0.9) == ()  # 1 of 6: P = 0.47
+    assert notes({"lawnmower": breaking("lawnmower", 1)}, 0.999) != ()  # P = 0.006
+    assert notes(three, 0.9, plan_wins=True) == ()
+    assert notes(three, 0.0) == ()
+    as_often = {**three, "planned": breaking("planned", 3)}
+    assert notes(as_often, 0.9) == ()
+    # through verdict(): said after the other notes, and only with the plan's confidence
+    val3 = {"planned": breaking("planned", 0), "lawnmower": breaking("lawnmower", 3)}
+    loses = any(not c.better for c in verdict(val3, {}).comparisons["lawnmower"].values())
+    said = verdict(val3, {}, keepout_confidence=0.9).notes
+    assert (len(said) == 1) == loses
+    assert verdict(val3, {}).notes == ()

@@ -24,7 +24,6 @@ from obsplan.outputs import OutputDir, OutputFile, write_marker
 from obsplan.textfiles import check_magnitude
 
 if TYPE_CHECKING:
-    from obsplan.estimation.stats import TruthStats
     from obsplan.trajectory import Trajectory
 
 
@@ -200,27 +199,8 @@ __all__ = [
     "add_vehicle_arguments",
     "check_seed",
     "join_negative_values",
-    "limit_breaks",
     "output_dir",
     "parse_beacon",
     "read_trajectory",
     "resolve_beacon",
 ]
-
-
-# ------------------------------------------------------------------------------ reports
-def limit_breaks(truth: TruthStats) -> str:
-    """``"speed in 100.0 % (by up to 0.00087 m/s), depth in 8.0 % (by up to 1.2 m)"``: every
-    limit some run's true path breaks, the fraction of runs and the worst excess ("" if none)."""
-    worst = truth.worst_excess
-    words = []
-    for name, frac in truth.violation_fraction.items():
-        if frac <= 0:
-            continue
-        x = worst.get(name, 0.0)
-        if name == "accel":  # a ratio to the bound; the others in their own units
-            by = f"{100 * x:.2g} % of the bound"
-        else:
-            by = f"{x:.2g} {'m/s' if name == 'speed' else 'm'}"
-        words.append(f"{name} in {100 * frac:.1f} % (by up to {by})")
-    return ", ".join(words)

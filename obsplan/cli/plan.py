@@ -10,7 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from obsplan import budget
-from obsplan.cli.common import OutputDir, limit_breaks
+from obsplan.cli.common import OutputDir
 from obsplan.errors import InputError
 from obsplan.planning.figures import (
     plot_filter_errors,
@@ -149,7 +149,7 @@ def summary_table(result: PlanResult) -> str:
             "of the true paths over all runs, 'breaks' the runs whose true path breaks a limit"
         )
         for name, v in result.validation.items():
-            broken = "" if v.result.truth is None else limit_breaks(v.result.truth)
+            broken = "" if v.result.truth is None else v.result.truth.breaks_words()
             if broken:
                 lines.append(f"  {name}: the true path breaks {broken} of the runs")
     return "\n".join(lines)

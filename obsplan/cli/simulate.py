@@ -23,7 +23,6 @@ from obsplan.cli.common import (
     add_output_arguments,
     add_vehicle_arguments,
     check_seed,
-    limit_breaks,
     read_trajectory,
     resolve_beacon,
 )
@@ -238,7 +237,7 @@ def format_result(res: MonteCarloResult, path: str) -> str:
             f"runs, tracking error {tr.tracking_rmse_m:.3f} m RMS, final drift "
             f"{tr.final_drift_rms_m:.3f} m RMS, {100 * tr.any_violation_fraction:.1f} % of runs "
             f"break a limit"
-            + (f" ({broken})" if (broken := limit_breaks(tr)) else "")
+            + (f" ({broken})" if (broken := tr.breaks_words()) else "")
             + (
                 f"; {tr.runs_inside_min_range} runs inside min_range"
                 if tr.limits is not None and tr.limits.min_range is not None

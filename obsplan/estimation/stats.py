@@ -501,6 +501,23 @@ class TruthStats:
         """Per limit, the fraction of runs that break it."""
         return {k: float(np.mean(v)) for k, v in self.violations().items()}
 
+    def breaks_words(self) -> str:
+        """``"speed in 100.0 % (by up to 0.00087 m/s), depth in 8.0 % (by up to 1.2 m)"``: every
+        limit some run's true path breaks, the fraction of runs and the worst excess ("" if
+        none)."""
+        worst = self.worst_excess
+        words = []
+        for name, frac in self.violation_fraction.items():
+            if frac <= 0:
+                continue
+            x = worst.get(name, 0.0)
+            if name == "accel":  # a ratio to the bound; the others in their own units
+                by = f"{100 * x:.2g} % of the bound"
+            else:
+                by = f"{x:.2g} {'m/s' if name == 'speed' else 'm'}"
+            words.append(f"{name} in {100 * frac:.1f} % (by up to {by})")
+        return ", ".join(words)
+
     @property
     def any_violation_fraction(self) -> float:
         """Fraction of runs that break any limit on their true path."""

@@ -750,7 +750,8 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
     """:func:`~obsplan.planning.solve.solve`, then :func:`keep_out` on its plan.
 
     ``kwargs`` go to ``solve``. The returned :class:`SolveResult` carries the kept path (its
-    objective recomputed) when a re-solve kept the margins, else the nominal result unchanged.
+    objective recomputed, its status and iterations those of the re-solve that returned it) when
+    a re-solve kept the margins, else the nominal result unchanged.
     """
     res = solve(pb, **kwargs)
     if res.trajectory is None:
@@ -770,10 +771,15 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
     path, rep, outcome = keep_out(pb, res.trajectory)
     if outcome is None or path is res.trajectory:
         return res, rep
+    # the headline status and iterations are the flown path's, the last kept re-solve's: a
+    # best start that stopped at IPOPT's iteration limit but whose tightened re-solve converged
+    # is a converged plan (the start's own status stays in the note and in ``starts``)
     kept = replace(
         res,
         trajectory=path,
         objective=objective_value(path, pb),
+        status=outcome.status,
+        iterations=outcome.iterations,
         chosen=f"{res.chosen} + keep-out margins",
         wall_s=res.wall_s + rep.wall_s,
         note=(res.note + "; " if res.note else "") + f"keep-out re-solve: {outcome.status}",

@@ -78,7 +78,13 @@ class PlanResult:
         survey = self.problem.mission is not None and bool(self.problem.mission.lines)
         runs = int(val["planned"].result.runs) if "planned" in val else 0
         notes = (*objective_notes(self.problem), *stress_notes(self.metrics, runs))
-        return verdict(val, not_fitted, notes, lines=survey)
+        return verdict(
+            val,
+            not_fitted,
+            notes,
+            lines=survey,
+            keepout_confidence=self.problem.limits.keepout_confidence,
+        )
 
     @property
     def success(self) -> bool:

@@ -54,10 +54,11 @@ class SolveResult:
     """Outcome of :func:`solve`.
 
     ``status``/``iterations`` are those of the start whose path was chosen (for a chosen initial
-    guess or baseline: the best start's, with ``chosen`` saying so); ``success`` is true when at
-    least one start converged (``Solve_Succeeded``); ``wall_s`` is the whole multi-start (the
-    coarse-grid pass included, see :data:`COARSE_STEPS`); ``start_paths`` holds each start's
-    returned path by label.
+    guess or baseline: the best start's, with ``chosen`` saying so; after the keep-out re-solve
+    of :func:`~obsplan.planning.margins.solve_with_keepout`, the re-solve's); ``success`` is
+    true when at least one start converged (``Solve_Succeeded``); ``wall_s`` is the whole
+    multi-start (the coarse-grid pass included, see :data:`COARSE_STEPS`); ``start_paths`` holds
+    each start's returned path by label.
     """
 
     problem: PlanningProblem
