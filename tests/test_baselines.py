@@ -16,13 +16,13 @@ from obsplan.planning.estimator_objectives import covariance_stds
 from obsplan.planning.evaluate import objective_value, path_metrics
 from obsplan.planning.feasibility import check_limits
 from obsplan.planning.linearisation import linearisation_stress
-from obsplan.planning.parse import LOCALISE_PROBLEM
+from obsplan.planning.parse import LOCALISE_PROBLEM, PROBLEMS_DIR
 from obsplan.planning.problem import Horizon
 
 
 @pytest.fixture(scope="module", params=["localise", "range3d", "range-dvl-water-current2d"])
 def problem(request):
-    return load_problem(f"problems/{request.param}.toml")
+    return load_problem(PROBLEMS_DIR / f"{request.param}.toml")
 
 
 def test_every_baseline_shares_start_grid_and_limits(problem):
@@ -48,7 +48,7 @@ def test_lawnmower_flies_at_the_limits(problem):
 
 
 def test_3d_flat_baselines_are_not_observable_with_range_only():
-    pb = load_problem("problems/range3d.toml")
+    pb = load_problem(PROBLEMS_DIR / "range3d.toml")
     for name in ("lawnmower", "circle", "straight"):
         G = gramian(baselines(pb)[name].trajectory, pb.model, pb.scales)
         assert numerical_rank(G) < G.shape[0], name  # Table 1: planar paths, u_z = 0
@@ -119,7 +119,7 @@ def test_metrics_are_computed_the_same_way_for_every_path():
 def test_unfitted_baselines_are_reported_with_a_reason():
     from obsplan.planning.baselines import unfitted_baselines
 
-    pb = load_problem("problems/suite/moving-start.toml")
+    pb = load_problem(PROBLEMS_DIR / "suite/moving-start.toml")
     assert "lawnmower" in baselines(pb)
     why = unfitted_baselines(pb)
     assert "not tangent" in why["circle"]

@@ -143,7 +143,7 @@ def test_bad_problem_file_exit_2_names_field(tmp_path, capsys):
 def test_failed_solve_exits_1(tmp_path, capsys):
     prob = tmp_path / "p.toml"
     prob.write_text(
-        Path("problems/localise.toml")
+        (PROBLEMS / "localise.toml")
         .read_text()
         .replace("seed = 0\n", "seed = 0\nmax_iter = 1\n", 1)
     )

@@ -12,6 +12,7 @@ from obsplan.planning import load_problem
 from obsplan.planning.baselines import baselines
 from obsplan.planning.evaluate import path_metrics
 from obsplan.planning.guesses import reference_path
+from obsplan.planning.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem import Horizon
 from obsplan.planning.validation import validate_paths
 from obsplan.planning.verdict import (
@@ -189,7 +190,7 @@ def test_rms_interval_of_squares():
 
 
 def test_a_stressed_plan_is_warned_of_losses_too_rare_for_its_runs():
-    pb = load_problem("problems/localise.toml")
+    pb = load_problem(LOCALISE_PROBLEM)
     pb = replace(pb, horizon=Horizon(pb.horizon.duration, 40))
     m = path_metrics(reference_path(pb), pb)
 
