@@ -91,6 +91,65 @@ def problem_text(
     return "\n".join(f"[{k}]\n" + "\n".join(v) + "\n" for k, v in sections.items())
 
 
+def wide_problem_text(rng: np.random.Generator, geometry: str, kind: str) -> str:
+    """One problem file (TOML) of ``geometry`` and ``kind`` from a wider family than
+    :func:`problem_text`'s: other vehicles (acceleration 0.02-0.2 m/s², speed 0.5-2 m/s), the
+    beacon within 60 m of the origin and the start 30-300 m from it (far starts), a rectangular
+    area 15-80 m beyond both on each axis, a moving start on half the problems (0.1-0.6 of the
+    speed bound, in a random direction), horizons of 300-1200 s (at most 300 nodes), ranges at
+    0.2-1 Hz (0.1-0.2 Hz for the slow geometry) with 0.05-0.5 m noise, a current up to 0.2 m/s,
+    3D beacons 20-100 m deep."""
+    dim = 3 if geometry.startswith("3d") else 2
+    accel = float(rng.uniform(0.02, 0.2))
+    speed = float(rng.uniform(0.5, 2.0))
+    beacon = rng.uniform(-60.0, 60.0, 2)
+    ang = rng.uniform(0.0, 2.0 * np.pi)
+    start = beacon + rng.uniform(30.0, 300.0) * np.array([np.cos(ang), np.sin(ang)])
+    half = np.maximum(np.abs(beacon), np.abs(start)) + rng.uniform(15.0, 80.0, 2)
+    v0 = np.zeros(dim)
+    if rng.random() < 0.5:
+        head = rng.uniform(0.0, 2.0 * np.pi)
+        v0[:2] = rng.uniform(0.1, 0.6) * speed * np.array([np.cos(head), np.sin(head)])
+    duration = float(rng.choice([300.0, 600.0, 900.0, 1200.0]))
+    steps = min(int(duration / 3.0), 300)
+    sensors = ["range"] + {"2d-current": ["dvl-water"], "3d-depth": ["depth"]}.get(geometry, [])
+    if geometry == "3d-dvl":
+        sensors.append("dvl-bottom")
+    vehicle = [f"dim = {dim}", "sensors = [" + ", ".join(f'"{s}"' for s in sensors) + "]"]
+    if geometry == "2d-current":
+        c = rng.uniform(0.02, 0.2) * np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
+        vehicle += ["current = true", f"current_velocity = {c.round(3).tolist()}"]
+    limits = [f"accel = {accel:.3f}", f"speed = {speed:.2f}"]
+    if dim == 3:
+        bz, sz = rng.uniform(20.0, 100.0), rng.uniform(3.0, 15.0)
+        beacon, start = np.r_[beacon, bz], np.r_[start, sz]
+        za = accel * rng.uniform(0.3, 0.6)
+        limits = [f"accel = [{accel:.3f}, {accel:.3f}, {za:.3f}]", f"speed = {speed:.2f}"]
+        limits.append(f"depth = [2.0, {bz - 10.0:.1f}]")
+    limits.append(
+        f"area = {{ x = [{-half[0]:.1f}, {half[0]:.1f}], y = [{-half[1]:.1f}, {half[1]:.1f}] }}"
+    )
+    slow = geometry == "2d-range-slow"
+    rate = float(rng.choice([0.1, 0.2] if slow else [0.2, 0.5, 1.0]))
+    validation = ["runs = 50", "dt = 0.1", f"range_rate = {rate}"]
+    validation.append(f"range_std = {float(rng.choice([0.05, 0.1, 0.2, 0.5]))}")
+    if geometry == "3d-depth":
+        validation += ["depth_rate = 1.0", "depth_std = 0.05"]
+    if geometry in ("2d-current", "3d-dvl"):
+        validation += ["dvl_rate = 5.0", f"dvl_std = {0.001 if geometry == '2d-current' else 0.01}"]
+    sections = {
+        "problem": [f'name = "unseen (wide): {geometry}, {kind}"'],
+        "vehicle": vehicle,
+        "beacon": [f"position = {_vec(beacon)}"],
+        "start": [f"position = {_vec(start)}", f"velocity = {_vec(v0)}"],
+        "limits": limits,
+        "horizon": [f"duration = {duration}", f"steps = {steps}"],
+        "objective": [f'kind = "{kind}"', "starts = 3"],
+        "validation": validation,
+    }
+    return "\n".join(f"[{k}]\n" + "\n".join(v) + "\n" for k, v in sections.items())
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seed", type=int, default=36)
@@ -102,6 +161,12 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="start 1-5 m inside the area's edge (3D: 0.5-3 m below the depth band's top)",
     )
+    ap.add_argument(
+        "--wide",
+        action="store_true",
+        help="draw from a wider family: other vehicles, far and moving starts, rectangular "
+        "areas, other horizons, rates and noises (wide_problem_text)",
+    )
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -110,7 +175,10 @@ def main(argv: list[str] | None = None) -> int:
         for kind in args.kinds:
             if rng.random() >= args.keep:
                 continue
-            text = problem_text(rng, geometry, kind, args.edge_start)
+            if args.wide:
+                text = wide_problem_text(rng, geometry, kind)
+            else:
+                text = problem_text(rng, geometry, kind, args.edge_start)
             path = args.out / f"{n + 1:02d}-{geometry}-{kind}.toml"
             if path.exists():
                 print(f"{path} exists: not replaced", file=sys.stderr)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import numpy as np
+
 from obsplan.planning import load_problem
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "unseen_problems.py"
@@ -66,3 +68,26 @@ def test_edge_starts_are_near_the_area_and_the_surface_and_leave_the_default_alo
         assert 1.0 - 0.1 <= slack <= 5.0 + 0.1, f  # written to 0.1 m
         if pb.dim == 3:
             assert 0.5 - 0.1 <= p[2] - pb.limits.depth[0] <= 3.0 + 0.1, f
+
+
+def test_the_wide_family_varies_the_vehicle_the_start_and_the_area(tmp_path):
+    """``--wide`` problems all load, and over a seed they span other vehicles, far and moving
+    starts and rectangular areas (what the default family never draws)."""
+    mod = _script()
+    kinds = [*mod.KINDS, "kf-position-std"]
+    mod.main(["--seed", "4", "--out", str(tmp_path / "w"), "--wide", "--keep", "1.0", "--kinds"]
+             + kinds)  # fmt: skip
+    files = sorted((tmp_path / "w").glob("*.toml"))
+    assert len(files) == len(mod.GEOMETRIES) * len(kinds) - 1  # no 3D range-only lwo
+    pbs = [load_problem(f) for f in files]
+    speeds = {pb.limits.speed for pb in pbs}
+    assert len(speeds) > 10 and min(speeds) >= 0.5 and max(speeds) <= 2.0
+    far = [np.linalg.norm((pb.p0 - np.asarray(pb.beacon, float))[:2]) for pb in pbs]
+    assert min(far) >= 30.0 - 1e-6 and max(far) > 150.0
+    assert any(np.linalg.norm(pb.v0) > 0 for pb in pbs)
+    assert any(np.linalg.norm(pb.v0) == 0 for pb in pbs)
+    assert any(pb.limits.area.x != pb.limits.area.y for pb in pbs)
+    for pb in pbs:  # the start inside its area, moving slower than the bound
+        a = pb.limits.area
+        assert a.x[0] < pb.p0[0] < a.x[1] and a.y[0] < pb.p0[1] < a.y[1]
+        assert np.linalg.norm(pb.v0) < pb.limits.speed
