@@ -70,6 +70,7 @@ __all__ = [
     "lawnmower_layout",
     "lawnmower_path",
     "lawnmower_within_limits",
+    "turn_onto_end",
     "paper_lawnmower",
     "paper_lawnmower_path",
     "parabola",
@@ -796,6 +797,37 @@ def _rot2(heading: float, dim: int) -> tuple[np.ndarray, np.ndarray]:
     return h, left
 
 
+def _turn_onto(start: Vec, velocity: Vec, heading: float, accel: float) -> _Arc | None:
+    """The arc a vehicle at ``start`` [m] moving at ``velocity`` [m/s] flies at constant speed
+    and centripetal acceleration ``accel`` [m/s²] (radius ``|v|² / accel``) to turn onto
+    ``heading`` [rad] the shorter way (left when opposite); None when it already flies along
+    ``heading`` (to 1e-9 rad) or is at rest. Only x and y are used."""
+    p = np.asarray(start, float)[:2]
+    v = np.asarray(velocity, float)[:2]
+    s0 = float(np.linalg.norm(v))
+    a = _positive("accel", accel)
+    if s0 == 0.0:
+        return None
+    e = v / s0
+    turn = math.atan2(
+        e[0] * math.sin(heading) - e[1] * math.cos(heading),
+        e[0] * math.cos(heading) + e[1] * math.sin(heading),
+    )
+    if abs(turn) < 1e-9:
+        return None
+    left = np.array([-e[1], e[0]])
+    return _tangent_arc(p, v, left if turn > 0 else -left, s0**2 / a, abs(turn))
+
+
+def turn_onto_end(start: Vec, velocity: Vec, heading: float, accel: float) -> np.ndarray:
+    """Where a vehicle at ``start`` [m] moving at ``velocity`` [m/s] is, shape (2,) [m], once it
+    has turned onto ``heading`` [rad] the shorter way at constant speed and centripetal
+    acceleration ``accel`` [m/s²] (``start`` itself at rest or already on the heading): the
+    first leg's start of :func:`lawnmower_within_limits` with ``initial_velocity``."""
+    arc = _turn_onto(start, velocity, heading, accel)
+    return np.asarray(start, float)[:2].copy() if arc is None else _end(arc)[0]
+
+
 def _lawnmower_segments(
     start: np.ndarray,
     heading: float,
@@ -1067,6 +1099,7 @@ def lawnmower_within_limits(
     z: float | None = None,
     z_speed: float = 0.0,
     initial_speed: float | None = None,
+    initial_velocity: Vec | None = None,
 ) -> Trajectory:
     """Baseline lawn-mower "at the limits", flown for exactly ``duration``.
 
@@ -1092,11 +1125,23 @@ def lawnmower_within_limits(
         Optional height [m] and constant vertical speed [m/s] (3D).
     initial_speed
         Start the first leg at this speed [m/s] and accelerate at ``accel_max`` to ``speed``.
+    initial_velocity : shape (2,), optional
+        A moving start [m/s]: from ``start`` the vehicle first turns onto ``heading`` at
+        ``accel_max`` and its speed (:func:`turn_onto_end`), and the first leg starts where that
+        turn ends, at that speed (``initial_speed`` is then ``|initial_velocity|``).
     """
     duration, dt = _check_timing(duration, dt)
     lay = lawnmower_layout(area_width, area_height, speed, accel_max)
     _check_turn("semicircle", first_turn)
     p = _vector("start", start, (2,))
+    lead: list[_Segment] = []
+    if initial_velocity is not None:
+        v0 = _vector("initial_velocity", initial_velocity, (2,))
+        initial_speed = float(np.linalg.norm(v0))
+        arc = _turn_onto(p, v0, heading, accel_max)
+        if arc is not None:
+            lead.append(arc)
+            p = _end(arc)[0]
     if initial_speed is not None:
         initial_speed = _finite("initial_speed", initial_speed)
         if not 0 <= initial_speed <= speed:
@@ -1120,7 +1165,7 @@ def lawnmower_within_limits(
         None if initial_speed is None else accel_max,
         False,
     )
-    return _fly_segments(segs, dt, z, z_speed, duration=duration)
+    return _fly_segments(lead + segs, dt, z, z_speed, duration=duration)
 
 
 def paper_lawnmower(

@@ -126,6 +126,31 @@ def test_unfitted_baselines_are_reported_with_a_reason():
     assert set(why) | set(baselines(pb)) == {"lawnmower", "circle", "straight", "paper-lawnmower"}
 
 
+def test_a_moving_start_whose_legs_do_not_fit_along_its_velocity_turns_onto_an_axis():
+    """A diagonal start velocity: legs along it leave the box by its corners, so the lawn-mower
+    turns onto an axis first (at the start's speed and the acceleration bound); a start velocity
+    along which the legs fit keeps its heading (the suite's moving start: no turn)."""
+    pb = load_problem(PROBLEMS_DIR / "suite/moving-start.toml")
+    kept = baselines(pb)["lawnmower"]
+    assert "after a turn" not in kept.description
+    v = kept.trajectory.v
+    heading = np.arctan2(v[:, 1], v[:, 0])
+    assert abs(heading[1] - np.arctan2(pb.v0[1], pb.v0[0])) < 1e-6  # straight on at first
+    a = float(np.min(pb.accel[:2]))
+    diag = 0.6 * pb.limits.speed * np.array([np.cos(0.7), np.sin(0.7), 0.0][: pb.dim])
+    moved = replace(pb, start_velocity=tuple(diag))
+    bl = baselines(moved)["lawnmower"]
+    tr = bl.trajectory
+    assert "after a turn from the moving start" in bl.description
+    np.testing.assert_allclose(tr.p[0], moved.p0, atol=1e-9)
+    np.testing.assert_allclose(tr.v[0], moved.v0, atol=1e-9)
+    assert check_limits(tr, moved).ok()
+    assert np.linalg.norm(tr.u[:, :2], axis=1).max() <= a * (1 + 1e-9)
+    legs = np.abs(np.linalg.norm(tr.u[:, :2], axis=1)) < 1e-12  # straight, unaccelerated
+    lane = np.arctan2(tr.v[legs, 1], tr.v[legs, 0]) % (np.pi / 2)
+    assert np.all(np.minimum(lane, np.pi / 2 - lane) < 1e-6)  # every leg along an axis
+
+
 def test_lawnmower_keeps_clear_of_the_beacon():
     # a lawn-mower whose legs would pass over the beacon shifts its legs (slower cruise)
     pb = load_problem(LOCALISE_PROBLEM)

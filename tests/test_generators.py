@@ -177,6 +177,30 @@ def test_lawnmower_within_limits_respects_accel_and_fills_duration():
     assert np.linalg.norm(from_rest.u, axis=1).max() <= amax * (1 + 1e-12)  # to round-off
 
 
+def test_a_moving_start_turns_onto_the_first_leg_at_its_speed():
+    """From a start moving north at 1 m/s, a lawn-mower heading east first turns right on a
+    quarter circle of radius v²/a = 10 m (ending 10 m east and 10 m north of the start), then
+    flies its legs from there; the velocity is continuous and the acceleration within its bound."""
+    s, a = 1.0, 0.1
+    end = gen.turn_onto_end((5.0, -3.0), (0.0, s), 0.0, a)
+    np.testing.assert_allclose(end, (15.0, 7.0), atol=1e-12)
+    np.testing.assert_allclose(gen.turn_onto_end((5.0, -3.0), (s, 0.0), 0.0, a), (5.0, -3.0))
+    np.testing.assert_allclose(gen.turn_onto_end((5.0, -3.0), (0.0, 0.0), 1.0, a), (5.0, -3.0))
+    # opposite: a left half circle (two radii to the left of the velocity)
+    np.testing.assert_allclose(gen.turn_onto_end((0, 0), (s, 0), np.pi, a), (0.0, 20.0), atol=1e-9)
+    tr = gen.lawnmower_within_limits(
+        (5.0, -3.0), 200, 100, 2.0, a, 600.0, 0.1, initial_velocity=(0.0, s)
+    )
+    np.testing.assert_allclose(tr.p[0], (5.0, -3.0), atol=1e-12)
+    np.testing.assert_allclose(tr.v[0], (0.0, s), atol=1e-12)
+    assert np.linalg.norm(tr.u, axis=1).max() <= a * (1 + 1e-12)
+    quarter = np.pi / 2 * 10.0 / s  # the turn's duration [s]
+    k = int(np.ceil(quarter / 0.1)) + 1
+    np.testing.assert_allclose(tr.v[k] / np.linalg.norm(tr.v[k]), (1.0, 0.0), atol=1e-9)
+    # on the first leg, 10 m north, to the chord inputs' offset r (w h)² / 6 (module docstring)
+    assert tr.p[k, 1] == pytest.approx(7.0, abs=10.0 * (s / 10.0 * 0.1) ** 2 / 6)
+
+
 def test_paper_lawnmower_start_states():
     tr2 = gen.paper_lawnmower(2, 0.1)
     np.testing.assert_allclose(tr2.p[0], (-80, 60))

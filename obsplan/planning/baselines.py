@@ -97,23 +97,24 @@ def lawnmower_baseline(pb: PlanningProblem) -> Baseline:
     area = pb.coverage_area()
     p0, v0 = pb.p0, pb.v0
     s0 = float(np.linalg.norm(v0[:2]))
+    # the longest room first, then the other axis directions, each at the cruise speeds in turn;
+    # a moving start first along its velocity at every speed, then turning onto each of those
+    # (legs along the velocity may not fit: a diagonal pattern leaves a box by its corners)
+    first = 0.0 if area.x[1] - p0[0] >= p0[0] - area.x[0] else math.pi
+    axes = [first, math.pi - first, 0.5 * math.pi, -0.5 * math.pi]
+    tries = [(f, h) for f in _SPEED_FACTORS for h in axes]
     if s0 > 0:
-        headings = [math.atan2(v0[1], v0[0])]
-    else:
-        # the longest room first, then the other axis directions
-        first = 0.0 if area.x[1] - p0[0] >= p0[0] - area.x[0] else math.pi
-        headings = [first, math.pi - first, 0.5 * math.pi, -0.5 * math.pi]
+        tries = [(f, math.atan2(v0[1], v0[0])) for f in _SPEED_FACTORS] + tries
     last: str = ""
-    for factor in _SPEED_FACTORS:
-        for heading in headings:
-            try:
-                bl = _lawnmower(pb, area, heading, factor)
-            except BaselineUnfit as exc:
-                last = str(exc)
-                continue
-            if check_limits(bl.trajectory, pb).ok():
-                return bl
-            last = _violation_words(bl.trajectory, pb)
+    for factor, heading in tries:
+        try:
+            bl = _lawnmower(pb, area, heading, factor)
+        except BaselineUnfit as exc:
+            last = str(exc)
+            continue
+        if check_limits(bl.trajectory, pb).ok():
+            return bl
+        last = _violation_words(bl.trajectory, pb)
     raise BaselineUnfit(f"lawn-mower: {last}")
 
 
@@ -148,6 +149,9 @@ def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -
     p0, v0 = pb.p0, pb.v0
     s0 = float(np.linalg.norm(v0[:2]))
     e = np.array([math.cos(heading), math.sin(heading)])
+    # a moving start turns onto the heading first (at its speed and the acceleration bound): the
+    # legs start where that turn ends
+    p0 = generators.turn_onto_end(p0[:2], v0[:2], heading, a)
     left = np.array([-e[1], e[0]])
     room_left, room_right = _ray_to_box(p0, left, area), _ray_to_box(p0, -left, area)
     first_turn = "left" if room_left >= room_right else "right"
@@ -176,7 +180,7 @@ def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -
         )
     try:
         traj = generators.lawnmower_within_limits(
-            p0[:2],
+            pb.p0[:2],
             ahead + radius - margin,
             height - margin,
             speed,
@@ -185,9 +189,9 @@ def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -
             pb.horizon.dt,
             heading=heading,
             first_turn=first_turn,  # type: ignore[arg-type]
-            z=float(p0[2]) if pb.dim == 3 else None,
+            z=float(pb.p0[2]) if pb.dim == 3 else None,
             z_speed=0.0,
-            initial_speed=s0,
+            initial_velocity=v0[:2],
         )
     except ConfigError as exc:
         where = "limits.area" if pb.limits.area is not None else "the default coverage area"
@@ -199,6 +203,8 @@ def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -
         f"lawn-mower covering {lay.covered_width:.4g} m x {lay.covered_height:.4g} m "
         f"({lay.n_legs} legs) at {speed:.3g} m/s, turns of radius {radius:.3g} m at {a:g} m/s^2"
     )
+    if not np.allclose(p0, pb.p0[:2], rtol=0, atol=1e-9):
+        desc += ", after a turn from the moving start onto its first leg"
     return Baseline("lawnmower", _check_grid(traj, pb, "lawnmower"), desc)
 
 
