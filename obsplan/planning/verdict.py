@@ -382,8 +382,9 @@ def limit_notes(
     comparisons: Mapping[str, Mapping[str, Comparison]],
     confidence: float,
 ) -> tuple[str, ...]:
-    """A sentence per baseline the plan does not beat on every run metric whose true paths broke
-    a limit more often than the keep-out allows, and more often than the plan's.
+    """A sentence when the plan's true paths broke a limit more often than the keep-out allows,
+    and one per baseline the plan does not beat on every run metric whose true paths broke a
+    limit more often than the keep-out allows and more often than the plan's.
 
     The plan keeps its limits at ``confidence`` (``limits.keepout_confidence``) with margins and
     reserves (:mod:`obsplan.planning.margins`); a baseline is flown on its nominal path without
@@ -397,16 +398,28 @@ def limit_notes(
         return ()
     allowed = 1.0 - confidence
     tp = plan.result.truth
+
+    def too_often(t) -> bool:
+        n = int(t.runs)
+        broken = int(round(t.any_violation_fraction * n))
+        return broken > 0 and scipy.stats.binom.sf(broken - 1, n, allowed) < 1.0 - CONFIDENCE
+
     out = []
+    if too_often(tp):
+        out.append(
+            f"the plan's true path broke a limit on {100 * tp.any_violation_fraction:.1f} % of "
+            f"the runs ({tp.breaks_words()}), more often than limits.keepout_confidence = "
+            f"{confidence:g} allows: its margins are sized per point on the Cramér-Rao bound, "
+            "which the filter the vehicle steers on may not reach, and a start inside a margin "
+            "cannot keep it (the keep-out line says whether the margins were held); raise "
+            "limits.keepout_confidence for wider margins, or add a sensor for the limit that "
+            "breaks"
+        )
     for name, comps in comparisons.items():
         tb = validation[name].result.truth
         if tb is None or all(c.better for k, c in comps.items() if k in RUN_METRICS):
             continue
-        n = int(tb.runs)
-        broken = int(round(tb.any_violation_fraction * n))
-        if broken == 0 or tb.any_violation_fraction <= tp.any_violation_fraction:
-            continue
-        if scipy.stats.binom.sf(broken - 1, n, allowed) >= 1.0 - CONFIDENCE:
+        if tb.any_violation_fraction <= tp.any_violation_fraction or not too_often(tb):
             continue
         out.append(
             f"the {name}'s true path broke a limit on {100 * tb.any_violation_fraction:.1f} % "
