@@ -319,6 +319,47 @@ def test_the_headline_status_is_the_flown_paths(
     assert kept.to_dict()["status"] == resolve
 
 
+@pytest.mark.parametrize("converges_after", [1, 2, 5])
+def test_an_unconverged_re_solve_is_continued_from_its_own_iterate(
+    short_problem, lawnmower, monkeypatch, converges_after
+):
+    """A keep-out re-solve that stops at IPOPT's iteration limit without keeping its margins is
+    re-run warm from its own iterate, at most CONTINUE_UNCONVERGED times; one that converged or
+    kept its margins is not."""
+    from types import SimpleNamespace
+
+    import obsplan.planning.margins as margins_mod
+
+    margins = keepout_margins(lawnmower, short_problem)
+    form = build_formulation(short_problem)
+    calls = []
+
+    def fake_run_start(ctx, label, guess):
+        calls.append((label, guess))
+        done = len(calls) > converges_after
+        traj = replace(lawnmower, p=lawnmower.p + len(calls))  # a new iterate each run
+        status = "Solve_Succeeded" if done else "Maximum_Iterations_Exceeded"
+        ok = SimpleNamespace(ok=lambda: True)
+        return SimpleNamespace(status=status, limits=ok, mission_complete=True), traj
+
+    monkeypatch.setattr(margins_mod, "run_start", fake_run_start)
+    monkeypatch.setattr(margins_mod, "keeps_margins", lambda tight, traj: traj.p[0, 0] > 1e9)
+    outcome, traj, keeps = margins_mod._resolve(form, margins, lawnmower, "round 1")
+    runs = min(converges_after, margins_mod.CONTINUE_UNCONVERGED) + 1
+    assert len(calls) == runs and not keeps
+    assert calls[0] == ("round 1", lawnmower)
+    for k in range(1, runs):  # each continuation starts from the previous run's iterate
+        assert calls[k][0] == f"round 1 (continued {k})"
+        assert np.array_equal(calls[k][1].p, lawnmower.p + k)
+    done = converges_after <= margins_mod.CONTINUE_UNCONVERGED
+    assert outcome.status == ("Solve_Succeeded" if done else "Maximum_Iterations_Exceeded")
+    # kept at once: no continuation
+    calls.clear()
+    monkeypatch.setattr(margins_mod, "keeps_margins", lambda tight, traj: True)
+    assert margins_mod._resolve(form, margins, lawnmower, "round 1")[2]
+    assert len(calls) == 1
+
+
 #: 3D range-only (no depth gauge: the depth is known only as well as the ranges pin it), 2 m
 #: below the depth band's top with a 1 m prior: its depth margin at 99.9 % is wider than that.
 SURFACE_START = """
