@@ -420,3 +420,26 @@ def test_a_start_inside_its_margin_gets_margins_that_grow_in_and_a_plan_that_kee
     assert check_limits(path, pb).ok()
     assert "the start is closer to the limit than its margin" in rep.note
     assert start_limited_s(form, m) > 0.0
+
+
+def test_a_limit_narrower_than_twice_its_margin_is_named_with_its_fix():
+    """The depth band (or an area axis) that is narrower than twice the largest margin the plan
+    must keep from it is named, with the sensor that would help; a wider one is not."""
+    from obsplan.planning.margins import narrow_limits
+
+    pb = problem_from_dict(tomllib.loads(SURFACE_START))
+    m = keepout_margins(baselines(pb)["lawnmower"].trajectory, pb)
+    deep, wide = float(m.box[2].max()), float(m.box[0].max())
+    assert deep > 0 and wide > 0
+
+    def limits(depth: float, width: float):
+        x0 = float(pb.p0[0])  # the area keeps the start
+        area = replace(pb.limits.area, x=(x0 - 0.5 * width, x0 + 0.5 * width))
+        return replace(pb, limits=replace(pb.limits, depth=(2.0, 2.0 + depth), area=area))
+
+    assert narrow_limits(limits(2 * deep + 0.1, 2 * wide + 0.1), m) == []
+    (words,) = narrow_limits(limits(2 * deep - 0.1, 2 * wide + 0.1), m)
+    assert words.startswith(f"the depth band ({2 * deep - 0.1:.3g} m) is narrower than twice")
+    assert f"({deep:.3g} m, 3.09 sigma" in words and "add a depth gauge (vehicle.sensors)" in words
+    (words,) = narrow_limits(limits(2 * deep + 0.1, 2 * wide - 0.1), m)
+    assert words.startswith("the area's x range") and "depth gauge" not in words

@@ -728,9 +728,29 @@ def keep_out(
                 "the start is closer to the limit than its margin (they grow in at half what "
                 "the vehicle can reach)"
             )
-    note = "; ".join(notes)
+    note = "; ".join([*notes, *narrow_limits(pb, margins)])
     rep = _report(pb, margins, path, len(statuses), held, tuple(statuses), t0, note)
     return path, replace(rep, confidence=conf, k=k), best
+
+
+def narrow_limits(pb: PlanningProblem, margins: KeepoutMargins) -> list[str]:
+    """A sentence per area axis or depth band narrower than twice the largest margin the plan
+    must keep from it: no path keeps such a limit at ``limits.keepout_confidence`` (the vehicle
+    knows its position along that axis too poorly), whatever the objective. Empty otherwise."""
+    out = []
+    names = {0: "the area's x range", 1: "the area's y range", 2: "the depth band"}
+    for axis, (lo, hi) in _box_axes(pb):
+        m = float(np.max(margins.box[axis], initial=0.0))
+        if m <= 0 or hi - lo > 2.0 * m:
+            continue
+        fix = "add a depth gauge (vehicle.sensors), " if axis == 2 else ""
+        out.append(
+            f"{names[axis]} ({hi - lo:.3g} m) is narrower than twice the margin the plan must keep "
+            f"from its edges at limits.keepout_confidence = {margins.confidence:g} ({m:.3g} m, "
+            f"{margins.k:.2f} sigma of the position along it): no path holds it at that "
+            f"confidence; {fix}widen the limit or lower limits.keepout_confidence"
+        )
+    return out
 
 
 def _report(
