@@ -39,6 +39,48 @@ def _vec(x) -> str:
     return "[" + ", ".join(f"{float(v):.1f}" for v in np.atleast_1d(x)) + "]"
 
 
+def _vehicle_lines(geometry: str) -> list[str]:
+    """``[vehicle]``'s dimension and sensors for ``geometry`` (the current is drawn by the
+    caller)."""
+    dim = 3 if geometry.startswith("3d") else 2
+    sensors = ["range"] + {"2d-current": ["dvl-water"], "3d-depth": ["depth"]}.get(geometry, [])
+    if geometry == "3d-dvl":
+        sensors.append("dvl-bottom")
+    return [f"dim = {dim}", "sensors = [" + ", ".join(f'"{s}"' for s in sensors) + "]"]
+
+
+def _toml(
+    name: str,
+    geometry: str,
+    kind: str,
+    vehicle: list[str],
+    beacon: np.ndarray,
+    start: np.ndarray,
+    velocity: np.ndarray,
+    limits: list[str],
+    horizon: tuple[float, int],
+    range_lines: list[str],
+) -> str:
+    """The problem file: the sections in order, the validation's sensor lines from
+    ``geometry``."""
+    validation = ["runs = 50", "dt = 0.1", *range_lines]
+    if geometry == "3d-depth":
+        validation += ["depth_rate = 1.0", "depth_std = 0.05"]
+    if geometry in ("2d-current", "3d-dvl"):
+        validation += ["dvl_rate = 5.0", f"dvl_std = {0.001 if geometry == '2d-current' else 0.01}"]
+    sections = {
+        "problem": [f'name = "{name}: {geometry}, {kind}"'],
+        "vehicle": vehicle,
+        "beacon": [f"position = {_vec(beacon)}"],
+        "start": [f"position = {_vec(start)}", f"velocity = {_vec(velocity)}"],
+        "limits": limits,
+        "horizon": [f"duration = {horizon[0]}", f"steps = {horizon[1]}"],
+        "objective": [f'kind = "{kind}"', "starts = 3"],
+        "validation": validation,
+    }
+    return "\n".join(f"[{k}]\n" + "\n".join(v) + "\n" for k, v in sections.items())
+
+
 def problem_text(
     rng: np.random.Generator, geometry: str, kind: str, edge_start: bool = False
 ) -> str:
@@ -56,10 +98,7 @@ def problem_text(
         i = int(np.argmax(np.abs(start)))  # the area keeps the beacon 10 m inside its edge
         start[i] = np.sign(start[i]) * max(abs(start[i]), float(np.max(np.abs(beacon))) + 10.0)
         half = float(np.max(np.abs(start))) + rng.uniform(1.0, 5.0)
-    sensors = ["range"] + {"2d-current": ["dvl-water"], "3d-depth": ["depth"]}.get(geometry, [])
-    if geometry == "3d-dvl":
-        sensors.append("dvl-bottom")
-    vehicle = [f"dim = {dim}", "sensors = [" + ", ".join(f'"{s}"' for s in sensors) + "]"]
+    vehicle = _vehicle_lines(geometry)
     if geometry == "2d-current":
         current = rng.uniform(-0.12, 0.12, 2).round(3).tolist()
         vehicle += ["current = true", f"current_velocity = {current}"]
@@ -72,23 +111,11 @@ def problem_text(
         limits = ["accel = [0.05, 0.05, 0.02]", "speed = 1.0", f"depth = [2.0, {bz - 10.0:.1f}]"]
     limits.append(f"area = {{ x = [{-half:.1f}, {half:.1f}], y = [{-half:.1f}, {half:.1f}] }}")
     rate = 0.2 if geometry == "2d-range-slow" else float(rng.choice([0.5, 1.0]))
-    validation = ["runs = 50", "dt = 0.1", f"range_rate = {rate}"]
-    validation.append(f"range_std = {float(rng.choice([0.1, 0.2]))}")
-    if geometry == "3d-depth":
-        validation += ["depth_rate = 1.0", "depth_std = 0.05"]
-    if geometry in ("2d-current", "3d-dvl"):
-        validation += ["dvl_rate = 5.0", f"dvl_std = {0.001 if geometry == '2d-current' else 0.01}"]
-    sections = {
-        "problem": [f'name = "unseen: {geometry}, {kind}"'],
-        "vehicle": vehicle,
-        "beacon": [f"position = {_vec(beacon)}"],
-        "start": [f"position = {_vec(start)}", f"velocity = {_vec(np.zeros(dim))}"],
-        "limits": limits,
-        "horizon": [f"duration = {duration}", f"steps = {int(duration / 3.0)}"],
-        "objective": [f'kind = "{kind}"', "starts = 3"],
-        "validation": validation,
-    }
-    return "\n".join(f"[{k}]\n" + "\n".join(v) + "\n" for k, v in sections.items())
+    ranges = [f"range_rate = {rate}", f"range_std = {float(rng.choice([0.1, 0.2]))}"]
+    horizon = (duration, int(duration / 3.0))
+    return _toml(
+        "unseen", geometry, kind, vehicle, beacon, start, np.zeros(dim), limits, horizon, ranges
+    )
 
 
 def wide_problem_text(rng: np.random.Generator, geometry: str, kind: str) -> str:
@@ -112,10 +139,7 @@ def wide_problem_text(rng: np.random.Generator, geometry: str, kind: str) -> str
         v0[:2] = rng.uniform(0.1, 0.6) * speed * np.array([np.cos(head), np.sin(head)])
     duration = float(rng.choice([300.0, 600.0, 900.0, 1200.0]))
     steps = min(int(duration / 3.0), 300)
-    sensors = ["range"] + {"2d-current": ["dvl-water"], "3d-depth": ["depth"]}.get(geometry, [])
-    if geometry == "3d-dvl":
-        sensors.append("dvl-bottom")
-    vehicle = [f"dim = {dim}", "sensors = [" + ", ".join(f'"{s}"' for s in sensors) + "]"]
+    vehicle = _vehicle_lines(geometry)
     if geometry == "2d-current":
         c = rng.uniform(0.02, 0.2) * np.array([np.cos(a := rng.uniform(0, 2 * np.pi)), np.sin(a)])
         vehicle += ["current = true", f"current_velocity = {c.round(3).tolist()}"]
@@ -131,23 +155,19 @@ def wide_problem_text(rng: np.random.Generator, geometry: str, kind: str) -> str
     )
     slow = geometry == "2d-range-slow"
     rate = float(rng.choice([0.1, 0.2] if slow else [0.2, 0.5, 1.0]))
-    validation = ["runs = 50", "dt = 0.1", f"range_rate = {rate}"]
-    validation.append(f"range_std = {float(rng.choice([0.05, 0.1, 0.2, 0.5]))}")
-    if geometry == "3d-depth":
-        validation += ["depth_rate = 1.0", "depth_std = 0.05"]
-    if geometry in ("2d-current", "3d-dvl"):
-        validation += ["dvl_rate = 5.0", f"dvl_std = {0.001 if geometry == '2d-current' else 0.01}"]
-    sections = {
-        "problem": [f'name = "unseen (wide): {geometry}, {kind}"'],
-        "vehicle": vehicle,
-        "beacon": [f"position = {_vec(beacon)}"],
-        "start": [f"position = {_vec(start)}", f"velocity = {_vec(v0)}"],
-        "limits": limits,
-        "horizon": [f"duration = {duration}", f"steps = {steps}"],
-        "objective": [f'kind = "{kind}"', "starts = 3"],
-        "validation": validation,
-    }
-    return "\n".join(f"[{k}]\n" + "\n".join(v) + "\n" for k, v in sections.items())
+    ranges = [f"range_rate = {rate}", f"range_std = {float(rng.choice([0.05, 0.1, 0.2, 0.5]))}"]
+    return _toml(
+        "unseen (wide)",
+        geometry,
+        kind,
+        vehicle,
+        beacon,
+        start,
+        v0,
+        limits,
+        (duration, steps),
+        ranges,
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -519,12 +519,17 @@ class TruthStats:
         return ", ".join(words)
 
     @property
-    def any_violation_fraction(self) -> float:
-        """Fraction of runs that break any limit on their true path."""
+    def any_violation_runs(self) -> int:
+        """Runs that break any limit on their true path."""
         v = self.violations()
         if not v:
-            return 0.0
-        return float(np.mean(np.any(np.stack(list(v.values())), axis=0)))
+            return 0
+        return int(np.sum(np.any(np.stack(list(v.values())), axis=0)))
+
+    @property
+    def any_violation_fraction(self) -> float:
+        """Fraction of runs that break any limit on their true path."""
+        return self.any_violation_runs / self.runs if self.runs else 0.0
 
     def to_dict(self) -> dict:
         return {

@@ -146,17 +146,17 @@ def _violation_words(traj: Trajectory, pb: PlanningProblem) -> str:
 
 def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -> Baseline:
     a = float(np.min(pb.accel[:2]))  # |u| <= a keeps every axis within its bound
-    p0, v0 = pb.p0, pb.v0
+    v0 = pb.v0
     s0 = float(np.linalg.norm(v0[:2]))
     e = np.array([math.cos(heading), math.sin(heading)])
     # a moving start turns onto the heading first (at its speed and the acceleration bound): the
     # legs start where that turn ends
-    p0 = generators.turn_onto_end(p0[:2], v0[:2], heading, a)
+    leg0 = generators.turn_onto_end(pb.p0[:2], v0[:2], heading, a)
     left = np.array([-e[1], e[0]])
-    room_left, room_right = _ray_to_box(p0, left, area), _ray_to_box(p0, -left, area)
+    room_left, room_right = _ray_to_box(leg0, left, area), _ray_to_box(leg0, -left, area)
     first_turn = "left" if room_left >= room_right else "right"
     height = max(room_left, room_right)
-    ahead = _ray_to_box(p0, e, area)
+    ahead = _ray_to_box(leg0, e, area)
     # the fastest speed <= v_max whose turns (radius v^2/a, spacing 2 v^2/a) fit the area
     # (90 % of the room, leaving space for the chord margin below). On a coarse planning grid
     # the turns are flown at a lower acceleration, so that each lasts at least 4 planning steps
@@ -203,7 +203,7 @@ def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -
         f"lawn-mower covering {lay.covered_width:.4g} m x {lay.covered_height:.4g} m "
         f"({lay.n_legs} legs) at {speed:.3g} m/s, turns of radius {radius:.3g} m at {a:g} m/s^2"
     )
-    if not np.allclose(p0, pb.p0[:2], rtol=0, atol=1e-9):
+    if not np.allclose(leg0, pb.p0[:2], rtol=0, atol=1e-9):
         desc += ", after a turn from the moving start onto its first leg"
     return Baseline("lawnmower", _check_grid(traj, pb, "lawnmower"), desc)
 

@@ -400,9 +400,8 @@ def limit_notes(
     tp = plan.result.truth
 
     def too_often(t) -> bool:
-        n = int(t.runs)
-        broken = int(round(t.any_violation_fraction * n))
-        return broken > 0 and scipy.stats.binom.sf(broken - 1, n, allowed) < 1.0 - CONFIDENCE
+        k = t.any_violation_runs
+        return k > 0 and scipy.stats.binom.sf(k - 1, t.runs, allowed) < 1.0 - CONFIDENCE
 
     out = []
     if too_often(tp):
