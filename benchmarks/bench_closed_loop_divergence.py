@@ -30,16 +30,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from obsplan.estimation.closedloop import ClosedLoop  # noqa: E402
-from obsplan.estimation.guidance import Guidance  # noqa: E402
+from obsplan.estimation.montecarlo.closedloop import ClosedLoop  # noqa: E402
+from obsplan.estimation.montecarlo.guidance import Guidance  # noqa: E402
 from obsplan.planning import load_problem  # noqa: E402
-from obsplan.planning.margins import solve_with_keepout  # noqa: E402
-from obsplan.planning.validation_setup import (  # noqa: E402
+from obsplan.planning.problem.validation_setup import (  # noqa: E402
     estimation_config,
     truth_limits,
     validation_guidance,
 )
-from obsplan.trajectory import resample  # noqa: E402
+from obsplan.planning.solver.margins import solve_with_keepout  # noqa: E402
+from obsplan.trajectory.sampled import resample  # noqa: E402
 
 #: A run whose final EKF position error exceeds this [m] counts as diverged.
 DIVERGED_M = 1.0

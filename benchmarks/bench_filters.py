@@ -8,8 +8,8 @@ paper's R/Q/P0. One "filter step" is one prediction and one range update. Implem
 * filterpy 2.0, one object per run and a Python loop over steps, with its own ``h(x)`` and
   Jacobian written in plain numpy (nothing from obsplan): ``ExtendedKalmanFilter`` on
   ``(p, v)``; ``KalmanFilter`` on the paper's augmented state with the anchor and the
-  process-noise coupling ``(e, f, g)`` of ``obsplan.estimation.kf`` (its per-step ``Q`` built in
-  numpy from the predicted state), the same model obsplan's KF runs;
+  process-noise coupling ``(e, f, g)`` of ``obsplan.estimation.filters.kf`` (its per-step ``Q``
+  built in numpy from the predicted state), the same model obsplan's KF runs;
 * obsplan's compiled filters (``ExtendedKalmanFilter.run`` etc.) on the same readings, the runs
   batched in one call as in ``monte_carlo``, statistics at ~1000 records included;
 * obsplan's whole ``monte_carlo`` (truth, readings, both filters, bound) per run-step.
@@ -24,12 +24,12 @@ import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter as FpEKF
 from filterpy.kalman import KalmanFilter as FpKF
 
-from obsplan import generators as gen
 from obsplan.estimation import EstimationConfig, monte_carlo
 from obsplan.estimation.epochs import RunContext, epoch_plan, input_displacement, record_samples
+from obsplan.estimation.montecarlo.simulate import make_filter
 from obsplan.estimation.schedule import make_schedule
-from obsplan.estimation.simulate import make_filter
-from obsplan.model import make_model
+from obsplan.model.vehicle import make_model
+from obsplan.trajectory import generators as gen
 
 SIG = 0.1
 

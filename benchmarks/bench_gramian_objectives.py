@@ -32,10 +32,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
-from obsplan.planning.ipopt import SUCCESS_STATUS  # noqa: E402
-from obsplan.planning.problem import Horizon  # noqa: E402
-from obsplan.planning.solve import solve  # noqa: E402
-from obsplan.planning.windowed_gramian import paper_form, window_settings  # noqa: E402
+from obsplan.planning.objectives.windowed import paper_form, window_settings  # noqa: E402
+from obsplan.planning.problem.sections import Horizon  # noqa: E402
+from obsplan.planning.solver.ipopt import SUCCESS_STATUS  # noqa: E402
+from obsplan.planning.solver.solve import solve  # noqa: E402
 
 #: (label, problem file, steps, budget [s]).
 CASES = (

@@ -18,7 +18,7 @@ import numpy as np
 
 from obsplan.io.tracks import Track, _kalman, _nodes, _rts, fit_track
 from obsplan.io.waypoints import position_at, waypoints_from_trajectory
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 
 def plan_like(duration: float = 600.0) -> Trajectory:

@@ -6,7 +6,7 @@ For every problem (default: the shipped ``problems/*.toml`` and ``problems/suite
 the plan without margins (``solve``, ``limits.keepout_confidence = 0``) and with them
 (``keep_out`` on that plan, the problem's confidence), then the closed-loop Monte Carlo of both
 and of the lawn-mower (guidance on the EKF's estimate,
-:func:`obsplan.planning.validation_setup.validation_guidance` with ``at_sea``;
+:func:`obsplan.planning.problem.validation_setup.validation_guidance` with ``at_sea``;
 the same seed and runs for every path). Prints a Markdown table: runs whose true path enters
 ``min_range``, the true closest range over all runs, runs breaking any limit, EKF RMSE and final
 error, and the re-solve's rounds, whether the margins held, the largest margin and acceleration
@@ -21,13 +21,17 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from obsplan.estimation.simulate import monte_carlo_paths
+from obsplan.estimation.montecarlo.simulate import monte_carlo_paths
 from obsplan.planning import load_problem
-from obsplan.planning.baselines import baselines
-from obsplan.planning.margins import keep_out
-from obsplan.planning.solve import solve
-from obsplan.planning.validation_setup import estimation_config, truth_limits, validation_guidance
-from obsplan.trajectory import resample
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.problem.validation_setup import (
+    estimation_config,
+    truth_limits,
+    validation_guidance,
+)
+from obsplan.planning.solver.margins import keep_out
+from obsplan.planning.solver.solve import solve
+from obsplan.trajectory.sampled import resample
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -9,7 +9,7 @@ Run (about 20 s per problem):
 For each problem file (with ``--kind``, its ``objective.kind`` replaced) the script plans as
 ``obsplan plan`` does (keep-out margins included, no Monte Carlo) and runs, along the plan and
 every baseline that fits, the two covariance recursions the planner's estimator objectives use
-(:mod:`obsplan.planning.estimator_objectives`: ``kf-position-std``'s augmented KF and
+(:mod:`obsplan.planning.objectives.estimator`: ``kf-position-std``'s augmented KF and
 ``pcrb-position``'s bound, on the validation's filter samples, prior, process noise, rates and
 noises). It prints per path and recursion the std ``sqrt(tr P_pp)`` [m] at the ``--at`` times,
 its peak and when, its mission mean (what the RMSE verdicts average) and its final value.
@@ -34,10 +34,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
-from obsplan.planning.baselines import baselines  # noqa: E402
-from obsplan.planning.estimator_objectives import kf_objective, pcrb_objective  # noqa: E402
-from obsplan.planning.grid import Grid  # noqa: E402
-from obsplan.planning.margins import solve_with_keepout  # noqa: E402
+from obsplan.planning.baselines.vehicle import baselines  # noqa: E402
+from obsplan.planning.objectives.estimator import kf_objective, pcrb_objective  # noqa: E402
+from obsplan.planning.solver.margins import solve_with_keepout  # noqa: E402
+from obsplan.planning.transcription.grid import Grid  # noqa: E402
 
 #: The recursions compared, by label.
 RECURSIONS = {"KF": kf_objective, "PCRB": pcrb_objective}

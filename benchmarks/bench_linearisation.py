@@ -13,8 +13,8 @@ For each problem file (with ``--kind``, its ``objective.kind`` replaced: e.g.
 the kind's default), validates both plans and the
 baselines over the same ``--runs`` closed-loop runs (one batch, no adaptive runs: rare losses
 need many runs), and prints per path: the peak and mean linearisation stress ``b / σ_r``
-(:mod:`obsplan.planning.linearisation`) over the range epochs, the EKF's position RMSE (the
-verdict's), the median of its per-run RMSEs, the runs whose RMSE is over 5x that median
+(:mod:`obsplan.planning.objectives.linearisation`) over the range epochs, the EKF's position RMSE
+(the verdict's), the median of its per-run RMSEs, the runs whose RMSE is over 5x that median
 ("lost"), the worst run, the Gaussian-sum filter's RMSE beside it, and the EKF's mean final
 position error. A lost run of a few
 percent of the runs decides an RMSE verdict: 50 runs do not see a 1 % loss (0.6 chance).
@@ -35,11 +35,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
-from obsplan.planning.baselines import baselines  # noqa: E402
-from obsplan.planning.linearisation import linearisation_stress  # noqa: E402
-from obsplan.planning.margins import solve_with_keepout  # noqa: E402
-from obsplan.planning.schema import LINEARISATION_BOUND  # noqa: E402
-from obsplan.planning.validation import validate_paths  # noqa: E402
+from obsplan.planning.baselines.vehicle import baselines  # noqa: E402
+from obsplan.planning.objectives.linearisation import linearisation_stress  # noqa: E402
+from obsplan.planning.problem.schema import LINEARISATION_BOUND  # noqa: E402
+from obsplan.planning.solver.margins import solve_with_keepout  # noqa: E402
+from obsplan.planning.validation.validate import validate_paths  # noqa: E402
 
 #: The baselines of the acceptance (validated once: every path flies the same runs).
 BASELINES = ("lawnmower", "circle")

@@ -9,14 +9,14 @@ Run (minutes; the validation Monte Carlo of every path):
 
 Verdict table (default: ``problems/default.toml`` and ``problems/suite/missions/*.toml``): for each
 problem, ``obsplan.plan`` exactly as ``obsplan plan`` runs it; the schedule's speed headroom
-(``1 - v_c / hi``, :mod:`obsplan.planning.mission_schedule`); whether the plan and each
-lawn-mower complete the mission (the independent check, :mod:`obsplan.planning.mission_check`);
+(``1 - v_c / hi``, :mod:`obsplan.planning.missions.schedule`); whether the plan and each
+lawn-mower complete the mission (the independent check, :mod:`obsplan.planning.missions.check`);
 and the plan's ratios to the plain lawn-mower (``lm``) and the accelerated one (``acc``) of the
 EKF RMSE over the lines' samples, the EKF final error, the KF RMSE and the EKF RMSE. Medians are
 over the survey problems whose lines leave at least 30 % speed headroom.
 
-Speed table (``--speed``): the solve (``obsplan.planning.solve``, its default worker processes)
-of the default 3-line 2D survey at N = 300 and of the 6-line 3D survey with DVL
+Speed table (``--speed``): the solve (``obsplan.planning.solver.solve``, its default worker
+processes) of the default 3-line 2D survey at N = 300 and of the 6-line 3D survey with DVL
 (``problems/suite/missions/survey-dvl3d.toml``) at N = 600: status, wall time, CPU time (this
 process and the worker processes; the machine is shared, so the wall time depends on the load,
 printed beside it), the construction time and each start's IPOPT iterations.
@@ -38,13 +38,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
-from obsplan.planning.baselines import baselines  # noqa: E402
-from obsplan.planning.mission_check import completes_mission  # noqa: E402
-from obsplan.planning.mission_schedule import mission_schedule  # noqa: E402
+from obsplan.planning.baselines.vehicle import baselines  # noqa: E402
+from obsplan.planning.missions.check import completes_mission  # noqa: E402
+from obsplan.planning.missions.schedule import mission_schedule  # noqa: E402
 from obsplan.planning.plan import plan  # noqa: E402
-from obsplan.planning.problem import Horizon  # noqa: E402
-from obsplan.planning.solve import solve  # noqa: E402
-from obsplan.planning.verdict import metric_value  # noqa: E402
+from obsplan.planning.problem.sections import Horizon  # noqa: E402
+from obsplan.planning.solver.solve import solve  # noqa: E402
+from obsplan.planning.validation.verdict import metric_value  # noqa: E402
 
 #: (column, verdict metric key) of the ratios reported.
 RATIOS = (
@@ -69,7 +69,7 @@ def run_one(
         "problem": str(path.relative_to(ROOT)),
         "kind": pb.mission.kind if pb.mission else None,
         "lines": len(pb.mission.lines) if pb.mission else 0,
-        "headroom": mission_schedule(pb).headroom,
+        "headroom": mission_schedule(pb.mission_context).headroom,
         "status": res.solve.status,
         "solve_s": res.solve.wall_s,
         "complete": {k: c.complete for k, c in res.missions.items()},
@@ -162,7 +162,7 @@ def speed_table() -> None:
         res = solve(pb, baselines=bls)
         wall = time.perf_counter() - t0
         cpu = _cpu_s() - c0
-        done = res.trajectory is not None and completes_mission(res.trajectory, pb)
+        done = res.trajectory is not None and completes_mission(res.trajectory, pb.mission_context)
         iters = "/".join(str(s.iterations) for s in res.starts)
         print(
             f"{name:<24} {steps:5d} {res.status:<18} {wall:7.1f} {cpu:7.1f} {res.build_s:7.1f} "

@@ -32,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from obsplan import generators as gen
 from obsplan.estimation import EstimationConfig, Guidance, monte_carlo
-from obsplan.estimation.crlb import posterior_crlb
+from obsplan.estimation.bounds.crlb import posterior_crlb
 from obsplan.estimation.schedule import make_schedule
-from obsplan.model import make_model
-from obsplan.trajectory import Trajectory, read_csv
+from obsplan.model.vehicle import make_model
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory, read_csv
 
 HERE = Path(__file__).resolve().parent
 
@@ -48,7 +48,7 @@ def compile_cost() -> list[tuple[str, float]]:
         "import time; t = time.perf_counter();"
         "from obsplan import generators as gen;"
         "from obsplan.estimation import EstimationConfig, Guidance, monte_carlo;"
-        "from obsplan.model import make_model;"
+        "from obsplan.model.vehicle import make_model;"
         "tr = gen.circle(30.0, 1.5, 20.0, 0.1);"
         "monte_carlo(tr, EstimationConfig.paper(make_model(2, 'range'), 0.1), runs=2,"
         " filters=('ekf', 'kf', 'gsf'));"
@@ -250,8 +250,8 @@ def closed_vs_open(quick: bool) -> list[tuple[str, float, float, float, float]]:
 # ----------------------------------------------------------------------------- 3b. validation
 def validation_case() -> tuple[float, float, int]:
     from obsplan.planning import load_problem, plan
-    from obsplan.planning.parse import LOCALISE_PROBLEM
-    from obsplan.planning.validation import validate_paths
+    from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+    from obsplan.planning.validation.validate import validate_paths
 
     pb = load_problem(LOCALISE_PROBLEM)
     res = plan(pb, validate=False)
@@ -301,8 +301,8 @@ def _timed(fn, *args) -> float:
 # ----------------------------------------------------------------------------- 5. quality
 def quality(quick: bool) -> list[str]:
     from obsplan.planning import load_problem
-    from obsplan.planning.validation_setup import estimation_config
-    from obsplan.trajectory import resample
+    from obsplan.planning.problem.validation_setup import estimation_config
+    from obsplan.trajectory.sampled import resample
 
     rows = []
     runs = 20 if quick else 50

@@ -29,7 +29,7 @@ import time
 import numpy as np
 from scipy.integrate import quad_vec
 
-from obsplan.model import make_model
+from obsplan.model.vehicle import make_model
 from obsplan.observability.gramian import (
     augmented_model,
     cumulative_gramians,
@@ -44,7 +44,7 @@ from obsplan.observability.lwo import (
     lwo_ranks,
 )
 from obsplan.observability.scaling import DEFAULT_SCALES, RANK_TOL, equilibrated_eigvals
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 
 def test_path(n: int, dt: float = 0.01, dim: int = 3) -> Trajectory:

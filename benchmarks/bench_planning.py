@@ -13,8 +13,8 @@ is the model construction plus that coarse pass, "solve" the fine IPOPT run. SLS
 acceleration, speed and area limits but not ``limits.min_range`` (its "feasible" column is the
 full check, which the minimum range can fail). SLSQP optimises the
 inputs only (states by exact integration), with the objective evaluated by the same numpy/CasADi
-metric code (:func:`obsplan.planning.evaluate.objective_value`) and finite-difference gradients,
-the speed limit (analytic Jacobian) and the tightened area box (linear) as constraints.
+metric code (:func:`obsplan.planning.objectives.evaluate.objective_value`) and finite-difference
+gradients, the speed limit (analytic Jacobian) and the tightened area box (linear) as constraints.
 """
 
 from __future__ import annotations
@@ -32,12 +32,13 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem, solve  # noqa: E402
-from obsplan.planning.baselines import lawnmower_baseline  # noqa: E402
-from obsplan.planning.evaluate import objective_value  # noqa: E402
-from obsplan.planning.feasibility import check_limits  # noqa: E402
-from obsplan.planning.problem import Horizon, PlanningProblem  # noqa: E402
-from obsplan.planning.schema import MINIMISED  # noqa: E402
-from obsplan.trajectory import Trajectory  # noqa: E402
+from obsplan.planning.baselines.vehicle import lawnmower_baseline  # noqa: E402
+from obsplan.planning.objectives.evaluate import objective_value  # noqa: E402
+from obsplan.planning.problem.definition import PlanningProblem  # noqa: E402
+from obsplan.planning.problem.feasibility import check_limits  # noqa: E402
+from obsplan.planning.problem.schema import MINIMISED  # noqa: E402
+from obsplan.planning.problem.sections import Horizon  # noqa: E402
+from obsplan.trajectory.sampled import Trajectory  # noqa: E402
 
 PROBLEMS = {
     # (dim, objective) -> problem file; 3D LWO needs a DVL (eq. 44), 3D range-only cannot (eq. 38);

@@ -43,10 +43,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
-from obsplan.planning.parse import problem_from_dict, problem_to_dict  # noqa: E402
 from obsplan.planning.plan import plan  # noqa: E402
-from obsplan.planning.validation import validate_paths  # noqa: E402
-from obsplan.planning.verdict import metric_value  # noqa: E402
+from obsplan.planning.problem.parse import problem_from_dict, problem_to_dict  # noqa: E402
+from obsplan.planning.validation.validate import validate_paths  # noqa: E402
+from obsplan.planning.validation.verdict import metric_value  # noqa: E402
 from obsplan.sweeps.spec import parse_path, set_fields  # noqa: E402
 
 #: The verdicts shown against these baselines, on these metrics.

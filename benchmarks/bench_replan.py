@@ -10,7 +10,7 @@ The problem defaults to the *median suite problem*: ``problems/suite/*.toml`` so
 ``gramian-depth3d``: 3D range + depth gauge, 600 s, N = 200, ``gramian-min-eig``; N = 200 is
 the size of the speed requirement). The script
 
-1. plans it one-shot as ``obsplan plan`` does (:func:`obsplan.planning.margins
+1. plans it one-shot as ``obsplan plan`` does (:func:`obsplan.planning.solver.margins
    .solve_with_keepout`) and builds the replanning NLP once (with the plan's keep-out margins);
 2. flies the one-shot plan in closed loop (the same runs and seed) and prints, at every replan
    time, the spread over the runs of the navigation filter's position std: what a re-solve
@@ -52,20 +52,20 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from obsplan.estimation.closedloop import ClosedLoop  # noqa: E402
+from obsplan.estimation.montecarlo.closedloop import ClosedLoop  # noqa: E402
 from obsplan.planning import load_problem  # noqa: E402
-from obsplan.planning.baselines import baselines  # noqa: E402
-from obsplan.planning.margins import solve_with_keepout  # noqa: E402
+from obsplan.planning.baselines.vehicle import baselines  # noqa: E402
+from obsplan.planning.objectives.robust import scaled_problem  # noqa: E402
+from obsplan.planning.problem.validation_setup import estimation_config, truth_limits  # noqa: E402
 from obsplan.planning.replan import (  # noqa: E402
     Replanner,
     replan_guidance,
     replan_monte_carlo,
     replan_nodes,
 )
-from obsplan.planning.robust import scaled_problem  # noqa: E402
-from obsplan.planning.validation_setup import estimation_config, truth_limits  # noqa: E402
-from obsplan.planning.verdict import metric_value, paired_noise  # noqa: E402
-from obsplan.trajectory import resample  # noqa: E402
+from obsplan.planning.solver.margins import solve_with_keepout  # noqa: E402
+from obsplan.planning.validation.verdict import metric_value, paired_noise  # noqa: E402
+from obsplan.trajectory.sampled import resample  # noqa: E402
 
 COLUMNS = (
     ("EKF rmse", "ekf.rmse_pos"),

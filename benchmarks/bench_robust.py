@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
 from obsplan.planning.plan import plan  # noqa: E402
-from obsplan.planning.schema import TIMED_OBJECTIVES  # noqa: E402
+from obsplan.planning.problem.schema import TIMED_OBJECTIVES  # noqa: E402
 
 METRICS = (("EKF rmse", "ekf.rmse_pos"), ("EKF final", "ekf.final_pos_err"))
 LETTER = {"better": "B", "worse": "W", "tie": "t"}

@@ -19,10 +19,10 @@ from __future__ import annotations
 import argparse
 import time
 
-from obsplan import generators as gen
-from obsplan.model import make_model
+from obsplan.model.vehicle import make_model
 from obsplan.observability.gramian import gramian_report
 from obsplan.observability.structural import exact_rank_profile
+from obsplan.trajectory import generators as gen
 
 
 def cases(samples: int) -> list[tuple[str, object, object]]:

@@ -28,7 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from obsplan.errors import ProblemError  # noqa: E402
+from obsplan.core.errors import ProblemError  # noqa: E402
 from obsplan.planning import load_problem  # noqa: E402
 
 GEOMETRIES = ("2d-range", "2d-range-slow", "2d-current", "3d-depth", "3d-dvl", "3d-range")

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from obsplan import generators
-from obsplan.csvtable import write_table
-from obsplan.geodesy import GeodeticOrigin, local_to_geodetic
+from obsplan.core.csvtable import write_table
+from obsplan.model.frames import GeodeticOrigin, local_to_geodetic
+from obsplan.trajectory import generators
 
 HERE = Path(__file__).resolve().parent
 #: Origin of the geodetic sample: off Livorno, Italy (WGS84 degrees).

@@ -17,9 +17,9 @@ import sys
 from obsplan import analyze
 from obsplan.estimation import monte_carlo
 from obsplan.planning import estimation_config, load_problem, plan
-from obsplan.planning.parse import LOCALISE_PROBLEM
-from obsplan.planning.problem import Horizon, ObjectiveSpec
-from obsplan.trajectory import resample
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+from obsplan.planning.problem.sections import Horizon, ObjectiveSpec
+from obsplan.trajectory.sampled import resample
 
 
 def main(quick: bool = False) -> None:

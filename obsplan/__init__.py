@@ -13,12 +13,12 @@ from obsplan.version import __version__
 
 if TYPE_CHECKING:
     from obsplan.estimation import EstimationConfig, MonteCarloResult, monte_carlo
-    from obsplan.model import VehicleModel, make_model
+    from obsplan.model.vehicle import VehicleModel, make_model
     from obsplan.observability.analyze import ObservabilityReport, analyze
     from obsplan.planning import PlanningProblem, PlanResult, load_problem
     from obsplan.planning.plan import plan
     from obsplan.sweeps import sweep
-    from obsplan.trajectory import Trajectory, read_csv, write_csv
+    from obsplan.trajectory.sampled import Trajectory, read_csv, write_csv
 
 
 def __getattr__(name: str):
@@ -29,9 +29,9 @@ def __getattr__(name: str):
 
         mod = sys.modules["obsplan.estimation"]
     elif name in ("VehicleModel", "make_model"):
-        import obsplan.model  # noqa: F401
+        import obsplan.model.vehicle  # noqa: F401
 
-        mod = sys.modules["obsplan.model"]
+        mod = sys.modules["obsplan.model.vehicle"]
     elif name in ("ObservabilityReport", "analyze"):
         import obsplan.observability.analyze  # noqa: F401 (the package re-exports analyze())
 
@@ -45,9 +45,9 @@ def __getattr__(name: str):
 
         mod = sys.modules["obsplan.sweeps"]
     elif name in ("Trajectory", "read_csv", "write_csv"):
-        import obsplan.trajectory  # noqa: F401
+        import obsplan.trajectory.sampled  # noqa: F401
 
-        mod = sys.modules["obsplan.trajectory"]
+        mod = sys.modules["obsplan.trajectory.sampled"]
     else:
         raise AttributeError(f"module 'obsplan' has no attribute {name!r}")
     value = getattr(mod, name)

@@ -7,9 +7,9 @@ from dataclasses import replace
 import pytest
 
 from obsplan.planning import load_problem
-from obsplan.planning.baselines import baselines
-from obsplan.planning.parse import LOCALISE_PROBLEM
-from obsplan.planning.problem import Horizon
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+from obsplan.planning.problem.sections import Horizon
 
 
 @pytest.fixture(scope="session")

@@ -9,11 +9,11 @@ import pytest
 
 import obsplan
 from obsplan import ObservabilityReport, analyze
-from obsplan.errors import ConfigError, InputError
-from obsplan.model import make_model
+from obsplan.core.errors import ConfigError, InputError
+from obsplan.model.vehicle import make_model
 from obsplan.observability.gramian import rank_over_time
 from obsplan.observability.scaling import Scales
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 PRODUCT_KEYS = {
     "lwo": {"along_trajectory", "full_rank_fraction", "min_rank", "state_dim"},

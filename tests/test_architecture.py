@@ -1,13 +1,15 @@
 """The package's architecture, checked on its source: imports go one way and functions stay short.
 
 Every ``import`` statement in ``obsplan/`` is read from the syntax tree, wherever it is (module
-level, inside functions, inside ``try``), so a function-level import cannot hide a cycle. The one
-exception is an import under ``if TYPE_CHECKING:``: it never runs and serves annotations only
-(``planning/checks.py`` annotates with the ``PlanningProblem`` whose construction runs it).
+level, inside functions, inside ``try``, under ``if TYPE_CHECKING:``): a type-only import is
+still an arrow for the reader, so it counts like any other.
 
 * :data:`STAGES` gives every module its stage; a module may import its own stage and lower ones;
 * the module graph has no cycle;
-* inside ``obsplan/planning`` the rooms of :data:`PLANNING_ORDER` import only earlier rooms;
+* inside ``obsplan/planning`` and ``obsplan/estimation`` the rooms of :data:`ROOMS` (sub-packages
+  by role, and the top modules) import only earlier rooms;
+* no module imports the facade (``__init__``) of a package it is inside;
+* every package's ``__init__`` says what its room does and what it may import;
 * no function in ``obsplan/planning`` (and ``obsplan/estimation``) is longer than 100 lines.
 """
 
@@ -22,33 +24,20 @@ import obsplan
 
 PACKAGE = Path(obsplan.__file__).resolve().parent
 
-#: ``(stage, modules)`` from the bottom up; a module (or a package and everything in it) may
-#: import only from its own stage or a lower one. The longest listed prefix of a module's name
-#: gives its stage.
+#: ``(stage, packages)`` from the bottom up; a module may import only from its own stage or a
+#: lower one. The longest listed prefix of a module's name gives its stage.
 STAGES: tuple[tuple[str, tuple[str, ...]], ...] = (
-    # no obsplan imports but the errors: exceptions, the version, signals, atomic file writes,
-    # safe output folders, the cost budget, the vehicle model, geodetic conversions, reading user
-    # text files (encodings, magnitudes)
-    (
-        "foundations",
-        (
-            "errors",
-            "version",
-            "interrupts",
-            "atomic",
-            "outputs",
-            "budget",
-            "model",
-            "geodesy",
-            "textfiles",
-        ),
-    ),
-    # sampled paths, their CSV form (csvtable) and the motion classes of Tables 1-3
-    ("trajectory", ("trajectory", "csvtable", "generators")),
+    # infrastructure: errors, signals, atomic files, safe output folders, the cost budget, user
+    # text files, CSV tables; and the version
+    ("core", ("core", "version")),
+    # the vehicle model and its frames (local NED, geodetic)
+    ("model", ("model",)),
+    # sampled paths, their CSV form, and the analytic paths of the generators
+    ("trajectory", ("trajectory",)),
     ("observability", ("observability",)),
     ("estimation", ("estimation",)),
     # the paper's scenarios and figures: observability and estimation, nothing from planning
-    ("paper", ("paper", "paper_figures", "plots")),
+    ("paper", ("paper",)),
     ("planning", ("planning",)),
     # real inputs and outputs, parameter studies: beside each other, above planning
     ("io-sweeps", ("io", "sweeps")),
@@ -56,45 +45,32 @@ STAGES: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("cli", ("cli", "__main__", "")),
 )
 
-#: The rooms of ``obsplan/planning`` from the bottom up: each imports only rooms before it.
-PLANNING_ORDER: tuple[str, ...] = (
-    "schema",  # the problem file declared: fields, units, defaults, objective kinds
-    "mission_spec",  # the [mission]: lines, waypoints, end region, generated lines
-    "mission_schedule",  # the mission's constant-speed schedule: windows, shortest horizon
-    "mission_order",  # mission.order = "free": the order and directions of the lines
-    "checks",  # cheap checks (on construction) and structural rank checks (before solving)
-    "problem",  # the frozen dataclasses
-    "parse",  # files and mappings <-> problems (geodetic fields included)
-    "validation_setup",  # the validation's filter configuration and epochs
-    "feasibility",  # independent numpy check of the limits on the continuous path
-    "mission_check",  # independent numpy check that a path completes the mission
-    "mission_baselines",  # the schedule flown on the planning grid (mission lawn-mowers)
-    "baselines",  # lawn-mower, circle, ...
-    "grid",  # decision variables in intrinsic units, sample operator, dynamics
-    "guesses",  # initial guesses, reference path, coarse grid
-    "blocks",  # NLP building blocks and the objective interface
-    "mission_part",  # the mission's constraints (lines, waypoints, end region)
-    "windowed_gramian",  # information-weighted windowed Gramians
-    "gramian_objectives",
-    "lwo_objective",
-    "estimator_objectives",
-    "robust",  # an estimator objective over a family of conditions (worst case or mean)
-    "objectives",  # the registry by objective.kind
-    "linearisation",  # the EKF's linearisation stress along a path, the planner's penalty on it
-    "evaluate",  # objective values and path metrics on a path
-    "formulation",  # path constraints, bounds, assembly
-    "ipopt",  # nlpsol construction and calls, projection, Ctrl-C
-    "starts",  # one IPOPT run per guess, serial or in processes
-    "solve",  # strategy: multi-start, coarse-to-fine, candidates
-    "margins",  # keep-out margins from the predicted uncertainty, re-solve with tightened limits
-    "validation",  # Monte Carlo of the filters on every path
-    "verdict",
-    "stress",  # every path re-validated at stated multiples of the prior and range noise
-    "figures",
-    "replan",  # receding-horizon re-solves inside the closed-loop Monte Carlo
-    "plan",  # solve + baselines + metrics + validation
-    "__init__",  # the planning package's public API
-)
+#: The rooms of the two big stages from the bottom up: each imports only rooms before it. A room
+#: is a sub-package (everything in it) or a module; ``""`` is the stage's floor, its modules
+#: directly in the stage's folder (a floor module may import other floor modules).
+ROOMS: dict[str, tuple[str, ...]] = {
+    "estimation": (
+        "",  # configuration, process noise and Kalman structure, schedules, epochs, kernels
+        "filters",  # EKF, augmented KF, Gaussian sum behind one interface
+        "bounds",  # Riccati recursions, posterior CRB, closed-loop covariance
+        "montecarlo",  # truth, guidance, runs, statistics, results, figures
+        "__init__",
+    ),
+    "planning": (
+        "",  # the planner's tuning
+        "missions",  # the mission in time: spec, schedule, order, completion, lawn-mower
+        "problem",  # schema, sections, checks, the problem, files, limits of a path
+        "baselines",  # the paths a user would otherwise fly
+        "transcription",  # grid, guesses, NLP blocks, the mission's constraints
+        "objectives",  # every objective.kind, its registry, values on a path
+        "solver",  # formulation, IPOPT, starts, multi-start, keep-out margins
+        "validation",  # Monte Carlo of every path, verdict, robustness
+        "figures",
+        "replan",  # receding-horizon re-solves inside the closed-loop Monte Carlo
+        "plan",  # solve + baselines + metrics + validation
+        "__init__",
+    ),
+}
 
 MAX_FUNCTION_LINES = 100
 
@@ -107,24 +83,11 @@ def _module_name(path: Path) -> str:
 MODULES: dict[str, Path] = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
 
 
-def _is_type_checking(node: ast.If) -> bool:
-    t = node.test
-    return (isinstance(t, ast.Name) and t.id == "TYPE_CHECKING") or (
-        isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING"
-    )
-
-
 def _import_nodes(tree: ast.AST):
-    """Every Import/ImportFrom node, anywhere, except the bodies of ``if TYPE_CHECKING:``."""
-    stack = [tree]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, ast.If) and _is_type_checking(node):
-            stack.extend(node.orelse)
-            continue
+    """Every Import/ImportFrom node, anywhere (``if TYPE_CHECKING:`` bodies included)."""
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import | ast.ImportFrom):
             yield node
-        stack.extend(ast.iter_child_nodes(node))
 
 
 def _imports(name: str, path: Path) -> set[str]:
@@ -164,7 +127,7 @@ def _stage(name: str) -> int:
 def test_the_import_scan_sees_function_level_imports():
     # the cli imports its verbs' heavy dependencies inside functions: the scan must see them
     assert "obsplan.io.waypoints" in GRAPH["obsplan.cli.export"]
-    assert "obsplan.planning.validation" in GRAPH["obsplan.cli.simulate"]
+    assert "obsplan.planning.validation.validate" in GRAPH["obsplan.cli.simulate"]
     # ... and the facade's lazy obsplan.sweep
     assert "obsplan.sweeps" in GRAPH["obsplan"]
 
@@ -231,19 +194,53 @@ def test_no_import_cycle():
     assert _cycles(GRAPH) == []
 
 
-def test_planning_rooms_import_only_earlier_rooms():
-    rooms = {
-        f"obsplan.planning.{r}" if r != "__init__" else "obsplan.planning": i
-        for i, r in enumerate(PLANNING_ORDER)
-    }
-    planning = {m for m in MODULES if m == "obsplan.planning" or m.startswith("obsplan.planning.")}
-    assert planning == set(rooms), "PLANNING_ORDER must list every planning module"
+def _room(stage: str, module: str) -> int:
+    """Index in ``ROOMS[stage]`` of the room holding ``module`` (a module of that stage)."""
+    rest = module[len(f"obsplan.{stage}") :].lstrip(".")
+    if not rest:
+        return ROOMS[stage].index("__init__")
+    head = rest.split(".")[0]
+    if head in ROOMS[stage]:
+        return ROOMS[stage].index(head)
+    assert "." not in rest, f"{module} is in no room of {stage}"
+    return ROOMS[stage].index("")
+
+
+@pytest.mark.parametrize("stage", sorted(ROOMS))
+def test_rooms_import_only_earlier_rooms(stage):
+    prefix = f"obsplan.{stage}"
+    inside = {m for m in MODULES if m == prefix or m.startswith(prefix + ".")}
+    for room in ROOMS[stage]:
+        if room not in ("", "__init__"):
+            assert f"{prefix}.{room}" in MODULES, f"ROOMS lists {prefix}.{room}, not in the package"
     bad = [
         f"{a} imports {b}, a later room"
-        for a in sorted(planning)
-        for b in sorted(GRAPH[a] & planning)
-        if rooms[b] >= rooms[a]
+        for a in sorted(inside)
+        for b in sorted(GRAPH[a] & inside)
+        if _room(stage, b) > _room(stage, a)
     ]
+    assert not bad, "\n".join(bad)
+
+
+def test_no_module_imports_a_facade_it_is_inside():
+    packages = {m for m, p in MODULES.items() if p.name == "__init__.py"}
+    bad = [
+        f"{a} imports {b}, the facade of its own package"
+        for a, targets in GRAPH.items()
+        for b in sorted(targets & packages)
+        if a.startswith(b + ".")
+    ]
+    assert not bad, "\n".join(bad)
+
+
+def test_every_package_says_what_its_room_does_and_may_import():
+    bad = []
+    for name, path in MODULES.items():
+        if path.name != "__init__.py" or name in ("obsplan", "obsplan.cli"):
+            continue
+        doc = ast.get_docstring(ast.parse(path.read_text())) or ""
+        if "import" not in doc.lower():
+            bad.append(f"{name}: the docstring does not say what the room may import")
     assert not bad, "\n".join(bad)
 
 
@@ -275,8 +272,8 @@ def test_no_function_longer_than_100_lines(folder):
 
 
 def test_every_objective_kind_is_registered():
-    from obsplan.planning.objectives import REGISTRY
-    from obsplan.planning.schema import OBJECTIVE_KINDS
+    from obsplan.planning.objectives.registry import REGISTRY
+    from obsplan.planning.problem.schema import OBJECTIVE_KINDS
 
     assert list(REGISTRY) == list(OBJECTIVE_KINDS)
     assert all(o.kind == k for k, o in REGISTRY.items())

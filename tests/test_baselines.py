@@ -7,17 +7,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from obsplan.generators import paper_lawnmower
 from obsplan.observability.gramian import gramian
 from obsplan.observability.scaling import numerical_rank, psd_metrics
 from obsplan.planning import load_problem
-from obsplan.planning.baselines import baselines
-from obsplan.planning.estimator_objectives import covariance_stds
-from obsplan.planning.evaluate import objective_value, path_metrics
-from obsplan.planning.feasibility import check_limits
-from obsplan.planning.linearisation import linearisation_stress
-from obsplan.planning.parse import LOCALISE_PROBLEM, PROBLEMS_DIR
-from obsplan.planning.problem import Horizon
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.objectives.estimator import covariance_stds
+from obsplan.planning.objectives.evaluate import objective_value, path_metrics
+from obsplan.planning.objectives.linearisation import linearisation_stress
+from obsplan.planning.problem.feasibility import check_limits
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM, PROBLEMS_DIR
+from obsplan.planning.problem.sections import Horizon
+from obsplan.trajectory.generators import paper_lawnmower
 
 
 @pytest.fixture(scope="module", params=["localise", "range3d", "range-dvl-water-current2d"])
@@ -117,7 +117,7 @@ def test_metrics_are_computed_the_same_way_for_every_path():
 
 
 def test_unfitted_baselines_are_reported_with_a_reason():
-    from obsplan.planning.baselines import unfitted_baselines
+    from obsplan.planning.baselines.vehicle import unfitted_baselines
 
     pb = load_problem(PROBLEMS_DIR / "suite/moving-start.toml")
     assert "lawnmower" in baselines(pb)

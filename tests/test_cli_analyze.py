@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from obsplan.cli import main
-from obsplan.trajectory import Trajectory, write_csv
+from obsplan.trajectory.sampled import Trajectory, write_csv
 
 
 @pytest.fixture()

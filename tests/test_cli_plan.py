@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from obsplan.cli import main
-from obsplan.outputs import MARKER, write_marker
-from obsplan.trajectory import read_csv
+from obsplan.core.outputs import MARKER, write_marker
+from obsplan.trajectory.sampled import read_csv
 
 SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--max-runs", "2", "--quiet"]
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
@@ -284,9 +284,9 @@ def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing
 
 
 def test_3d_path_figure_has_a_depth_view_and_the_area_in_the_legend():
-    from obsplan import generators as gen
     from obsplan.planning.figures import plot_gramian_eigs, plot_paths
-    from obsplan.planning.parse import load_problem
+    from obsplan.planning.problem.parse import load_problem
+    from obsplan.trajectory import generators as gen
 
     pb = load_problem(PROBLEMS / "range3d.toml")
     path = gen.circle_z(
@@ -314,8 +314,8 @@ def test_force_never_deletes_the_problem_file(tmp_path, capsys):
 
 
 def test_limit_breaks_names_each_limit_its_share_of_runs_and_worst_excess():
-    from obsplan.estimation.guidance import TruthLimits
-    from obsplan.estimation.stats import TruthStats
+    from obsplan.estimation.montecarlo.guidance import TruthLimits
+    from obsplan.estimation.montecarlo.stats import TruthStats
 
     z = np.zeros(4)
     tr = TruthStats(

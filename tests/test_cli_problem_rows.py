@@ -101,7 +101,7 @@ def test_two_steps_are_planned_or_refused_for_the_real_reason(tmp_path):
 
 def test_a_trajectory_starting_at_the_beacon_gets_no_nan(tmp_path):
     """``simulate`` with the beacon at the start: a finite bound or a clear refusal."""
-    from obsplan.trajectory import Trajectory, write_csv
+    from obsplan.trajectory.sampled import Trajectory, write_csv
 
     t = np.linspace(0.0, 120.0, 121)
     u = 0.05 * np.c_[np.sin(t / 20), np.cos(t / 20)]

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from obsplan.cli import main
-from obsplan.trajectory import Trajectory, read_csv, write_csv
+from obsplan.trajectory.sampled import Trajectory, read_csv, write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "problems" / "localise.toml"
@@ -74,7 +74,7 @@ def traj2(tmp_path) -> Path:
 
 # ------------------------------------------------------------------ row 7: huge tables
 def test_row7_a_table_beyond_the_row_limit_is_refused_before_parsing(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("obsplan.csvtable.MAX_ROWS", 1000)
+    monkeypatch.setattr("obsplan.core.csvtable.MAX_ROWS", 1000)
     big = tmp_path / "big.csv"
     t = np.arange(5000.0)
     np.savetxt(big, np.c_[t, 0.1 * t, 0.2 * t], delimiter=",", header="t,px,py", comments="")
@@ -320,7 +320,7 @@ def test_row21_the_readme_samples_exist_and_are_what_their_script_writes(tmp_pat
 
 def test_row21_the_geodetic_sample_is_the_default_problem_geodetically():
     pytest.importorskip("pymap3d")
-    from obsplan.planning.parse import load_problem
+    from obsplan.planning.problem.parse import load_problem
 
     geo = load_problem(EXAMPLES / "geodetic.toml")
     np.testing.assert_allclose(geo.beacon, [0.0, 0.0], atol=1e-3)
@@ -349,9 +349,9 @@ def test_row34_path_figure_draws_the_min_range_and_zooms_on_loops_at_the_beacon(
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 
-    from obsplan import generators
     from obsplan.planning.figures import plot_filter_errors, plot_paths
-    from obsplan.planning.parse import load_problem
+    from obsplan.planning.problem.parse import load_problem
+    from obsplan.trajectory import generators
 
     pb = load_problem(DEFAULT)
     loops = generators.circle(radius=5.5, speed=0.5, duration=200.0, dt=1.0)
@@ -599,17 +599,17 @@ def test_row31_cache_state_and_folder(tmp_path, monkeypatch):
 
     monkeypatch.setattr(jitcache, "compiled_in_process", lambda name: False)
     cache = tmp_path / "cache"
-    assert jitcache.cache_is_cold(("kernels.py",), cache)  # nothing cached
+    assert jitcache.cache_is_cold(("kernels",), cache)  # nothing cached
     source = jitcache.HERE / "kernels.py"
     folder = cache / UserProvidedCacheLocator.get_suitable_cache_subpath(str(source))
     folder.mkdir(parents=True)
     index = folder / "kernels.predict-1.py311.nbi"
     index.write_bytes(b"")
-    assert not jitcache.cache_is_cold(("kernels.py",), cache)  # newer than its source
+    assert not jitcache.cache_is_cold(("kernels",), cache)  # newer than its source
     old = source.stat().st_mtime - 10.0
     os.utime(index, (old, old))
-    assert jitcache.cache_is_cold(("kernels.py",), cache)  # the source changed since
-    assert jitcache.cache_is_cold(("kernels.py", "loop_kernels.py"), cache)
+    assert jitcache.cache_is_cold(("kernels",), cache)  # the source changed since
+    assert jitcache.cache_is_cold(("kernels", "montecarlo.loop_kernels"), cache)
 
     # the default folder: the user's cache, set for numba and for the processes started later
     monkeypatch.setattr(numba.config, "CACHE_DIR", numba.config.CACHE_DIR)  # restored after

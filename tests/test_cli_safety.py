@@ -17,12 +17,12 @@ from pathlib import Path
 
 import pytest
 
-from obsplan import budget
-from obsplan import generators as gen
-from obsplan.atomic import dead_leftovers, staging_dir
 from obsplan.cli import main
-from obsplan.outputs import MARKER, write_marker
-from obsplan.trajectory import write_csv
+from obsplan.core import budget
+from obsplan.core.atomic import dead_leftovers, staging_dir
+from obsplan.core.outputs import MARKER, write_marker
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "problems" / "localise.toml"
@@ -218,7 +218,7 @@ def test_a_killed_runs_leftovers_are_removed_by_the_next_run(tmp_path, capsys):
     out = tmp_path / "o"
     code = (
         "import os, sys, time\n"
-        "from obsplan.outputs import OutputDir\n"
+        "from obsplan.core.outputs import OutputDir\n"
         "o = OutputDir(sys.argv[1], False)\n"
         "s = o.stage(); (s / 'plan.csv').write_text('half')\n"
         "print(s, flush=True); time.sleep(60)\n"

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from obsplan import generators as gen
 from obsplan.cli import main
-from obsplan.outputs import MARKER, write_marker
-from obsplan.trajectory import write_csv
+from obsplan.core.outputs import MARKER, write_marker
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import write_csv
 
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 

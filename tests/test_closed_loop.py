@@ -13,8 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from obsplan import generators as gen
-from obsplan.errors import ConfigError
+from obsplan.core.errors import ConfigError
 from obsplan.estimation import (
     ClosedLoop,
     EstimationConfig,
@@ -23,8 +22,9 @@ from obsplan.estimation import (
     merge_monte_carlo,
     monte_carlo,
 )
-from obsplan.model import make_model
-from obsplan.trajectory import Trajectory
+from obsplan.model.vehicle import make_model
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory
 
 GUIDANCE = Guidance.from_limits(0.05, speed=1.2, error_scale_m=1.0)
 

@@ -7,7 +7,7 @@ import pytest
 
 from obsplan.estimation import kernels
 from obsplan.estimation.sensors import output_model, to_outputs
-from obsplan.model import make_model
+from obsplan.model.vehicle import make_model
 
 
 @pytest.mark.parametrize(

@@ -28,12 +28,12 @@ import pytest
 from filterpy.kalman import ExtendedKalmanFilter as FpEKF
 from filterpy.kalman import KalmanFilter as FpKF
 
-from obsplan import generators as gen
 from obsplan.estimation import EstimationConfig, Guidance, monte_carlo
-from obsplan.estimation.gsf import DEFAULT_SPLIT, split_1d, split_columns
+from obsplan.estimation.filters.gsf import DEFAULT_SPLIT, split_1d, split_columns
 from obsplan.estimation.schedule import make_schedule
-from obsplan.model import SENSORS, make_model
-from obsplan.trajectory import Trajectory
+from obsplan.model.vehicle import SENSORS, make_model
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory
 
 TOL = 1e-9
 

@@ -32,16 +32,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from obsplan import generators as gen
-from obsplan.errors import ConfigError
+from obsplan.core.errors import ConfigError
 from obsplan.estimation import EstimationConfig
-from obsplan.estimation.filters import REGISTRY, Filter, make_filter
-from obsplan.estimation.gsf import GaussianSumFilter
-from obsplan.estimation.runs import PathSetup, draw_run, nav_of, start_of
-from obsplan.estimation.simulate import FILTERS
-from obsplan.estimation.stats import N_INFO
-from obsplan.estimation.truth import noisy_readings
-from obsplan.model import make_model
+from obsplan.estimation.columns import N_INFO
+from obsplan.estimation.filters.base import REGISTRY, Filter, make_filter
+from obsplan.estimation.filters.gsf import GaussianSumFilter
+from obsplan.estimation.montecarlo.runs import PathSetup, draw_run, nav_of, start_of
+from obsplan.estimation.montecarlo.simulate import FILTERS
+from obsplan.estimation.montecarlo.truth import noisy_readings
+from obsplan.model.vehicle import make_model
+from obsplan.trajectory import generators as gen
 
 TOL = 1e-9
 RUNS = 3

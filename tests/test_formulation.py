@@ -1,9 +1,9 @@
 """The NLP's extension points: parts appended after the objective, objective terms by registry.
 
 Other modules (missions with per-line timing variables, covariance-dependent margins) add
-variables and constraints through :class:`~obsplan.planning.blocks.FormulationPart`; these tests
-pin where they go and that the solver, the packing of guesses and the projection still see the
-path first.
+variables and constraints through :class:`~obsplan.planning.transcription.blocks.FormulationPart`;
+these tests pin where they go and that the solver, the packing of guesses and the projection still
+see the path first.
 """
 
 from __future__ import annotations
@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 
 from obsplan.planning import load_problem
-from obsplan.planning.blocks import ConstraintBlock, FormulationPart, VariableBlock
-from obsplan.planning.formulation import PARTS, build_formulation
-from obsplan.planning.grid import Grid
-from obsplan.planning.guesses import reference_path
-from obsplan.planning.linearisation import linearisation_part
-from obsplan.planning.mission_part import mission_part
-from obsplan.planning.objectives import REGISTRY
-from obsplan.planning.parse import LOCALISE_PROBLEM
-from obsplan.planning.problem import Horizon
+from obsplan.planning.objectives.linearisation import linearisation_part
+from obsplan.planning.objectives.registry import REGISTRY
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+from obsplan.planning.problem.sections import Horizon
+from obsplan.planning.solver.formulation import PARTS, build_formulation
+from obsplan.planning.transcription.blocks import ConstraintBlock, FormulationPart, VariableBlock
+from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.transcription.guesses import reference_path
+from obsplan.planning.transcription.mission import mission_part
 
 
 def _problem(kind: str):

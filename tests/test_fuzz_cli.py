@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from obsplan.cli import main
-from obsplan.trajectory import Trajectory, write_csv
+from obsplan.trajectory.sampled import Trajectory, write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
 _TMP = Path()  # set by the fixture below: pytest's tmp_path, cleaned up by pytest
@@ -229,7 +229,7 @@ def test_fuzz_main_argv(argv):
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr("obsplan.cli.plan.plan", _stop)
         mp.setattr("obsplan.cli.simulate.monte_carlo", _stop)
-        mp.setattr("obsplan.planning.validation.validate_paths", _stop)
+        mp.setattr("obsplan.planning.validation.validate.validate_paths", _stop)
         out, err = io.StringIO(), io.StringIO()
         try:
             with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):

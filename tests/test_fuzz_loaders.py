@@ -1,6 +1,6 @@
 """Fuzzing the loaders: random and mutated CSVs, tracks, waypoint files, missions and problems.
 
-Every input must end in a valid result or an :class:`~obsplan.errors.InputError` (exit 2 in the
+Every input must end in a valid result or an :class:`~obsplan.core.errors.InputError` (exit 2 in the
 CLI), never another exception. 500 examples per loader (seeded by hypothesis' database-free
 derandomised mode so CI is reproducible); each example is milliseconds.
 """
@@ -19,12 +19,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from obsplan.csvtable import COLUMN_LIMITS
-from obsplan.errors import InputError
+from obsplan.core.csvtable import COLUMN_LIMITS
+from obsplan.core.errors import InputError
 from obsplan.io.tracks import Track, TrackFit, load_trajectory, read_track_csv
-from obsplan.planning.parse import load_problem, problem_from_dict
-from obsplan.planning.problem import PlanningProblem
-from obsplan.trajectory import Trajectory, read_csv
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.parse import load_problem, problem_from_dict
+from obsplan.trajectory.sampled import Trajectory, read_csv
 
 EXAMPLES = 500
 FUZZ = settings(
@@ -333,7 +333,7 @@ def test_fuzz_geodetic_points_near_or_far_from_the_origin(lat0, lon0, dlat, dlon
     """A point within the local frame's range converts and round-trips; one beyond it is refused
     with the distance, never turned into positions of thousands of kilometres."""
     pytest.importorskip("pymap3d")
-    from obsplan.geodesy import (
+    from obsplan.model.frames import (
         MAX_DEPTH_M,
         MAX_LOCAL_DISTANCE_M,
         GeodeticOrigin,

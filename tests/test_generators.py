@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from obsplan import generators as gen
-from obsplan.errors import ConfigError
-from obsplan.trajectory import Trajectory
+from obsplan.core.errors import ConfigError
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory
 
 RHO, SPEED = 50.0, 2.6  # the paper's circle (Fig. 2)
 OMEGA = SPEED / RHO

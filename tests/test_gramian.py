@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad_vec
 
-from obsplan.model import make_model
+from obsplan.model.vehicle import make_model
 from obsplan.observability.gramian import (
     augmented_model,
     cumulative_gramians,
@@ -18,7 +18,7 @@ from obsplan.observability.gramian import (
     rank_over_time,
 )
 from obsplan.observability.scaling import RANK_TOL, Scales, equilibrated_eigvals, numerical_rank
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 HSET = settings(max_examples=25, deadline=None, derandomize=True)
 

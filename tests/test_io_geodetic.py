@@ -12,11 +12,11 @@ import pytest
 pytest.importorskip("pymap3d")
 
 from obsplan.cli import main  # noqa: E402
-from obsplan.errors import InputError, ProblemError  # noqa: E402
-from obsplan.geodesy import GeodeticOrigin, geodetic_to_local, local_to_geodetic  # noqa: E402
+from obsplan.core.errors import InputError, ProblemError  # noqa: E402
 from obsplan.io.geodetic import parse_origin  # noqa: E402
-from obsplan.planning.parse import problem_from_dict, resolve_problem_geodetic  # noqa: E402
-from obsplan.trajectory import read_csv  # noqa: E402
+from obsplan.model.frames import GeodeticOrigin, geodetic_to_local, local_to_geodetic  # noqa: E402
+from obsplan.planning.problem.parse import problem_from_dict, resolve_problem_geodetic  # noqa: E402
+from obsplan.trajectory.sampled import read_csv  # noqa: E402
 
 ORIGIN = GeodeticOrigin(43.7, 10.3)  # off Livorno
 DEFAULT = Path(__file__).resolve().parents[1] / "problems" / "localise.toml"
@@ -158,8 +158,8 @@ def test_geodetic_problem_plans_the_same_path_as_its_metric_twin(tmp_path, capsy
 
 
 def test_beacon_geodetic_option(tmp_path, capsys):
-    from obsplan import generators as gen
-    from obsplan.trajectory import write_csv
+    from obsplan.trajectory import generators as gen
+    from obsplan.trajectory.sampled import write_csv
 
     path = write_csv(gen.circle(30.0, 1.5, 60.0, 0.5), tmp_path / "c.csv")
     lat, lon, _ = local_to_geodetic([[-50.0, 10.0]], ORIGIN)
@@ -185,8 +185,8 @@ def test_beacon_geodetic_option(tmp_path, capsys):
 
 
 def test_geodetic_problem_path_figure_is_a_map():
-    from obsplan import generators as gen
     from obsplan.planning.figures import plot_paths
+    from obsplan.trajectory import generators as gen
 
     pb = problem_from_dict(_geodetic_twin(_default_data()))
     path = gen.circle(30.0, 1.0, 120.0, 1.0, center=(-80.0, 30.0))

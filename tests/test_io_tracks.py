@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from obsplan.cli import main
-from obsplan.errors import InputError, TrajectoryFormatError
+from obsplan.core.errors import InputError, TrajectoryFormatError
 from obsplan.io.tracks import Track, TrackFitError, fit_track, read_track_csv
-from obsplan.trajectory import Trajectory, read_csv, resample, write_csv
+from obsplan.trajectory.sampled import Trajectory, read_csv, resample, write_csv
 
 NOISE_M = 0.05  # the acceptance case: 5 cm position noise at 1 Hz
 
@@ -253,8 +253,8 @@ def test_mavlink_local_position_ned(tmp_path, capsys):
 def test_mavlink_global_position_int_goes_through_the_origin(tmp_path):
     pytest.importorskip("pymavlink")
     pytest.importorskip("pymap3d")
-    from obsplan.geodesy import GeodeticOrigin, local_to_geodetic
     from obsplan.io.tracks import read_track_mavlink
+    from obsplan.model.frames import GeodeticOrigin, local_to_geodetic
 
     origin = GeodeticOrigin(43.7, 10.3)
     truth = resample(known_plan(), 1.0).window(0, 61)

@@ -7,9 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from obsplan import generators as gen
 from obsplan.cli import main
-from obsplan.errors import InputError
+from obsplan.core.errors import InputError
 from obsplan.io.waypoints import (
     leg_errors,
     position_at,
@@ -18,7 +17,8 @@ from obsplan.io.waypoints import (
     waypoints_from_trajectory,
     write_waypoints_csv,
 )
-from obsplan.trajectory import Trajectory, write_csv
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory, write_csv
 
 
 def random_plan(seed: int = 0, dim: int = 2) -> Trajectory:
@@ -88,7 +88,7 @@ def test_waypoint_csv_round_trip(tmp_path):
 
 def test_geodetic_waypoints_and_qgc_mission_round_trip(tmp_path):
     pytest.importorskip("pymap3d")
-    from obsplan.geodesy import GeodeticOrigin, geodetic_to_local, local_to_geodetic
+    from obsplan.model.frames import GeodeticOrigin, geodetic_to_local, local_to_geodetic
 
     origin = GeodeticOrigin(43.7, 10.3, 2.0)
     traj = random_plan(3, 3).translated([0.0, 0.0, 30.0])  # below the surface
@@ -163,7 +163,7 @@ def test_export_cli(tmp_path, capsys):
 
 def test_ctrl_c_while_exporting_leaves_no_partial_file(tmp_path, capsys, monkeypatch):
     plan = write_csv(random_plan(5), tmp_path / "plan.csv")
-    import obsplan.csvtable as table
+    import obsplan.core.csvtable as table
 
     real = table.csv.writer
 

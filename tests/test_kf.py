@@ -8,16 +8,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from obsplan import generators as gen
-from obsplan.errors import ConfigError
+from obsplan.core.errors import ConfigError
 from obsplan.estimation import EstimationConfig, monte_carlo
 from obsplan.estimation.config import paper_covariances
 from obsplan.estimation.epochs import input_displacement
-from obsplan.estimation.kf import AugmentedKalmanFilter
-from obsplan.estimation.sensors import true_readings
-from obsplan.model import make_model
+from obsplan.estimation.filters.kf import AugmentedKalmanFilter
+from obsplan.estimation.montecarlo.truth import true_readings
+from obsplan.model.vehicle import make_model
 from obsplan.observability.gramian import augmented_model
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory
 
 
 def test_ybar_is_linear_in_the_true_augmented_state():
@@ -128,7 +128,7 @@ def test_kf_is_consistent_on_the_range3d_plan():
     from pathlib import Path
 
     from obsplan.planning import estimation_config, load_problem
-    from obsplan.trajectory import read_csv, resample
+    from obsplan.trajectory.sampled import read_csv, resample
 
     root = Path(__file__).resolve().parent
     pb = load_problem(str(root.parent / "problems" / "range3d.toml"))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from obsplan.estimation import linear
+from obsplan.estimation.filters import linear
 
 
 def _T(F, i, s):

@@ -9,18 +9,18 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from obsplan.errors import ProblemError
+from obsplan.core.errors import ProblemError
 from obsplan.planning import load_problem
-from obsplan.planning.formulation import build_formulation
-from obsplan.planning.guesses import reference_path
-from obsplan.planning.ipopt import _hessian_without_penalty
-from obsplan.planning.linearisation import linearisation_stress
-from obsplan.planning.parse import problem_from_dict, problem_to_dict
-from obsplan.planning.problem import Horizon
-from obsplan.planning.schema import LINEARISATION_BOUND
-from obsplan.planning.solve import solve
-from obsplan.planning.validation_setup import estimation_config
-from obsplan.trajectory import Trajectory
+from obsplan.planning.objectives.linearisation import linearisation_stress
+from obsplan.planning.problem.parse import problem_from_dict, problem_to_dict
+from obsplan.planning.problem.schema import LINEARISATION_BOUND
+from obsplan.planning.problem.sections import Horizon
+from obsplan.planning.problem.validation_setup import estimation_config
+from obsplan.planning.solver.formulation import build_formulation
+from obsplan.planning.solver.ipopt import _hessian_without_penalty
+from obsplan.planning.solver.solve import solve
+from obsplan.planning.transcription.guesses import reference_path
+from obsplan.trajectory.sampled import Trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
 OFFSET = ROOT / "problems/suite/gramian-offset-beacon.toml"

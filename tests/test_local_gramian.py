@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from test_windowed_gramian import SENSOR_CASES, _with  # every sensor set; objective fields
 
-from obsplan.errors import ProblemError
+from obsplan.core.errors import ProblemError
 from obsplan.observability import windowed as wd
 from obsplan.observability.gramian import augmented_model, interval_gramians
 from obsplan.observability.local_gramian import (
@@ -20,9 +20,7 @@ from obsplan.observability.local_gramian import (
     local_interval_gramians,
 )
 from obsplan.planning import load_problem
-from obsplan.planning.guesses import random_guess
-from obsplan.planning.parse import problem_from_dict, problem_to_dict
-from obsplan.planning.windowed_gramian import (
+from obsplan.planning.objectives.windowed import (
     gramian_model,
     paper_form,
     sensor_information,
@@ -31,7 +29,9 @@ from obsplan.planning.windowed_gramian import (
     window_settings,
     windowed_value,
 )
-from obsplan.trajectory import Trajectory
+from obsplan.planning.problem.parse import problem_from_dict, problem_to_dict
+from obsplan.planning.transcription.guesses import random_guess
+from obsplan.trajectory.sampled import Trajectory
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -263,10 +263,10 @@ def test_bad_system_names_the_field():
 def test_nlp_value_matches_for_every_sensor_set():
     # the planner's expression of the linearised objective (both kinds; gramian-log-det only
     # when asked) equals the value on a path
-    from obsplan.planning.blocks import NLPContext
-    from obsplan.planning.grid import Grid
-    from obsplan.planning.guesses import reference_path
-    from obsplan.planning.objectives import objective_of
+    from obsplan.planning.objectives.registry import objective_of
+    from obsplan.planning.transcription.blocks import NLPContext
+    from obsplan.planning.transcription.grid import Grid
+    from obsplan.planning.transcription.guesses import reference_path
 
     for path in SENSOR_CASES:
         pb = load_problem(ROOT / path)

@@ -2,9 +2,9 @@
 
 Two oracles: a plain numpy simulation of the linear loop (a Kalman filter with the posterior
 CRB's rows, the guidance's feedback on its estimate, process noise drawn step by step), which
-checks the algebra of :mod:`obsplan.estimation.loop_covariance` exactly up to Monte Carlo noise;
-and the validation's own closed-loop kernel (the second-order EKF the vehicle steers on), which
-checks that the linearisation describes it once the filter has converged.
+checks the algebra of :mod:`obsplan.estimation.bounds.loop_covariance` exactly up to Monte Carlo
+noise; and the validation's own closed-loop kernel (the second-order EKF the vehicle steers on),
+which checks that the linearisation describes it once the filter has converged.
 """
 
 from __future__ import annotations
@@ -15,18 +15,18 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from obsplan.estimation.closedloop import ClosedLoop
-from obsplan.estimation.loop_covariance import loop_covariance, loop_gain_matrix
-from obsplan.planning.baselines import baselines
-from obsplan.planning.estimator_objectives import covariance_objective
-from obsplan.planning.grid import Grid
-from obsplan.planning.margins import path_loop_covariance
-from obsplan.planning.validation_setup import (
+from obsplan.estimation.bounds.loop_covariance import loop_covariance, loop_gain_matrix
+from obsplan.estimation.montecarlo.closedloop import ClosedLoop
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.objectives.estimator import covariance_objective
+from obsplan.planning.problem.validation_setup import (
     estimation_config,
     truth_limits,
     validation_guidance,
 )
-from obsplan.trajectory import resample
+from obsplan.planning.solver.margins import path_loop_covariance
+from obsplan.planning.transcription.grid import Grid
+from obsplan.trajectory.sampled import resample
 
 
 def _van_loan(A: np.ndarray, q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:

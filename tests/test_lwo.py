@@ -16,8 +16,8 @@ import sympy as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from obsplan.errors import InputError
-from obsplan.model import make_model
+from obsplan.core.errors import InputError
+from obsplan.model.vehicle import make_model
 from obsplan.observability.lwo import (
     LWO_RANK_TOL,
     LWOReport,
@@ -32,9 +32,9 @@ from obsplan.observability.lwo import (
     taylor_moments,
 )
 from obsplan.planning import load_problem
-from obsplan.planning.guesses import random_guess, reference_path
-from obsplan.planning.objectives import REGISTRY
-from obsplan.trajectory import Trajectory
+from obsplan.planning.objectives.registry import REGISTRY
+from obsplan.planning.transcription.guesses import random_guess, reference_path
+from obsplan.trajectory.sampled import Trajectory
 
 HSET = settings(max_examples=30, deadline=None, derandomize=True)
 finite = st.floats(-3.0, 3.0, allow_nan=False)

@@ -9,14 +9,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from obsplan.errors import ProblemError
-from obsplan.estimation.guidance import Guidance
+from obsplan.core.errors import ProblemError
+from obsplan.estimation.montecarlo.guidance import Guidance
 from obsplan.planning import load_problem
-from obsplan.planning.baselines import baselines
-from obsplan.planning.feasibility import check_limits, range_extremes
-from obsplan.planning.formulation import build_formulation
-from obsplan.planning.grid import Grid
-from obsplan.planning.margins import (
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.problem.feasibility import check_limits, range_extremes
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
+from obsplan.planning.problem.sections import Horizon
+from obsplan.planning.problem.validation_setup import validation_guidance
+from obsplan.planning.solver.formulation import build_formulation
+from obsplan.planning.solver.margins import (
     BOX_SHARE,
     RESERVE_ATOL,
     RESERVE_CAP,
@@ -37,10 +39,8 @@ from obsplan.planning.margins import (
     start_reach,
     tighten,
 )
-from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
-from obsplan.planning.problem import Horizon
-from obsplan.planning.solve import SolveResult
-from obsplan.planning.validation_setup import validation_guidance
+from obsplan.planning.solver.solve import SolveResult
+from obsplan.planning.transcription.grid import Grid
 
 
 def test_loop_response_of_a_critically_damped_loop_matches_its_closed_form():
@@ -177,17 +177,17 @@ def test_a_mission_plan_keeps_its_speed_reserve_and_its_waypoints():
     the machine's BLAS path; when it does not, the report says the reserve was dropped."""
     from pathlib import Path
 
-    from obsplan.planning.mission_check import completes_mission
-    from obsplan.planning.solve import solve
+    from obsplan.planning.missions.check import completes_mission
+    from obsplan.planning.solver.solve import solve
 
     path = Path(__file__).resolve().parents[1] / "problems/suite/missions/waypoints.toml"
     pb = load_problem(path)
     assert pb.mission is not None and pb.limits.speed is not None
     nominal = solve(pb, progress=False).trajectory
-    assert nominal is not None and completes_mission(nominal, pb)
+    assert nominal is not None and completes_mission(nominal, pb.mission_context)
     assert np.any(keepout_margins(nominal, pb).speed > 0)
     kept, report, _ = keep_out(pb, nominal)
-    assert completes_mission(kept, pb), report
+    assert completes_mission(kept, pb.mission_context), report
     dropped = "speed reserve did not fit" in report.note
     assert (report.max_speed_margin_mps > 0) != dropped, report  # kept, or said
 
@@ -197,23 +197,23 @@ def test_keep_out_never_trades_the_mission_for_its_margins():
     return is kept only if it still completes the mission (independent check)."""
     from pathlib import Path
 
-    from obsplan.planning.mission_check import completes_mission
-    from obsplan.planning.solve import solve
+    from obsplan.planning.missions.check import completes_mission
+    from obsplan.planning.solver.solve import solve
 
     path = (
         Path(__file__).resolve().parents[1] / "problems/suite/missions/survey-no-time-to-spare.toml"
     )
     pb = load_problem(path)
     nominal = solve(pb, progress=False).trajectory
-    assert nominal is not None and completes_mission(nominal, pb)
+    assert nominal is not None and completes_mission(nominal, pb.mission_context)
     kept, report, _ = keep_out(pb, nominal)
-    assert completes_mission(kept, pb), report
+    assert completes_mission(kept, pb.mission_context), report
 
 
 def test_the_plans_speed_reserve_is_never_inflated_past_the_guidances_cap(short_problem, lawnmower):
     """The fixed point inflates every margin by 10 % between rounds; the speed reserve stops at
     the guidance's own cap (a plan slower than the guidance's floor gains nothing)."""
-    from obsplan.estimation.guidance import SPEED_RESERVE_CAP
+    from obsplan.estimation.montecarlo.guidance import SPEED_RESERVE_CAP
 
     m = keepout_margins(lawnmower, short_problem)
     cap = SPEED_RESERVE_CAP * short_problem.limits.speed
@@ -228,19 +228,19 @@ def test_a_mission_with_no_room_for_the_speed_reserve_keeps_every_other_margin()
     """The default survey on a horizon whose timing needs more speed than the reserve leaves:
     the path returned still completes the mission, and the report says what was kept (a
     re-solve without the speed reserve, its other margins, or the nominal plan)."""
-    from obsplan.planning.mission_check import completes_mission
-    from obsplan.planning.solve import solve
+    from obsplan.planning.missions.check import completes_mission
+    from obsplan.planning.solver.solve import solve
 
     pb = load_problem()
     pb = replace(pb, horizon=Horizon(duration=780.0, steps=195))
     nominal = solve(pb, progress=False).trajectory
-    assert nominal is not None and completes_mission(nominal, pb)
+    assert nominal is not None and completes_mission(nominal, pb.mission_context)
     margins = keepout_margins(nominal, pb)
     # lines, turns and run-in (about 656 m) in 780 s need 0.84 m/s on average: more than the
     # 0.7 m/s that a reserve at its cap leaves of the 1 m/s bound
     assert margins.speed.max() == pytest.approx(margins.speed_cap)
     kept, report, best = keep_out(pb, nominal)
-    assert completes_mission(kept, pb)
+    assert completes_mission(kept, pb.mission_context)
     if best is None:
         assert "nominal plan is returned" in report.note and kept is nominal
     else:
@@ -258,7 +258,7 @@ def test_keep_out_drops_only_the_speed_reserve_when_it_does_not_fit(
     kept) and the report says so; if that fails too, the nominal plan is returned."""
     from types import SimpleNamespace
 
-    import obsplan.planning.margins as margins_mod
+    import obsplan.planning.solver.margins as margins_mod
 
     asked = []
 
@@ -300,7 +300,7 @@ def test_the_headline_status_is_the_flown_paths(
     those of the start it was re-solved from, which the note and ``starts`` keep."""
     from types import SimpleNamespace
 
-    import obsplan.planning.margins as margins_mod
+    import obsplan.planning.solver.margins as margins_mod
 
     nominal = SolveResult(
         short_problem, lawnmower, True, start, 1000, 1.0, 0.5, 0.5, "circle", (), 0.1,
@@ -328,7 +328,7 @@ def test_an_unconverged_re_solve_is_continued_from_its_own_iterate(
     kept its margins is not."""
     from types import SimpleNamespace
 
-    import obsplan.planning.margins as margins_mod
+    import obsplan.planning.solver.margins as margins_mod
 
     margins = keepout_margins(lawnmower, short_problem)
     form = build_formulation(short_problem)
@@ -425,7 +425,7 @@ def test_a_start_inside_its_margin_gets_margins_that_grow_in_and_a_plan_that_kee
 def test_a_limit_narrower_than_twice_its_margin_is_named_with_its_fix():
     """The depth band (or an area axis) that is narrower than twice the largest margin the plan
     must keep from it is named, with the sensor that would help; a wider one is not."""
-    from obsplan.planning.margins import narrow_limits
+    from obsplan.planning.solver.margins import narrow_limits
 
     pb = problem_from_dict(tomllib.loads(SURFACE_START))
     m = keepout_margins(baselines(pb)["lawnmower"].trajectory, pb)

@@ -10,13 +10,24 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from obsplan.errors import ProblemError
-from obsplan.planning.grid import Grid
-from obsplan.planning.mission_baselines import planner_lawnmower
-from obsplan.planning.mission_part import LineZone, _Line, line_nodes, line_zones, mission_part
-from obsplan.planning.mission_schedule import planner_schedule
-from obsplan.planning.parse import DEFAULT_PROBLEM, PROBLEMS_DIR, load_problem, problem_from_dict
+from obsplan.core.errors import ProblemError
+from obsplan.planning.missions.lawnmower import planner_lawnmower
+from obsplan.planning.missions.schedule import planner_schedule
 from obsplan.planning.plan import plan
+from obsplan.planning.problem.parse import (
+    DEFAULT_PROBLEM,
+    PROBLEMS_DIR,
+    load_problem,
+    problem_from_dict,
+)
+from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.transcription.mission import (
+    LineZone,
+    _Line,
+    line_nodes,
+    line_zones,
+    mission_part,
+)
 
 SURVEYS = [
     p
@@ -56,7 +67,9 @@ def test_a_shift_outside_its_range_names_the_field(shift):
 @pytest.mark.parametrize("path", SURVEYS, ids=lambda p: p.stem)
 def test_fixed_windows_are_the_schedules_nodes(path):
     pb = _shifted(load_problem(path), 0.0)
-    for zone, win in zip(line_zones(pb), planner_schedule(pb).line_windows, strict=True):
+    for zone, win in zip(
+        line_zones(pb), planner_schedule(pb.mission_context).line_windows, strict=True
+    ):
         k0, k1 = line_nodes(pb, win)
         assert zone == LineZone(k0, k0, k1, k1)
     grid = Grid.from_problem(pb)
@@ -68,7 +81,7 @@ def test_fixed_windows_are_the_schedules_nodes(path):
 def test_shifting_zones_hold_the_schedule_and_never_overlap(path):
     pb = _shifted(load_problem(path), 0.3)
     zones = line_zones(pb)
-    wins = planner_schedule(pb).line_windows
+    wins = planner_schedule(pb.mission_context).line_windows
     for z, win in zip(zones, wins, strict=True):
         k0, k1 = line_nodes(pb, win)
         assert 1 <= z.first <= k0 and k1 <= z.last <= pb.horizon.steps
@@ -92,9 +105,9 @@ def test_both_lawnmowers_meet_every_row_of_a_shifted_mission(path):
     Wsym = ca.MX.sym("W", 3 * pb.dim, grid.N)
     part = mission_part(pb, grid, Wsym)
     assert any("run_" in c.name for c in part.constraints)
-    paths = [planner_lawnmower(pb)[0]]
-    if planner_schedule(pb).headroom > 0:
-        paths.append(planner_lawnmower(pb, accelerated=True)[0])
+    paths = [planner_lawnmower(pb.mission_context)[0]]
+    if planner_schedule(pb.mission_context).headroom > 0:
+        paths.append(planner_lawnmower(pb.mission_context, accelerated=True)[0])
     for traj in paths:
         W = grid.from_trajectory(traj)
         for c in part.constraints:
@@ -142,7 +155,7 @@ def test_a_shifted_plan_completes_the_survey_within_its_shifted_windows():
     chk = res.missions["planned"]
     assert chk.complete  # the independent check on the continuous path
     h = pb.horizon.dt
-    for ln, win in zip(chk.lines, planner_schedule(pb).line_windows, strict=True):
+    for ln, win in zip(chk.lines, planner_schedule(pb.mission_context).line_windows, strict=True):
         d = 0.3 * (win[1] - win[0])
         assert win[0] - d - h <= ln.pass_s[0] and ln.pass_s[1] <= win[1] + d + h
     # at least as good as its starts (the lawn-mowers) on its own objective

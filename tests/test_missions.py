@@ -13,22 +13,21 @@ import numpy as np
 import pytest
 
 from obsplan.cli import main
-from obsplan.errors import ProblemError
-from obsplan.estimation.crlb import posterior_crlb
-from obsplan.planning.baselines import baselines, mission_starts, unfitted_baselines
-from obsplan.planning.estimator_objectives import covariance_objective, covariance_value
-from obsplan.planning.feasibility import check_limits
-from obsplan.planning.grid import Grid
-from obsplan.planning.guesses import COARSE_STEPS, coarse_problem
-from obsplan.planning.mission_check import mission_check
-from obsplan.planning.mission_schedule import (
+from obsplan.core.errors import ProblemError
+from obsplan.estimation.bounds.crlb import posterior_crlb
+from obsplan.planning.baselines.vehicle import baselines, mission_starts, unfitted_baselines
+from obsplan.planning.missions.check import mission_check
+from obsplan.planning.missions.schedule import (
     dubins,
     line_sample_mask,
     mission_schedule,
     planner_schedule,
 )
-from obsplan.planning.mission_spec import LineArea, generate_lines
-from obsplan.planning.parse import (
+from obsplan.planning.missions.spec import LineArea, generate_lines
+from obsplan.planning.objectives.estimator import covariance_objective, covariance_value
+from obsplan.planning.plan import plan
+from obsplan.planning.problem.feasibility import check_limits
+from obsplan.planning.problem.parse import (
     DEFAULT_PROBLEM,
     LOCALISE_PROBLEM,
     PROBLEMS_DIR,
@@ -36,11 +35,12 @@ from obsplan.planning.parse import (
     problem_from_dict,
     problem_to_dict,
 )
-from obsplan.planning.plan import plan
-from obsplan.planning.problem import Horizon
-from obsplan.planning.solve import default_expand
-from obsplan.planning.validation_setup import estimation_config
-from obsplan.trajectory import Trajectory, resample
+from obsplan.planning.problem.sections import Horizon
+from obsplan.planning.problem.validation_setup import estimation_config
+from obsplan.planning.solver.solve import default_expand
+from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.transcription.guesses import COARSE_STEPS, coarse_problem
+from obsplan.trajectory.sampled import Trajectory, resample
 
 MISSIONS = sorted((PROBLEMS_DIR / "suite" / "missions").glob("*.toml"))
 
@@ -77,7 +77,7 @@ def test_default_problem_is_a_three_line_survey():
     assert pb.mission is not None and pb.mission.kind == "survey"
     assert len(pb.mission.lines) == 3
     assert load_problem(DEFAULT_PROBLEM) == pb
-    assert mission_schedule(pb).headroom >= 0.3
+    assert mission_schedule(pb.mission_context).headroom >= 0.3
 
 
 @pytest.mark.parametrize("path", [DEFAULT_PROBLEM, *MISSIONS], ids=lambda p: p.stem)
@@ -169,7 +169,7 @@ def test_line_objectives_are_the_mean_over_the_line_samples_and_its_sum_with_the
     grid = Grid.from_problem(pb)
     cobj = covariance_objective(pb, "pcrb-position")
     crlb = posterior_crlb(resample(acc, pb.validation.dt), estimation_config(pb))
-    on = line_sample_mask(pb, pb.filter_times)
+    on = line_sample_mask(pb.mission_context, pb.filter_times)
     std = crlb.pos_std_t  # sqrt(tr P_pp) per filter sample
     _, final, lines = cobj.evaluate_all(grid, grid.from_trajectory(acc))
     assert lines == pytest.approx(float(np.mean(std[on])), rel=1e-6)
@@ -188,7 +188,7 @@ def test_a_mission_that_cannot_fit_is_refused_with_the_shortest_horizon():
     need = int(re.search(r"horizon\.duration >= (\d+) s", str(exc.value)).group(1))
     # the horizon it names does fit (at a step the validation's filter step divides)
     pb = problem_from_dict(_with(_small(), "horizon", duration=float(need), steps=need))
-    assert mission_schedule(pb).end_s <= need
+    assert mission_schedule(pb.mission_context).end_s <= need
 
 
 def test_cli_refuses_a_mission_that_does_not_fit(tmp_path, capsys):
@@ -220,10 +220,10 @@ def test_mission_lawnmowers_fly_the_mission_within_the_limits(path: Path):
     assert "lawnmower" in bls, unfitted_baselines(pb)
     for b in bls.values():
         assert check_limits(b.trajectory, pb).ok()
-        assert mission_check(b.trajectory, pb).complete
-    if pb.mission.lines and mission_schedule(pb).headroom > 0.05:
-        acc = mission_check(bls["lawnmower-accel"].trajectory, pb)
-        plain = mission_check(bls["lawnmower"].trajectory, pb)
+        assert mission_check(b.trajectory, pb.mission_context).complete
+    if pb.mission.lines and mission_schedule(pb.mission_context).headroom > 0.05:
+        acc = mission_check(bls["lawnmower-accel"].trajectory, pb.mission_context)
+        plain = mission_check(bls["lawnmower"].trajectory, pb.mission_context)
         # the same line windows, a wider speed range on the lines
         for a, p in zip(acc.lines, plain.lines, strict=True):
             assert a.pass_s == pytest.approx(p.pass_s, abs=pb.horizon.dt)
@@ -254,7 +254,7 @@ def _fly(pb, lateral=0.0, speed=0.6, wiggle=0.0, stop_at=None) -> Trajectory:
 
 def test_check_passes_a_path_flown_on_the_line():
     pb = _line_problem()
-    chk = mission_check(_fly(pb), pb)
+    chk = mission_check(_fly(pb), pb.mission_context)
     assert chk.complete
     (ln,) = chk.lines
     assert ln.coverage == 1.0 and ln.max_cross_track_m < 1e-9
@@ -274,7 +274,7 @@ def test_check_passes_a_path_flown_on_the_line():
 )
 def test_check_fails_a_path_that_misses_each_criterion(kwargs, what):
     pb = _line_problem()
-    chk = mission_check(_fly(pb, **kwargs), pb)
+    chk = mission_check(_fly(pb, **kwargs), pb.mission_context)
     (ln,) = chk.lines
     assert not chk.complete and not ln.complete
     if what == "cross":
@@ -299,12 +299,12 @@ def test_check_of_waypoints_and_end_region():
     d["horizon"] = {"duration": 200.0, "steps": 200}
     pb = problem_from_dict(d)
     # from x = -60 at 0.6 m/s: x = 60 at the end, 20 m past the end region
-    chk = mission_check(_fly(pb), pb)
+    chk = mission_check(_fly(pb), pb.mission_context)
     assert chk.waypoints[0].complete and chk.waypoints[0].distance_m < 0.1
     assert chk.end is not None and not chk.end.complete and not chk.complete
     assert chk.end.distance_m == pytest.approx(20.0, abs=1e-6)
     bls = baselines(pb)
-    assert mission_check(bls["lawnmower"].trajectory, pb).complete
+    assert mission_check(bls["lawnmower"].trajectory, pb.mission_context).complete
 
 
 # ---------------------------------------------------------------------------------- planning
@@ -328,7 +328,9 @@ def test_free_order_flies_a_shuffled_survey_in_its_shortest_order():
     pb = problem_from_dict(_default_shuffled("free"))
     # the boustrophedon of the default (or its mirror image: the same lengths) is the shortest
     assert _oriented(pb.mission.lines) == _oriented(default.mission.lines)
-    assert mission_schedule(pb).headroom == pytest.approx(mission_schedule(default).headroom)
+    assert mission_schedule(pb.mission_context).headroom == pytest.approx(
+        mission_schedule(default.mission_context).headroom
+    )
     # flown_as maps the flown lines back to the lines as given
     given = _default_shuffled("free")["mission"]["lines"]
     assert _oriented(pb.mission.given_lines()) == _oriented(given)
@@ -362,18 +364,18 @@ def test_free_order_interleaves_lines_closer_than_the_turns():
     pb = problem_from_dict(_with(d, "mission", order="free"))
     assert len(pb.mission.lines) == 12
     assert sorted(i for i, _ in pb.mission.flown_as) == list(range(12))
-    assert mission_schedule(pb).end_s <= 4000.0
+    assert mission_schedule(pb.mission_context).end_s <= 4000.0
     # the greedy search (beyond the exact size) was used, and some line is skipped and revisited
     order = [i for i, _ in pb.mission.flown_as]
     gaps = [abs(b - a) for a, b in zip(order, order[1:], strict=False)]
     assert max(gaps) > 1
     for lw in baselines(pb).values():  # the lawn-mowers fly the order too
-        assert mission_check(lw, pb).complete
+        assert mission_check(lw, pb.mission_context).complete
 
 
 def _random_transits(seed: int, n: int):
     """Random asymmetric transit lengths of ``n`` lines (start, between, end), as
-    :func:`obsplan.planning.mission_order._costs` returns them."""
+    :func:`obsplan.planning.missions.order._costs` returns them."""
     rng = np.random.default_rng(seed)
     return (
         rng.uniform(0, 100, 2 * n),
@@ -386,7 +388,7 @@ def _random_transits(seed: int, n: int):
 def test_exact_free_order_is_the_shortest_of_all_orders(seed):
     from itertools import permutations, product
 
-    from obsplan.planning.mission_order import _exact, _length
+    from obsplan.planning.missions.order import _exact, _length
 
     n = 5
     costs = _random_transits(seed, n)
@@ -402,7 +404,7 @@ def test_exact_free_order_is_the_shortest_of_all_orders(seed):
 
 @pytest.mark.parametrize("seed", range(3))
 def test_greedy_free_order_is_a_two_opt_optimum(seed):
-    from obsplan.planning.mission_order import _greedy, _length
+    from obsplan.planning.missions.order import _greedy, _length
 
     n = 12
     costs = _random_transits(seed, n)
@@ -423,7 +425,7 @@ def test_a_line_order_that_does_not_match_the_lines_is_refused():
 
 
 def test_free_order_refuses_more_lines_than_it_searches():
-    from obsplan.planning.mission_order import MAX_FREE_LINES
+    from obsplan.planning.missions.order import MAX_FREE_LINES
 
     d = tomllib.loads(DEFAULT_PROBLEM.read_text())
     d["mission"] = {
@@ -464,7 +466,7 @@ def test_a_plan_completes_a_small_survey_and_beats_its_lawnmower():
     assert set(line) >= {"coverage", "max_cross_track_m", "max_heading_err_deg", "speed_range_mps"}
     assert doc["mission"]["planned"]["complete"] is True
     sched = doc["problem"]["schedule"]
-    assert sched["lead_in_s"] == planner_schedule(pb).lead_in > 0
+    assert sched["lead_in_s"] == planner_schedule(pb.mission_context).lead_in > 0
     assert sched["lawnmower_speed_mps"] < sched["planner_speed_mps"] <= 1.0
     for name in ("planned", "lawnmower", "lawnmower-accel"):
         path = doc["validation"][name]
@@ -497,7 +499,7 @@ def test_a_mission_is_solved_expanded_on_every_grid_and_free_problems_as_before(
 def test_a_coarser_grid_of_the_same_mission_keeps_the_windows():
     pb = load_problem()
     coarse = replace(pb, horizon=Horizon(pb.horizon.duration, pb.horizon.steps // 2))
-    a, b = mission_schedule(pb), mission_schedule(coarse)
+    a, b = mission_schedule(pb.mission_context), mission_schedule(coarse.mission_context)
     assert a.speed == pytest.approx(b.speed, rel=0.05)
     for wa, wb in zip(a.line_windows, b.line_windows, strict=True):
         assert wa == pytest.approx(wb, abs=2 * coarse.horizon.dt)
@@ -512,7 +514,7 @@ ACCEPT = {"ekf.rmse_pos_lines": 0.6, "ekf.final_pos_err": 0.7, "kf.rmse_pos": 1.
 
 @pytest.mark.slow
 def test_default_survey_completes_and_beats_both_lawnmowers():
-    from obsplan.planning.verdict import metric_value
+    from obsplan.planning.validation.verdict import metric_value
 
     res = plan(load_problem())
     assert res.missions["planned"].complete
@@ -526,7 +528,7 @@ def test_default_survey_completes_and_beats_both_lawnmowers():
 # ------------------------------------------------------------------------------- lead-in
 def test_the_lead_in_schedules_the_lines_later_and_faster_in_the_same_horizon():
     pb = load_problem()
-    base, lead = mission_schedule(pb), planner_schedule(pb)
+    base, lead = mission_schedule(pb.mission_context), planner_schedule(pb.mission_context)
     lo, hi = pb.mission.speed_band(pb.limits.speed)
     steps = lead.lead_in / pb.horizon.dt  # whole planning steps
     assert lead.lead_in > 0 and steps == pytest.approx(round(steps), abs=1e-9)
@@ -538,11 +540,14 @@ def test_the_lead_in_schedules_the_lines_later_and_faster_in_the_same_horizon():
     assert lead.line_windows[0][0] > max(lead.lead_in, base.line_windows[0][0] + 0.5 * lead.lead_in)
     # the objective's line samples are the planner's windows
     t = pb.times
-    assert not line_sample_mask(pb, t)[t < lead.lead_in].any()
+    assert not line_sample_mask(pb.mission_context, t)[t < lead.lead_in].any()
     # lead_in = 0 flies the lawn-mower's windows; an explicit lead-in is kept as given
     zero = replace(pb, mission=replace(pb.mission, lead_in=0.0))
-    assert planner_schedule(zero).line_windows == mission_schedule(zero).line_windows
-    given = planner_schedule(replace(pb, mission=replace(pb.mission, lead_in=60.0)))
+    assert (
+        planner_schedule(zero.mission_context).line_windows
+        == mission_schedule(zero.mission_context).line_windows
+    )
+    given = planner_schedule(replace(pb, mission=replace(pb.mission, lead_in=60.0)).mission_context)
     assert given.lead_in == 60.0 and base.speed < given.speed < lead.speed
 
 
@@ -550,9 +555,9 @@ def test_the_planners_starts_fly_its_windows_and_complete_the_mission():
     pb = load_problem()
     starts = mission_starts(pb)
     assert [b.name for b in starts] == ["lawnmower+lead-in", "lawnmower-accel+lead-in"]
-    lead = planner_schedule(pb)
+    lead = planner_schedule(pb.mission_context)
     for b in starts:
-        chk = mission_check(b.trajectory, pb)
+        chk = mission_check(b.trajectory, pb.mission_context)
         assert chk.complete and check_limits(b.trajectory, pb).ok()
         tol = pb.horizon.dt / 16  # the check's sampling of the continuous path
         for ln, (t0, t1) in zip(chk.lines, lead.line_windows, strict=True):
@@ -562,15 +567,18 @@ def test_the_planners_starts_fly_its_windows_and_complete_the_mission():
         assert np.allclose(b.trajectory.v[early], 0.0)
     # the baselines keep the lawn-mower's own schedule
     lm = baselines(pb)["lawnmower"]
-    assert mission_check(lm.trajectory, pb).lines[0].pass_s[0] < lead.line_windows[0][0]
+    assert (
+        mission_check(lm.trajectory, pb.mission_context).lines[0].pass_s[0]
+        < lead.line_windows[0][0]
+    )
 
 
 def test_no_lead_in_without_speed_headroom_or_lines():
     spare = load_problem(PROBLEMS_DIR / "suite" / "missions" / "survey-no-time-to-spare.toml")
-    assert planner_schedule(spare).lead_in == 0.0
-    assert planner_schedule(spare) is mission_schedule(spare)
+    assert planner_schedule(spare.mission_context).lead_in == 0.0
+    assert planner_schedule(spare.mission_context) is mission_schedule(spare.mission_context)
     wp = load_problem(PROBLEMS_DIR / "suite" / "missions" / "waypoints.toml")
-    assert planner_schedule(wp).lead_in == 0.0
+    assert planner_schedule(wp.mission_context).lead_in == 0.0
     assert [b.name for b in mission_starts(wp)][:1] == ["lawnmower"]
     with pytest.raises(ProblemError, match=re.escape("mission.lead_in")):
         replace(wp, mission=replace(wp.mission, lead_in=30.0))
@@ -578,7 +586,7 @@ def test_no_lead_in_without_speed_headroom_or_lines():
     d = _small()
     d["limits"] = {**d["limits"], "min_speed": 0.3}
     d["start"] = {**d["start"], "velocity": [0.6, 0.0]}
-    assert planner_schedule(problem_from_dict(d)).lead_in == 0.0
+    assert planner_schedule(problem_from_dict(d).mission_context).lead_in == 0.0
     d["mission"] = {**d["mission"], "lead_in": 30.0}
     with pytest.raises(ProblemError, match=re.escape("mission.lead_in")):
         problem_from_dict(d)
@@ -597,12 +605,12 @@ def test_a_bad_lead_in_names_the_field(value, words):
     if words == "does not fit":  # the longest lead-in the error names fits
         room = float(re.search(r"leaves (\d+) s", str(err.value)).group(1))
         d["mission"]["lead_in"] = room
-        assert planner_schedule(problem_from_dict(d)).lead_in == room
+        assert planner_schedule(problem_from_dict(d).mission_context).lead_in == room
 
 
 def test_a_plan_with_a_lead_in_flies_its_lines_after_it():
     pb = problem_from_dict(_small())
-    lead = planner_schedule(pb)
+    lead = planner_schedule(pb.mission_context)
     assert lead.lead_in > 0
     res = plan(pb, validate=False, processes=1)
     chk = res.missions["planned"]
@@ -703,14 +711,14 @@ def test_the_check_holds_the_altitude_band_and_the_horizontal_track():
     horizontal track is unchanged: cross-track 0), by 2.5 m it leaves the band."""
     pb = load_problem(ALTITUDE)
     lm = baselines(pb)["lawnmower"].trajectory
-    chk = mission_check(lm, pb)
+    chk = mission_check(lm, pb.mission_context)
     assert chk.complete
     for ln in chk.lines:
         assert ln.altitude_range_m == pytest.approx((10.0, 10.0), abs=1e-6)
     for dz, complete in ((1.9, True), (2.5, False)):
         p = lm.p.copy()
         p[:, 2] += dz
-        moved = mission_check(Trajectory(t=lm.t, p=p, v=lm.v, u=lm.u), pb)
+        moved = mission_check(Trajectory(t=lm.t, p=p, v=lm.v, u=lm.u), pb.mission_context)
         assert moved.complete == complete
         for ln in moved.lines:
             assert ln.max_cross_track_m < 1e-6
@@ -722,7 +730,7 @@ def test_a_plan_flies_its_lines_inside_the_altitude_band():
     pb = load_problem(ALTITUDE)
     res = plan(pb, validate=False)
     assert res.solve.success, res.solve.status
-    chk = mission_check(res.solve.trajectory, pb)
+    chk = mission_check(res.solve.trajectory, pb.mission_context)
     assert chk.complete, chk
     lo, hi = pb.mission.altitude
     for ln in chk.lines:

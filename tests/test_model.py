@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from obsplan.errors import ConfigError
-from obsplan.model import make_model, parse_sensors
+from obsplan.core.errors import ConfigError
+from obsplan.model.vehicle import make_model, parse_sensors
 
 
 @pytest.mark.parametrize("dim", [2, 3])

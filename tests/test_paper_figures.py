@@ -18,7 +18,7 @@ from functools import cache
 import numpy as np
 import pytest
 
-from obsplan.paper_figures import SCENARIOS, run_scenario, write_figures
+from obsplan.paper.figures import SCENARIOS, run_scenario, write_figures
 
 DT, RUNS = 0.05, 12
 

@@ -21,13 +21,13 @@ import pytest
 import sympy as sp
 from test_paper_tables import _O
 
-from obsplan import generators as gen
-from obsplan import paper
-from obsplan.errors import ConfigError, InputError
-from obsplan.model import make_model
+from obsplan.core.errors import ConfigError, InputError
+from obsplan.model.vehicle import make_model
 from obsplan.observability.lwo import lwo_matrix_function, lwo_path_report, lwo_report
 from obsplan.observability.scaling import RANK_TOL
 from obsplan.observability.structural import exact_gramian, exact_rank, exact_rank_profile
+from obsplan.paper import tables as paper
+from obsplan.trajectory import generators as gen
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "paper-discrepancies.md"
 O_range = _O  # the frozen-input matrix of eq. 13 (range only), rows of orders 0..3

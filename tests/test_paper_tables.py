@@ -1,7 +1,7 @@
 """Tables 1–3: every row, every sensor configuration, paper's verdict and ours; exact arguments.
 
 ``EXPECTED`` holds the mathematically correct verdicts (derived in docs/paper-discrepancies.md),
-written here independently of ``obsplan.paper``; ``PAPER`` is a second transcription of the
+written here independently of ``obsplan.paper.tables``; ``PAPER`` is a second transcription of the
 paper's tables. Rank verdicts do not depend on dt, so the tables run in quick mode (dt = 0.1 s).
 """
 
@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from obsplan import generators as gen
-from obsplan import paper
 from obsplan.cli import main
-from obsplan.model import make_model
+from obsplan.model.vehicle import make_model
 from obsplan.observability.gramian import gramian, gramian_report
 from obsplan.observability.lwo import lwo_structural_max_rank
-from obsplan.trajectory import Trajectory
+from obsplan.paper import tables as paper
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory
 
 Y, N = True, False
 # ours, per row key: ((LWO, O) per column)

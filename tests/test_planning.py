@@ -16,24 +16,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from obsplan.estimation.crlb import posterior_crlb
+from obsplan.estimation.bounds.crlb import posterior_crlb
 from obsplan.observability.gramian import gramian
 from obsplan.observability.lwo import taylor_moments
 from obsplan.planning import load_problem, solve
-from obsplan.planning.baselines import baselines, lawnmower_baseline
-from obsplan.planning.estimator_objectives import (
+from obsplan.planning.baselines.vehicle import baselines, lawnmower_baseline
+from obsplan.planning.objectives.estimator import (
     covariance_objective,
     covariance_stds,
     covariance_value,
 )
-from obsplan.planning.evaluate import better, kf_final_pos_std, objective_value
-from obsplan.planning.feasibility import LIMIT_RTOL, check_limits
-from obsplan.planning.formulation import build_formulation
-from obsplan.planning.grid import Grid
-from obsplan.planning.guesses import initial_guesses, random_guess, reference_path
-from obsplan.planning.ipopt import make_projection
-from obsplan.planning.ipopt import project as _project
-from obsplan.planning.lwo_objective import (
+from obsplan.planning.objectives.evaluate import better, kf_final_pos_std, objective_value
+from obsplan.planning.objectives.lwo import (
     LWO_BETA,
     clipped_windows,
     lwo_condition,
@@ -44,14 +38,20 @@ from obsplan.planning.lwo_objective import (
     node_windows,
     window_mean_inputs,
 )
-from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict
+from obsplan.planning.objectives.windowed import window_settings
 from obsplan.planning.plan import plan
-from obsplan.planning.problem import Horizon, Limits
-from obsplan.planning.starts import run_forked
-from obsplan.planning.validation import validate_paths
-from obsplan.planning.validation_setup import estimation_config
-from obsplan.planning.windowed_gramian import window_settings
-from obsplan.trajectory import Trajectory, resample
+from obsplan.planning.problem.feasibility import LIMIT_RTOL, check_limits
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM, problem_from_dict
+from obsplan.planning.problem.sections import Horizon, Limits
+from obsplan.planning.problem.validation_setup import estimation_config
+from obsplan.planning.solver.formulation import build_formulation
+from obsplan.planning.solver.ipopt import make_projection
+from obsplan.planning.solver.ipopt import project as _project
+from obsplan.planning.solver.starts import run_forked
+from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.transcription.guesses import initial_guesses, random_guess, reference_path
+from obsplan.planning.validation.validate import validate_paths
+from obsplan.trajectory.sampled import Trajectory, resample
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -553,7 +553,7 @@ ACCEPT = {"ekf.rmse_pos": 0.6, "ekf.final_pos_err": 0.7, "kf.rmse_pos": 0.5}
 
 @pytest.mark.slow
 def test_default_problem_beats_the_lawnmower_and_the_circle():
-    from obsplan.planning.verdict import metric_value
+    from obsplan.planning.validation.verdict import metric_value
 
     res = plan(load_problem(LOCALISE_PROBLEM))
     assert res.success

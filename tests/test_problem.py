@@ -9,16 +9,16 @@ from pathlib import Path
 
 import pytest
 
-from obsplan.errors import ProblemError
-from obsplan.planning.parse import (
+from obsplan.core.errors import ProblemError
+from obsplan.planning.problem.parse import (
     DEFAULT_PROBLEM,
     PROBLEMS_DIR,
     load_problem,
     problem_from_dict,
     problem_to_dict,
 )
-from obsplan.planning.schema import KF_PCRB_WEIGHT, SCHEMA
-from obsplan.planning.validation_setup import estimation_config, validation_guidance
+from obsplan.planning.problem.schema import KF_PCRB_WEIGHT, SCHEMA
+from obsplan.planning.problem.validation_setup import estimation_config, validation_guidance
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "problem-files.md"
 
@@ -211,7 +211,8 @@ def test_gramian_objective_refused_with_bottom_lock_and_current():
 def test_structural_check_runs_in_the_loader_and_in_solve_not_on_construction(monkeypatch):
     from dataclasses import replace
 
-    from obsplan.planning import checks, solve
+    from obsplan.planning import solve
+    from obsplan.planning.problem import checks
 
     d = _with("vehicle.dim", 3)
     d["start"] = {"position": [-80.0, 60.0, 10.0]}
@@ -259,7 +260,7 @@ def test_docs_document_every_field_with_unit_and_default():
 
 
 def test_docs_tables_are_generated_from_the_schema():
-    from obsplan.planning.schema import schema_markdown
+    from obsplan.planning.problem.schema import schema_markdown
 
     assert schema_markdown() in DOCS.read_text()
     readme = (DOCS.parents[1] / "README.md").read_text()
@@ -268,7 +269,7 @@ def test_docs_tables_are_generated_from_the_schema():
 
 def test_docs_field_tables_are_exactly_the_schema_regenerated():
     # stronger than inclusion: a field removed from SCHEMA must not linger in a document
-    from obsplan.planning.schema import update_field_tables
+    from obsplan.planning.problem.schema import update_field_tables
 
     for doc in (DOCS, DOCS.parents[1] / "README.md"):
         text = doc.read_text()

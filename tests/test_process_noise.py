@@ -10,14 +10,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from obsplan import generators as gen
-from obsplan.errors import ConfigError
+from obsplan.core.errors import ConfigError
 from obsplan.estimation import EstimationConfig, monte_carlo
+from obsplan.estimation.bounds.crlb import posterior_crlb
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
-from obsplan.estimation.crlb import posterior_crlb
-from obsplan.estimation.truth import truth_factor
-from obsplan.model import make_model
-from obsplan.trajectory import Trajectory
+from obsplan.estimation.montecarlo.truth import truth_factor
+from obsplan.model.vehicle import make_model
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory
 
 STEPS = (0.05, 0.1, 0.5)
 

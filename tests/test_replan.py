@@ -10,13 +10,14 @@ import numpy as np
 import pytest
 
 from obsplan.cli import main
-from obsplan.errors import ConfigError
-from obsplan.estimation.closedloop import ClosedLoop
-from obsplan.estimation.simulate import DEFAULT_FILTERS
-from obsplan.planning.evaluate import better
-from obsplan.planning.feasibility import check_limits
-from obsplan.planning.parse import LOCALISE_PROBLEM, PROBLEMS_DIR, load_problem
-from obsplan.planning.problem import Horizon
+from obsplan.core.errors import ConfigError
+from obsplan.estimation.montecarlo.closedloop import ClosedLoop
+from obsplan.estimation.montecarlo.simulate import DEFAULT_FILTERS
+from obsplan.planning.objectives.evaluate import better
+from obsplan.planning.problem.feasibility import check_limits
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM, PROBLEMS_DIR, load_problem
+from obsplan.planning.problem.sections import Horizon
+from obsplan.planning.problem.validation_setup import estimation_config, truth_limits
 from obsplan.planning.replan import (
     Replanner,
     recovery_steps,
@@ -26,9 +27,8 @@ from obsplan.planning.replan import (
     return_inputs,
     state_for_planner,
 )
-from obsplan.planning.solve import solve
-from obsplan.planning.validation_setup import estimation_config, truth_limits
-from obsplan.trajectory import Trajectory, resample
+from obsplan.planning.solver.solve import solve
+from obsplan.trajectory.sampled import Trajectory, resample
 
 SMALL = ["--steps", "20", "--starts", "1", "--runs", "2", "--quiet"]
 

@@ -1,4 +1,4 @@
-"""The epoch recursion of obsplan.estimation.riccati against a plain per-step recursion.
+"""The epoch recursion of obsplan.estimation.bounds.riccati against a plain per-step recursion.
 
 The closed-form composition (Faulhaber sums, the moments of a nilpotent A, a noise that varies
 with time) must give the covariance of the per-step filter recursion at every sample, to
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from obsplan.estimation.riccati import RecursionModel, faulhaber, make_epochs, run_recursion
+from obsplan.estimation.bounds.riccati import RecursionModel, faulhaber, make_epochs, run_recursion
 
 
 def integrated(A, W, h):

@@ -8,16 +8,13 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from obsplan.errors import ProblemError
+from obsplan.core.errors import ProblemError
 from obsplan.planning import load_problem
-from obsplan.planning.baselines import baselines
-from obsplan.planning.estimator_objectives import covariance_value
-from obsplan.planning.evaluate import objective_value
-from obsplan.planning.formulation import build_formulation
-from obsplan.planning.margins import condition_margins, keepout_margins
-from obsplan.planning.objectives import objective_of
-from obsplan.planning.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
-from obsplan.planning.robust import (
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.objectives.estimator import covariance_value
+from obsplan.planning.objectives.evaluate import objective_value
+from obsplan.planning.objectives.registry import objective_of
+from obsplan.planning.objectives.robust import (
     ROBUST,
     condition_problems,
     condition_values,
@@ -26,9 +23,12 @@ from obsplan.planning.robust import (
     robust_value,
     scaled_problem,
 )
-from obsplan.planning.stress import stress_active, stress_validate
-from obsplan.planning.validation import validate_paths
-from obsplan.planning.validation_setup import validation_guidance
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM, problem_from_dict, problem_to_dict
+from obsplan.planning.problem.validation_setup import validation_guidance
+from obsplan.planning.solver.formulation import build_formulation
+from obsplan.planning.solver.margins import condition_margins, keepout_margins
+from obsplan.planning.validation.stress import stress_active, stress_validate
+from obsplan.planning.validation.validate import validate_paths
 
 
 def _robust(pb, aggregate="worst"):

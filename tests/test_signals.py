@@ -36,8 +36,8 @@ from pathlib import Path
 import psutil
 import pytest
 
-from obsplan import generators as gen
-from obsplan.trajectory import write_csv
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import write_csv
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Moments per verb by default (spread evenly over a whole run).
@@ -230,7 +230,7 @@ def test_a_signal_inside_a_weakref_callback_is_raised_not_ignored(capfd):
     ignored in …"): the signal is delivered again and raised in the code that was running."""
     import weakref
 
-    from obsplan import interrupts
+    from obsplan.core import interrupts
 
     class Thing:
         pass

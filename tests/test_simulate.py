@@ -7,10 +7,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from obsplan import generators as gen
-from obsplan.errors import ConfigError
+from obsplan.core.errors import ConfigError
 from obsplan.estimation import EstimationConfig, make_schedule, monte_carlo, nees_bounds
-from obsplan.model import make_model
+from obsplan.model.vehicle import make_model
+from obsplan.trajectory import generators as gen
 
 
 @pytest.fixture(scope="module")
@@ -252,10 +252,10 @@ def test_gaussian_sum_copes_better_with_the_straight_line(straight_line):
 
 def test_gaussian_sum_of_one_component_is_the_ekf(short):
     """Both filters run on the same readings: one component is the EKF (to 1e-12)."""
-    from obsplan.estimation.gsf import GaussianSumFilter
-    from obsplan.estimation.runs import PathSetup, draw_run, nav_of, start_of
-    from obsplan.estimation.stats import N_INFO
-    from obsplan.estimation.truth import noisy_readings
+    from obsplan.estimation.columns import N_INFO
+    from obsplan.estimation.filters.gsf import GaussianSumFilter
+    from obsplan.estimation.montecarlo.runs import PathSetup, draw_run, nav_of, start_of
+    from obsplan.estimation.montecarlo.truth import noisy_readings
 
     traj, cfg = short
     setup = PathSetup(traj, cfg, ("ekf",), None, 2)

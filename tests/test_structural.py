@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from obsplan import generators as gen
 from obsplan.cli import main
-from obsplan.model import make_model
+from obsplan.model.vehicle import make_model
 from obsplan.observability.analyze import analyze
 from obsplan.observability.gramian import gramian, gramian_report
 from obsplan.observability.scaling import RANK_TOL, Scales
@@ -29,8 +28,9 @@ from obsplan.observability.structural import (
     exact_rank_profile,
     structural_inputs,
 )
-from obsplan.paper import scenario
-from obsplan.trajectory import Trajectory, write_csv
+from obsplan.paper.tables import scenario
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import Trajectory, write_csv
 
 DT = 0.1  # exact ranks are per interval; 0.1 s keeps the conditioning times cheap
 

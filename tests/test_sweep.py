@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 
 from obsplan.cli import main
-from obsplan.planning.parse import problem_from_dict
+from obsplan.planning.problem.parse import problem_from_dict
 from obsplan.sweeps import SweepFileError, expand, load_sweep, sweep, sweep_from_dict
 from obsplan.sweeps.spec import apply_axes, combinations, parse_path, set_fields, unique_tasks
 from obsplan.sweeps.table import build_table, comparable, flatten
@@ -395,7 +395,7 @@ def test_default_workers_follow_the_cpu_affinity():
 
 def test_set_fields_writes_paths_as_axes_do():
     from obsplan.planning import load_problem
-    from obsplan.planning.parse import problem_from_dict, problem_to_dict
+    from obsplan.planning.problem.parse import problem_from_dict, problem_to_dict
 
     base = problem_to_dict(load_problem(ROOT / "problems/range3d.toml"))
     out = set_fields(base, {"limits.accel.2": 0.01, "objective.kind": "pcrb-position"})

@@ -494,11 +494,11 @@ def test_a_killed_scheduler_process_is_one_line_and_exit_1(tmp_path):
 
 
 def test_sharded_monte_carlo_equals_the_unsharded_run(client):
-    from obsplan.estimation import simulate
-    from obsplan.planning.parse import problem_from_dict
-    from obsplan.planning.validation_setup import estimation_config
+    from obsplan.estimation.montecarlo import simulate
+    from obsplan.planning.problem.parse import problem_from_dict
+    from obsplan.planning.problem.validation_setup import estimation_config
     from obsplan.sweeps import sharded_monte_carlo
-    from obsplan.trajectory import resample
+    from obsplan.trajectory.sampled import resample
 
     pb = problem_from_dict(BASE)
     from obsplan.planning import baselines

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from obsplan.errors import TrajectoryFormatError
-from obsplan.model import make_model
-from obsplan.trajectory import (
+from obsplan.core.errors import TrajectoryFormatError
+from obsplan.model.vehicle import make_model
+from obsplan.trajectory.sampled import (
     InconsistentTrajectoryWarning,
     Trajectory,
     csv_columns,
@@ -207,7 +207,7 @@ def test_write_csv_is_atomic(tmp_path, monkeypatch):
                 raise KeyboardInterrupt
             self.w.writerow(row)
 
-    monkeypatch.setattr("obsplan.csvtable.csv.writer", Boom)
+    monkeypatch.setattr("obsplan.core.csvtable.csv.writer", Boom)
     with pytest.raises(KeyboardInterrupt):
         write_csv(random_traj(2), path)
     assert path.read_bytes() == before

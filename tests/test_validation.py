@@ -8,15 +8,19 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from obsplan.errors import InputError
+from obsplan.core.errors import InputError
 from obsplan.planning import load_problem
-from obsplan.planning.baselines import baselines
-from obsplan.planning.evaluate import kf_final_pos_std
-from obsplan.planning.parse import LOCALISE_PROBLEM
-from obsplan.planning.problem import Horizon, ValidationSpec
-from obsplan.planning.validation import validate_paths
-from obsplan.planning.validation_setup import estimation_config, truth_limits, validation_guidance
-from obsplan.trajectory import resample
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.objectives.evaluate import kf_final_pos_std
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+from obsplan.planning.problem.sections import Horizon, ValidationSpec
+from obsplan.planning.problem.validation_setup import (
+    estimation_config,
+    truth_limits,
+    validation_guidance,
+)
+from obsplan.planning.validation.validate import validate_paths
+from obsplan.trajectory.sampled import resample
 
 
 @pytest.fixture(scope="module")

@@ -7,13 +7,13 @@ from dataclasses import replace
 
 import pytest
 
-from obsplan.estimation.crlb import posterior_crlb
+from obsplan.estimation.bounds.crlb import posterior_crlb
 from obsplan.planning import load_problem
-from obsplan.planning.baselines import baselines
-from obsplan.planning.evaluate import path_metrics
-from obsplan.planning.parse import LOCALISE_PROBLEM
-from obsplan.planning.validation_setup import estimation_config
-from obsplan.trajectory import resample
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.objectives.evaluate import path_metrics
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+from obsplan.planning.problem.validation_setup import estimation_config
+from obsplan.trajectory.sampled import resample
 
 STEPS = (0.05, 0.1, 0.5)
 

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from obsplan.planning import load_problem
-from obsplan.planning.baselines import baselines
-from obsplan.planning.evaluate import path_metrics
-from obsplan.planning.guesses import reference_path
-from obsplan.planning.parse import LOCALISE_PROBLEM
-from obsplan.planning.problem import Horizon
-from obsplan.planning.validation import validate_paths
-from obsplan.planning.verdict import (
+from obsplan.planning.baselines.vehicle import baselines
+from obsplan.planning.objectives.evaluate import path_metrics
+from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+from obsplan.planning.problem.sections import Horizon
+from obsplan.planning.transcription.guesses import reference_path
+from obsplan.planning.validation.validate import validate_paths
+from obsplan.planning.validation.verdict import (
     RUN_METRICS,
     STRESS_NOTE_LEVEL,
     STRESS_NOTE_RUNS,

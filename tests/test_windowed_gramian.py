@@ -10,28 +10,14 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from obsplan.errors import ProblemError
-from obsplan.estimation.guidance import Guidance
+from obsplan.core.errors import ProblemError
+from obsplan.estimation.montecarlo.guidance import Guidance
 from obsplan.observability import windowed as wd
 from obsplan.observability.gramian import augmented_model, gramian, interval_gramians
 from obsplan.planning import load_problem
-from obsplan.planning.blocks import NLPContext
-from obsplan.planning.gramian_objectives import gramian_metrics
-from obsplan.planning.grid import Grid
-from obsplan.planning.guesses import random_guess, reference_path
-from obsplan.planning.objectives import objective_of
-from obsplan.planning.parse import problem_from_dict, problem_to_dict
-from obsplan.planning.plan import plan
-from obsplan.planning.validation import PathValidation
-from obsplan.planning.verdict import (
-    GRAMIAN_PAPER_NOTE,
-    LWO_NOTE,
-    ekf_diverges,
-    filter_notes,
-    objective_notes,
-    verdict,
-)
-from obsplan.planning.windowed_gramian import (
+from obsplan.planning.objectives.gramian import gramian_metrics
+from obsplan.planning.objectives.registry import objective_of
+from obsplan.planning.objectives.windowed import (
     auto_window_s,
     paper_form,
     sensor_information,
@@ -40,6 +26,20 @@ from obsplan.planning.windowed_gramian import (
     window_settings,
     windowed_expr,
     windowed_value,
+)
+from obsplan.planning.plan import plan
+from obsplan.planning.problem.parse import problem_from_dict, problem_to_dict
+from obsplan.planning.transcription.blocks import NLPContext
+from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.transcription.guesses import random_guess, reference_path
+from obsplan.planning.validation.validate import PathValidation
+from obsplan.planning.validation.verdict import (
+    GRAMIAN_PAPER_NOTE,
+    LWO_NOTE,
+    ekf_diverges,
+    filter_notes,
+    objective_notes,
+    verdict,
 )
 
 ROOT = Path(__file__).resolve().parents[1]

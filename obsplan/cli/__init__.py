@@ -1,8 +1,8 @@
 """The ``obsplan`` command. Each verb lives in its own module exposing ``add_parser`` and ``run``.
 
 Exit codes: 0 success, 1 solver or validation failure, 2 bad input (file, option, problem),
-130 / 143 interrupted by SIGINT / SIGTERM (:mod:`obsplan.interrupts`; nothing is left written).
-Errors raised on purpose (:mod:`obsplan.errors`) are printed as one line, without a traceback.
+130 / 143 interrupted by SIGINT / SIGTERM (:mod:`obsplan.core.interrupts`; nothing is left written).
+Errors raised on purpose (:mod:`obsplan.core.errors`) are printed as one line, without a traceback.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from obsplan import interrupts, outputs
 from obsplan.cli.common import join_negative_values
-from obsplan.errors import InputError, ObsplanError
+from obsplan.core import interrupts, outputs
+from obsplan.core.errors import InputError, ObsplanError
 from obsplan.version import __version__
 
 VERBS = ("plan", "analyze", "simulate", "paper", "sweep", "import", "export")

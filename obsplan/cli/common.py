@@ -1,9 +1,9 @@
 """Options and checks shared by the verbs: vehicle options, beacon, inputs, and the outputs.
 
 Output folders and files (:class:`OutputDir`, :class:`OutputFile`) are those of
-:mod:`obsplan.outputs`, one implementation for every verb: checked before any work, written into
-a staging folder and swapped in place, ``--force`` replacing only an earlier obsplan output.
-Signals are mapped to exit 130 / 143 by :func:`obsplan.cli.main` (:mod:`obsplan.interrupts`).
+:mod:`obsplan.core.outputs`, one implementation for every verb: checked before any work, written
+into a staging folder and swapped in place, ``--force`` replacing only an earlier obsplan output.
+Signals are mapped to exit 130 / 143 by :func:`obsplan.cli.main` (:mod:`obsplan.core.interrupts`).
 """
 
 from __future__ import annotations
@@ -17,14 +17,14 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from obsplan.budget import check_file_rows
-from obsplan.csvtable import COLUMN_LIMITS
-from obsplan.errors import InputError
-from obsplan.outputs import OutputDir, OutputFile, write_marker
-from obsplan.textfiles import check_magnitude
+from obsplan.core.budget import check_file_rows
+from obsplan.core.csvtable import COLUMN_LIMITS
+from obsplan.core.errors import InputError
+from obsplan.core.outputs import OutputDir, OutputFile, write_marker
+from obsplan.core.textfiles import check_magnitude
 
 if TYPE_CHECKING:
-    from obsplan.trajectory import Trajectory
+    from obsplan.trajectory.sampled import Trajectory
 
 
 # ------------------------------------------------------------------------------ arguments
@@ -156,7 +156,7 @@ def read_trajectory(path: str, verb: str) -> Trajectory:
     """
     # imported here: `obsplan` installs its signal handlers before numpy and the rest load
     from obsplan.io.tracks import load_trajectory
-    from obsplan.trajectory import InconsistentTrajectoryWarning
+    from obsplan.trajectory.sampled import InconsistentTrajectoryWarning
 
     check_file_rows(path, "the trajectory")  # a huge file is refused before it is read
     with warnings.catch_warnings(record=True) as caught:

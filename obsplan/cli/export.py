@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from obsplan.cli.common import OutputFile, read_trajectory
-from obsplan.errors import InputError
+from obsplan.core.errors import InputError
 
 DEFAULT_EVERY_S = 30.0
 
@@ -69,8 +69,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 
 def _origin(args: argparse.Namespace):
-    from obsplan.geodesy import GeodeticOrigin
     from obsplan.io.geodetic import parse_origin
+    from obsplan.model.frames import GeodeticOrigin
 
     if args.origin is not None:
         return parse_origin(args.origin), "--origin"

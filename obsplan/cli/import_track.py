@@ -11,7 +11,7 @@ import sys
 
 from obsplan.cli.common import OutputFile
 from obsplan.io.tracks import DEFAULT_VELOCITY_STD, MAX_GAP_INTERVALS, fit_track, read_track
-from obsplan.trajectory import write_csv
+from obsplan.trajectory.sampled import write_csv
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:

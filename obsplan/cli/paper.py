@@ -2,7 +2,7 @@
 
 Prints the tables (or JSON with ``--json``); with ``--out DIR`` also writes ``DIR/tables.txt`` and
 ``DIR/tables.json`` and, unless ``--no-figures``, the figure scenarios (Figs. 1–9) when
-:mod:`obsplan.paper_figures` is available. Disagreements with the paper are results, not errors:
+:mod:`obsplan.paper.figures` is available. Disagreements with the paper are results, not errors:
 the exit code is 0.
 """
 
@@ -13,7 +13,7 @@ import json
 import sys
 
 from obsplan.cli.common import OutputDir
-from obsplan.paper import all_rows, claims, paper_report, render_tables, structural
+from obsplan.paper.tables import all_rows, claims, paper_report, render_tables, structural
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -73,9 +73,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _figures(folder, args: argparse.Namespace) -> list:
     try:
-        from obsplan.paper_figures import write_figures
+        from obsplan.paper.figures import write_figures
     except ModuleNotFoundError as exc:
-        if exc.name != "obsplan.paper_figures":
+        if exc.name != "obsplan.paper.figures":
             raise
         if not args.quiet:
             print("obsplan paper: figure scenarios not available yet; skipped", file=sys.stderr)

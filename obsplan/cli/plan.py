@@ -9,9 +9,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from obsplan import budget
 from obsplan.cli.common import OutputDir
-from obsplan.errors import InputError
+from obsplan.core import budget
+from obsplan.core.errors import InputError
 from obsplan.planning.figures import (
     plot_filter_errors,
     plot_gramian_eigs,
@@ -19,12 +19,13 @@ from obsplan.planning.figures import (
     plot_speed,
     save_figure,
 )
-from obsplan.planning.parse import DEFAULT_PROBLEM, load_problem
 from obsplan.planning.plan import PlanResult, plan
-from obsplan.planning.problem import Horizon, PlanningProblem
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.parse import DEFAULT_PROBLEM, load_problem
+from obsplan.planning.problem.sections import Horizon
 from obsplan.planning.replan import ReplanResult, replan_monte_carlo, replan_nodes
-from obsplan.planning.verdict import metric_value
-from obsplan.trajectory import write_csv
+from obsplan.planning.validation.verdict import metric_value
+from obsplan.trajectory.sampled import write_csv
 
 DEFAULT_OUT = "obsplan-plan"
 FIGURES = ("path.png", "gramian.png", "filters.png", "speed.png")

@@ -1,10 +1,11 @@
 """``obsplan simulate TRAJ.csv``: EKF and augmented KF Monte Carlo along a trajectory CSV.
 
 In closed loop by default, as ``obsplan plan`` validates: the simulated vehicle steers its
-estimate onto the trajectory (:class:`~obsplan.estimation.guidance.Guidance`; ``--navigation``
-the filter it steers on, the Gaussian sum by default, whose statistics are always reported);
-``--open-loop`` flies its accelerations blind. Process noise is the physical white acceleration
-noise (``--accel-noise``, m/s²/√Hz) unless ``--paper-noise`` selects the paper's per-step ``Q``.
+estimate onto the trajectory (:class:`~obsplan.estimation.montecarlo.guidance.Guidance`;
+``--navigation`` the filter it steers on, the Gaussian sum by default, whose statistics are always
+reported); ``--open-loop`` flies its accelerations blind. Process noise is the physical white
+acceleration noise (``--accel-noise``, m/s²/√Hz) unless ``--paper-noise`` selects the paper's
+per-step ``Q``.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from typing import Any
 
 import numpy as np
 
-from obsplan import budget
 from obsplan.cli.common import (
     OutputDir,
     add_output_arguments,
@@ -26,13 +26,19 @@ from obsplan.cli.common import (
     read_trajectory,
     resolve_beacon,
 )
-from obsplan.errors import InputError
+from obsplan.core import budget
+from obsplan.core.errors import InputError
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE, EstimationConfig
-from obsplan.estimation.guidance import NAVIGATION_FILTERS, Guidance, TruthLimits
+from obsplan.estimation.montecarlo.guidance import NAVIGATION_FILTERS, Guidance, TruthLimits
+from obsplan.estimation.montecarlo.plots import filter_stats
+from obsplan.estimation.montecarlo.simulate import (
+    DEFAULT_FILTERS,
+    FILTERS,
+    MonteCarloResult,
+    monte_carlo,
+)
 from obsplan.estimation.schedule import sample_rate
-from obsplan.estimation.simulate import DEFAULT_FILTERS, FILTERS, MonteCarloResult, monte_carlo
-from obsplan.model import make_model
-from obsplan.plots import filter_stats
+from obsplan.model.vehicle import make_model
 
 #: Acceleration bound [m/s²] of the guidance without a problem (the default problem's), raised to
 #: the trajectory's largest input so that its own feed-forward never saturates.
@@ -249,7 +255,7 @@ def format_result(res: MonteCarloResult, path: str) -> str:
 
 def check_filter_grid(traj, dt: float | None, runs: int) -> None:
     """Refuse, before allocating anything, a filter grid or Monte Carlo beyond the limits of
-    :mod:`obsplan.budget` (samples per run, runs, memory and time)."""
+    :mod:`obsplan.core.budget` (samples per run, runs, memory and time)."""
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         raise InputError(f"--dt {dt:g}: the filter step must be a positive number of seconds")
     samples = traj.n_samples if dt is None else traj.duration / dt + 1
@@ -266,7 +272,7 @@ def check_filter_grid(traj, dt: float | None, runs: int) -> None:
 def _problem_mode(args: argparse.Namespace, traj):
     from dataclasses import replace
 
-    from obsplan.planning.parse import load_problem
+    from obsplan.planning.problem.parse import load_problem
 
     given = [o for o in PROBLEM_REPLACES if getattr(args, o, None) is not None]
     if given:
@@ -342,7 +348,7 @@ def run(args: argparse.Namespace) -> int:
     )
     with out or contextlib.nullcontext():
         if pb is not None:
-            from obsplan.planning.validation import validate_paths
+            from obsplan.planning.validation.validate import validate_paths
 
             val = validate_paths(
                 {"trajectory": traj},
@@ -352,13 +358,13 @@ def run(args: argparse.Namespace) -> int:
                 filters=_filters(args),
             )
             res = val["trajectory"].result
-            from obsplan.trajectory import resample
+            from obsplan.trajectory.sampled import resample
 
             fine = resample(traj, pb.validation.dt)
         else:
             fine = traj
             if args.dt is not None:
-                from obsplan.trajectory import resample
+                from obsplan.trajectory.sampled import resample
 
                 fine = resample(traj, args.dt, name="--dt")
             beacon, _ = resolve_beacon(args, traj.dim)
@@ -413,8 +419,8 @@ def _progress(args: argparse.Namespace) -> bool:
 
 def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> list:
     """estimation.png, monte_carlo.png (and with a problem, plan's filters.png), atomically."""
-    from obsplan import plots
-    from obsplan.estimation.crlb import sampled_rank_over_time
+    from obsplan.estimation.bounds.crlb import sampled_rank_over_time
+    from obsplan.estimation.montecarlo import plots
     from obsplan.observability.gramian import augmented_model
 
     staging = out.stage()
@@ -422,7 +428,7 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
     cfg = res.config
     if pb is not None:
         from obsplan.planning.figures import plot_filter_errors
-        from obsplan.planning.validation import PathValidation
+        from obsplan.planning.validation.validate import PathValidation
 
         # the figure `obsplan plan` writes as filters.png, for this one path
         fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)}, problem=pb.name)

@@ -10,8 +10,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from obsplan.errors import InputError
-from obsplan.outputs import check_name
+from obsplan.core.errors import InputError
+from obsplan.core.outputs import check_name
 
 # obsplan.sweeps (pandas, Dask) is imported when the verb runs: every `obsplan` command imports
 # this module to build its parser

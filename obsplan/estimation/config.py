@@ -31,9 +31,10 @@ Paper defaults (section 7) for a model step ``Ts`` [s]:
 * ``Q_EKF = diag(1e-3 Ts · 1_n, 1e-3 Ts · 1_n)²`` per model step;
 * ``Q_KF = diag(1e-3 Ts · 1_n, 1e-3 Ts · 1_n, 0, 0)²`` per model step. The paper puts
   ``(1e-6)²`` on ``p0ᵀν0`` and ``|ν0|²``; they are constants of the truth, and once the way process
-  noise enters the KF's output is modelled (:mod:`obsplan.estimation.kf`) that fictitious noise
-  only makes the KF under-confident on long runs (measured on a 600 s circle at 10 Hz, 50 runs:
-  NEES 2.3–2.7 after 400 s against the 95 % band [3.25, 4.82]; 3.7–4.0 without it), so it is 0;
+  noise enters the KF's output is modelled (:mod:`obsplan.estimation.filters.kf`) that fictitious
+  noise only makes the KF under-confident on long runs (measured on a 600 s circle at 10 Hz, 50
+  runs: NEES 2.3–2.7 after 400 s against the 95 % band [3.25, 4.82]; 3.7–4.0 without it), so it is
+  0;
 * ``P_EKF = diag(1_n, 0.1 · 1_n)``, ``P_KF = diag(1_n, 0.1 · 1_n, 1, 1)``.
 
 With an ocean current the state has a ``v_f`` block: its process noise is 0 (the current is
@@ -55,9 +56,9 @@ from typing import Literal
 
 import numpy as np
 
-from obsplan.errors import ConfigError
+from obsplan.core.errors import ConfigError
 from obsplan.estimation.kalman import integrated_noise
-from obsplan.model import SENSOR_ALIASES, SENSORS, VehicleModel
+from obsplan.model.vehicle import SENSOR_ALIASES, SENSORS, VehicleModel
 from obsplan.observability.gramian import augmented_model
 
 #: Largest sensor noise standard deviation accepted (m or m/s): beyond it no reading says
@@ -78,7 +79,7 @@ DEFAULT_CONVERGENCE_M = 0.5
 DEFAULT_ACCEL_NOISE = math.sqrt(1e-7)
 
 Y0Mode = Literal["augment", "inflate"]
-#: The EKF's range update (:mod:`obsplan.estimation.ekf`).
+#: The EKF's range update (:mod:`obsplan.estimation.filters.ekf`).
 EkfUpdate = Literal["first-order", "second-order"]
 #: ``EkfUpdate`` values; the first is ``EstimationConfig``'s default (the paper's EKF), problem
 #: files default to the second (``validation.ekf_update``).
@@ -239,16 +240,17 @@ class EstimationConfig:
         The anchor range at the first sample is never dropped.
     kf_coupling
         Model how process noise enters the augmented KF's output (default; see
-        :mod:`obsplan.estimation.kf`). ``False`` is the paper's output model, over-confident on
-        long runs with process noise.
+        :mod:`obsplan.estimation.filters.kf`). ``False`` is the paper's output model, over-confident
+        on long runs with process noise.
     monitor_window_s
         The final stretch [s] over which the divergence monitor averages one run's NEES against
-        the 99.9 % bound (:mod:`obsplan.estimation.stats`); ``None``: 10 % of the duration.
+        the 99.9 % bound (:mod:`obsplan.estimation.montecarlo.stats`); ``None``: 10 % of the
+        duration.
     ekf_update
         The EKF's (and the Gaussian sum's components') range update: ``"first-order"``
         (default, the paper's EKF) or ``"second-order"``, the Gaussian second-order filter's,
         which adds the range's curvature over the prior to the prediction and the variance
-        (:mod:`obsplan.estimation.ekf`).
+        (:mod:`obsplan.estimation.filters.ekf`).
 
     Instances pickle (the model is rebuilt from its parameters), so they can be shipped to worker
     processes.
@@ -304,7 +306,7 @@ class EstimationConfig:
     def __post_init__(self) -> None:
         model = self.model
         if not isinstance(model, VehicleModel):
-            raise ConfigError("model must be a VehicleModel (see obsplan.model.make_model)")
+            raise ConfigError("model must be a VehicleModel (see obsplan.model.vehicle.make_model)")
         rates: dict[str, float] = {}
         for k, v in dict(self.rates_hz).items():
             name = _sensor_key(model, k, "rates_hz")

@@ -17,8 +17,8 @@ with ``S0 = k``, ``S1 = Σ τ_j``, ``S2 = Σ τ_j²`` (on a uniform grid ``S1 = 
 runs), vectorised over all steps.
 
 When the per-step noise gain depends on the step (the augmented KF's process-noise coupling,
-:mod:`obsplan.estimation.kf`), ``Q_ab = Σ_j M(σ_j) q M(σ_j)ᵀ`` with ``M`` a polynomial of degree
-≤ 4 in ``σ_j = t_{j+1} - t_a``: the sum is computed exactly by a discrete Gauss rule of
+:mod:`obsplan.estimation.filters.kf`), ``Q_ab = Σ_j M(σ_j) q M(σ_j)ᵀ`` with ``M`` a polynomial of
+degree ≤ 4 in ``σ_j = t_{j+1} - t_a``: the sum is computed exactly by a discrete Gauss rule of
 ``min(k, 5)`` nodes (exact to degree 9) for the measure ``Σ_j δ(σ - σ_j)``, also stored here.
 With the physical noise the sum is the integral ``∫_0^T M(σ) W M(σ)ᵀ dσ``, of degree ≤ 6 in
 ``σ``: the 5-node Gauss–Legendre rule on ``[0, T]`` is exact.
@@ -30,9 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.errors import ConfigError
+from obsplan.core.errors import ConfigError
 from obsplan.estimation.schedule import Schedule
-from obsplan.trajectory import Trajectory
+from obsplan.model.vehicle import VehicleModel
+from obsplan.trajectory.sampled import Trajectory
 
 #: Nodes of the discrete Gauss rule per segment (exact for polynomials of degree ≤ 9).
 GAUSS_NODES = 5
@@ -323,3 +324,11 @@ class RunContext:
         """
         tab = np.broadcast_to(self.plan.rec_tab, (truth_rec.shape[0], *self.plan.rec_tab.shape))
         return np.ascontiguousarray(np.concatenate([tab, truth_rec], axis=2))
+
+
+def nominal_states(traj: Trajectory, model: VehicleModel, current: np.ndarray) -> np.ndarray:
+    """Noise-free true states ``(p, v[, v_f])`` along ``traj``, shape (N, state_dim)."""
+    parts = [traj.p, traj.v - current] if model.current else [traj.p, traj.v]
+    if model.current:
+        parts.append(np.broadcast_to(current, traj.p.shape))
+    return np.hstack(parts)

@@ -1,7 +1,7 @@
 """Where numba caches the compiled filter kernels, and whether a run must compile them first.
 
-The kernels (:mod:`obsplan.estimation.kernels`, :mod:`~obsplan.estimation.loop_kernels`) are
-compiled on first use and cached on disk (``cache=True``); a cold compile takes about a minute
+The kernels (:mod:`obsplan.estimation.kernels`, :mod:`~obsplan.estimation.montecarlo.loop_kernels`)
+are compiled on first use and cached on disk (``cache=True``); a cold compile takes about a minute
 on a small machine, which the first Monte Carlo would otherwise spend on an unlabelled progress
 bar. :func:`configure` points numba's cache at a per-user cache folder when the user has not
 chosen one (``NUMBA_CACHE_DIR``), so that the cache is written even when the package sits in a
@@ -18,9 +18,9 @@ from pathlib import Path
 #: Seconds a cold compile of the kernels takes, as said in the progress label (measured: 55 s
 #: on 2 cores idle, 94 s with the cores shared by four other jobs).
 COMPILE_S = 60
-#: The modules holding cached kernels (files of this folder): every Monte Carlo uses the first,
-#: the closed loop both.
-KERNEL_SOURCES = ("kernels.py", "loop_kernels.py")
+#: The modules holding cached kernels (names under ``obsplan.estimation``): every Monte Carlo
+#: uses the first, the closed loop both.
+KERNEL_SOURCES = ("kernels", "montecarlo.loop_kernels")
 HERE = Path(__file__).resolve().parent
 #: The label of a Monte Carlo's progress bar while the kernels compile.
 COMPILE_NOTE = f"compiling the filters once (about {COMPILE_S} s; cached for later runs)"
@@ -61,8 +61,8 @@ def configure() -> Path | None:
 
 def compiled_in_process(name: str) -> bool:
     """Whether this process has compiled (or loaded from the cache) any kernel of the module
-    ``name`` (a file of :data:`KERNEL_SOURCES`)."""
-    module = sys.modules.get(f"obsplan.estimation.{Path(name).stem}")
+    ``name`` (a module of :data:`KERNEL_SOURCES`)."""
+    module = sys.modules.get(f"obsplan.estimation.{name}")
     if module is None:
         return False
     return any(bool(getattr(f, "signatures", None)) for f in vars(module).values())
@@ -76,7 +76,7 @@ def cache_is_cold(sources: tuple[str, ...] = KERNEL_SOURCES, cache_dir: Path | N
     Parameters
     ----------
     sources
-        File names of :data:`KERNEL_SOURCES` the run needs.
+        Modules of :data:`KERNEL_SOURCES` the run needs.
     cache_dir
         The cache folder (default: :func:`configure`'s; None there: numba's folder beside the
         sources).
@@ -85,9 +85,9 @@ def cache_is_cold(sources: tuple[str, ...] = KERNEL_SOURCES, cache_dir: Path | N
     for name in sources:
         if compiled_in_process(name):
             continue
-        source = HERE / name
+        source = HERE / (name.replace(".", "/") + ".py")
         if cache_dir is None:
-            folder = HERE / "__pycache__"
+            folder = source.parent / "__pycache__"
         else:
             # numba's own naming of a source folder's cache (loaded with the kernels anyway)
             from numba.core.caching import UserProvidedCacheLocator

@@ -2,8 +2,8 @@
 
 Both filters order their states ``(p, v[, v_f], ...)`` and predict with ``F = I + N`` where ``N``
 is nilpotent and sparse (``p_i ← v_i [+ v_f,i]`` with coefficient ``T``; the augmented KF adds its
-chain, :mod:`obsplan.estimation.kf`). The kernels (:mod:`obsplan.estimation.kernels`) take ``N``
-as a list of ``(row, col, mult, power)`` entries, ``N[row, col] = mult · T^power``, and the
+chain, :mod:`obsplan.estimation.filters.kf`). The kernels (:mod:`obsplan.estimation.kernels`) take
+``N`` as a list of ``(row, col, mult, power)`` entries, ``N[row, col] = mult · T^power``, and the
 composed process noise of a segment as ``Q = S0 q0 + S1 q1 + S2 q2`` with ``q0 = q``,
 ``q1 = A q + q Aᵀ``, ``q2 = A q Aᵀ`` (:mod:`obsplan.estimation.epochs`).
 
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.model import VehicleModel
+from obsplan.model.vehicle import VehicleModel
 
 
 def symmetrize(P: np.ndarray) -> np.ndarray:

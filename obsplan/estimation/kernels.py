@@ -5,7 +5,8 @@ Monte Carlo is a short Python loop over batches (Ctrl-C is honoured between them
 carry the batch's members on their last axis (``X`` (m, B), ``P`` (m, m, B)), so the innermost
 loops run over contiguous members and vectorise; the members are runs, or for the Gaussian sum
 the components of the runs. The equations are those of :mod:`obsplan.estimation.kalman`,
-:mod:`~obsplan.estimation.ekf` and :mod:`~obsplan.estimation.kf`, written out in loops:
+:mod:`~obsplan.estimation.filters.ekf` and :mod:`~obsplan.estimation.filters.kf`, written out in
+loops:
 
 * prediction over a segment: ``x⁺ = F x + g``, ``P⁺ = F P Fᵀ + Q`` with ``F = I + N`` and ``N``
   strictly upper triangular, given as rows ``(row, col, mult, power)``: ``N[row, col] = mult ·
@@ -21,11 +22,11 @@ Small helpers take few array arguments (work buffers are packed into one array p
 in numba each array argument of an inlined call costs ~10 ns of reference counting, more than a
 4-state update. The helpers called once per epoch or record for a whole batch (``predict``,
 ``ekf_measure``, ``record_batch``) are compiled functions of their own, shared by the EKF, the
-KF and the closed loop (:mod:`obsplan.estimation.loop_kernels`) instead of inlined copies.
-The batch kernels (``ekf_batch``, ``kf_batch``) and the per-epoch steps of the filters' epoch by
-epoch interface (``ekf_predict``, ``kf_predict``, ``kf_measure``) take their model, records,
-outputs and corrections as keyword-named bundles (:mod:`obsplan.estimation.bundles`), unpacked
-once per call.
+KF and the closed loop (:mod:`obsplan.estimation.montecarlo.loop_kernels`) instead of inlined
+copies. The batch kernels (``ekf_batch``, ``kf_batch``) and the per-epoch steps of the filters'
+epoch by epoch interface (``ekf_predict``, ``kf_predict``, ``kf_measure``) take their model,
+records, outputs and corrections as keyword-named bundles
+(:mod:`obsplan.estimation.filters.bundles`), unpacked once per call.
 Compiled on first use and cached on disk (``cache=True``, in the per-user folder of
 :mod:`obsplan.estimation.jitcache` unless ``NUMBA_CACHE_DIR`` is set); this module is
 imported lazily, so ``import obsplan`` does not load numba.
@@ -38,9 +39,9 @@ Packed layouts
   ``ν, r, ok, s, gain, Σ NIS, count, Σ log-likelihood`` and the transition's coefficients;
 * ``nw`` (5 + 6n, 2n): rows ``mean, e, y, off, corr`` then ``C`` (2n rows), ``L`` (2n),
   ``q_nav`` (2n);
-* input corrections (closed loop, :mod:`obsplan.estimation.closedloop`): ``ce`` (E, 2n, R) and
-  ``cr`` (Nr, 2n, R), the response ``c = (p, v)`` of run ``r`` to its input corrections at the
-  epochs and records; a filter that predicts with the plan's inputs adds ``c_b - F c_a`` over a
+* input corrections (closed loop, :mod:`obsplan.estimation.montecarlo.closedloop`): ``ce`` (E, 2n,
+  R) and ``cr`` (Nr, 2n, R), the response ``c = (p, v)`` of run ``r`` to its input corrections at
+  the epochs and records; a filter that predicts with the plan's inputs adds ``c_b - F c_a`` over a
   segment (empty arrays: open loop, no correction);
 * linear output rows ``lin`` (outputs, 5): ``nnz, idx0, idx1, var, off``.
 """
@@ -53,7 +54,7 @@ import numba as nb
 import numpy as np
 
 from obsplan.estimation import jitcache
-from obsplan.estimation.stats import (  # the buffer's columns, the per-run info and truth
+from obsplan.estimation.columns import (
     COL_AXES,
     COL_NEES,
     COL_SE_VEL,
@@ -97,9 +98,9 @@ def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
 
     ``xb`` (≥ K, 3n) rows: true position ``p``, true inertial velocity ``p'``, reference
     position. Ranges, speed and tracking error are kept squared (their roots are taken once, by
-    :meth:`~obsplan.estimation.stats.TruthStats.from_metrics`); the closest range is refined to
-    the chord between consecutive samples, also across spans (``tm[j, TM_PREV:]`` holds the
-    last ``p - b``). ``box`` (3, 2): the area (rows x, y) and depth band (row z) bounds, checked
+    :meth:`~obsplan.estimation.montecarlo.stats.TruthStats.from_metrics`); the closest range is
+    refined to the chord between consecutive samples, also across spans (``tm[j, TM_PREV:]`` holds
+    the last ``p - b``). ``box`` (3, 2): the area (rows x, y) and depth band (row z) bounds, checked
     when ``has_box``. Accumulators are scalars: this runs at every sample of every run.
     """
     close, far = tm[j, TM_CLOSEST], tm[j, TM_FARTHEST]
@@ -698,7 +699,8 @@ def ekf_measure(
 @jit
 def ekf_predict(X, P, Q, ws, mdl, e, cor, G):
     """The EKF's prediction of every member to epoch ``e`` (``e > 0``) over segment ``e``, with
-    each run's input correction (``cor``, :data:`~obsplan.estimation.bundles.Corrections`)."""
+    each run's input correction (``cor``,
+    :data:`~obsplan.estimation.filters.bundles.Corrections`)."""
     m = X.shape[0]
     tab = mdl.tab
     noise_terms(Q, mdl.qt, tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2], m)
@@ -709,13 +711,13 @@ def ekf_predict(X, P, Q, ws, mdl, e, cor, G):
 
 @jit
 def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
-    """EKF runs over the epochs, batched (see :mod:`obsplan.estimation.ekf`).
+    """EKF runs over the epochs, batched (see :mod:`obsplan.estimation.filters.ekf`).
 
     ``X0`` (m, B), ``P0`` (m, m, B): the members; run ``g`` of the batch owns members
     ``g G .. g G + G - 1`` (``G = 1``: the EKF; ``G > 1``: the components of a Gaussian sum,
-    :mod:`obsplan.estimation.gsf`, whose log weights ``lw0`` grow by their innovations'
+    :mod:`obsplan.estimation.filters.gsf`, whose log weights ``lw0`` grow by their innovations'
     log-likelihoods and whose mixture is recorded). ``Y`` (E, outputs, runs) the readings; the
-    bundles (:mod:`obsplan.estimation.bundles`): ``mdl`` an ``EkfModel``, ``rcd`` the
+    bundles (:mod:`obsplan.estimation.filters.bundles`): ``mdl`` an ``EkfModel``, ``rcd`` the
     ``Records``, ``out`` the ``Outputs`` (``ex`` receives run ``ex_run``'s history), ``cor``
     the runs' input ``Corrections`` (closed loop; empty: none).
     """
@@ -769,10 +771,10 @@ def kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple):
     """Cross (x, chain) and chain blocks of the composed process noise of the augmented KF.
 
     ``Σ_j Φ(τ_j) Γ(σ_j) q Γ(σ_j)ᵀ Φ(τ_j)ᵀ`` by the segment's Gauss rule (``rule[e]``: nodes,
-    weights), with the chain rows ``Γ_c = [E(σ), J(τ_a + σ)]`` of :mod:`obsplan.estimation.kf`
-    (``E`` only when ``couple``; its gains ``c0 + σ c1`` and ``c1`` per member in rows 0, 1 of
-    ``kw``). ``Γ_c`` and ``q Γ_cᵀ`` live in rows 2–4 and 5–7 of ``kw``. Without noise on
-    ``(p0·ν0, |ν0|²)`` (the default) their columns are skipped.
+    weights), with the chain rows ``Γ_c = [E(σ), J(τ_a + σ)]`` of
+    :mod:`obsplan.estimation.filters.kf` (``E`` only when ``couple``; its gains ``c0 + σ c1`` and
+    ``c1`` per member in rows 0, 1 of ``kw``). ``Γ_c`` and ``q Γ_cᵀ`` live in rows 2–4 and 5–7 of
+    ``kw``. Without noise on ``(p0·ν0, |ν0|²)`` (the default) their columns are skipped.
     """
     mw = qk.shape[0]
     has_ab = False
@@ -939,7 +941,8 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
 
 @jit
 def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
-    """Augmented-KF runs over the epochs, batched over runs (see :mod:`obsplan.estimation.kf`).
+    """Augmented-KF runs over the epochs, batched over runs (see
+    :mod:`obsplan.estimation.filters.kf`).
 
     ``Z0`` (m, R), ``P0`` (m, m, R); ``anc`` the runs' ``Anchors``; ``mdl`` a ``KfModel`` whose
     ``ep_d`` (E, 2n) holds the input displacement ``d`` and its rate ``ḋ`` of the plan's inputs

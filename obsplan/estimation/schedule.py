@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.errors import ConfigError
-from obsplan.trajectory import Trajectory
+from obsplan.core.errors import ConfigError
+from obsplan.trajectory.sampled import Trajectory
 
 #: Relative slack when comparing a rate with the sample rate (times are floats).
 _RATE_SLACK = 1e-6

@@ -23,8 +23,7 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
-from obsplan.estimation.truth import true_readings  # noqa: F401  (re-exported: one definition)
-from obsplan.model import VehicleModel
+from obsplan.model.vehicle import VehicleModel
 
 
 @dataclass(frozen=True, eq=False)

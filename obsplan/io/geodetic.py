@@ -1,14 +1,14 @@
 """Geodetic command-line options: ``--origin LAT,LON[,ALT]`` and ``LAT,LON[,DEPTH]`` points.
 
-The frame and the conversions are in :mod:`obsplan.geodesy` (the one place for the math).
+The frame and the conversions are in :mod:`obsplan.model.frames` (the one place for the math).
 """
 
 from __future__ import annotations
 
 import math
 
-from obsplan.errors import InputError
-from obsplan.geodesy import GeodeticOrigin, check_lat_lon, geodetic_to_local
+from obsplan.core.errors import InputError
+from obsplan.model.frames import GeodeticOrigin, check_lat_lon, geodetic_to_local
 
 
 def parse_origin(text: str, option: str = "--origin") -> GeodeticOrigin:

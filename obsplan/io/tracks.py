@@ -34,7 +34,7 @@ extras :func:`read_track_rosbag` (``rosbags``: ``nav_msgs/Odometry`` or
 ``geometry_msgs/PoseStamped``, ROS 1 ``.bag`` or ROS 2 folders) and :func:`read_track_mavlink`
 (``pymavlink``: ``LOCAL_POSITION_NED`` or ``GLOBAL_POSITION_INT`` from a ``.tlog``).
 Frames: positions are in the package's local frame, north-east-down (``z`` is depth, as in the
-problem files' ``limits.depth``); see :mod:`obsplan.geodesy`.
+problem files' ``limits.depth``); see :mod:`obsplan.model.frames`.
 """
 
 from __future__ import annotations
@@ -46,11 +46,11 @@ from typing import Any
 
 import numpy as np
 
-from obsplan.csvtable import CsvTable, read_table
-from obsplan.errors import InputError, TrajectoryFormatError
-from obsplan.estimation import linear
-from obsplan.geodesy import GeodeticOrigin, geodetic_to_local
-from obsplan.trajectory import Trajectory, check_samples, csv_columns, trajectory_from_table
+from obsplan.core.csvtable import CsvTable, read_table
+from obsplan.core.errors import InputError, TrajectoryFormatError
+from obsplan.estimation.filters import linear
+from obsplan.model.frames import GeodeticOrigin, geodetic_to_local
+from obsplan.trajectory.sampled import Trajectory, check_samples, csv_columns, trajectory_from_table
 
 #: Fewest samples a fit accepts (three fix the quadratic of one hold; one more leaves a residual).
 MIN_SAMPLES = 4
@@ -271,7 +271,7 @@ def _waypoint_track(table: CsvTable, origin: Any) -> Track | None:
 
 
 def track_from_table(table: CsvTable, origin: Any = None) -> Track:
-    """A :class:`Track` from a :class:`~obsplan.csvtable.CsvTable` with ``t,px,py[,pz]`` (or a
+    """A :class:`Track` from a :class:`~obsplan.core.csvtable.CsvTable` with ``t,px,py[,pz]`` (or a
     waypoint CSV of ``obsplan export``: ``t,x,y[,z]`` or ``t,latitude,longitude[,depth]``, the
     latter about ``origin``, default the first waypoint)."""
     path = table.path
@@ -305,7 +305,7 @@ def read_track_csv(path: str | Path, origin: Any = None) -> Track:
     Separators: comma, semicolon or tab; extra columns are ignored. A full trajectory CSV (with
     ``ux..``) is also a track (its inputs are ignored), and so is a waypoint CSV written by
     ``obsplan export`` (``t,x,y[,z],...``, or ``t,latitude,longitude[,depth],...`` converted about
-    ``origin``, a :class:`~obsplan.geodesy.GeodeticOrigin`; default: the first waypoint).
+    ``origin``, a :class:`~obsplan.model.frames.GeodeticOrigin`; default: the first waypoint).
     """
     return track_from_table(read_table(path, "t,px,py[,pz]"), origin)
 
@@ -420,7 +420,7 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
         −relative_alt, as ArduSub reports it; vx, vy, vz [cm/s]); default: the first present,
         in that order.
     origin
-        :class:`~obsplan.geodesy.GeodeticOrigin` of the local frame for
+        :class:`~obsplan.model.frames.GeodeticOrigin` of the local frame for
         ``GLOBAL_POSITION_INT``; default: the first fix, at the surface.
 
     Times are ``time_boot_ms`` [s]; repeated messages with the same time are dropped (a
@@ -695,7 +695,7 @@ def _transition(h: float) -> np.ndarray:
 
 
 def _rts(nodes: _Nodes, moments) -> tuple[np.ndarray, np.ndarray]:
-    """Rauch–Tung–Striebel smoother (:func:`obsplan.estimation.linear.rts_smooth`): smoothed
+    """Rauch–Tung–Striebel smoother (:func:`obsplan.estimation.filters.linear.rts_smooth`): smoothed
     means (M, B, 3) and u variances (M, B)."""
     xf, Pf, xp, Pp = moments
     F = np.array([_transition(h) for h in np.diff(nodes.t)]).reshape(-1, 3, 3)
@@ -830,9 +830,10 @@ def load_trajectory(
 ) -> tuple[Trajectory, TrackFit | None]:
     """A trajectory CSV as it is, or a position-only track CSV fitted on the fly.
 
-    A file with any ``u`` column is read as a trajectory CSV (:func:`obsplan.trajectory.read_csv`);
-    one with ``t,px,py[,pz]`` and no ``u`` is a track, fitted by :func:`fit_track` with
-    ``fit_options``. Returns the trajectory and the fit (None for a trajectory CSV).
+    A file with any ``u`` column is read as a trajectory CSV
+    (:func:`obsplan.trajectory.sampled.read_csv`); one with ``t,px,py[,pz]`` and no ``u`` is a
+    track, fitted by :func:`fit_track` with ``fit_options``. Returns the trajectory and the fit
+    (None for a trajectory CSV).
     """
     table = read_table(path, "t,px,py,vx,vy,ux,uy (or a track: t,px,py)")
     if any(c in table.columns for c in ("ux", "uy", "uz")):

@@ -18,7 +18,7 @@ where the projection leaves the segment), not by sampling.
 
 ``speed`` of a waypoint is the constant speed that flies its outgoing leg on schedule (leg length
 / leg duration; the last waypoint repeats the last leg's). Geodetic output needs an origin
-(:mod:`obsplan.geodesy`); a straight leg in the local frame and the one an autopilot draws
+(:mod:`obsplan.model.frames`); a straight leg in the local frame and the one an autopilot draws
 between two latitude/longitude points differ by far less than a millimetre over legs of a few
 hundred metres.
 """
@@ -33,11 +33,11 @@ from typing import Any, cast
 
 import numpy as np
 
-from obsplan.atomic import atomic_file
-from obsplan.csvtable import read_table, write_table
-from obsplan.errors import InputError, TrajectoryFormatError
-from obsplan.geodesy import local_to_geodetic
-from obsplan.trajectory import Trajectory, grid_times
+from obsplan.core.atomic import atomic_file
+from obsplan.core.csvtable import read_table, write_table
+from obsplan.core.errors import InputError, TrajectoryFormatError
+from obsplan.model.frames import local_to_geodetic
+from obsplan.trajectory.sampled import Trajectory, grid_times
 
 #: MAVLink MAV_CMD_NAV_WAYPOINT, MAV_CMD_DO_CHANGE_SPEED.
 NAV_WAYPOINT = 16

@@ -1,4 +1,10 @@
-"""Observability of the single-beacon double integrator: LWO rank test and augmented Gramian."""
+"""Observability of the single-beacon double integrator: LWO rank test and augmented Gramian.
+
+The LWO matrix (:mod:`~.lwo`), the augmented Gramian and its windows (:mod:`~.gramian`,
+:mod:`~.windowed`, :mod:`~.local_gramian`), exact structural ranks (:mod:`~.structural`), the
+fixed nondimensionalisation (:mod:`~.scaling`) and both verdicts on one path (:mod:`~.analyze`).
+Imports the model, the trajectory stage and the core only.
+"""
 
 from __future__ import annotations
 

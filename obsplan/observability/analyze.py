@@ -31,13 +31,13 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from obsplan.errors import InputError
-from obsplan.model import RangeForm, make_model, parse_sensors
+from obsplan.core.errors import InputError
+from obsplan.model.vehicle import RangeForm, make_model, parse_sensors
 from obsplan.observability.gramian import GramianReport, gramian_report
 from obsplan.observability.lwo import LWOReport, lwo_report
 from obsplan.observability.scaling import DEFAULT_SCALES, RANK_TOL, Scales
 from obsplan.observability.structural import ExactRankProfile, exact_rank_profile
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ def analyze(
     if not isinstance(trajectory, Trajectory):
         raise InputError(
             f"trajectory must be an obsplan Trajectory, got {type(trajectory).__name__}; "
-            "read a CSV with obsplan.trajectory.read_csv"
+            "read a CSV with obsplan.trajectory.sampled.read_csv"
         )
     if not isinstance(scales, Scales):
         raise InputError(f"scales must be an obsplan Scales, got {type(scales).__name__}")

@@ -54,7 +54,7 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
-from obsplan.model import VehicleModel
+from obsplan.model.vehicle import VehicleModel
 from obsplan.observability.scaling import (
     DEFAULT_SCALES,
     RANK_TOL,
@@ -62,7 +62,7 @@ from obsplan.observability.scaling import (
     numerical_rank,
     psd_metrics,
 )
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 _AXES = "xyz"
 

@@ -36,10 +36,10 @@ from functools import cache, cached_property
 import casadi as ca
 import numpy as np
 
-from obsplan.model import VehicleModel
+from obsplan.model.vehicle import VehicleModel
 from obsplan.observability.gramian import AugmentedModel
 from obsplan.observability.scaling import Scales
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 #: Simpson's rule: the nodes of an interval as fractions of it, and their weights.
 SIMPSON_NODES = (0.0, 0.5, 1.0)

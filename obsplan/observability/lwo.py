@@ -2,11 +2,11 @@
 
 Matrix
 ------
-For each output ``h_j`` of :class:`~obsplan.model.VehicleModel` (in sensor order) the rows are the
-state gradients ``∇_x L^k h_j`` for ``k = 0..K`` (eq. 8-9); rows that are structurally zero (e.g.
-``∇ L^4 y = 0`` for the half-squared range) are dropped, so the half-squared range gives the four
-rows of eq. 13 and a DVL the identity block of eq. 40. Nothing is typed by hand: the rows come from
-``VehicleModel.f_expr`` / ``h_expr`` for any sensor set, range form and current option.
+For each output ``h_j`` of :class:`~obsplan.model.vehicle.VehicleModel` (in sensor order) the rows
+are the state gradients ``∇_x L^k h_j`` for ``k = 0..K`` (eq. 8-9); rows that are structurally zero
+(e.g. ``∇ L^4 y = 0`` for the half-squared range) are dropped, so the half-squared range gives the
+four rows of eq. 13 and a DVL the identity block of eq. 40. Nothing is typed by hand: the rows come
+from ``VehicleModel.f_expr`` / ``h_expr`` for any sensor set, range form and current option.
 
 Inputs. With ``input_derivatives = 0`` the input ``u`` is a constant parameter (the
 piecewise-constant inputs of trajectories and CSVs): this is the paper's "frozen-input" matrix
@@ -56,7 +56,7 @@ hold interval and ``d/dt det O = 0`` there (``tests/test_paper_record.py`` prove
 checking every sample of a held-input trajectory (a CSV) *is* the paper's "at all times" rule.
 For a smooth input (a path flown with ``u = p''``) it is not: O varies within a sampling interval
 and can lose rank between samples. :func:`lwo_path_report` checks analytic paths
-(``obsplan.generators.AnalyticPath``) between samples by root finding.
+(``obsplan.trajectory.generators.AnalyticPath``) between samples by root finding.
 
 The rank is always computed on the half-squared rows. For ``r > 0`` the plain-range rows of orders
 ``0..K`` span exactly the same space (triangular chain rule above), but they are badly conditioned:
@@ -77,9 +77,9 @@ import casadi as ca
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
-from obsplan.errors import InputError
-from obsplan.model import VehicleModel
-from obsplan.trajectory import Trajectory
+from obsplan.core.errors import InputError
+from obsplan.model.vehicle import VehicleModel
+from obsplan.trajectory.sampled import Trajectory
 
 #: Relative tolerance on the singular values of the dimensionless O at one sample.
 #: Entries are low-degree polynomials of the samples (a few flops: relative error ~1e-15), and the
@@ -405,7 +405,7 @@ def lwo_structural_max_rank(
 
 # ------------------------------------------------------------------ smooth paths, between samples
 class SmoothPath(Protocol):
-    """A path with analytic pieces, e.g. :class:`obsplan.generators.AnalyticPath`."""
+    """A path with analytic pieces, e.g. :class:`obsplan.trajectory.generators.AnalyticPath`."""
 
     @property
     def dim(self) -> int: ...

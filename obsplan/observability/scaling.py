@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.errors import ConfigError
+from obsplan.core.errors import ConfigError
 
 #: Absolute tolerance on the eigenvalues of an equilibrated (unit-diagonal) symmetric matrix.
 RANK_TOL: float = 1e-10

@@ -79,10 +79,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from obsplan.model import VehicleModel
+from obsplan.model.vehicle import VehicleModel
 from obsplan.observability.gramian import AugmentedModel, augmented_model
 from obsplan.observability.scaling import Scales, augmented_state_scale
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 #: Intervals whose coefficient vectors are built at once (doubling from the first block).
 _FIRST_BLOCK, _MAX_BLOCK = 16, 4096

@@ -40,11 +40,11 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
-from obsplan.model import VehicleModel
+from obsplan.model.vehicle import VehicleModel
 from obsplan.observability.gramian import AugmentedModel, interval_gramians
 from obsplan.observability.local_gramian import LinearisedModel
 from obsplan.observability.scaling import Scales
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 ANCHORS: tuple[str, ...] = ("start", "current")
 

@@ -1,5 +1,10 @@
 """Observability-aware trajectory planning: problems, objectives, solver, baselines, validation.
 
+The rooms, from the bottom up (each imports only those before it, and the stages below
+planning): :mod:`~.missions`, :mod:`~.problem`, :mod:`~.baselines`, :mod:`~.transcription`,
+:mod:`~.objectives`, :mod:`~.solver`, :mod:`~.validation`, then :mod:`~.figures`,
+:mod:`~.replan` and :mod:`~.plan` on top.
+
 Public API: :func:`plan` -> :class:`PlanResult`, :func:`load_problem`, :class:`PlanningProblem`,
 :func:`solve` -> :class:`SolveResult`, :func:`baselines`, :func:`path_metrics`,
 :func:`estimation_config` (the validation's filter configuration of a problem). The modules form
@@ -8,14 +13,14 @@ one-way rooms (docs/design.md; ``tests/test_architecture.py`` holds their order)
 
 from __future__ import annotations
 
-from obsplan.planning.baselines import Baseline, baselines
-from obsplan.planning.evaluate import PathMetrics, path_metrics
-from obsplan.planning.parse import load_problem, problem_from_dict
+from obsplan.planning.baselines.vehicle import Baseline, baselines
+from obsplan.planning.objectives.evaluate import PathMetrics, path_metrics
 from obsplan.planning.plan import PlanResult, plan
-from obsplan.planning.problem import PlanningProblem
-from obsplan.planning.schema import OBJECTIVES
-from obsplan.planning.solve import SolveResult, solve
-from obsplan.planning.validation_setup import estimation_config
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.parse import load_problem, problem_from_dict
+from obsplan.planning.problem.schema import OBJECTIVES
+from obsplan.planning.problem.validation_setup import estimation_config
+from obsplan.planning.solver.solve import SolveResult, solve
 
 __all__ = [
     "OBJECTIVES",

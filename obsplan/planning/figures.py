@@ -14,11 +14,11 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from obsplan.observability.gramian import cumulative_gramians
-from obsplan.planning.mission_check import mission_check
-from obsplan.planning.mission_schedule import mission_schedule
-from obsplan.planning.problem import PlanningProblem
-from obsplan.planning.validation import PathValidation
-from obsplan.trajectory import Trajectory
+from obsplan.planning.missions.check import mission_check
+from obsplan.planning.missions.schedule import mission_schedule
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.validation.validate import PathValidation
+from obsplan.trajectory.sampled import Trajectory
 
 _STYLE = {
     "planned": {"color": "tab:green", "lw": 2.0},
@@ -107,7 +107,7 @@ def _draw_altitude_band(az, tr: Trajectory, pb: PlanningProblem) -> None:
         return
     sb = m.seabed.depth_at(tr.p[:, :2])
     az.plot(tr.t, sb, color="saddlebrown", lw=1, label="seabed under the path")
-    chk = mission_check(tr, pb)
+    chk = mission_check(tr, pb.mission_context)
     lo, hi = m.altitude
     for k, ln in enumerate(chk.lines if chk is not None else ()):
         on = (tr.t >= ln.pass_s[0]) & (tr.t <= ln.pass_s[1])
@@ -161,9 +161,9 @@ def plot_speed(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None) ->
     m = pb.mission
     if m is not None and m.lines:
         lo, hi = m.speed_band(pb.limits.speed)
-        windows = mission_schedule(pb).line_windows
+        windows = mission_schedule(pb.mission_context).line_windows
         if "planned" in paths:
-            chk = mission_check(paths["planned"], pb)
+            chk = mission_check(paths["planned"], pb.mission_context)
             if chk is not None and chk.complete:
                 windows = tuple(ln.pass_s for ln in chk.lines)
         for k, (t0, t1) in enumerate(windows):

@@ -6,18 +6,18 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from obsplan.estimation.runs import DEFAULT_FILTERS
-from obsplan.planning.baselines import Baseline, baselines, unfitted_baselines
-from obsplan.planning.evaluate import PathMetrics, path_metrics
-from obsplan.planning.margins import KeepoutReport, solve_with_keepout
-from obsplan.planning.mission_check import MissionCheck, mission_check
-from obsplan.planning.mission_schedule import mission_schedule, planner_schedule
-from obsplan.planning.parse import load_problem, problem_to_dict
-from obsplan.planning.problem import PlanningProblem
-from obsplan.planning.solve import SolveResult
-from obsplan.planning.stress import Robustness, stress_active, stress_validate
-from obsplan.planning.validation import PathValidation
-from obsplan.planning.verdict import (
+from obsplan.estimation.montecarlo.runs import DEFAULT_FILTERS
+from obsplan.planning.baselines.vehicle import Baseline, baselines, unfitted_baselines
+from obsplan.planning.missions.check import MissionCheck, mission_check
+from obsplan.planning.missions.schedule import mission_schedule, planner_schedule
+from obsplan.planning.objectives.evaluate import PathMetrics, path_metrics
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.parse import load_problem, problem_to_dict
+from obsplan.planning.solver.margins import KeepoutReport, solve_with_keepout
+from obsplan.planning.solver.solve import SolveResult
+from obsplan.planning.validation.stress import Robustness, stress_active, stress_validate
+from obsplan.planning.validation.validate import PathValidation
+from obsplan.planning.validation.verdict import (
     Verdict,
     ekf_diverges,
     objective_notes,
@@ -25,7 +25,7 @@ from obsplan.planning.verdict import (
     validate_until_decided,
     verdict,
 )
-from obsplan.trajectory import Trajectory
+from obsplan.trajectory.sampled import Trajectory
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,9 +48,10 @@ class PlanResult:
         Baselines the problem cannot fit, with the reason.
     keepout : KeepoutReport or None
         How the plan keeps its limits with the keep-out margins
-        (:mod:`obsplan.planning.margins`).
+        (:mod:`obsplan.planning.solver.margins`).
     robustness : Robustness or None
-        Every path re-validated at ``validation.stress_*`` (:mod:`obsplan.planning.stress`).
+        Every path re-validated at ``validation.stress_*``
+        (:mod:`obsplan.planning.validation.stress`).
     """
 
     problem: PlanningProblem
@@ -67,8 +68,8 @@ class PlanResult:
 
     @property
     def verdict(self) -> Verdict:
-        """The plan against every validated baseline (:mod:`obsplan.planning.verdict`); with a
-        mission, only against the paths that complete it."""
+        """The plan against every validated baseline (:mod:`obsplan.planning.validation.verdict`);
+        with a mission, only against the paths that complete it."""
         val = dict(self.validation)
         not_fitted = dict(self.not_fitted)
         for name, chk in self.missions.items():
@@ -147,7 +148,7 @@ def _schedule_dict(pb: PlanningProblem) -> dict | None:
     """The mission's schedules: the lawn-mower's speed, the planner's line speed and lead-in."""
     if pb.mission is None:
         return None
-    base, lead = mission_schedule(pb), planner_schedule(pb)
+    base, lead = mission_schedule(pb.mission_context), planner_schedule(pb.mission_context)
     return {
         "lawnmower_speed_mps": float(base.speed),
         "planner_speed_mps": float(lead.speed),
@@ -176,7 +177,7 @@ def plan(
         Run the EKF/KF Monte Carlo on the plan and every baseline (in closed loop unless
         ``validation.mode = "open-loop"``), adding batches of runs until every verdict is
         decided or ``validation.max_runs`` is reached
-        (:func:`~obsplan.planning.verdict.validate_until_decided`).
+        (:func:`~obsplan.planning.validation.verdict.validate_until_decided`).
     runs
         Override ``validation.runs`` (the first batch).
     max_runs
@@ -202,8 +203,8 @@ def plan(
 
     >>> from dataclasses import replace
     >>> from obsplan import load_problem, plan
-    >>> from obsplan.planning.parse import LOCALISE_PROBLEM
-    >>> from obsplan.planning.problem import Horizon
+    >>> from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+    >>> from obsplan.planning.problem.definition import Horizon
     >>> pb = load_problem(LOCALISE_PROBLEM)
     >>> pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=20),
     ...              objective=replace(pb.objective, starts=1))
@@ -222,7 +223,9 @@ def plan(
         paths["planned"] = res.trajectory
     paths.update({k: b.trajectory for k, b in bls.items()})
     metrics = {k: path_metrics(tr, pb) for k, tr in paths.items()}
-    missions = {k: c for k, tr in paths.items() if (c := mission_check(tr, pb)) is not None}
+    missions = {
+        k: c for k, tr in paths.items() if (c := mission_check(tr, pb.mission_context)) is not None
+    }
     lines = {k: c.line_mask(pb.filter_times) for k, c in missions.items() if c.lines}
     validation = _validate(paths, pb, runs, max_runs, progress, lines) if validate else {}
     robustness = None

@@ -3,11 +3,11 @@
 Every ``every`` seconds each run of the closed loop stops, and the planner re-solves from that
 run's estimate (of its navigation filter, ``validation.navigation``) over the remaining horizon;
 the vehicle then steers its estimate onto the new plan (the guidance law of
-:mod:`obsplan.estimation.guidance`) until the next replan.
+:mod:`obsplan.estimation.montecarlo.guidance`) until the next replan.
 
 Shrinking horizon on the planning grid
 --------------------------------------
-The NLP is built once (:func:`~obsplan.planning.formulation.build_formulation`, the one-shot
+The NLP is built once (:func:`~obsplan.planning.solver.formulation.build_formulation`, the one-shot
 plan's own formulation and objective) and its IPOPT solver once; a re-solve at node ``k`` only
 changes bounds and the initial point:
 
@@ -20,7 +20,7 @@ changes bounds and the initial point:
 * the initial point is *flying on*: from the estimate back onto the plan in force over the
   recovery window below (the plan's inputs plus the least-energy correction that joins it,
   :func:`return_inputs`), the plan in force after it (IPOPT's warm-start options,
-  :data:`~obsplan.planning.ipopt.WARM_START`). Re-integrating the plan's inputs from the
+  :data:`~obsplan.planning.solver.ipopt.WARM_START`). Re-integrating the plan's inputs from the
   estimate instead carries the estimate's velocity offset to the end of the mission (a 1 cm/s
   offset is 5 m after 500 s): on the median suite problem those drifted paths, kept or refined,
   lost to the one-shot plan (EKF final error 1.13x, 200 runs); joined back, replanning ties it
@@ -51,26 +51,30 @@ import casadi as ca
 import numpy as np
 from tqdm import tqdm
 
-from obsplan.errors import ConfigError
-from obsplan.estimation.closedloop import ClosedLoop
-from obsplan.estimation.crlb import posterior_crlb
-from obsplan.estimation.guidance import Guidance
-from obsplan.estimation.results import MonteCarloResult, merge_monte_carlo
-from obsplan.estimation.simulate import DEFAULT_FILTERS
-from obsplan.planning.evaluate import better, objective_value
-from obsplan.planning.feasibility import check_limits
-from obsplan.planning.formulation import Formulation, build_formulation
-from obsplan.planning.ipopt import SUCCESS_STATUS, _call, make_solver
-from obsplan.planning.margins import keepout_margins, tighten
-from obsplan.planning.problem import PlanningProblem
-from obsplan.planning.starts import default_processes, run_forked
-from obsplan.planning.validation import PathValidation, validate_paths
-from obsplan.planning.validation_setup import estimation_config, truth_limits, validation_guidance
-from obsplan.planning.verdict import Verdict, verdict
-from obsplan.trajectory import Trajectory, resample
+from obsplan.core.errors import ConfigError
+from obsplan.estimation.bounds.crlb import posterior_crlb
+from obsplan.estimation.montecarlo.closedloop import ClosedLoop
+from obsplan.estimation.montecarlo.guidance import Guidance
+from obsplan.estimation.montecarlo.results import MonteCarloResult, merge_monte_carlo
+from obsplan.estimation.montecarlo.simulate import DEFAULT_FILTERS
+from obsplan.planning.objectives.evaluate import better, objective_value
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.feasibility import check_limits
+from obsplan.planning.problem.validation_setup import (
+    estimation_config,
+    truth_limits,
+    validation_guidance,
+)
+from obsplan.planning.solver.formulation import Formulation, build_formulation
+from obsplan.planning.solver.ipopt import SUCCESS_STATUS, _call, make_solver
+from obsplan.planning.solver.margins import keepout_margins, tighten
+from obsplan.planning.solver.starts import default_processes, run_forked
+from obsplan.planning.validation.validate import PathValidation, validate_paths
+from obsplan.planning.validation.verdict import Verdict, verdict
+from obsplan.trajectory.sampled import Trajectory, resample
 
-#: Runs per :class:`~obsplan.estimation.closedloop.ClosedLoop` of the replanned Monte Carlo (each
-#: run re-solves on its own; a batch advances its runs together between replans).
+#: Runs per :class:`~obsplan.estimation.montecarlo.closedloop.ClosedLoop` of the replanned Monte
+#: Carlo (each run re-solves on its own; a batch advances its runs together between replans).
 BATCH = 5
 #: IPOPT's tolerance of a re-solve, relative to the objective's own (``objective.solver_tol``):
 #: a re-solve starts next to an optimum and has a vehicle's time budget. Measured on the default
@@ -205,7 +209,7 @@ def return_inputs(
 ) -> np.ndarray:
     """Input corrections [m/s²] that bring the vehicle ``error`` = ``(dp, dv)`` [m, m/s] off its
     plan back onto it in ``steps`` steps (at least 2, at most ``horizon``) of the exact
-    zero-order hold ``e' = F e + G c`` (:meth:`~obsplan.model.VehicleModel.transition`, its
+    zero-order hold ``e' = F e + G c`` (:meth:`~obsplan.model.vehicle.VehicleModel.transition`, its
     ``(p, v)`` block): the least-energy sequence, zero after; shape ``(horizon, n)``."""
     n = G.shape[1]
     m = max(1, min(max(2, int(steps)), int(horizon)))
@@ -227,7 +231,7 @@ class Replanner:
         The problem (its formulation and objective are the one-shot plan's).
     plan
         The one-shot plan: with ``limits.keepout_confidence > 0`` the re-solves keep the
-        keep-out margins computed along it (:mod:`obsplan.planning.margins`).
+        keep-out margins computed along it (:mod:`obsplan.planning.solver.margins`).
     expand
         Expand the NLP to SX (faster iterations, slower construction).
     ipopt_options

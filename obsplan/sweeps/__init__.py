@@ -2,7 +2,8 @@
 
 Public API: :func:`sweep` -> pandas DataFrame, :func:`load_sweep` -> :class:`SweepSpec`,
 :func:`expand` -> list of :class:`Task`, :func:`read_table`, :func:`redraw_figures`,
-:func:`local_cluster`, :func:`sharded_monte_carlo`.
+:func:`local_cluster`, :func:`sharded_monte_carlo`. Imports every stage up to planning (a task
+is a plan and its validation); nothing of :mod:`obsplan.io` or the command line.
 """
 
 from __future__ import annotations

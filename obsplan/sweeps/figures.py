@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from obsplan.errors import InputError
+from obsplan.core.errors import InputError
 from obsplan.sweeps.spec import axis_column
 from obsplan.sweeps.store import FIGURES, RESULTS_PARQUET, atomic_write, read_manifest
 from obsplan.sweeps.table import read_table

@@ -3,8 +3,8 @@
 Run ``i`` of a Monte Carlo draws from its own stream of the seed (independent of how many runs
 are done, and where), so runs ``0 .. n-1`` split into contiguous shards ``[start, start + k)``
 compute exactly the runs of the unsharded call; the statistics are merged from their sums
-(:func:`obsplan.estimation.simulate.merge_monte_carlo`), not as means of means, so the merged
-result equals the unsharded one to round-off.
+(:func:`obsplan.estimation.montecarlo.simulate.merge_monte_carlo`), not as means of means, so the
+merged result equals the unsharded one to round-off.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ def shard_bounds(runs: int, shards: int) -> list[tuple[int, int]]:
     """``(run_start, runs)`` of ``shards`` contiguous shards covering ``runs`` runs, sizes
     differing by at most one (empty shards dropped)."""
     if runs < 1 or shards < 1:
-        from obsplan.errors import InputError
+        from obsplan.core.errors import InputError
 
         raise InputError(f"runs and shards must be at least 1, got {runs} and {shards}")
     base, extra = divmod(runs, shards)
@@ -30,8 +30,8 @@ def shard_bounds(runs: int, shards: int) -> list[tuple[int, int]]:
 
 
 def sharded_monte_carlo(traj, config, runs: int, seed: int, shards: int, client: Any, **kwargs):
-    """:func:`~obsplan.estimation.simulate.monte_carlo` of ``runs`` runs split into ``shards``
-    tasks on the Dask ``client``, merged exactly.
+    """:func:`~obsplan.estimation.montecarlo.simulate.monte_carlo` of ``runs`` runs split into
+    ``shards`` tasks on the Dask ``client``, merged exactly.
 
     Parameters
     ----------
@@ -50,7 +50,7 @@ def sharded_monte_carlo(traj, config, runs: int, seed: int, shards: int, client:
     -------
     MonteCarloResult
     """
-    from obsplan.estimation.simulate import merge_monte_carlo, monte_carlo
+    from obsplan.estimation.montecarlo.simulate import merge_monte_carlo, monte_carlo
 
     traj_f, config_f = client.scatter([traj, config], broadcast=False)
     futures = [

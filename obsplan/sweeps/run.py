@@ -38,8 +38,8 @@ from typing import Any
 import pandas as pd
 
 import obsplan.sweeps.spec as specs
-from obsplan import interrupts
-from obsplan.errors import InputError, ObsplanError
+from obsplan.core import interrupts
+from obsplan.core.errors import InputError, ObsplanError
 from obsplan.estimation import jitcache
 from obsplan.sweeps.spec import SweepSpec, Task, as_spec, expand, unique_tasks
 from obsplan.sweeps.store import (
@@ -399,7 +399,7 @@ def sweep(
 
     >>> import tempfile
     >>> from obsplan import sweep
-    >>> from obsplan.planning.parse import PROBLEMS_DIR
+    >>> from obsplan.planning.problem.parse import PROBLEMS_DIR
     >>> base = str(PROBLEMS_DIR / "localise.toml")
     >>> spec = {"sweep": {"name": "doc", "base": base, "mode": "baselines"},
     ...         "base": {"horizon": {"steps": 20}, "validation": {"runs": 2}},

@@ -9,12 +9,13 @@ list of values or a generator table (``{range = 5}``, ``{linspace = [a, b, n]}``
 
 Every task is the base mapping with its axis values written in (on the raw TOML mapping, so
 fields the base leaves to their defaults keep adapting, e.g. a default beacon to a changed
-``vehicle.dim``) and validated by :func:`obsplan.planning.problem.problem_from_dict` before
-anything runs: a typo in the 50th task is an error naming the task and the field. A task's
-identity is a hash of its resolved problem (:func:`~obsplan.planning.problem.problem_to_dict`,
-defaults filled in), its mode, the package version and a fingerprint of the package's code
-(:func:`code_fingerprint`): the same problem in another sweep, or in an edited version of the
-same sweep, is the same task; the same problem computed by changed code is another one.
+``vehicle.dim``) and validated by :func:`obsplan.planning.problem.definition.problem_from_dict`
+before anything runs: a typo in the 50th task is an error naming the task and the field. A task's
+identity is a hash of its resolved problem
+(:func:`~obsplan.planning.problem.definition.problem_to_dict`, defaults filled in), its mode, the
+package version and a fingerprint of the package's code (:func:`code_fingerprint`): the same problem
+in another sweep, or in an edited version of the same sweep, is the same task; the same problem
+computed by changed code is another one.
 """
 
 from __future__ import annotations
@@ -34,14 +35,14 @@ from typing import Any, cast
 
 import numpy as np
 
-from obsplan import budget
-from obsplan.errors import InputError, ProblemError
-from obsplan.estimation.runs import FILTERS
-from obsplan.estimation.stats import FilterStats
-from obsplan.planning.evaluate import PathMetrics
-from obsplan.planning.parse import problem_from_dict, problem_to_dict
-from obsplan.planning.schema import SCHEMA
-from obsplan.textfiles import read_toml
+from obsplan.core import budget
+from obsplan.core.errors import InputError, ProblemError
+from obsplan.core.textfiles import read_toml
+from obsplan.estimation.montecarlo.runs import FILTERS
+from obsplan.estimation.montecarlo.stats import FilterStats
+from obsplan.planning.objectives.evaluate import PathMetrics
+from obsplan.planning.problem.parse import problem_from_dict, problem_to_dict
+from obsplan.planning.problem.schema import SCHEMA
 from obsplan.version import __version__
 
 #: What each task computes: ``plan`` (plan + validation against the baselines) or ``baselines``
@@ -133,8 +134,9 @@ class Task:
         Axis path -> the value this task takes.
     mode : str
     problem : dict
-        The resolved problem (:func:`~obsplan.planning.problem.problem_to_dict`): every field
-        present, rebuilt on the worker with :func:`~obsplan.planning.problem.problem_from_dict`.
+        The resolved problem (:func:`~obsplan.planning.problem.definition.problem_to_dict`): every
+        field present, rebuilt on the worker with
+        :func:`~obsplan.planning.problem.definition.problem_from_dict`.
     """
 
     id: str
@@ -582,7 +584,8 @@ def task_id(problem: Mapping[str, Any], mode: str) -> str:
 
 def axis_unit(path: str) -> str:
     """The unit of the problem-file field an axis path sets (``"m/s^2"`` for
-    ``limits.accel.2``), ``"-"`` for a unitless field (:data:`obsplan.planning.schema.SCHEMA`)."""
+    ``limits.accel.2``), ``"-"`` for a unitless field
+    (:data:`obsplan.planning.problem.schema.SCHEMA`)."""
     keys = parse_path(path)
     specs = {s.name: s for s in SCHEMA[cast(str, keys[0])]}
     return specs[cast(str, keys[1])].unit

@@ -9,7 +9,7 @@ Layout of ``DIR``::
     figures/                the study figures (obsplan.sweeps.figures)
 
 Every file is written to a temporary name in its folder and renamed over the target
-(:func:`obsplan.atomic.atomic_file`), so an interrupted write leaves the old file or none,
+(:func:`obsplan.core.atomic.atomic_file`), so an interrupted write leaves the old file or none,
 never half of one. A task's ``report.json`` is written after its ``plan.csv``: a task is
 finished exactly when its report exists, which is what a re-run checks to resume.
 """
@@ -21,9 +21,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from obsplan.atomic import atomic_file
-from obsplan.errors import InputError
-from obsplan.outputs import check_resumable_dir, has_marker, write_marker
+from obsplan.core.atomic import atomic_file
+from obsplan.core.errors import InputError
+from obsplan.core.outputs import check_resumable_dir, has_marker, write_marker
 
 MANIFEST = "sweep.json"
 TASKS = "tasks"
@@ -36,7 +36,7 @@ FIGURES = "figures"
 
 def atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``
-    (:func:`obsplan.atomic.atomic_file`); creates the parent folder."""
+    (:func:`obsplan.core.atomic.atomic_file`); creates the parent folder."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_file(path) as tmp:
@@ -56,7 +56,7 @@ def check_out(out: str | Path, force: bool, name: str) -> Path:
     changed (tasks are keyed by their problem, so the finished ones are reused); an empty or new
     folder is used; a folder holding another sweep (or another obsplan output) is refused unless
     ``force``; a link, a folder of the user's, the working or home folder (or a parent) are
-    always refused (:func:`obsplan.outputs.check_resumable_dir`).
+    always refused (:func:`obsplan.core.outputs.check_resumable_dir`).
 
     Raises
     ------

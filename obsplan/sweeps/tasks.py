@@ -71,9 +71,9 @@ def run_task(task: Task) -> dict[str, Any]:
 
 def _compute(task: Task) -> tuple[dict[str, Any], str | None]:
     from obsplan.planning import baselines, path_metrics, plan
-    from obsplan.planning.parse import problem_from_dict
-    from obsplan.planning.validation import validate_paths
-    from obsplan.trajectory import write_csv
+    from obsplan.planning.problem.parse import problem_from_dict
+    from obsplan.planning.validation.validate import validate_paths
+    from obsplan.trajectory.sampled import write_csv
 
     pb = problem_from_dict(task.problem)
     if task.mode == "plan":

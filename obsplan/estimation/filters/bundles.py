@@ -1,0 +1,126 @@
+"""Keyword-named argument bundles of the compiled filters (:mod:`obsplan.estimation.kernels`).
+
+A batch kernel takes a handful of bundles instead of thirty positional arrays: each bundle is a
+namedtuple of arrays and scalars (numba passes namedtuples as typed tuples), built here by
+name from the filter and the run context and unpacked once at the top of the kernel. A bundle
+costs the reference counts of all its members per call, so the kernels pass plain arrays to the
+helpers they call per epoch; the bundles cross only the Python-numba boundary, once per batch.
+
+Layouts of the arrays are those of :mod:`obsplan.estimation.kernels` (module docstring).
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from obsplan.estimation.epochs import RunContext
+from obsplan.model.vehicle import VehicleModel
+
+#: What the EKF (and the Gaussian sum's components) predict and update with: the segment table
+#: ``tab``, the composed process-noise terms ``qt`` (3, m, m), the transition's packed entries
+#: ``tr``, the linear output rows ``lin``, the dimension ``n``, current ``cur``, beacon (n,),
+#: range form ``half_sq``, the second-order range update ``second`` and the range noise
+#: ``sig_r`` [m].
+EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig_r")
+
+#: What the augmented KF predicts and updates with: as :data:`EkfModel` plus the segments'
+#: Gauss rules ``rule``, the input displacement and rate at the epochs ``ep_d`` (E, 2n), the
+#: full augmented noise ``qk``, whether it is diagonal ``qdiag``, the coupling switch
+#: ``couple`` and ``inflate`` (``y0_mode="inflate"``).
+KfModel = namedtuple(
+    "KfModel", "tab rule ep_d qt qk qdiag couple tr lin n cur beacon sig_r inflate"
+)
+
+#: The KF's anchors per run: ``y0`` (R,) and their variances ``var0`` (R,).
+Anchors = namedtuple("Anchors", "y0 var0")
+
+#: The records: epoch of each ``rec_base`` (Nr,), the per-run table with the truth ``rec``
+#: (R, Nr, cols), the navigation noise ``qz`` (2n, 2n), the record times ``t_rec``, the
+#: convergence threshold ``thr`` [m], the NEES bound ``bound``, the monitor window ``window``
+#: [s] and the records' weights ``rec_w`` of the subset RMSE.
+Records = namedtuple("Records", "rec_base rec qz t_rec thr bound window rec_w")
+
+#: Where the statistics go: the group sums ``sums`` (2, Nr, cols), the per-run verdicts
+#: ``info`` (R, N_INFO), the run ``ex_run`` whose history is kept in ``ex`` (2, Nr, 2n) (-1:
+#: none).
+Outputs = namedtuple("Outputs", "sums info ex_run ex")
+
+#: The runs' input corrections (closed loop) at the epochs ``ce`` (E, 2n, R) and the records
+#: ``cr`` (Nr, 2n, R); empty arrays: open loop.
+Corrections = namedtuple("Corrections", "ce cr")
+
+
+def ekf_model(model: VehicleModel, ctx: RunContext, filt) -> EkfModel:
+    """The :data:`EkfModel` of an EKF ``filt`` on the epochs of ``ctx``."""
+    return EkfModel(
+        tab=ctx.plan.seg_tab,
+        qt=filt.q_terms,
+        tr=filt._tr,
+        lin=filt._lin,
+        n=int(model.dim),
+        cur=bool(model.current),
+        beacon=model.beacon_array,
+        half_sq=model.range_form == "half-squared",
+        second=bool(filt.second_order),
+        sig_r=float(filt.noise["range"]),
+    )
+
+
+def kf_model(model: VehicleModel, ctx: RunContext, filt) -> KfModel:
+    """The :data:`KfModel` of an augmented KF ``filt`` on the epochs of ``ctx``."""
+    return KfModel(
+        tab=ctx.plan.seg_tab,
+        rule=ctx.plan.seg_rule,
+        ep_d=ctx.d_epochs,
+        qt=filt.q_terms,
+        qk=filt.q,
+        qdiag=bool(filt.q_diag),
+        couple=bool(filt.coupling),
+        tr=filt._tr,
+        lin=filt._lin,
+        n=int(model.dim),
+        cur=bool(model.current),
+        beacon=model.beacon_array,
+        sig_r=float(filt.noise["range"]),
+        inflate=filt.y0_mode == "inflate",
+    )
+
+
+def records(ctx: RunContext, truth_rec: np.ndarray, q_nav: np.ndarray) -> Records:
+    """The :data:`Records` of ``ctx`` with the true ``(p, p')`` ``truth_rec`` (R, Nr, 2n)."""
+    return Records(
+        rec_base=ctx.plan.rec_base,
+        rec=ctx.records_with_truth(truth_rec),
+        qz=q_nav,
+        t_rec=ctx.t_rec,
+        thr=float(ctx.threshold_m),
+        bound=float(ctx.nees_bound),
+        window=float(ctx.window_s),
+        rec_w=ctx.rec_w,
+    )
+
+
+def outputs(
+    ctx: RunContext,
+    sums: np.ndarray,
+    info: np.ndarray,
+    ex_run: int = -1,
+    example: np.ndarray | None = None,
+) -> Outputs:
+    """The :data:`Outputs`; without ``example`` no run's history is kept."""
+    return Outputs(
+        sums=sums,
+        info=info,
+        ex_run=int(ex_run) if example is not None else -1,
+        ex=ctx.no_example if example is None else example,
+    )
+
+
+def corrections(
+    ctx: RunContext, corrections: tuple[np.ndarray, np.ndarray] | None = None
+) -> Corrections:
+    """The :data:`Corrections` (``None``: open loop, the plan's inputs)."""
+    ce, cr = ctx.corrections(*(corrections or (None, None)))
+    return Corrections(ce=ce, cr=cr)

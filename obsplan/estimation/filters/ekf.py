@@ -1,0 +1,221 @@
+"""Extended Kalman filter on the nonlinear model (paper section 7, eqs. 4–5, 28–30, 48–49).
+
+State ``x = (p, v[, v_f])`` of :class:`obsplan.model.vehicle.VehicleModel`. Between measurement
+epochs the exact ZOH prediction composes (:mod:`obsplan.estimation.epochs`); at an epoch the filter
+updates with the sensors that report, the range linearised once at the prior, in closed form for
+either range form:
+
+* ``"half-squared"``: ``h = ½|p - b|²``, ``H = (p - b)ᵀ`` on ``p``; the reading ``r_m`` enters as
+  ``y = ½ r_m² - ½ σ_r²`` with variance ``r_m² σ_r² + ½ σ_r⁴`` (:mod:`obsplan.estimation.sensors`);
+* ``"range"``: ``h = |p - b|``, ``H = (p - b)ᵀ / |p - b|``, ``y = r_m``, variance ``σ_r²``; at the
+  beacon itself (``p̂ = b``) the range has no gradient and the update is skipped;
+
+then the linear DVL (``v``, or ``v + v_f`` bottom-locked with current) and depth (``p_z``) rows.
+
+With ``second_order`` (``EstimationConfig.ekf_update = "second-order"``) the range update is the
+Gaussian second-order filter's: the range's curvature over the prior, ``½ δᵀ M δ`` with
+``δ ~ N(0, P_pp)``, adds its mean ``½ tr(M P_pp)`` to the predicted reading and its variance
+``½ tr((M P_pp)²)`` to the reading's (``M = I`` half-squared, ``(I - u uᵀ)/|p - b|`` for the
+range). It matters where the position std reaches ``sqrt(2 |p - b| σ_r)``: a wide prior, a
+long range-only leg, a close pass.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from obsplan.core.errors import ConfigError
+from obsplan.estimation import kalman
+from obsplan.estimation.config import EstimationConfig, ProcessNoise
+from obsplan.estimation.epochs import RunContext
+from obsplan.estimation.filters import bundles
+from obsplan.estimation.filters.base import Filter, FilterRun, register
+from obsplan.model.vehicle import VehicleModel
+
+
+@register
+class ExtendedKalmanFilter(Filter):
+    """EKF of one vehicle model with per-step process noise ``q`` and sensor noises.
+
+    Parameters
+    ----------
+    model
+        Vehicle model (sensors, current, beacon, range form).
+    q
+        Per-step process-noise covariance, shape ``(state_dim, state_dim)``.
+    p0
+        Initial covariance of ``(p, v[, v_f])``.
+    noise
+        Measurement standard deviation per sensor (range [m] on ``r``, DVL [m/s], depth [m]).
+    second_order
+        The Gaussian second-order range update (module docstring); default the first-order.
+    """
+
+    name = "ekf"
+    description = "extended Kalman filter on the nonlinear model"
+
+    def __init__(
+        self,
+        model: VehicleModel,
+        q: np.ndarray,
+        p0: np.ndarray,
+        noise: dict[str, float],
+        second_order: bool = False,
+    ) -> None:
+        self.model = model
+        self.second_order = bool(second_order)
+        self.p0 = np.array(p0, dtype=float)
+        n, m = model.dim, model.state_dim
+        self.state_dim = m
+        self.noise = dict(noise)
+        self.q = np.asarray(q, float)
+        self.q_terms = kalman.composed_noise_terms(self.q, n, model.current)
+        self.q_nav = kalman.nav_noise(self.q, n, model.current)
+        self.transition = kalman.Transition.build(kalman.kinematic_entries(n, model.current))
+        self.rows = kalman.linear_rows(model, self.noise, 0.0)
+        self._tr, self._lin = self.transition.packed(), self.rows.packed()
+
+    @classmethod
+    def from_config(
+        cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
+    ) -> ExtendedKalmanFilter:
+        second = config.ekf_update == "second-order"
+        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), second)
+
+    def start(
+        self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The filter's ``(x0, P0)`` from the estimate ``xhat0`` of ``(p, v[, v_f])`` (the KF's
+        extras and anchor range are not used)."""
+        return np.array(xhat0, dtype=float), self.p0.copy()
+
+    def run(
+        self,
+        ctx: RunContext,
+        states: list[tuple[np.ndarray, np.ndarray]],
+        Y: np.ndarray,
+        truth_rec: np.ndarray,
+        sums: np.ndarray,
+        info: np.ndarray,
+        ex_run: int = -1,
+        example: np.ndarray | None = None,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
+        """Filter a batch of runs over the epochs of ``ctx`` and add their statistics to ``sums``.
+
+        ``states`` from :meth:`start` (one per run), ``Y`` (E, output_dim, R) the readings at
+        the epochs (NaN: no report), ``truth_rec`` (R, Nr, 2n) the true ``(p, p')`` at the
+        records; ``info`` (R, N_INFO) receives the runs' verdicts (``stats.INFO_*``) and
+        ``example`` (2, Nr, 2n) the estimate and std of run ``ex_run`` of the batch.
+        ``corrections`` ``(ce (E, 2n, R), cr (Nr, 2n, R))``: each run's response to its input
+        corrections at the epochs and records (closed loop: the inputs it applied are the
+        plan's plus corrections); ``None``: the plan's inputs.
+        """
+        X0, P0, lw0 = self._members(states)
+        self._batch(ctx, X0, P0, lw0, 1, Y, truth_rec, sums, info, ex_run, example, corrections)
+
+    def _members(self, states: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``X0`` (m, R), ``P0`` (m, m, R), ``lw0`` (R,) of the runs' starts."""
+        X0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
+        P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
+        return X0, P0, np.zeros(len(states))
+
+    def _batch(
+        self,
+        ctx: RunContext,
+        X0: np.ndarray,
+        P0: np.ndarray,
+        lw0: np.ndarray,
+        G: int,
+        Y: np.ndarray,
+        truth_rec: np.ndarray,
+        sums: np.ndarray,
+        info: np.ndarray,
+        ex_run: int,
+        example: np.ndarray | None,
+        corrections: tuple[np.ndarray, np.ndarray] | None,
+    ) -> None:
+        from obsplan.estimation import kernels  # numba is loaded on first use
+
+        kernels.ekf_batch(
+            X0,
+            P0,
+            lw0,
+            G,
+            np.ascontiguousarray(Y),
+            mdl=bundles.ekf_model(self.model, ctx, self),
+            rcd=bundles.records(ctx, truth_rec, self.q_nav),
+            out=bundles.outputs(ctx, sums, info, ex_run, example),
+            cor=bundles.corrections(ctx, corrections),
+        )
+
+    # ------------------------------------------------------------------ epoch by epoch
+    def begin(
+        self,
+        ctx: RunContext,
+        states: list,
+        Y: np.ndarray,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> FilterRun:
+        X0, P0, lw0 = self._members(states)
+        return self._begin(ctx, X0, P0, lw0, 1, Y, corrections)
+
+    def _begin(self, ctx, X0, P0, lw0, G, Y, corrections) -> FilterRun:
+        from obsplan.estimation import kernels
+
+        m, B = X0.shape
+        ws, iw, _ = kernels.workspaces(m, B, self.model.dim, np.zeros(self.model.dim), self.q_nav)
+        parts = {
+            "mdl": bundles.ekf_model(self.model, ctx, self),
+            "cor": bundles.corrections(ctx, corrections),
+            "Q": np.zeros((m, m, B)),
+            "ws": ws,
+            "iw": iw,
+            "w": np.ones(B),
+        }
+        R = B // G
+        return FilterRun(
+            ctx=ctx,
+            Y=np.ascontiguousarray(Y),
+            X=X0.copy(),
+            P=P0.copy(),
+            lw=np.array(lw0, dtype=float),
+            G=G,
+            parts=parts,
+            run_nis=np.zeros(R),
+            run_cnt=np.zeros(R),
+        )
+
+    def predict(self, run: FilterRun) -> None:
+        from obsplan.estimation import kernels
+
+        p, e = run.parts, run.epoch + 1
+        kernels.ekf_predict(run.X, run.P, p["Q"], p["ws"], p["mdl"], e, p["cor"], run.G)
+        run.epoch, run.updated = e, False
+
+    def update(self, run: FilterRun) -> None:
+        from obsplan.estimation import kernels
+
+        p, mdl = run.parts, run.parts["mdl"]
+        if run.updated:
+            raise ConfigError(f"epoch {run.epoch} is updated already; predict to the next first")
+        kernels.ekf_measure(
+            run.X,
+            run.P,
+            run.Y,
+            run.epoch,
+            run.lw,
+            p["w"],
+            run.G,
+            p["iw"],
+            p["ws"],
+            mdl.n,
+            mdl.beacon,
+            mdl.half_sq,
+            mdl.second,
+            mdl.sig_r * mdl.sig_r,
+            mdl.lin,
+            run.run_nis,
+            run.run_cnt,
+        )
+        run.updated = True

@@ -1,0 +1,281 @@
+"""Kalman filter on the augmented linear model (eqs. 19–24; DVL/depth rows of eq. 41), with the
+process-noise coupling of its output modelled.
+
+The paper's model
+-----------------
+``z = (p - b, v[, v_f], α, β)`` with ``α = p0ᵀν0``, ``β = |ν0|²`` (``AugmentedModel``, positions
+relative to the beacon ``b``) and the range output
+
+    ȳ = y - y0 + ½|d|² = dᵀp + τ α + ½ τ² β                                         (eq. 19–21)
+
+where ``y = ½ r²`` comes from the range reading (:mod:`obsplan.estimation.sensors`), ``y0`` is the
+reading at the first sample, ``d`` the displacement of the known inputs (eq. 15), ``τ = t - t0``.
+
+The process-noise coupling
+--------------------------
+Eq. 21 holds when ``p = p0 + ν0 τ + d``. With process noise the truth is ``p = p0 + ν0 τ + d + n``
+(``n``: the position the noise has added since ``t0``, ``w``: the velocity) and then exactly
+
+    ȳ = dᵀp + τ α + ½ τ² β + e,          e = (p - d)·n - ½|n|²
+
+a term that grows like ``|p| σ_n`` (metres times metres) and is correlated over the whole run, so
+a KF that ignores it becomes over-confident on long runs. ``e`` is not Markov by itself, but with
+``f = (p - d)·(ν - ḋ) - α - τβ`` and ``g = ½|ν - ḋ|² - ½β`` the triple is: over a step ``h`` whose
+noise ``(w_p, w_ν)`` enters at its end,
+
+    e⁺ = e + h f + h² g + c_p·w_p + ½|w_p|²
+    f⁺ = f + 2h g     + c_v·w_p + c_p·w_ν + w_p·w_ν          c_p = (p - d)⁻,  c_v = (ν - ḋ)⁻
+    g⁺ = g            + c_v·w_ν + ½|w_ν|²
+
+(``⁻``: the noise-free prediction at the step's end). The filter keeps the quadratic terms'
+contribution out (they are ``O(q)`` against ``O(|p|² q)``) and evaluates ``c_p``, ``c_v`` at its
+own prediction, the usual treatment of a state-dependent noise gain.
+
+Coordinates of the filter
+-------------------------
+``α``, ``β``, the anchor's error ``β_a = -ε_0`` (``y0_mode="augment"``) and ``e, f, g`` enter the
+output only through ``κ = β_a + τα + ½τ²β + e``. With ``φ = α + τβ + f`` and ``γ = ½β + g``
+
+    κ' = φ,   φ' = 2γ,   γ' = 0 (+ noise),     ȳ = dᵀ p + κ
+
+so the filter runs on ``z = (p - b, v[, v_f], κ, φ, γ)``, as many states as the paper's with the
+anchor (``κ(t0) = β_a``, ``φ(t0) = α``, ``γ(t0) = ½β``): ``F = I + N`` with the chain
+``κ ← φ (T), κ ← γ (T²), φ ← γ (2T)``. Without the coupling this is the paper's KF exactly, in a
+time-varying linear change of coordinates (its estimates and covariance of ``(p, v)`` are the
+same); the configured noise of ``(α, β)`` enters the chain through ``J(τ) = [[τ, ½τ²], [1, τ],
+[0, ½]]``. ``y0_mode="inflate"`` starts ``κ`` known (variance 0) and adds ``var(y0)`` to every
+range variance instead (over-confident: the common error is averaged as if independent).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from obsplan.core.errors import ConfigError
+from obsplan.estimation import kalman
+from obsplan.estimation.config import EstimationConfig, ProcessNoise, Y0Mode
+from obsplan.estimation.epochs import RunContext
+from obsplan.estimation.filters import bundles
+from obsplan.estimation.filters.base import Filter, FilterRun, register
+from obsplan.model.vehicle import VehicleModel
+from obsplan.observability.gramian import augmented_model
+
+
+def anchor(r0: np.ndarray | float, sigma_r: float) -> tuple[np.ndarray, np.ndarray]:
+    """``y0 = ½ r0² - ½ σ²`` and its variance ``r0² σ² + ½ σ⁴`` from the first range reading."""
+    r0 = np.asarray(r0, float)
+    return 0.5 * r0**2 - 0.5 * sigma_r**2, r0**2 * sigma_r**2 + 0.5 * sigma_r**4
+
+
+@register
+class AugmentedKalmanFilter(Filter):
+    """Augmented KF of one vehicle model (module docstring).
+
+    Parameters
+    ----------
+    model
+        Vehicle model (sensors, current, beacon); the KF always uses ``ȳ`` built from ``½ r²``.
+    q, p0
+        Per-step process-noise and initial covariances of the paper's augmented state
+        ``(p, v[, v_f], α, β)``, shape ``(2n+2, 2n+2)`` (or ``(3n+2, ...)`` with current).
+    noise
+        Standard deviation per sensor (range [m] on ``r``).
+    y0_mode
+        ``"augment"`` or ``"inflate"`` (module docstring).
+    coupling
+        Model the process-noise coupling ``e`` of the output (default); ``False`` is the paper's
+        output model.
+    """
+
+    name = "kf"
+    description = "Kalman filter on the augmented linear model (process-noise coupling modelled)"
+
+    def __init__(
+        self,
+        model: VehicleModel,
+        q: np.ndarray,
+        p0: np.ndarray,
+        noise: dict[str, float],
+        y0_mode: Y0Mode = "augment",
+        coupling: bool = True,
+    ) -> None:
+        self.model = model
+        self.p0 = np.array(p0, dtype=float)
+        n, mx = model.dim, model.state_dim
+        self.aug = augmented_model(model)
+        self.state_dim = mx + 3
+        self.noise = dict(noise)
+        self.y0_mode = y0_mode
+        self.coupling = bool(coupling)
+        self.q = np.ascontiguousarray(q, dtype=float)
+        self.q_diag = not np.any(self.q - np.diag(np.diag(self.q)))
+        qx = self.q[:mx, :mx]
+        self.q_terms = kalman.composed_noise_terms(qx, n, model.current)
+        self.q_nav = kalman.nav_noise(qx, n, model.current)
+        kc = mx  # κ, φ, γ follow the kinematic states
+        self.transition = kalman.Transition.build(
+            kalman.kinematic_entries(n, model.current)
+            + [(kc, kc + 1, 1.0, 1), (kc, kc + 2, 1.0, 2), (kc + 1, kc + 2, 2.0, 1)]
+        )
+        bz = model.beacon_array[2] if model.dim == 3 else 0.0
+        self.rows = kalman.linear_rows(model, self.noise, bz)
+        self._tr, self._lin = self.transition.packed(), self.rows.packed()
+
+    @classmethod
+    def from_config(
+        cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
+    ) -> AugmentedKalmanFilter:
+        return cls(
+            config.model,
+            pn.q_kf,
+            cov["p0_kf"],
+            dict(config.noise),
+            config.y0_mode,
+            config.kf_coupling,
+        )
+
+    def to_chain(self, mz: int) -> np.ndarray:
+        """``M`` with ``z_chain(t0) = M (p - b, v[, v_f], α, β)``: ``φ = α``, ``γ = ½β``, ``κ = 0``
+        (the anchor's variance is added to ``κ`` by :meth:`start`)."""
+        mx = self.model.state_dim
+        M = np.zeros((self.state_dim, mz))
+        M[:mx, :mx] = np.eye(mx)
+        M[mx + 1, mx] = 1.0
+        M[mx + 2, mx + 1] = 0.5
+        return M
+
+    def start(
+        self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """``(z0, P0, y0, var0)`` of the filter (``P0``: ``p0`` in chain coordinates, with the
+        anchor's variance in ``augment`` mode).
+
+        Parameters
+        ----------
+        xhat0 : (state_dim of the model,)
+            Initial estimate of ``(p, v[, v_f])`` (absolute positions).
+        extra0 : (2,), optional
+            Initial estimates of ``(p0ᵀν0, |ν0|²)``; by default computed from ``xhat0``.
+        r0
+            Range reading at the first sample [m] (the anchor ``y0``).
+        """
+        if r0 is None:
+            r0 = np.nan
+        if not np.isfinite(r0):
+            raise ConfigError(
+                "the augmented KF needs a range reading at the first sample (the anchor y0 of "
+                "eq. 19); make the range report at t0"
+            )
+        n, mx = self.model.dim, self.model.state_dim
+        xhat0 = np.asarray(xhat0, float)
+        prel = xhat0[:n] - self.model.beacon_array
+        nu = xhat0[n : 2 * n] + (xhat0[2 * n : 3 * n] if self.model.current else 0.0)
+        if extra0 is None:
+            extra0 = np.array([prel @ nu, nu @ nu])
+        zp = np.concatenate([prel, xhat0[n:mx], extra0])
+        M = self.to_chain(mx + 2)
+        y0, var0 = anchor(r0, self.noise["range"])
+        P = M @ self.p0 @ M.T
+        if self.y0_mode == "augment":
+            P[mx, mx] += float(var0)
+        return M @ zp, kalman.symmetrize(P), float(y0), float(var0)
+
+    def run(
+        self,
+        ctx: RunContext,
+        states: list[tuple[np.ndarray, np.ndarray, float, float]],
+        Y: np.ndarray,
+        truth_rec: np.ndarray,
+        sums: np.ndarray,
+        info: np.ndarray,
+        ex_run: int = -1,
+        example: np.ndarray | None = None,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
+        """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`; ``states`` from
+        :meth:`start`)."""
+        from obsplan.estimation import kernels  # numba is loaded on first use
+
+        Z0, P0, anc = self._members(states)
+        kernels.kf_batch(
+            Z0,
+            P0,
+            np.ascontiguousarray(Y),
+            mdl=bundles.kf_model(self.model, ctx, self),
+            anc=anc,
+            rcd=bundles.records(ctx, truth_rec, self.q_nav),
+            out=bundles.outputs(ctx, sums, info, ex_run, example),
+            cor=bundles.corrections(ctx, corrections),
+        )
+
+    def _members(self, states: list) -> tuple[np.ndarray, np.ndarray, bundles.Anchors]:
+        """``Z0`` (m, R), ``P0`` (m, m, R) and the anchors of the runs' starts."""
+        Z0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
+        P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
+        y0 = np.array([st[2] for st in states], dtype=float)
+        var0 = np.array([st[3] for st in states], dtype=float)
+        return Z0, P0, bundles.Anchors(y0=y0, var0=var0)
+
+    # ------------------------------------------------------------------ epoch by epoch
+    def begin(
+        self,
+        ctx: RunContext,
+        states: list,
+        Y: np.ndarray,
+        corrections: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> FilterRun:
+        from obsplan.estimation import kernels
+
+        Z0, P0, anc = self._members(states)
+        m, B = Z0.shape
+        n = self.model.dim
+        ws, iw, _ = kernels.workspaces(m, B, n, self.model.beacon_array, self.q_nav)
+        parts = {
+            "mdl": bundles.kf_model(self.model, ctx, self),
+            "anc": anc,
+            "cor": bundles.corrections(ctx, corrections),
+            "Q": np.zeros((m, m, B)),
+            "kw": np.zeros((8, self.q.shape[0], B)),
+            "Sp": np.full(3, -1.0),
+            "ws": ws,
+            "iw": iw,
+        }
+        return FilterRun(
+            ctx=ctx,
+            Y=np.ascontiguousarray(Y),
+            X=Z0.copy(),
+            P=P0.copy(),
+            lw=np.zeros(B),
+            G=1,
+            parts=parts,
+            run_nis=np.zeros(B),
+            run_cnt=np.zeros(B),
+        )
+
+    def predict(self, run: FilterRun) -> None:
+        from obsplan.estimation import kernels
+
+        p, e = run.parts, run.epoch + 1
+        kernels.kf_predict(run.X, run.P, p["Q"], p["kw"], p["ws"], p["mdl"], e, p["cor"], p["Sp"])
+        run.epoch, run.updated = e, False
+
+    def update(self, run: FilterRun) -> None:
+        from obsplan.estimation import kernels
+
+        if run.updated:
+            raise ConfigError(f"epoch {run.epoch} is updated already; predict to the next first")
+        p = run.parts
+        kernels.kf_measure(
+            run.X,
+            run.P,
+            run.Y,
+            run.epoch,
+            p["iw"],
+            p["ws"],
+            p["mdl"],
+            p["anc"],
+            p["cor"],
+            run.run_nis,
+            run.run_cnt,
+        )
+        run.updated = True

@@ -1,0 +1,205 @@
+"""What the runs of a Monte Carlo share on one path, and what each run draws.
+
+:class:`PathSetup` holds everything independent of the runs (schedule, epochs, records, filters,
+nominal states, the truth's noise factor); :func:`draw_run` the draws of one run from its seeded
+streams (:mod:`obsplan.estimation.montecarlo.truth`), so the open-loop Monte Carlo
+(:mod:`obsplan.estimation.montecarlo.simulate`) and the closed loop
+(:mod:`obsplan.estimation.montecarlo.closedloop`) see the same runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from obsplan.core.errors import ConfigError
+from obsplan.estimation.columns import N_INFO
+from obsplan.estimation.epochs import (
+    RunContext,
+    epoch_plan,
+    input_displacement,
+    nominal_states,
+    record_samples,
+)
+from obsplan.estimation.filters import ekf, gsf, kf  # noqa: F401  (they register their filters)
+from obsplan.estimation.filters.base import REGISTRY, make_filter
+from obsplan.estimation.montecarlo.guidance import TruthLimits
+from obsplan.estimation.montecarlo.stats import (
+    MONITOR_LEVEL,
+    MONITOR_WINDOW_FRACTION,
+    chi2_quantile,
+)
+from obsplan.estimation.montecarlo.truth import STREAM_INIT, reading_draws, run_rng, truth_factor
+from obsplan.estimation.schedule import make_schedule, sample_rate
+
+#: The estimators the Monte Carlo can run, by name: their one-line descriptions
+#: (:data:`obsplan.estimation.filters.base.REGISTRY` holds the classes).
+FILTERS: dict[str, str] = {name: cls.description for name, cls in REGISTRY.items()}
+#: What the Monte Carlo runs unless told otherwise.
+DEFAULT_FILTERS: tuple[str, ...] = ("ekf", "kf")
+#: Runs per kernel call: the kernels vectorise over the runs of a batch; Ctrl-C is honoured
+#: between batches.
+BATCH = 32
+
+
+def check_filters(filters: Sequence[str]) -> tuple[str, ...]:
+    out = tuple(filters)
+    bad = [f for f in out if f not in FILTERS]
+    if bad or not out or len(set(out)) != len(out):
+        raise ConfigError(
+            f"filters must be a non-empty list of distinct names from {', '.join(FILTERS)}, "
+            f"got {filters!r}"
+        )
+    return out
+
+
+def check_runs(runs: int, seed: int, run_start: int) -> tuple[int, int, int]:
+    if isinstance(runs, bool) or int(runs) != runs or int(runs) < 1:
+        raise ConfigError(f"runs must be a positive number of runs, got {runs!r}")
+    if isinstance(seed, bool) or int(seed) != seed or int(seed) < 0:
+        raise ConfigError(f"seed must be an integer >= 0, got {seed!r}")
+    if isinstance(run_start, bool) or int(run_start) != run_start or int(run_start) < 0:
+        raise ConfigError(f"run_start must be an integer >= 0, got {run_start!r}")
+    return int(runs), int(seed), int(run_start)
+
+
+def _lines_weights(lines: np.ndarray | None, n_samples: int, records: np.ndarray) -> np.ndarray:
+    if lines is None:
+        return np.zeros(records.size)
+    mask = np.asarray(lines)
+    if mask.shape != (n_samples,) or mask.dtype != bool:
+        raise ConfigError(
+            f"lines must be a boolean mask of the path's {n_samples} samples, got shape "
+            f"{mask.shape} and type {mask.dtype}"
+        )
+    return mask[records].astype(float)
+
+
+class PathSetup:
+    """Everything one path needs for its runs: schedule, epochs, records, filters, truth factor.
+
+    Parameters
+    ----------
+    traj, config
+        The path (its samples are the filter steps) and the configuration.
+    names
+        Filters to run (names of :data:`FILTERS`).
+    record_every
+        Record stride (:func:`~obsplan.estimation.epochs.record_samples`).
+    runs
+        Number of runs (sizes the per-run info).
+    lines
+        Boolean mask (N,) of the samples of the subset RMSE (e.g. on survey lines), or None.
+    limits
+        The truth's limits (for the area and depth bounds), or None.
+    """
+
+    def __init__(self, traj, config, names, record_every, runs, lines=None, limits=None):
+        model = config.model
+        if traj.dim != model.dim:
+            raise ConfigError(f"the model is {model.dim}D but the trajectory is {traj.dim}D")
+        n = model.dim
+        self.traj, self.config, self.model = traj, config, model
+        dt = 1.0 / sample_rate(traj)
+        self.cov = config.covariances(dt)
+        self.noise = pn = config.process_noise_model(dt)
+        self.schedule = make_schedule(traj, model.sensors, config.rates_hz)
+        self.records = record_samples(traj.n_samples, record_every)
+        self.plan = plan = epoch_plan(
+            traj, self.schedule, self.records, rules="kf" in names, continuous=pn.continuous
+        )
+        self.t_rec = traj.t[self.records]
+        d, dd = input_displacement(traj)
+        window = (
+            MONITOR_WINDOW_FRACTION * traj.duration
+            if config.monitor_window_s is None
+            else float(config.monitor_window_s)
+        )
+        self.ctx = RunContext(
+            plan=plan,
+            t_rec=self.t_rec,
+            d_epochs=np.ascontiguousarray(np.hstack([d, dd])[plan.epochs]),
+            threshold_m=float(config.convergence_threshold_m),
+            nees_bound=chi2_quantile(MONITOR_LEVEL, 2 * n),
+            window_s=window,
+            rec_w=_lines_weights(lines, traj.n_samples, self.records),
+        )
+        self.filters = {name: make_filter(name, config, self.cov, pn) for name in names}
+        self.states = nominal_states(traj, model, config.current_array)
+        self.nominal = self.states[plan.points]
+        self.nav = np.ascontiguousarray(np.hstack([traj.p, traj.v]))  # nominal (p, p')
+        Nr = self.records.size
+        self.sums = {name: np.zeros((2, Nr, 3 + 2 * n)) for name in names}
+        self.info = {name: np.zeros((runs, N_INFO)) for name in names}
+        self.hist: dict = {}
+        self.tm: list[np.ndarray] = []  # the truth metrics of the runs (filled by the caller)
+        self.range_rows = np.flatnonzero(plan.reports[:, 0])
+        mx = model.state_dim
+        self.L, self.expo = truth_factor(pn.continuous, pn.q_ekf, n, model.current)
+        if not config.process_noise:
+            self.L = np.zeros((mx, 0))
+        self.L0 = np.linalg.cholesky(self.cov["p0_ekf"])
+        self.extra_std = np.sqrt(np.diag(self.cov["p0_kf"])[-2:])
+        self.limits = limits
+        self.box = (limits or TruthLimits()).box()
+        # paths on the same time grid have the same schedule, records and truth deviation
+        self.grid = traj.t.tobytes()
+
+
+@dataclass(frozen=True, eq=False)
+class RunDraws:
+    """The draws of one run that do not depend on its path (module docstring of truth.py).
+
+    Attributes
+    ----------
+    run : int
+    err0 : (state_dim,)
+        Initial estimation error ``x̂0 - x0``.
+    extra_err : (2,) or None
+        Error of the KF's extras ``(p0ᵀν0, |ν0|²)`` (``init_error="sample"`` only).
+    readings : list
+        Per sensor, the noise normals and dropout mask (:func:`truth.reading_draws`).
+    """
+
+    run: int
+    err0: np.ndarray
+    extra_err: np.ndarray | None
+    readings: list
+
+
+def draw_run(setup: PathSetup, seed: int, run: int) -> RunDraws:
+    """Run ``run``'s initial error and reading draws from its streams (the process noise is
+    drawn by the caller: all at once in open loop, block by block in closed loop)."""
+    config, model = setup.config, setup.model
+    g0 = run_rng(seed, run, STREAM_INIT)
+    extra_err = None
+    if isinstance(config.init_error, str):
+        err0 = setup.L0 @ g0.standard_normal(model.state_dim)
+        extra_err = setup.extra_std * g0.standard_normal(2)
+    else:
+        err0 = np.asarray(config.init_error, float)
+    rd = reading_draws(model, setup.plan.reports, dict(config.dropout), seed, run)
+    return RunDraws(run=run, err0=err0, extra_err=extra_err, readings=rd)
+
+
+def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float):
+    """``(x̂0, extra0, r0)`` of a run that starts at the true state ``x0`` with first range
+    reading ``r0``: the filters' common start
+    (:meth:`~obsplan.estimation.filters.ekf.ExtendedKalmanFilter.start`)."""
+    n = model.dim
+    extra0 = None
+    if draws.extra_err is not None:
+        # p, v of the KF start where the EKF's do; the extras get their own prior draw
+        prel = x0[:n] - model.beacon_array
+        nu = x0[n : 2 * n] + (x0[2 * n : 3 * n] if model.current else 0.0)
+        extra0 = np.array([prel @ nu, nu @ nu]) + draws.extra_err
+    return (x0 + draws.err0, extra0, float(r0))
+
+
+def nav_of(model, x: np.ndarray) -> np.ndarray:
+    """``(p, p')`` of states ``x`` (..., state_dim) -> (..., 2n)."""
+    n = model.dim
+    nu = x[..., n : 2 * n] + (x[..., 2 * n : 3 * n] if model.current else 0.0)
+    return np.concatenate([x[..., :n], nu], axis=-1)

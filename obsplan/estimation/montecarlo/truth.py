@@ -1,0 +1,249 @@
+"""Truth simulation: the vehicle along a trajectory, perturbed by process noise, and its readings.
+
+The truth of run ``r`` at sample ``k`` is ``x_k = x̄_k + δ_k`` where ``x̄`` is the trajectory's state
+(``p``, ``v = p' - v_f``, ``v_f``) and ``δ_{k+1} = F_k δ_k + w_k``, ``w_k = L_k z_k ~ N(0, Q_k)``
+(exact ZOH ``F_k``, ``L_k L_kᵀ = Q_k``): with no process noise the truth is the trajectory itself.
+In closed loop (:mod:`obsplan.estimation.montecarlo.closedloop`) the truth adds the response to the
+input corrections, ``x = x̄ + c + δ``, with the same ``δ``.
+
+Process noise per step (:func:`truth_factor`): with the physical noise (white acceleration of
+intensity ``q``, optionally a current random walk ``q_f``) ``Q_k`` is the exact integral over the
+step ``h_k``, and ``L_k = diag(h_k^e) L_1`` with exponents ``e = 3/2`` on ``p`` and ``1/2`` on
+``v``, ``v_f``: each white source of intensity ``q_s`` on state ``j`` (``v_i`` or ``v_f,i``) feeding
+``p_i`` gets two columns, ``sqrt(q_s) (1/√3, √3/2)`` on ``(p_i, j)`` and ``sqrt(q_s) (0, 1/2)``,
+whose outer products sum to ``q_s [[h³/3, h²/2], [h²/2, h]]``; sources in state order (the
+accelerations, then the current). In the paper's per-step setting ``L_k = L``
+(:func:`noise_factor` of the per-step ``Q``).
+Readings are the device quantities (range ``r`` [m], DVL [m/s], depth [m]) plus Gaussian noise,
+drawn only where the schedule says the sensor reports.
+
+Random streams
+--------------
+Every draw of run ``r`` comes from a stream that depends only on ``(seed, r)`` and its purpose, so
+run ``r`` is the same whatever the number of runs, the batch it is computed in (sharding by runs)
+or the other sensors fitted; each is ``numpy.random.default_rng(SeedSequence(seed,
+spawn_key=key))`` with
+
+==========================  ===================================================================
+key                         draws, in order
+==========================  ===================================================================
+``(r, 0)``                  initial error: ``state_dim`` normals (``x̂0 - x0 = chol(P0) z``),
+                            then 2 normals for the KF's ``(p0ᵀν0, |ν0|²)`` (``init_error="sample"``)
+``(r, 1)``                  process noise: ``(N - 1, columns of L)`` normals, row ``k`` drives
+                            step ``k`` (drawn in one call, or in consecutive blocks of rows: the
+                            same numbers)
+``(r, 2, i)``               noise of sensor ``SENSORS[i]``: ``(reports, width)`` normals
+``(r, 3, i)``               dropout of sensor ``SENSORS[i]``: ``reports`` uniforms (if it drops)
+==========================  ===================================================================
+
+where ``reports`` counts the samples at which the sensor reports (in time order) and ``width`` is
+its number of outputs. The steps are drawn for all samples at once and summed by a compiled
+recursion; only the states at the epochs and records are kept.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from obsplan.estimation.montecarlo.stats import empty_metrics
+from obsplan.model.vehicle import SENSORS, VehicleModel
+from obsplan.trajectory.sampled import Trajectory
+
+STREAM_INIT, STREAM_PROCESS, STREAM_NOISE, STREAM_DROPOUT = 0, 1, 2, 3
+
+
+def run_rng(seed: int, run: int, purpose: int, sensor: str | None = None) -> np.random.Generator:
+    """The generator of run ``run`` for one purpose (module docstring), from ``seed`` alone."""
+    key = (
+        (int(run), int(purpose))
+        if sensor is None
+        else (int(run), int(purpose), SENSORS.index(sensor))
+    )
+    return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=key))
+
+
+def noise_factor(Q: np.ndarray) -> np.ndarray:
+    """``L`` (m × rank) with ``L Lᵀ = Q`` for a PSD (possibly singular) ``Q``.
+
+    A diagonal ``Q`` gives the columns ``sqrt(Q_ii) e_i`` of its non-zero entries in state order,
+    otherwise the scaled eigenvectors of the non-zero eigenvalues (ascending).
+    """
+    Q = 0.5 * (Q + Q.T)
+    if np.count_nonzero(Q - np.diag(np.diag(Q))) == 0:
+        idx = np.flatnonzero(np.diag(Q) > 0)
+        L = np.zeros((Q.shape[0], idx.size))
+        L[idx, np.arange(idx.size)] = np.sqrt(np.diag(Q)[idx])
+        return L
+    lam, V = np.linalg.eigh(Q)
+    keep = lam > 1e-14 * max(float(lam.max()), 0.0)
+    return V[:, keep] * np.sqrt(lam[keep])
+
+
+def truth_factor(
+    continuous: bool, q: np.ndarray, n: int, current: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(L_1, e)`` with ``L_k = diag(h_k^e) L_1`` the noise factor of a step ``h_k`` (module
+    docstring); ``q`` is the intensity ``W`` (continuous) or the per-step ``Q``, (m, m)."""
+    q = np.asarray(q, float)
+    m = q.shape[0]
+    if not continuous:
+        return noise_factor(q), np.zeros(m)
+    if np.count_nonzero(q - np.diag(np.diag(q))) or np.any(np.diag(q)[:n] != 0):
+        raise ValueError("the physical noise intensity is diagonal, on v (and v_f) only")
+    cols = []
+    for j in range(n, m):
+        qs = float(q[j, j])
+        if qs > 0:
+            a, b = np.zeros(m), np.zeros(m)
+            i = j % n  # the position p_i that v_i (or v_f,i) drives
+            a[i], a[j] = np.sqrt(qs / 3.0), np.sqrt(qs) * np.sqrt(3.0) / 2.0
+            b[j] = 0.5 * np.sqrt(qs)
+            cols += [a, b]
+    L = np.column_stack(cols) if cols else np.zeros((m, 0))
+    expo = np.full(m, 0.5)
+    expo[:n] = 1.5
+    return L, expo
+
+
+def truth_deviation(
+    traj: Trajectory,
+    model: VehicleModel,
+    L: np.ndarray,
+    z: np.ndarray,
+    points: np.ndarray,
+    expo: np.ndarray | None = None,
+) -> np.ndarray:
+    """``δ`` at the samples ``points`` (sorted), shape (P, state_dim), from the normals ``z``.
+
+    ``z`` has shape ``(N - 1, L.shape[1])``; ``δ_0 = 0``; the factor of step ``k`` is
+    ``diag(h_k^expo) L`` (``expo`` zero by default: the per-step setting).
+    """
+    return open_loop_truth(traj, model, L, z, points, expo)[0]
+
+
+def open_loop_truth(
+    traj: Trajectory,
+    model: VehicleModel,
+    L: np.ndarray,
+    z: np.ndarray | None,
+    points: np.ndarray,
+    expo: np.ndarray | None = None,
+    navs: np.ndarray | None = None,
+    box: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`truth_deviation` and the metrics of the true paths ``nav + δ`` of paths on the
+    same grid.
+
+    ``navs`` (J, N, 2n) are the paths' nominal ``(p, p')`` (none by default), ``box`` (3, 2)
+    the area and depth bounds (``TruthLimits.box``). Returns ``δ`` at ``points`` and the
+    metrics (J, N_TM) of :func:`obsplan.estimation.kernels.span_metrics`.
+    """
+    from obsplan.estimation import kernels
+
+    n, m = model.dim, model.state_dim
+    out = np.zeros((points.size, m))
+    navs = np.zeros((0, traj.n_samples, 2 * n)) if navs is None else np.asarray(navs, float)
+    tm = empty_metrics(navs.shape[0])
+    if L.shape[1] == 0 and navs.shape[0] == 0:
+        return out, tm
+    if L.shape[1] == 0:
+        z = np.zeros((traj.n_samples - 1, 0))
+    kernels.truth_deviation(
+        np.ascontiguousarray(z),
+        np.ascontiguousarray(L),
+        traj.dt,
+        np.zeros(m) if expo is None else np.asarray(expo, float),
+        n,
+        model.current,
+        points,
+        out,
+        np.ascontiguousarray(navs),
+        model.beacon_array,
+        np.tile([-np.inf, np.inf], (3, 1)) if box is None else np.asarray(box, float),
+        tm,
+    )
+    return out, tm
+
+
+def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
+    """Noise-free stacked readings at true states ``x`` (K, state_dim): (K, output_dim).
+
+    Columns in the model's output order: range ``r`` [m] (whatever the filter's range form),
+    DVL [m/s], depth [m].
+    """
+    n = model.dim
+    out = np.empty((x.shape[0], model.output_dim))
+    for s, sl in model.output_slices.items():
+        if s == "range":
+            rel = x[:, :n] - model.beacon_array
+            out[:, sl] = np.sqrt(np.einsum("ki,ki->k", rel, rel))[:, None]
+        elif s == "dvl-bottom":
+            out[:, sl] = x[:, n : 2 * n] + (x[:, 2 * n : 3 * n] if model.current else 0.0)
+        elif s == "dvl-water":
+            out[:, sl] = x[:, n : 2 * n]
+        elif s == "depth":
+            out[:, sl] = x[:, 2:3]
+    return out
+
+
+def true_readings(model: VehicleModel, x: np.ndarray) -> dict[str, np.ndarray]:
+    """Noise-free device readings at true states ``x`` (R, m), per sensor (R, width)."""
+    y = clean_readings(model, x)
+    return {s: y[:, sl].copy() for s, sl in model.output_slices.items()}
+
+
+def reading_draws(
+    model: VehicleModel, reports: np.ndarray, dropout: dict[str, float], seed: int, run: int
+) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """Run ``run``'s reading noise (normals) and dropout mask per sensor, from its streams.
+
+    ``reports`` (E, sensors) says which sensor reports at each epoch. The range at the first
+    epoch (sample 0, the KF's anchor) is never dropped.
+    """
+    out = []
+    for i, (s, sl) in enumerate(model.output_slices.items()):
+        rows = np.flatnonzero(reports[:, i])
+        e = run_rng(seed, run, STREAM_NOISE, s).standard_normal((rows.size, sl.stop - sl.start))
+        drop = None
+        p = dropout.get(s, 0.0)
+        if p > 0:
+            drop = run_rng(seed, run, STREAM_DROPOUT, s).random(rows.size) < p
+            if s == "range":
+                drop &= rows != 0
+        out.append((e, drop))
+    return out
+
+
+def noisy_readings(
+    model: VehicleModel,
+    x_epochs: np.ndarray,
+    reports: np.ndarray,
+    noise: dict[str, float],
+    draws: list[tuple[np.ndarray, np.ndarray | None]],
+) -> np.ndarray:
+    """Readings at the epochs: (E, output_dim), NaN where a sensor does not report (or drops).
+
+    ``x_epochs`` are the true states at the epochs (E, state_dim), ``draws`` from
+    :func:`reading_draws` (shared by every path on the same time grid).
+    """
+    return clean_readings(model, x_epochs) + reading_noise(model, reports, noise, draws)
+
+
+def reading_noise(
+    model: VehicleModel,
+    reports: np.ndarray,
+    noise: dict[str, float],
+    draws: list[tuple[np.ndarray, np.ndarray | None]],
+) -> np.ndarray:
+    """The noise of the readings at the epochs, (E, output_dim): ``σ`` times the drawn normals
+    where a sensor reports, NaN where it does not (or drops). A reading is the clean value at
+    the true state plus this (in closed loop computed inside the simulation loop)."""
+    y = np.full((reports.shape[0], model.output_dim), np.nan)
+    for i, (s, sl) in enumerate(model.output_slices.items()):
+        rows = np.flatnonzero(reports[:, i])
+        e, drop = draws[i]
+        val = noise[s] * e
+        if drop is not None:
+            val[drop] = np.nan
+        y[rows, sl] = val
+    return y

@@ -1,0 +1,118 @@
+"""The validation's filters as the estimation layer's objects: configuration, guidance, limits.
+
+One place for what the validation Monte Carlo runs (:mod:`obsplan.planning.validation.validate`) and
+what the estimator-aware objectives predict (:mod:`obsplan.planning.objectives.estimator`): the
+filters' :class:`~obsplan.estimation.config.EstimationConfig` built from ``[validation]`` (its
+process noise included), the measurement epochs on the horizon, the guidance law a closed-loop
+validation flies every path with and the limits every true path is checked against. Both sides
+read them here, so the planner's bound is the validation's own.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.stats import norm
+
+from obsplan.estimation.bounds.riccati import Epochs, make_epochs
+from obsplan.estimation.config import EstimationConfig, paper_covariances
+from obsplan.estimation.montecarlo.guidance import Guidance, TruthLimits
+from obsplan.estimation.schedule import make_schedule
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.trajectory.sampled import Trajectory
+
+
+def estimation_config(pb: PlanningProblem) -> EstimationConfig:
+    """The filters' configuration of the validation of ``pb``.
+
+    The paper's prior (section 7) with the position and velocity blocks set by
+    ``init_pos_error`` / ``init_vel_error``, the problem's rates and noises, the true current
+    ``vehicle.current_velocity``, and the process noise of ``validation.process_noise_model``:
+    ``"physical"``, the white acceleration noise ``accel_noise`` [m/s²/√Hz] (exact for any
+    ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``; the EKF's
+    range update ``validation.ekf_update``. Used by the validation and by the planning
+    objectives.
+    """
+    model, val, n = pb.model, pb.validation, pb.dim
+    cov: dict[str, Any] = paper_covariances(model, val.dt)
+    for key in ("p0_ekf", "p0_kf"):
+        d = np.diag(cov[key]).copy()
+        d[:n] = val.init_pos_error**2
+        d[n : 2 * n] = val.init_vel_error**2
+        cov[key] = np.diag(d)
+    noise_model: dict[str, Any]
+    if val.process_noise_model == "paper-per-step":
+        noise_model = {"q_ekf": cov["q_ekf"], "q_kf": cov["q_kf"]}
+    else:
+        noise_model = {"accel_noise": val.accel_noise}
+    rates = {"range": val.range_rate}
+    noise = {"range": val.range_std}
+    for s in model.sensors:
+        if s.startswith("dvl"):
+            rates[s], noise[s] = val.dvl_rate, val.dvl_std
+        elif s == "depth":
+            rates[s], noise[s] = val.depth_rate, val.depth_std
+    return EstimationConfig(
+        model=model,
+        rates_hz=rates,
+        noise=noise,
+        true_current=pb.vehicle.current_velocity if pb.vehicle.current else None,
+        init_error="sample",
+        p0_ekf=cov["p0_ekf"],
+        p0_kf=cov["p0_kf"],
+        ekf_update=val.ekf_update,  # type: ignore[arg-type]
+        **noise_model,
+    )
+
+
+def confidence_quantile(confidence: float) -> float:
+    """``k = Φ⁻¹(confidence)`` (one-sided normal quantile); 0 when ``confidence`` is 0."""
+    c = float(confidence)
+    return 0.0 if c <= 0 else float(norm.ppf(c))
+
+
+def validation_guidance(pb: PlanningProblem, *, at_sea: bool = False) -> Guidance | None:
+    """The guidance law of a closed-loop validation (``None`` for ``validation.mode =
+    "open-loop"`` unless ``at_sea``): gains from the limits ``accel`` [m/s²] and ``speed`` [m/s],
+    the feedback on a prior-sized position error (``init_pos_error`` [m]) using half the smallest
+    acceleration bound (:meth:`~obsplan.estimation.montecarlo.guidance.Guidance.from_limits`), and
+    the estimated speed kept ``k`` velocity stds of the EKF below the speed bound (``k`` the normal
+    quantile of ``limits.keepout_confidence``, as the keep-out margins), so that the *true*
+    speed holds it at that confidence.
+
+    ``at_sea``: the law the vehicle at sea flies whatever the validation's mode (the keep-out
+    margins are for that vehicle, which steers its estimate), never ``None``.
+    """
+    if pb.validation.mode == "open-loop" and not at_sea:
+        return None
+    lim = pb.limits
+    k = confidence_quantile(lim.keepout_confidence)
+    val = pb.validation
+    return Guidance.from_limits(
+        lim.accel, lim.speed, val.init_pos_error, speed_k=k, navigation=val.navigation
+    )
+
+
+def truth_limits(pb: PlanningProblem) -> TruthLimits:
+    """The problem's limits that every run's *true* path is checked against: acceleration,
+    speed, area, depth band, ``min_range`` (0: none) and ``max_range``, strictly."""
+    lim = pb.limits
+    area = None if lim.area is None else (lim.area.x, lim.area.y)
+    return TruthLimits(
+        accel=lim.accel,
+        speed=lim.speed,
+        area=area,
+        depth=lim.depth,
+        min_range=lim.min_range if lim.min_range > 0 else None,
+        max_range=lim.max_range,
+    )
+
+
+def filter_epochs(pb: PlanningProblem) -> Epochs:
+    """Measurement epochs of the validation on the horizon (same schedule as the Monte Carlo)."""
+    t = pb.filter_times
+    z = np.zeros((t.size, pb.dim))
+    rates = dict(estimation_config(pb).rates_hz)
+    sched = make_schedule(Trajectory(t=t, p=z, v=z, u=z), pb.model.sensors, rates)
+    return make_epochs(t, sched.mask)

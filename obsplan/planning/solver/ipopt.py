@@ -1,0 +1,226 @@
+"""IPOPT: the solvers of a formulation, calling them, and Ctrl-C.
+
+* :func:`make_solver`: the ``nlpsol`` of a :class:`~obsplan.planning.solver.formulation.Formulation`
+  (MUMPS; the exact Hessian or L-BFGS as the objective asks; warm-start options);
+* :func:`make_projection` / :func:`project`: the nearest flyable path to one that violates a limit
+  by a little (e.g. by 0.02 % when IPOPT stops at its iteration limit): least squares in the NLP's
+  intrinsic units on the inputs, subject to every path constraint and the mission's, by a second
+  small IPOPT problem;
+* :func:`_call`: one call of an ``nlpsol`` returning ``(solution or None, stats, error)``, with
+  Ctrl-C (:func:`_interrupt_guard`) surfacing as ``KeyboardInterrupt``.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from contextlib import contextmanager
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from obsplan.core import interrupts
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.solver.formulation import Formulation, path_constraints
+from obsplan.planning.transcription.mission import mission_part
+from obsplan.trajectory.sampled import Trajectory
+
+#: IPOPT's status of a converged solve (``Solved_To_Acceptable_Level`` is not).
+SUCCESS_STATUS = "Solve_Succeeded"
+#: IPOPT tolerance of the projection onto the limits (constraint violation and optimality, in
+#: intrinsic units): far below the feasibility check's ``LIMIT_RTOL = 1e-6``.
+PROJECTION_TOL = 1e-10
+
+#: IPOPT options of a warm start (guesses that are coarse-grid optima): begin at the guess, not
+#: 1 % inside the bounds (bound_push / bound_frac), with a small barrier. Measured on 3D min-eig
+#: at N = 1000: 194 iterations to Solve_Succeeded, against no progress in 400 with the defaults.
+#: With the L-BFGS Hessian only the small barrier: starting on the bounds its first steps
+#: wandered off (3D kf-position-std at N = 1000 ended at 0.41 m from a 0.118 m warm start; with
+#: the default push it improved it, in 4 iterations).
+WARM_START = {"bound_push": 1e-9, "bound_frac": 1e-9, "mu_init": 1e-6}
+WARM_START_LBFGS = {"mu_init": 1e-6}
+
+
+def make_solver(
+    form: Formulation,
+    verbose: bool = False,
+    expand: bool = True,
+    ipopt_options: dict | None = None,
+    warm: bool = False,
+) -> ca.Function:
+    """The IPOPT ``nlpsol`` of a formulation (MUMPS; exact Hessian or L-BFGS per objective).
+
+    ``warm`` adds :data:`WARM_START` (or :data:`WARM_START_LBFGS`); ``ipopt_options`` are
+    passed last (e.g.
+    ``{"max_wall_time": 120.0}`` in the benchmark).
+    """
+    obj = form.problem.objective
+    ipopt = {
+        "linear_solver": "mumps",
+        "print_level": 5 if verbose else 0,
+        "sb": "yes",
+        "tol": obj.solver_tol,
+        # equality residuals bound how far the epigraph variable can exceed lambda_min and how
+        # far the path is from the dynamics: keep them tight, not IPOPT's default 1e-4
+        "constr_viol_tol": min(obj.solver_tol, 1e-8),
+        "max_iter": obj.max_iter,
+    }
+    limited = form.hessian.startswith("limited-memory")
+    if limited:
+        ipopt["hessian_approximation"] = "limited-memory"
+        if form.hessian == "limited-memory-sr1":
+            ipopt["limited_memory_update_type"] = "sr1"
+        # a short history: each stored pair costs two extra back-solves per iteration, and six
+        # reach the same objective as twenty in fewer seconds (measured at N = 200 and 1000)
+        ipopt["limited_memory_max_history"] = 6
+    if warm:
+        ipopt.update(WARM_START_LBFGS if limited else WARM_START)
+
+    ipopt.update(ipopt_options or {})
+    opts: dict[str, Any] = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
+    if form.hessian == "exact-without-penalty":
+        opts["hess_lag"] = _hessian_without_penalty(form, expand)
+    nlp = {"x": form.w, "p": form.parameters, "f": form.f, "g": form.g}
+    return ca.nlpsol("obsplan_planner", "ipopt", nlp, opts)  # type: ignore[arg-type]
+
+
+def _hessian_without_penalty(form: Formulation, expand: bool) -> ca.Function:
+    """IPOPT's ``hess_lag``: the upper triangle of the exact Hessian of the Lagrangian with
+    the penalty (``form.penalty``) left out of the objective.
+
+    The penalty is a covariance recursion's, whose exact Hessian is dense (building it for a 3D
+    DVL problem ran out of 24 GB); IPOPT still has its exact gradient, so a step that raises it
+    is cut back by the line search. Against L-BFGS on the whole (``lwo-condition`` bounded,
+    ``benchmarks/bench_gramian_objectives.py``): Solve_Succeeded at N = 200, 1000 and 3D
+    N = 600 where L-BFGS ended at an acceptable level and at its iteration limit.
+    """
+    x, p = form.w, form.parameters
+    lam_f = ca.MX.sym("lam_f")
+    lam_g = ca.MX.sym("lam_g", form.g.numel())
+    f = form.f if form.objective_f is None else form.objective_f
+    lagrangian = lam_f * f + ca.dot(lam_g, form.g)
+    hess = ca.triu(ca.hessian(lagrangian, x)[0])
+    fn = ca.Function(
+        "nlp_hess_l",
+        [x, p, lam_f, lam_g],
+        [hess],
+        ["x", "p", "lam_f", "lam_g"],
+        ["triu_hess_gamma_x_x"],
+    )
+    return fn.expand() if expand else fn
+
+
+def make_projection(pb: PlanningProblem, form: Formulation) -> ca.Function:
+    """IPOPT for the nearest inputs ``min ½ |U - Ū|²`` (intrinsic units, ``|U_i| <= 1``) such
+    that the path satisfies every path constraint (``W̄`` the parameter ``p``).
+
+    The inputs determine the path, so nearest inputs mean the nearest flyable path; positions
+    and velocities follow through the dynamics constraints.
+    """
+    grid = form.grid
+    n = grid.n
+    W = ca.MX.sym("W", 3 * n, grid.N)
+    Wbar = ca.MX.sym("Wbar", 3 * n, grid.N)
+    g = [c.g for c in _projected_constraints(grid, pb, W)]
+    f = 0.5 * ca.sumsqr(W[:n, :] - Wbar[:n, :])
+    nlp: dict[str, Any] = {"x": ca.vec(W), "p": ca.vec(Wbar), "f": f, "g": ca.vertcat(*g)}
+    ipopt: dict[str, Any] = {
+        "linear_solver": "mumps",
+        "print_level": 0,
+        "sb": "yes",
+        "tol": PROJECTION_TOL,
+        "constr_viol_tol": PROJECTION_TOL,
+        "max_iter": 200,
+        # start at the given path, not 1 % inside the bounds (IPOPT's default bound_push
+        # moves inputs at their limit by 1 %, which over a long horizon moves the path by
+        # tens of metres), with a small barrier: the point is already nearly optimal
+        "bound_push": 1e-9,
+        "bound_frac": 1e-9,
+        "mu_init": 1e-8,
+    }
+    return ca.nlpsol(
+        "obsplan_projection", "ipopt", nlp, {"expand": True, "print_time": False, "ipopt": ipopt}
+    )
+
+
+def _projected_constraints(grid, pb: PlanningProblem, W) -> list:
+    """The constraints a projected path satisfies: the path's, then the mission's (they are on
+    ``W`` only)."""
+    part = mission_part(pb, grid, W)
+    return [*path_constraints(grid, pb, W), *(part.constraints if part is not None else ())]
+
+
+@contextmanager
+def _interrupt_guard():
+    """Make Ctrl-C stop a CasADi solve and surface as ``KeyboardInterrupt``.
+
+    CasADi catches the ``KeyboardInterrupt`` raised inside IPOPT's iteration check and returns
+    ``NonIpopt_Exception_Thrown``; the handler below records the signal so that the caller can
+    raise it once the solver has returned (at the next iteration, i.e. at once).
+    """
+    hit: list[bool] = []
+    if interrupts.installed() or threading.current_thread() is not threading.main_thread():
+        # the command line's handler (obsplan.core.interrupts) records the signal: check() raises it
+        yield hit
+        return
+    prev = signal.getsignal(signal.SIGINT)
+    if prev is signal.SIG_IGN:  # a worker process: the parent handles Ctrl-C
+        yield hit
+        return
+
+    def handler(signum, frame):
+        hit.append(True)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield hit
+    finally:
+        signal.signal(signal.SIGINT, prev)
+
+
+def _call(solver: ca.Function, **kwargs) -> tuple[dict | None, dict, str | None]:
+    """Call an nlpsol; ``(solution or None, stats, error message or None)``; Ctrl-C re-raised."""
+    with _interrupt_guard() as hit:
+        try:
+            sol = solver(**kwargs)
+            err = None
+        except RuntimeError as exc:  # IPOPT/CasADi errors (e.g. evaluation failures)
+            sol, err = None, f"exception: {exc}".splitlines()[0][:200]
+        if hit:
+            raise KeyboardInterrupt
+    interrupts.check()  # SIGTERM (or a SIGINT CasADi swallowed) stops the solve the same way
+    return sol, solver.stats(), err
+
+
+def project(
+    form: Formulation, projection: ca.Function, traj: Trajectory
+) -> tuple[Trajectory | None, str]:
+    """Nearest path to ``traj`` satisfying the path constraints, by the IPOPT ``projection`` of
+    :func:`make_projection` (module docstring); ``(path or None, IPOPT status)``."""
+    grid = form.grid
+    wbar = grid.from_trajectory(traj).reshape(-1, order="F")
+    k, nw = form.n_path_constraints, form.n_w  # path constraints come first in g and x
+    lbg, ubg = [form.lbg[:k]], [form.ubg[:k]]
+    part = mission_part(form.problem, grid, ca.MX.sym("W", 3 * grid.n, grid.N))
+    for c in part.constraints if part is not None else ():
+        lbg.append(c.lb)
+        ubg.append(c.ub)
+    sol, stats, err = _call(
+        projection,
+        x0=wbar,
+        p=wbar,
+        lbx=form.lbx[:nw],
+        ubx=form.ubx[:nw],
+        lbg=np.concatenate(lbg),
+        ubg=np.concatenate(ubg),
+    )
+    status = err or str(stats.get("return_status", "unknown"))
+    if sol is None:
+        return None, status
+    w = np.asarray(sol["x"]).reshape(-1)
+    W = w.reshape(3 * grid.n, grid.N, order="F")
+    # exact re-integration of the projected inputs: the returned samples are consistent
+    raw = grid.to_trajectory(W)
+    return Trajectory.from_inputs(raw.t, raw.p[0], raw.v[0], raw.u[:-1]), status

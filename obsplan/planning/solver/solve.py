@@ -1,0 +1,318 @@
+"""Solving a planning problem: the strategy (multi-start, coarse-to-fine, candidate selection).
+
+What the returned plan guarantees (tested under several BLAS kernel sets, since IPOPT's path
+depends on the machine):
+
+* it satisfies every limit and the dynamics to the tolerances of
+  :mod:`obsplan.planning.problem.feasibility` (``LIMIT_RTOL``), checked by an independent numpy test
+  on the continuous path. A start whose path violates a limit (e.g. by 0.02 % when IPOPT stops at
+  its iteration limit) is first *projected*: the nearest path (least squares in the NLP's intrinsic
+  units) satisfying every constraint, found by a second small IPOPT problem
+  (:mod:`obsplan.planning.solver.ipopt`); its objective is then recomputed. Only if that fails is
+  the start discarded;
+* its objective, recomputed with numpy on the path (never read from lifting variables), is the
+  best among every start's (projected) path, every feasible initial guess and every feasible
+  baseline: the plan is never worse than the lawn-mower it starts from, and a start that ends
+  worse than its own guess cannot beat that guess;
+* ``success`` means at least one start ended with IPOPT's ``Solve_Succeeded``;
+  ``Solved_To_Acceptable_Level`` and iteration or time limits are reported as such, and their paths
+  are used only if feasible and best. ``chosen`` names where the returned path came from.
+
+A fine grid (``N > COARSE_STEPS``) is first solved on a coarse grid from the same guesses, and
+each start's coarse plan becomes its fine guess (:mod:`obsplan.planning.transcription.guesses`). The
+starts run in parallel worker processes with results identical to a serial run
+(:mod:`obsplan.planning.solver.starts`); Ctrl-C stops every start at once and raises
+``KeyboardInterrupt``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from obsplan.planning.baselines.vehicle import Baseline
+from obsplan.planning.missions.check import completes_mission
+from obsplan.planning.objectives.evaluate import better, objective_value
+from obsplan.planning.problem.checks import check_structure
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.feasibility import check_limits
+from obsplan.planning.solver.formulation import build_formulation
+from obsplan.planning.solver.starts import (
+    Progress,
+    StartOutcome,
+    _num,
+    run_starts,
+    start_context,
+)
+from obsplan.planning.transcription.guesses import (
+    COARSE_STEPS,
+    coarse_problem,
+    initial_guesses,
+    refine,
+)
+from obsplan.trajectory.sampled import Trajectory
+
+
+@dataclass(frozen=True, eq=False)
+class SolveResult:
+    """Outcome of :func:`solve`.
+
+    ``status``/``iterations`` are those of the start whose path was chosen (for a chosen initial
+    guess or baseline: the best start's, with ``chosen`` saying so; after the keep-out re-solve
+    of :func:`~obsplan.planning.solver.margins.solve_with_keepout`, the re-solve's); ``success`` is
+    true when at least one start converged (``Solve_Succeeded``); ``wall_s`` is the whole
+    multi-start (the coarse-grid pass included, see :data:`COARSE_STEPS`); ``start_paths`` holds
+    each start's returned path by label.
+    """
+
+    problem: PlanningProblem
+    trajectory: Trajectory | None
+    success: bool
+    status: str
+    iterations: int
+    wall_s: float
+    objective: float | None
+    lifted_objective: float | None
+    best_start: str | None
+    starts: tuple[StartOutcome, ...]
+    build_s: float
+    chosen: str | None = None
+    note: str = ""
+    start_paths: dict[str, Trajectory] = field(default_factory=dict, repr=False)
+
+    def to_dict(self) -> dict:
+        """The ``solver`` keys of ``report.json`` (stable first, then extras)."""
+        return {
+            "success": bool(self.success),
+            "status": self.status,
+            "iterations": int(self.iterations),
+            "wall_s": float(self.wall_s),
+            "objective_kind": self.problem.objective.kind,
+            "objective_mode": self.problem.objective_mode,
+            "objective": _num(self.objective),
+            "lifted_objective": _num(self.lifted_objective),
+            "best_start": self.best_start,
+            "chosen": self.chosen,
+            "note": self.note,
+            "converged_starts": sum(s.success for s in self.starts),
+            "build_s": float(self.build_s),
+            "starts": [s.to_dict() for s in self.starts],
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class _Candidate:
+    """A feasible path that may be returned: a start's, an initial guess or a baseline."""
+
+    label: str
+    trajectory: Trajectory
+    objective: float
+    start: StartOutcome | None  # None for a guess or a baseline
+
+
+def solve(
+    pb: PlanningProblem,
+    *,
+    guesses: Sequence[tuple[str, Trajectory]] | None = None,
+    baselines: dict[str, Baseline] | None = None,
+    verbose: bool = False,
+    progress: bool | Progress = False,
+    expand: bool | None = None,
+    ipopt_options: dict | None = None,
+    processes: int | None = None,
+) -> SolveResult:
+    """Plan a path for ``pb`` by multi-start IPOPT (module docstring for the guarantees).
+
+    Parameters
+    ----------
+    pb
+        The problem.
+    guesses
+        ``(label, trajectory)`` initial guesses on the planning grid; default
+        :func:`initial_guesses`.
+    baselines
+        Baselines whose paths are candidates too (default: none besides the guesses).
+    verbose
+        IPOPT output (print_level 5) and timing; forces a serial run.
+    progress
+        A callback ``(index, label, outcome)`` after each start (or True for a tqdm bar).
+    expand
+        Expand the MX graph to SX before solving: faster iterations, slower construction.
+        Default: :func:`default_expand`.
+    ipopt_options
+        Extra IPOPT options (override the defaults).
+    processes
+        Worker processes for the starts; default :func:`default_processes`; 1 runs serially.
+
+    Returns
+    -------
+    SolveResult
+    """
+    t_start = time.perf_counter()
+    check_structure(pb)  # before any solver work (cached: a coarse pass does not repeat it)
+    if expand is None:
+        expand = default_expand(pb)
+    coarse = coarse_problem(pb) if guesses is None else None
+    refined: set[str] = set()
+    if coarse is not None:
+        guesses, refined = _coarse_guesses(pb, coarse, processes, ipopt_options, progress)
+    guesses = list(initial_guesses(pb) if guesses is None else guesses)
+    form = build_formulation(pb)
+    ctx = start_context(
+        form, verbose=verbose, expand=expand, ipopt_options=ipopt_options, warm=coarse is not None
+    )
+    build_s = time.perf_counter() - t_start
+    results = run_starts(ctx, guesses, processes=processes, progress=progress, verbose=verbose)
+    outcomes = [r[0] for r in results]
+    trajs = [r[1] for r in results]
+    labels = _guess_labels(guesses, refined, coarse.horizon.steps if coarse is not None else 0)
+    extra = [(labels[i], tr) for i, (_, tr) in enumerate(guesses)]
+    extra += [(f"{name} (baseline)", b.trajectory) for name, b in (baselines or {}).items()]
+    cands = _candidates(pb, outcomes, trajs, extra)
+    return _result(pb, outcomes, trajs, cands, wall=time.perf_counter() - t_start, build_s=build_s)
+
+
+def default_expand(pb: PlanningProblem) -> bool:
+    """Whether :func:`solve` expands the NLP to SX by default: for ``N <= COARSE_STEPS`` and
+    for every mission.
+
+    A finer grid without a mission is warm-started from its coarse plan and needs few
+    iterations, so construction dominates (measured at N = 1000, 2D min-eig: 9.6 s expanded
+    against 4.6 s in all). A mission has no coarse pass
+    (:func:`~obsplan.planning.transcription.guesses.coarse_problem`): its starts run hundreds of
+    L-BFGS iterations from the lawn-mowers, each evaluating the covariance recursion's gradient,
+    5-9x cheaper expanded (measured on the 3D DVL survey at N = 600: 15 ms against 75-130 ms
+    per gradient, for about 8 s more construction).
+
+    Parameters
+    ----------
+    pb
+        The problem (its grid ``horizon.steps`` and whether it has a ``[mission]``).
+
+    Returns
+    -------
+    bool
+    """
+    return pb.horizon.steps <= COARSE_STEPS or pb.mission is not None
+
+
+def _coarse_guesses(
+    pb: PlanningProblem,
+    coarse: PlanningProblem,
+    processes: int | None,
+    ipopt_options: dict | None,
+    progress: bool | Progress,
+) -> tuple[list[tuple[str, Trajectory]], set[str]]:
+    """Each start first solved on the coarse grid (:data:`COARSE_STEPS`): its coarse plan
+    refined onto the fine grid, or its own guess where the coarse start returned no path.
+    Returns the fine guesses and the labels that come from a coarse plan."""
+    cres = solve(coarse, processes=processes, ipopt_options=ipopt_options, progress=progress)
+    guesses: list[tuple[str, Trajectory]] = []
+    refined: set[str] = set()
+    for label, g in initial_guesses(pb):
+        path = cres.start_paths.get(label)
+        if path is None:
+            guesses.append((label, g))
+        else:
+            guesses.append((label, refine(path, pb)))
+            refined.add(label)
+    return guesses, refined
+
+
+def _guess_labels(
+    guesses: Sequence[tuple[str, Trajectory]], refined: set[str], coarse_steps: int
+) -> list[str]:
+    """How the candidates list each guess: ``"<label> (initial guess)"`` or its coarse plan."""
+    coarse = f"its coarse plan, N = {coarse_steps}"
+    return [f"{label} ({coarse if label in refined else 'initial guess'})" for label, _ in guesses]
+
+
+def _candidates(
+    pb: PlanningProblem,
+    outcomes: Sequence[StartOutcome],
+    trajs: Sequence[Trajectory | None],
+    extra: Sequence[tuple[str, Trajectory]],
+) -> list[_Candidate]:
+    """Every start's feasible path, then every feasible guess and baseline (module docstring)."""
+    cands: list[_Candidate] = []
+    for o, tr in zip(outcomes, trajs, strict=True):
+        if tr is not None and o.feasible and o.objective is not None:
+            cands.append(_Candidate(o.label, tr, o.objective, o))
+    for label, tr in extra:
+        if (
+            tr.n_samples == pb.horizon.steps + 1
+            and check_limits(tr, pb).ok()
+            and completes_mission(tr, pb.mission_context)
+        ):
+            cands.append(_Candidate(label, tr, objective_value(tr, pb), None))
+    return cands
+
+
+def _best(cands: Sequence[_Candidate], pb: PlanningProblem) -> _Candidate:
+    """The best candidate; among equals the first (starts come first, so a converged start wins
+    over a guess it did not improve: strict improvement only)."""
+    best = 0
+    for i in range(1, len(cands)):
+        if better(cands[i].objective, cands[best].objective, pb):
+            best = i
+    return cands[best]
+
+
+def _result(
+    pb: PlanningProblem,
+    outcomes: list[StartOutcome],
+    trajs: list[Trajectory | None],
+    cands: list[_Candidate],
+    *,
+    wall: float,
+    build_s: float,
+) -> SolveResult:
+    """The :class:`SolveResult` of the chosen candidate (or of none)."""
+    success = any(o.success for o in outcomes)
+    if not cands:
+        last = outcomes[-1] if outcomes else None
+        return SolveResult(
+            problem=pb,
+            trajectory=None,
+            success=False,
+            status=last.status if last else "no starts",
+            iterations=0,
+            wall_s=wall,
+            objective=None,
+            lifted_objective=None,
+            best_start=None,
+            starts=tuple(outcomes),
+            build_s=build_s,
+            chosen=None,
+            note="no start and no guess satisfies the limits",
+        )
+    best = _best(cands, pb)
+    o = best.start
+    converged = [x for x in outcomes if x.success]
+    ref = o if o is not None else (converged[0] if converged else outcomes[0])
+    note = ""
+    if o is None:
+        note = (
+            f"every optimised start ended worse than the {best.label}; it is returned unchanged"
+            if outcomes
+            else ""
+        )
+    elif not o.success:
+        note = f"the best path comes from a start that ended with {o.status}"
+    return SolveResult(
+        problem=pb,
+        trajectory=best.trajectory,
+        success=success,
+        status=ref.status,
+        iterations=ref.iterations,
+        wall_s=wall,
+        objective=best.objective,
+        lifted_objective=o.lifted if o is not None else None,
+        best_start=o.label if o is not None else None,
+        starts=tuple(outcomes),
+        build_s=build_s,
+        chosen=best.label,
+        note=note,
+        start_paths={o.label: t for o, t in zip(outcomes, trajs, strict=True) if t is not None},
+    )

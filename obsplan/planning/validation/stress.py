@@ -1,0 +1,71 @@
+"""The robustness row: every path re-validated under stated multiples, without replanning.
+
+``validation.stress_prior`` multiplies the validation's prior std (``init_pos_error``,
+``init_vel_error``) and ``validation.stress_range_noise`` its range std; every path (the plan and
+the baselines) is flown again through :func:`~obsplan.planning.validation.validate.validate_paths`
+under that condition, with the same runs and seed, and compared as the nominal validation is
+(:func:`~obsplan.planning.validation.verdict.verdict`). The filters are configured for the condition
+(their prior and range noise scaled with the truth's): what changes is the world the plan meets, not
+the plan.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from obsplan.planning.objectives.robust import scaled_problem
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.validation.validate import PathValidation, validate_paths
+from obsplan.planning.validation.verdict import Verdict, verdict
+from obsplan.trajectory.sampled import Trajectory
+
+
+def stress_active(pb: PlanningProblem) -> bool:
+    """True when ``[validation]`` states a multiple other than 1."""
+    val = pb.validation
+    return val.stress_prior != 1.0 or val.stress_range_noise != 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class Robustness:
+    """Validation of every path under the stress condition (``robustness`` of report.json).
+
+    Attributes
+    ----------
+    prior, range_noise : float
+        The multiples of the prior std and of the range std.
+    validation : dict[str, PathValidation]
+        Per path, as the nominal validation.
+    """
+
+    prior: float
+    range_noise: float
+    validation: dict[str, PathValidation]
+
+    @property
+    def verdict(self) -> Verdict:
+        """The plan against every baseline under the condition."""
+        return verdict(self.validation, {})
+
+    def to_dict(self) -> dict:
+        return {
+            "prior": self.prior,
+            "range_noise": self.range_noise,
+            "validation": {k: v.to_dict() for k, v in self.validation.items()},
+            "verdict": self.verdict.to_dict(),
+        }
+
+
+def stress_validate(
+    paths: Mapping[str, Trajectory],
+    pb: PlanningProblem,
+    *,
+    runs: int | None = None,
+    progress: bool = False,
+) -> Robustness:
+    """Validate ``paths`` under ``pb``'s stress multiples (module docstring)."""
+    val = pb.validation
+    spb = scaled_problem(pb, val.stress_prior, val.stress_range_noise)
+    res = validate_paths(paths, spb, runs=runs, progress=progress)
+    return Robustness(val.stress_prior, val.stress_range_noise, res)
