@@ -25,6 +25,7 @@ from filterpy.kalman import ExtendedKalmanFilter as FpEKF
 from filterpy.kalman import KalmanFilter as FpKF
 
 from obsplan.estimation import EstimationConfig, monte_carlo
+from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.epochs import RunContext, epoch_plan, input_displacement, record_samples
 from obsplan.estimation.montecarlo.simulate import make_filter
 from obsplan.estimation.schedule import make_schedule
@@ -35,7 +36,7 @@ SIG = 0.1
 
 
 def setup(steps: int, runs: int):
-    traj = gen.circle(51.0, 2.6, steps * 0.01, 0.01, center=(0.0, 2.0))
+    traj = gen.circle(51.0, 2.6, steps * 0.01, center=(0.0, 2.0)).sample(0.01)
     cfg = EstimationConfig.paper(make_model(2, "range"), 0.01)
     cov = cfg.covariances(0.01)
     rng = np.random.default_rng(0)
@@ -122,9 +123,10 @@ def obsplan_filters(traj, cfg, cov, r, x0, runs) -> dict[str, float]:
         sums = np.zeros((2, rec.size, 7))
         info = np.zeros((runs, 10))
         states = [f.start(x0[j], None, float(Y[0, 0, j])) for j in range(runs)]
-        f.run(ctx, states[:1], Y[:, :, :1], truth[:1], sums, info[:1])  # compile / load
+        first = RunBatch(ctx, states[:1], Y[:, :, :1])
+        f.run(first, RunRecord(truth[:1], sums, info[:1]))  # compile / load
         t0 = time.perf_counter()
-        f.run(ctx, states, Y, truth, sums, info)
+        f.run(RunBatch(ctx, states, Y), RunRecord(truth, sums, info))
         out[name] = (time.perf_counter() - t0) / (traj.n_samples * runs) * 1e6
     return out
 

@@ -46,10 +46,10 @@ HERE = Path(__file__).resolve().parent
 def compile_cost() -> list[tuple[str, float]]:
     code = (
         "import time; t = time.perf_counter();"
-        "from obsplan import generators as gen;"
+        "from obsplan.trajectory import generators as gen;"
         "from obsplan.estimation import EstimationConfig, Guidance, monte_carlo;"
         "from obsplan.model.vehicle import make_model;"
-        "tr = gen.circle(30.0, 1.5, 20.0, 0.1);"
+        "tr = gen.circle(30.0, 1.5, 20.0).sample(0.1);"
         "monte_carlo(tr, EstimationConfig.paper(make_model(2, 'range'), 0.1), runs=2,"
         " filters=('ekf', 'kf', 'gsf'));"
         "print(time.perf_counter() - t)"
@@ -202,8 +202,8 @@ def step_by_step(traj: Trajectory, cfg: EstimationConfig, runs: int, seed: int =
 
 def acceptance_cases(quick: bool):
     T = 60.0 if quick else 600.0
-    tr2 = gen.circle(51.0, 2.6, T, 0.01, center=(0.0, 2.0))
-    tr3 = gen.circle_z(50.0, 2.6, T, 0.01, z0=5.0, z_amp=4.0, z_period=90.0)
+    tr2 = gen.circle(51.0, 2.6, T, center=(0.0, 2.0)).sample(0.01)
+    tr3 = gen.circle_z(50.0, 2.6, T, z0=5.0, z_amp=4.0, z_period=90.0).sample(0.01)
     m2, m3 = make_model(2, "range"), make_model(3, "range,dvl")
     one_hz = EstimationConfig.paper(m2, 0.01, rates_hz={"range": 1.0})
     return [
@@ -310,7 +310,7 @@ def quality(quick: bool) -> list[str]:
     plan3 = resample(
         read_csv(HERE.parent / "tests" / "data" / "range3d-plan.csv", check=False), pb.validation.dt
     )
-    circle = gen.circle(51.0, 2.6, 600.0, 0.1, center=(0.0, 2.0))
+    circle = gen.circle(51.0, 2.6, 600.0, center=(0.0, 2.0)).sample(0.1)
     for label, traj, cfg in (
         ("range3d.toml plan, dt 0.1 s", plan3, estimation_config(pb)),
         ("2D circle 600 s, dt 0.1 s", circle, EstimationConfig.paper(make_model(2), 0.1)),
@@ -325,7 +325,7 @@ def quality(quick: bool) -> list[str]:
                 f"[{k.nees_bounds[0]:.2f}, {k.nees_bounds[1]:.2f}] | {k.nees_inside_fraction:.2f} "
                 f"| {k.final_pos_err:.3f} | {k.final_pos_std:.3f} | - |"
             )
-    line = gen.straight((-100.0, 30.0), (1.0, 0.0), 1.0, accel=0.005, duration=200.0, dt=0.1)
+    line = gen.straight((-100.0, 30.0), (1.0, 0.0), 1.0, accel=0.005, duration=200.0).sample(0.1)
     cfg = EstimationConfig.paper(make_model(2), 0.1, rates_hz={"range": 1.0})
     r = monte_carlo(line, cfg, runs=runs, seed=0, filters=("ekf", "gsf"))
     late = r.t >= r.t[-1] - 20.0

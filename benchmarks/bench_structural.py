@@ -28,14 +28,15 @@ from obsplan.trajectory import generators as gen
 def cases(samples: int) -> list[tuple[str, object, object]]:
     dt = 0.01
     T = samples * dt
+    zsine = gen.circle_z(50.0, 2.6, T, z0=10.0, z_motion="sine", z_amp=5.0, z_period=90.0)
     return [
-        ("circle 2D, range", gen.circle(50.0, 2.6, T, dt), make_model(2, "range")),
+        ("circle 2D, range", gen.circle(50.0, 2.6, T).sample(dt), make_model(2, "range")),
         (
             "circle+sine z, range+dvl-water, current",
-            gen.circle_z(50.0, 2.6, T, dt, z0=10.0, z_motion="sine", z_amp=5.0, z_period=90.0),
+            zsine.sample(dt),
             make_model(3, "range,dvl-water", current=True),
         ),
-        ("paper lawn-mower 2D, range", gen.paper_lawnmower(2, dt), make_model(2, "range")),
+        ("paper lawn-mower 2D, range", gen.paper_lawnmower(2).sample(dt), make_model(2, "range")),
         (
             "line along x, varying accel, range",
             gen.straight(
@@ -44,13 +45,12 @@ def cases(samples: int) -> list[tuple[str, object, object]]:
                 0.1,
                 accel=gen.sine_profile(0.02, 0.01, 20.0),
                 duration=T,
-                dt=dt,
-            ),
+            ).sample(dt),
             make_model(2, "range"),
         ),
         (
             "circle+sine z, range+dvl-bottom, current",
-            gen.circle_z(50.0, 2.6, T, dt, z0=10.0, z_motion="sine", z_amp=5.0, z_period=90.0),
+            zsine.sample(dt),
             make_model(3, "range,dvl-bottom", current=True),
         ),
     ]

@@ -39,9 +39,9 @@ T0_US = 1_700_000_000_000_000
 
 def survey() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Times [s], true positions (N, 2) [m] and velocities (N, 2) [m/s] of the sample survey."""
-    path = generators.lawnmower((-80.0, 60.0), 80.0, 20.0, 3, 0.5, dt=1.0 / RATE_HZ)
-    keep = path.t <= DURATION_S + 1e-9
-    return path.t[keep], path.p[keep], path.v[keep]
+    traj = generators.lawnmower((-80.0, 60.0), 80.0, 20.0, 3, 0.5).sample(1.0 / RATE_HZ)
+    keep = traj.t <= DURATION_S + 1e-9
+    return traj.t[keep], traj.p[keep], traj.v[keep]
 
 
 def write_log_csv(out: Path) -> Path:

@@ -68,7 +68,7 @@ def test_straight_baseline_is_rank_deficient_and_not_radial():
 def test_paper_lawnmower_rescaled_to_a_limit():
     pb = load_problem(LOCALISE_PROBLEM)
     tr = baselines(pb)["paper-lawnmower"].trajectory
-    ref = paper_lawnmower(2, dt=0.5)
+    ref = paper_lawnmower(2).sample(0.5)
     speed_ratio = np.linalg.norm(tr.v, axis=1).max() / pb.limits.speed
     accel_ratio = np.max(np.abs(tr.u[:-1]) / pb.accel)
     # the whole scaled path touches the binding limit exactly (fixed point of the time scale);

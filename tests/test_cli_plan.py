@@ -290,8 +290,8 @@ def test_3d_path_figure_has_a_depth_view_and_the_area_in_the_legend():
 
     pb = load_problem(PROBLEMS / "range3d.toml")
     path = gen.circle_z(
-        30.0, 1.0, 120.0, 1.0, center=(-80.0, 30.0), z0=10.0, z_amp=2.0, z_period=60.0
-    )
+        30.0, 1.0, 120.0, center=(-80.0, 30.0), z0=10.0, z_amp=2.0, z_period=60.0
+    ).sample(1.0)
     fig = plot_paths({"planned": path}, pb)
     ax_xy, ax_z = fig.axes
     assert ax_z.get_ylabel() == "z = depth [m]" and ax_z.yaxis_inverted()

@@ -354,8 +354,8 @@ def test_row34_path_figure_draws_the_min_range_and_zooms_on_loops_at_the_beacon(
     from obsplan.trajectory import generators
 
     pb = load_problem(DEFAULT)
-    loops = generators.circle(radius=5.5, speed=0.5, duration=200.0, dt=1.0)
-    mower = generators.lawnmower((-80.0, 60.0), 160.0, 40.0, 4, 1.0, dt=1.0)
+    loops = generators.circle(radius=5.5, speed=0.5, duration=200.0).sample(1.0)
+    mower = generators.lawnmower((-80.0, 60.0), 160.0, 40.0, 4, 1.0).sample(1.0)
     fig = plot_paths({"planned": loops, "lawnmower": mower}, pb)
     ax = fig.axes[0]
     circles = [p for p in ax.patches if isinstance(p, Circle)]
@@ -365,7 +365,7 @@ def test_row34_path_figure_draws_the_min_range_and_zooms_on_loops_at_the_beacon(
     lo, hi = inset.get_xlim()
     assert hi - lo < 0.25 * np.ptp(mower.p[:, 0]) and lo < pb.beacon[0] < hi
     plt.close(fig)
-    far = generators.circle(radius=60.0, speed=0.5, duration=200.0, dt=1.0)
+    far = generators.circle(radius=60.0, speed=0.5, duration=200.0).sample(1.0)
     fig = plot_paths({"planned": far, "lawnmower": mower}, pb)
     assert not fig.axes[0].child_axes  # nothing hides under the marker: no inset
     plt.close(fig)
@@ -411,7 +411,7 @@ def test_row24_the_code_fingerprint_follows_the_computing_code_not_the_cli(tmp_p
     cli = copy / "cli" / "sweep.py"
     cli.write_text(cli.read_text() + "\n# other wording\n")
     assert fingerprint(copy) == base  # the command line computes no part of a task
-    kernel = copy / "estimation" / "ekf.py"
+    kernel = copy / "estimation" / "filters" / "ekf.py"
     kernel.write_text(kernel.read_text() + "\n# a changed filter\n")
     assert fingerprint(copy) != base
 

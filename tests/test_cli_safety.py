@@ -55,7 +55,7 @@ def inputs(tmp_path):
     """A trajectory, a position-only track and a sweep file, outside the home folder."""
     d = tmp_path / "in"
     d.mkdir()
-    traj = gen.circle(30.0, 1.5, 20.0, 0.1)
+    traj = gen.circle(30.0, 1.5, 20.0).sample(0.1)
     write_csv(traj, d / "traj.csv")
     rows = "\n".join(f"{t:.1f},{p[0]:.4f},{p[1]:.4f}" for t, p in zip(traj.t, traj.p, strict=True))
     (d / "track.csv").write_text("t,px,py\n" + rows + "\n")
@@ -180,7 +180,7 @@ def test_a_link_is_refused_and_nothing_is_left(tmp_path, capsys):
     target.write_text("x")
     (tmp_path / "wp.csv").symlink_to(target)
     traj = tmp_path / "t.csv"
-    write_csv(gen.circle(30.0, 1.5, 20.0, 0.5), traj)
+    write_csv(gen.circle(30.0, 1.5, 20.0).sample(0.5), traj)
     assert main(["export", str(traj), "--waypoints", str(tmp_path / "wp.csv"), "--force"]) == 2
     assert "symbolic link" in capsys.readouterr().err and target.read_text() == "x"
 
@@ -356,7 +356,7 @@ def test_a_signal_after_the_folder_was_swapped_in_undoes_it(sig, code, tmp_path,
 
 def test_a_signal_after_a_file_was_written_undoes_it(tmp_path, monkeypatch):
     traj = tmp_path / "t.csv"
-    write_csv(gen.circle(30.0, 1.5, 20.0, 0.5), traj)
+    write_csv(gen.circle(30.0, 1.5, 20.0).sample(0.5), traj)
     wp = tmp_path / "wp.csv"
     wp.write_text("the old waypoints")
     monkeypatch.setattr("obsplan.cli.export.json.dumps", _signal_self(signal.SIGTERM))

@@ -18,7 +18,7 @@ PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 @pytest.fixture(scope="module")
 def csv_2d(tmp_path_factory):
     path = tmp_path_factory.mktemp("traj") / "circle.csv"
-    write_csv(gen.circle(30.0, 1.5, 20.0, 0.1), path)
+    write_csv(gen.circle(30.0, 1.5, 20.0).sample(0.1), path)
     return path
 
 
@@ -102,7 +102,7 @@ def test_out_folder_with_user_files_is_not_overwritten(csv_2d, tmp_path, capsys)
 
 def test_dt_resamples_a_coarse_plan_onto_the_filter_grid(tmp_path, capsys):
     path = tmp_path / "coarse.csv"
-    write_csv(gen.circle(30.0, 1.5, 20.0, 1.0), path)  # 1 s samples, like a plan.csv
+    write_csv(gen.circle(30.0, 1.5, 20.0).sample(1.0), path)  # 1 s samples, like a plan.csv
     assert main(["simulate", str(path), "--runs", "2", "--dt", "0.1", "--json"]) == 0
     fine = json.loads(capsys.readouterr().out)
     assert main(["simulate", str(path), "--runs", "2", "--json"]) == 0

@@ -31,7 +31,7 @@ GUIDANCE = Guidance.from_limits(0.05, speed=1.2, error_scale_m=1.0)
 
 @pytest.fixture(scope="module")
 def short():
-    traj = gen.circle(30.0, 1.0, 60.0, 0.1, center=(5.0, -3.0))
+    traj = gen.circle(30.0, 1.0, 60.0, center=(5.0, -3.0)).sample(0.1)
     cfg = EstimationConfig(model=make_model(2, "range"), rates_hz={"range": 1.0}, accel_noise=1e-3)
     return traj, cfg
 
@@ -53,7 +53,7 @@ def test_without_noise_the_plan_is_flown_exactly():
     plan, the feedback and the corrections vanish and the truth is the plan (1e-6 m: the
     readings' noise times the EKF's gain, measured 1e-8 m); the plan is within the bounds, so the
     guidance never saturates."""
-    traj = gen.circle(30.0, 1.0, 120.0, 0.1, center=(5.0, -3.0))
+    traj = gen.circle(30.0, 1.0, 120.0, center=(5.0, -3.0)).sample(0.1)
     cfg = EstimationConfig(
         model=make_model(2, "range"),
         rates_hz={"range": 1.0},
@@ -79,7 +79,7 @@ def test_without_noise_the_plan_is_flown_exactly():
 @pytest.fixture(scope="module")
 def long_circle():
     """1200 s at 1 m/s, range at 1 Hz, the default physical noise, 50 runs, open and closed."""
-    traj = gen.circle(51.0, 1.0, 1200.0, 0.1, center=(0.0, 2.0))
+    traj = gen.circle(51.0, 1.0, 1200.0, center=(0.0, 2.0)).sample(0.1)
     cfg = EstimationConfig(model=make_model(2, "range"), rates_hz={"range": 1.0})
     limits = TruthLimits(speed=1.2, min_range=5.0)
     return {
@@ -279,7 +279,9 @@ def test_every_truth_metric_against_run_0s_path(guidance):
     recorded at every sample (record_every=1), so each of its metrics is recomputed here in
     numpy (closest range on the chords, farthest range, speed, area and depth excursions) and
     must equal the kernel's to 1e-12 relative (round-off of sums of ~1000 terms)."""
-    traj = gen.circle_z(20.0, 1.0, 100.0, 0.1, z0=5.0, z_amp=3.0, z_period=50.0, center=(3.0, 0.0))
+    traj = gen.circle_z(
+        20.0, 1.0, 100.0, z0=5.0, z_amp=3.0, z_period=50.0, center=(3.0, 0.0)
+    ).sample(0.1)
     model = make_model(3, "range,dvl-bottom,depth", beacon=[0.0, 1.0, 0.0])
     cfg = EstimationConfig(
         model=model, rates_hz={"range": 1.0, "dvl-bottom": 2.0, "depth": 1.0}, accel_noise=3e-3
@@ -366,7 +368,7 @@ def test_guidance_on_the_truth_flies_the_plan_and_leaves_the_filter_passive(long
     closer than when it follows its estimate (then off by about the EKF's error). Measured (seed 0,
     50 runs): final drift 0.0038 m RMS against 0.18 m; EKF final error 0.149 m RMS in both modes
     (the same runs' noise: the filter does not care who steers on a well-observed circle)."""
-    traj = gen.circle(51.0, 1.0, 1200.0, 0.1, center=(0.0, 2.0))  # the fixture's
+    traj = gen.circle(51.0, 1.0, 1200.0, center=(0.0, 2.0)).sample(0.1)  # the fixture's
     cfg = EstimationConfig(model=make_model(2, "range"), rates_hz={"range": 1.0})
     g = replace(GUIDANCE, on_truth=True)
     res = monte_carlo(traj, cfg, runs=50, seed=0, guidance=g)
@@ -386,7 +388,7 @@ def test_steering_on_the_gaussian_sum_keeps_the_ekfs_lock_out_of_the_truth():
     steered on the EKF, 1.05 m on the Gaussian sum (its final error 0.89 m RMS); tracking error
     48.9 m against 2.0 m RMS. The passive EKF on the sum's path still loses some runs (final error
     4.4 m RMS): the lock is the EKF's, the sum does not hide it."""
-    traj = gen.straight((-100.0, 30.0), (1.0, 0.0), 1.0, accel=0.005, duration=200.0, dt=0.1)
+    traj = gen.straight((-100.0, 30.0), (1.0, 0.0), 1.0, accel=0.005, duration=200.0).sample(0.1)
     cfg = EstimationConfig.paper(make_model(2, "range"), 0.1, rates_hz={"range": 1.0})
     law = Guidance.from_limits(0.05, speed=2.0, error_scale_m=1.0, navigation="ekf")
     kw = dict(runs=50, seed=0, filters=("ekf", "gsf"))

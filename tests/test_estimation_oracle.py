@@ -543,9 +543,9 @@ def check(traj, cfg, runs=3, seed=7, record_every=7, backend="numpy", guidance=N
 
 def circle(duration=40.0, dt=0.1, dim=2):
     return (
-        gen.circle_z(30.0, 1.5, duration, dt, z0=3.0, z_amp=2.0, z_period=20.0)
+        gen.circle_z(30.0, 1.5, duration, z0=3.0, z_amp=2.0, z_period=20.0).sample(dt)
         if dim == 3
-        else (gen.circle(30.0, 1.5, duration, dt, center=(5.0, -3.0)))
+        else (gen.circle(30.0, 1.5, duration, center=(5.0, -3.0)).sample(dt))
     )
 
 
@@ -610,7 +610,7 @@ def test_irregular_steps():
 def test_long_segments_use_the_gauss_rule():
     """Range every 10 s on a 20 Hz grid: 200-step segments, where the KF's coupled noise is
     summed by the 5-node rule instead of step by step."""
-    traj = gen.circle(40.0, 1.2, 120.0, 0.05)
+    traj = gen.circle(40.0, 1.2, 120.0).sample(0.05)
     cfg = EstimationConfig.paper(make_model(2, "range"), 0.05, rates_hz={"range": 0.1})
     cfg = replace(cfg, q_kf=cfg.q_kf * 1e4, q_ekf=cfg.q_ekf * 1e4)  # a noise that matters
     check(traj, cfg, runs=2, record_every=37)
@@ -663,7 +663,7 @@ def test_physical_noise_on_irregular_steps_and_long_gaps():
     cfg = EstimationConfig(model=make_model(2, "range"), rates_hz={"range": 0.7}, accel_noise=2e-3)
     check(traj, cfg, record_every=5)
     cfg = EstimationConfig(model=make_model(2, "range"), rates_hz={"range": 0.1}, accel_noise=3e-3)
-    check(gen.circle(40.0, 1.2, 120.0, 0.05), cfg, runs=2, record_every=37)
+    check(gen.circle(40.0, 1.2, 120.0).sample(0.05), cfg, runs=2, record_every=37)
 
 
 # ----------------------------------------------------------------------------- closed loop

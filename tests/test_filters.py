@@ -34,6 +34,7 @@ import pytest
 
 from obsplan.core.errors import ConfigError
 from obsplan.estimation import EstimationConfig
+from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.columns import N_INFO
 from obsplan.estimation.filters.base import REGISTRY, Filter, make_filter
 from obsplan.estimation.filters.gsf import GaussianSumFilter
@@ -49,10 +50,10 @@ RUNS = 3
 
 def _case(name: str, range_form: str = "half-squared", ekf_update: str = "first-order"):
     if name == "circle-2d-range":
-        traj = gen.circle(30.0, 1.5, 12.0, 0.1, center=(4.0, -2.0))
+        traj = gen.circle(30.0, 1.5, 12.0, center=(4.0, -2.0)).sample(0.1)
         model = make_model(2, "range", beacon=(1.0, 3.0), range_form=range_form)
     else:  # a climbing turn in 3D with DVL and depth, beacon off the origin and above
-        traj = gen.circle_z(25.0, 1.0, 10.0, 0.1, z0=10.0, z_amp=2.0, z_period=20.0)
+        traj = gen.circle_z(25.0, 1.0, 10.0, z0=10.0, z_amp=2.0, z_period=20.0).sample(0.1)
         model = make_model(3, "range,dvl,depth", beacon=(5.0, -3.0, 2.0), range_form=range_form)
     cfg = replace(
         EstimationConfig.paper(model, 0.1),
@@ -292,7 +293,7 @@ def test_filter_matches_its_reference(case, name):
     sums = np.zeros((2, rec.size, 3 + n2))
     info = np.zeros((RUNS, N_INFO))
     ex = np.zeros((2, rec.size, n2))
-    f.run(setup.ctx, states, Y, truth, sums, info, 0, ex)
+    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, info, 0, ex))
     est = np.array([hists[0][k][0] for k in rec])
     std = np.array([np.sqrt(np.diag(hists[0][k][1])) for k in rec])
     close(ex[0], est, f"{name} batch estimate")
@@ -308,7 +309,7 @@ def test_filter_matches_its_reference(case, name):
     )
 
     # epoch by epoch: every run's state and covariance at the last epoch
-    run = f.filter_all(f.begin(setup.ctx, states, Y))
+    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
     assert run.epoch == traj.n_samples - 1
     X, P = f.state(run), f.covariance(run)
     assert X.shape == (f.state_dim, RUNS) and P.shape == (f.state_dim, f.state_dim, RUNS)
@@ -335,17 +336,17 @@ def test_second_order_update_matches_its_reference(case_name, range_form, name):
     n2 = 2 * cfg.model.dim
     sums, info = np.zeros((2, rec.size, 3 + n2)), np.zeros((RUNS, N_INFO))
     ex = np.zeros((2, rec.size, n2))
-    f.run(setup.ctx, states, Y, truth, sums, info, 0, ex)
+    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, info, 0, ex))
     close(ex[0], np.array([hists[0][k][0] for k in rec]), f"{name} second-order estimate")
     close(ex[1], np.array([np.sqrt(np.diag(hists[0][k][1])) for k in rec]), f"{name} std")
-    run = f.filter_all(f.begin(setup.ctx, states, Y))
+    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
     for r, (x_ref, P_ref) in enumerate(finals):
         close(f.state(run)[:, r], x_ref, f"{name} second-order state, run {r}")
         close(f.covariance(run)[:, :, r], P_ref, f"{name} second-order covariance, run {r}")
     # the first-order filter on the same readings ends elsewhere: the update is not a no-op
     first = replace(cfg, ekf_update="first-order")
     f1 = PathSetup(traj, first, (name,), None, RUNS).filters[name]
-    run1 = f1.filter_all(f1.begin(setup.ctx, states, Y))
+    run1 = f1.filter_all(f1.begin(RunBatch(setup.ctx, states, Y)))
     gap = np.max(np.abs(f1.covariance(run1) - f.covariance(run))) / np.max(np.abs(P_ref))
     assert gap > 1e3 * TOL
 
@@ -379,7 +380,7 @@ def test_second_order_is_a_checked_choice():
 def test_predict_then_update_is_checked():
     traj, cfg, setup, Y, truth, starts = _case(CASES[0])
     f = setup.filters["ekf"]
-    run = f.begin(setup.ctx, [f.start(*st) for st in starts], Y)
+    run = f.begin(RunBatch(setup.ctx, [f.start(*st) for st in starts], Y))
     f.update(run)
     with pytest.raises(ConfigError, match="updated already"):
         f.update(run)
@@ -395,7 +396,8 @@ def test_gaussian_sum_of_one_component_is_the_ekf(case):
     for f in (e, g):
         Nr, n2 = setup.records.size, 2 * cfg.model.dim
         sums, info, ex = np.zeros((2, Nr, 3 + n2)), np.zeros((RUNS, N_INFO)), np.zeros((2, Nr, n2))
-        f.run(setup.ctx, [f.start(*st) for st in starts], Y, truth, sums, info, 1, ex)
+        batch = RunBatch(setup.ctx, [f.start(*st) for st in starts], Y)
+        f.run(batch, RunRecord(truth, sums, info, 1, ex))
         out[f.name] = (sums, info, ex)
     for a, b, what in zip(out["gsf"], out["ekf"], ("sums", "info", "history"), strict=True):
         np.testing.assert_allclose(

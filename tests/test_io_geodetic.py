@@ -161,7 +161,7 @@ def test_beacon_geodetic_option(tmp_path, capsys):
     from obsplan.trajectory import generators as gen
     from obsplan.trajectory.sampled import write_csv
 
-    path = write_csv(gen.circle(30.0, 1.5, 60.0, 0.5), tmp_path / "c.csv")
+    path = write_csv(gen.circle(30.0, 1.5, 60.0).sample(0.5), tmp_path / "c.csv")
     lat, lon, _ = local_to_geodetic([[-50.0, 10.0]], ORIGIN)
     geo = f"{float(lat[0])!r},{float(lon[0])!r}"
     assert main(["analyze", str(path), "--json", "--beacon", "-50,10"]) == 0
@@ -189,7 +189,7 @@ def test_geodetic_problem_path_figure_is_a_map():
     from obsplan.trajectory import generators as gen
 
     pb = problem_from_dict(_geodetic_twin(_default_data()))
-    path = gen.circle(30.0, 1.0, 120.0, 1.0, center=(-80.0, 30.0))
+    path = gen.circle(30.0, 1.0, 120.0, center=(-80.0, 30.0)).sample(1.0)
     ax = plot_paths({"planned": path}, pb).axes[0]
     assert ax.get_xlabel() == "y = east [m]" and ax.get_ylabel() == "x = north [m]"
     np.testing.assert_allclose(ax.lines[0].get_xdata(), path.p[:, 1])  # east across

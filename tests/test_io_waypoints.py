@@ -53,14 +53,15 @@ def test_tracking_errors_are_exact(dim):
 
 
 def test_a_straight_plan_flown_straight_has_no_error():
-    line = gen.straight([0.0, 0.0], [1.0, 0.5], float(np.hypot(1.0, 0.5)), duration=100.0, dt=1.0)
+    line = gen.straight([0.0, 0.0], [1.0, 0.5], float(np.hypot(1.0, 0.5)), duration=100.0)
+    line = line.sample(1.0)
     wp = waypoints_from_trajectory(line, every=10.0)
     assert wp.max_cross_track < 1e-9 and wp.max_schedule_error < 1e-9
     np.testing.assert_allclose(wp.speed, np.hypot(1.0, 0.5))
 
 
 def test_spacing_in_time_and_in_distance():
-    circle = gen.circle(50.0, 2.0, 2 * np.pi * 50.0 / 2.0, 0.5)  # one lap, 157 s at 2 m/s
+    circle = gen.circle(50.0, 2.0, 2 * np.pi * 50.0 / 2.0).sample(0.5)  # one lap, 157 s at 2 m/s
     wp = waypoints_from_trajectory(circle, every=10.0)
     np.testing.assert_allclose(np.diff(wp.t)[:-1], 10.0)
     assert wp.t[0] == circle.t[0] and wp.t[-1] == circle.t[-1]

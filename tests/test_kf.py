@@ -22,7 +22,9 @@ from obsplan.trajectory.sampled import Trajectory
 
 def test_ybar_is_linear_in_the_true_augmented_state():
     """ȳ = y - y0 + ½|d|² equals C(t) z_true exactly (eqs. 19–21, DVL and depth rows, beacon)."""
-    traj = gen.circle_z(20.0, 1.5, 60.0, 0.1, z0=4.0, z_amp=1.0, z_period=30.0, center=(3.0, -2.0))
+    traj = gen.circle_z(
+        20.0, 1.5, 60.0, z0=4.0, z_amp=1.0, z_period=30.0, center=(3.0, -2.0)
+    ).sample(0.1)
     model = make_model(3, "range,dvl-water,depth", beacon=(1.0, 2.0, -3.0))
     aug = augmented_model(model)
     d, dd = input_displacement(traj)
@@ -93,7 +95,7 @@ def test_kf_needs_the_anchor_range():
 @pytest.fixture(scope="module")
 def long_circle():
     """600 s of the Fig. 2 circle at 10 Hz with the paper's process noise, 50 runs."""
-    traj = gen.circle(51.0, 2.6, 600.0, 0.1, center=(0.0, 2.0))
+    traj = gen.circle(51.0, 2.6, 600.0, center=(0.0, 2.0)).sample(0.1)
     return traj, EstimationConfig.paper(make_model(2, "range"), 0.1)
 
 

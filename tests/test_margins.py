@@ -19,11 +19,6 @@ from obsplan.planning.problem.sections import Horizon
 from obsplan.planning.problem.validation_setup import validation_guidance
 from obsplan.planning.solver.formulation import build_formulation
 from obsplan.planning.solver.margins import (
-    BOX_SHARE,
-    RESERVE_ATOL,
-    RESERVE_CAP,
-    RESERVE_FLOOR,
-    START_REACH_SHARE,
     LoopResponse,
     PathCovariance,
     box_margins,
@@ -41,6 +36,7 @@ from obsplan.planning.solver.margins import (
 )
 from obsplan.planning.solver.solve import SolveResult
 from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.tuning import tuned, tuning
 
 
 def test_loop_response_of_a_critically_damped_loop_matches_its_closed_form():
@@ -85,7 +81,7 @@ def test_margins_scale_with_the_confidence_quantile_and_zero_disables(short_prob
     m = keepout_margins(lawnmower, short_problem)
     assert m.k == pytest.approx(3.0902, abs=1e-4)
     assert np.all(m.range_points > 0) and np.all(m.box > 0)
-    assert np.all((m.accel_reserve >= 0) & (m.accel_reserve <= RESERVE_CAP))
+    assert np.all((m.accel_reserve >= 0) & (m.accel_reserve <= tuning().reserve_cap))
     low = replace(short_problem, limits=replace(short_problem.limits, keepout_confidence=0.9))
     m9 = keepout_margins(lawnmower, low)
     ratio = confidence_quantile(0.9) / confidence_quantile(0.999)
@@ -106,16 +102,17 @@ def test_the_reserves_are_the_linearised_loops_stds_between_floor_and_cap(short_
     cmd = lc.command_std(g.kp, g.kd)
     t = pb.times
     a = np.asarray(pb.accel, float)
+    floor, cap = tuning().reserve_floor, tuning().reserve_cap
     for i in (5, 20, pb.horizon.steps - 1):  # the epochs from the last at or before t_i
         lo = np.searchsorted(lc.time, t[i], side="right") - 1
         hi = max(np.searchsorted(lc.time, t[i + 1], side="left") - 1, lo)
-        want = np.clip(m.k * cmd[lo : hi + 1].max(axis=0) / a, RESERVE_FLOOR, RESERVE_CAP)
+        want = np.clip(m.k * cmd[lo : hi + 1].max(axis=0) / a, floor, cap)
         np.testing.assert_allclose(m.accel_reserve[:, i], want, rtol=1e-12)
         vel = lc.std("filter", "vel").max(axis=1) + lc.std("estimated", "vel").max(axis=1)
         assert m.speed[i] == pytest.approx(min(m.k * vel[lo : hi + 1].max(), m.speed_cap))
     # once the filter has converged the linear reserve is below the floor: the floor holds
-    assert np.all(m.accel_reserve >= RESERVE_FLOOR)
-    assert np.any(m.k * cmd[lc.time > 60].max(axis=0) / a < RESERVE_FLOOR)
+    assert np.all(m.accel_reserve >= floor)
+    assert np.any(m.k * cmd[lc.time > 60].max(axis=0) / a < floor)
 
 
 def test_tighten_moves_only_the_limit_bounds(short_problem, lawnmower):
@@ -151,9 +148,10 @@ def test_keep_out_returns_a_feasible_path_that_keeps_its_margins(short_problem, 
     assert check_limits(path, short_problem).ok()
     if rep.held:
         # "held": no margin recomputed on the path grew past what counts as unchanged between
-        # rounds (MARGIN_ATOL_M on the distances, RESERVE_ATOL of the acceleration bound)
+        # rounds (margin_atol_m on the distances, reserve_atol of the acceleration bound)
         again = keepout_margins(path, short_problem)
-        again = replace(again, accel_reserve=np.maximum(again.accel_reserve - RESERVE_ATOL, 0.0))
+        atol = tuning().reserve_atol
+        again = replace(again, accel_reserve=np.maximum(again.accel_reserve - atol, 0.0))
         assert keeps_margins(tighten(build_formulation(short_problem), again), path, tol=1e-3)
     assert rep.planned_closest_range_m == pytest.approx(range_extremes(path, [0, 0])[0])
     assert rep.to_dict()["confidence"] == 0.999
@@ -324,8 +322,8 @@ def test_an_unconverged_re_solve_is_continued_from_its_own_iterate(
     short_problem, lawnmower, monkeypatch, converges_after
 ):
     """A keep-out re-solve that stops at IPOPT's iteration limit without keeping its margins is
-    re-run warm from its own iterate, at most CONTINUE_UNCONVERGED times; one that converged or
-    kept its margins is not."""
+    re-run warm from its own iterate, at most ``continue_unconverged`` times (the tuning's, read
+    when the re-solve runs); one that converged or kept its margins is not."""
     from types import SimpleNamespace
 
     import obsplan.planning.solver.margins as margins_mod
@@ -345,18 +343,25 @@ def test_an_unconverged_re_solve_is_continued_from_its_own_iterate(
     monkeypatch.setattr(margins_mod, "run_start", fake_run_start)
     monkeypatch.setattr(margins_mod, "keeps_margins", lambda tight, traj: traj.p[0, 0] > 1e9)
     outcome, traj, keeps = margins_mod._resolve(form, margins, lawnmower, "round 1")
-    runs = min(converges_after, margins_mod.CONTINUE_UNCONVERGED) + 1
+    limit = tuning().continue_unconverged
+    runs = min(converges_after, limit) + 1
     assert len(calls) == runs and not keeps
     assert calls[0] == ("round 1", lawnmower)
     for k in range(1, runs):  # each continuation starts from the previous run's iterate
         assert calls[k][0] == f"round 1 (continued {k})"
         assert np.array_equal(calls[k][1].p, lawnmower.p + k)
-    done = converges_after <= margins_mod.CONTINUE_UNCONVERGED
+    done = converges_after <= limit
     assert outcome.status == ("Solve_Succeeded" if done else "Maximum_Iterations_Exceeded")
     # kept at once: no continuation
     calls.clear()
     monkeypatch.setattr(margins_mod, "keeps_margins", lambda tight, traj: True)
     assert margins_mod._resolve(form, margins, lawnmower, "round 1")[2]
+    assert len(calls) == 1
+    # the limit is the tuning in force when the re-solve runs
+    calls.clear()
+    monkeypatch.setattr(margins_mod, "keeps_margins", lambda tight, traj: traj.p[0, 0] > 1e9)
+    with tuned(continue_unconverged=0):
+        assert not margins_mod._resolve(form, margins, lawnmower, "round 1")[2]
     assert len(calls) == 1
 
 
@@ -403,18 +408,19 @@ def test_a_start_inside_its_margin_gets_margins_that_grow_in_and_a_plan_that_kee
     grid = form.grid
     accel = 0.02 * (1.0 - m.accel_reserve[2].max())
     reach = start_reach(grid, 2, 1.0, accel)
-    full = np.minimum(m.box[2], BOX_SHARE * 28.0)
+    share = tuning().box_share
+    full = np.minimum(m.box[2], share * 28.0)
     # the precondition: the full depth margin is out of the vehicle's reach at some nodes
     assert np.any(2.0 + full > 4.0 + reach)
     lo, hi = box_margins(form, m)[2]
-    room = 4.0 - 2.0 - form.grid.a[2] * grid.h**2 / 8.0 + START_REACH_SHARE * reach
+    room = 4.0 - 2.0 - form.grid.a[2] * grid.h**2 / 8.0 + tuning().start_reach_share * reach
     np.testing.assert_allclose(lo, np.minimum(full, room), atol=1e-9)
     assert np.all(2.0 + lo < 4.0 + reach) and np.any(lo < full)
     # far from the limits (the area; the band's deep side) the margins are the full ones
-    np.testing.assert_allclose(hi, np.minimum(m.box[2], BOX_SHARE * 28.0))
+    np.testing.assert_allclose(hi, np.minimum(m.box[2], share * 28.0))
     for axis in (0, 1):
         a_lo, a_hi = box_margins(form, m)[axis]
-        np.testing.assert_allclose(a_lo, np.minimum(m.box[axis], BOX_SHARE * 200.0))
+        np.testing.assert_allclose(a_lo, np.minimum(m.box[axis], share * 200.0))
     path, rep, outcome = keep_out(pb, plan)
     assert outcome is not None, rep.note  # the tightened re-solve ran: it was infeasible before
     assert check_limits(path, pb).ok()

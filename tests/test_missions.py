@@ -39,7 +39,8 @@ from obsplan.planning.problem.sections import Horizon
 from obsplan.planning.problem.validation_setup import estimation_config
 from obsplan.planning.solver.solve import default_expand
 from obsplan.planning.transcription.grid import Grid
-from obsplan.planning.transcription.guesses import COARSE_STEPS, coarse_problem
+from obsplan.planning.transcription.guesses import coarse_problem
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory, resample
 
 MISSIONS = sorted((PROBLEMS_DIR / "suite" / "missions").glob("*.toml"))
@@ -487,13 +488,14 @@ def test_a_mission_is_solved_expanded_on_every_grid_and_free_problems_as_before(
     # a mission has no coarse pass, so its fine grid is expanded to SX too; a free problem's
     # fine grid (warm-started from its coarse plan) is not
     survey = load_problem()
-    fine = 300  # a divisor of both horizons in filter steps (0.1 s), above COARSE_STEPS
-    assert fine > COARSE_STEPS
+    coarse_steps = tuning().coarse_steps
+    fine = 300  # a divisor of both horizons in filter steps (0.1 s), above coarse_steps
+    assert fine > coarse_steps
     assert coarse_problem(replace(survey, horizon=Horizon(survey.horizon.duration, fine))) is None
     assert default_expand(replace(survey, horizon=Horizon(survey.horizon.duration, fine)))
     free = load_problem(LOCALISE_PROBLEM)
     assert not default_expand(replace(free, horizon=Horizon(free.horizon.duration, fine)))
-    assert default_expand(replace(free, horizon=Horizon(free.horizon.duration, COARSE_STEPS)))
+    assert default_expand(replace(free, horizon=Horizon(free.horizon.duration, coarse_steps)))
 
 
 def test_a_coarser_grid_of_the_same_mission_keeps_the_windows():

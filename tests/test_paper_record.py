@@ -62,7 +62,7 @@ def test_turn_determinant_closed_form_and_its_zeros():
 
 
 def test_every_smooth_turn_of_the_paper_lawnmower_has_two_isolated_zeros():
-    path = gen.paper_lawnmower_path(2)
+    path = gen.paper_lawnmower(2)
     rep = lwo_path_report(path, make_model(2, "range"))
     zeros = [d for d in rep.drops if d.isolated]
     turns = [1, 3, 5, 7]  # pieces: accelerating leg, then (turn, leg) x 4
@@ -95,7 +95,7 @@ def test_every_smooth_turn_of_the_paper_lawnmower_has_two_isolated_zeros():
 def test_held_input_turns_jump_across_zero_without_vanishing(dt):
     """The generators' (held-input) lawn-mower: full rank at every sample of every turn; det O
     changes sign between two samples (at an input switch) near each zero of the smooth turn."""
-    path = gen.paper_lawnmower_path(2)
+    path = gen.paper_lawnmower(2)
     tr = path.sample(dt)
     model = make_model(2, "range")
     ranks = lwo_report(tr, model).ranks
@@ -178,7 +178,7 @@ def test_held_input_csv_rank_is_the_same_inside_every_hold_interval():
     """Numeric counterpart: O at interior points of each interval, from the exact ZOH motion,
     has the determinant of O at the interval's start (to round-off)."""
     rng = np.random.default_rng(7)
-    tr = gen.circle(50.0, 2.6, 20.0, 0.5, center=(30.0, 10.0))
+    tr = gen.circle(50.0, 2.6, 20.0, center=(30.0, 10.0)).sample(0.5)
     fn = lwo_matrix_function(make_model(2, "range"))
     for k in rng.integers(0, tr.n_samples - 1, 10):
         h = tr.t[k + 1] - tr.t[k]
@@ -192,49 +192,55 @@ def test_held_input_csv_rank_is_the_same_inside_every_hold_interval():
 def test_path_check_finds_the_zeros_a_sampled_test_misses():
     """Note 'dvl-zsine-condition': a z oscillation about the beacon's plane, with DVL, loses rank
     where sin(Ωt) = 0; the held-input samples do not."""
-    path = gen.circle_z_path(50.0, 2.6, 180.0, z0=0.0, z_motion="sine", z_amp=5.0, z_period=90.0)
+    path = gen.circle_z(50.0, 2.6, 180.0, z0=0.0, z_motion="sine", z_amp=5.0, z_period=90.0)
     model = make_model(3, "range,dvl")
     rep = lwo_path_report(path, model)
     assert not rep.along_trajectory
     assert rep.zeros == pytest.approx([0.0, 45.0, 90.0, 135.0, 180.0], abs=1e-6)
     assert lwo_report(path.sample(0.1), model).along_trajectory
-    lifted = gen.circle_z_path(50.0, 2.6, 180.0, z0=10.0, z_motion="sine", z_amp=5.0, z_period=90.0)
+    lifted = gen.circle_z(50.0, 2.6, 180.0, z0=10.0, z_motion="sine", z_amp=5.0, z_period=90.0)
     assert lwo_path_report(lifted, model).along_trajectory  # ω²|z0| > A|ω² - Ω²|
-    centred = lwo_path_report(gen.circle_path(50.0, 2.6, 120.0), make_model(2, "range"))
+    centred = lwo_path_report(gen.circle(50.0, 2.6, 120.0), make_model(2, "range"))
     assert centred.along_trajectory and centred.min_rank == 4  # det O = 6ω⁴ρ⁴ (eq. 37)
-    flat3d = lwo_path_report(gen.circle_path(50.0, 2.6, 60.0, z=5.0), make_model(3, "range"))
+    flat3d = lwo_path_report(gen.circle(50.0, 2.6, 60.0, z=5.0), make_model(3, "range"))
     assert [(d.t_start, d.t_end, d.rank) for d in flat3d.drops] == [(0.0, 60.0, 4)]  # eq. 38
-    legs = lwo_path_report(gen.lawnmower_path((0.0, 30.0), 40.0, 10.0, 2, 1.0), make_model(2))
+    legs = lwo_path_report(gen.lawnmower((0.0, 30.0), 40.0, 10.0, 2, 1.0), make_model(2))
     assert [(d.piece, d.rank, d.isolated) for d in legs.drops if not d.isolated] == [
         (0, 3, False),
         (2, 3, False),
     ]  # constant-speed legs: deficient on the whole piece
 
 
-def test_paths_sample_to_the_generators_bit_for_bit():
-    pairs = [
-        (
-            gen.circle_path(50, 2.6, 30, center=(3, 4), phase=0.3),
-            gen.circle(50, 2.6, 30, 0.1, center=(3, 4), phase=0.3),
-        ),
-        (gen.circle_path(50, 2.6, 30, z=5.0), gen.circle(50, 2.6, 30, 0.1, z=5.0)),
-        (
-            gen.circle_z_path(50, 2.6, 30, z0=1.0, z_amp=5.0, z_period=90.0, z_phase=0.2),
-            gen.circle_z(50, 2.6, 30, 0.1, z0=1.0, z_amp=5.0, z_period=90.0, z_phase=0.2),
-        ),
-        (
-            gen.circle_z_path(50, 2.6, 30, z0=4.0, z_motion="straight", z_speed=-0.01),
-            gen.circle_z(50, 2.6, 30, 0.1, z0=4.0, z_motion="straight", z_speed=-0.01),
-        ),
-        (gen.paper_lawnmower_path(2), gen.paper_lawnmower(2, 0.1)),
-        (gen.paper_lawnmower_path(3), gen.paper_lawnmower(3, 0.1)),
+def test_paths_sample_to_held_input_trajectories():
+    """Chord inputs: the samples have the path's velocities; midpoint inputs on a
+    constant-acceleration piece: the samples lie on the path, the inputs are its acceleration."""
+    chord = [
+        gen.circle(50, 2.6, 30, center=(3, 4), phase=0.3),
+        gen.circle(50, 2.6, 30, z=5.0),
+        gen.circle_z(50, 2.6, 30, z0=1.0, z_amp=5.0, z_period=90.0, z_phase=0.2),
+        gen.circle_z(50, 2.6, 30, z0=4.0, z_motion="straight", z_speed=-0.01),
+        gen.paper_lawnmower(2),
+        gen.paper_lawnmower(3),
     ]
-    for path, traj in pairs:
-        np.testing.assert_array_equal(path.sample(0.1).to_array(), traj.to_array())
+    for path in chord:
+        tr = path.sample(0.1)
+        assert tr.t[-1] == path.duration and tr.dim == path.dim
+        np.testing.assert_allclose(tr.v, path.evaluate(tr.t)[1], rtol=0, atol=1e-9)
+    midpoint = [
+        gen.parabola((0.0, 1.0), (1.0, 0.0), (0.0, 0.5), duration=4.0),
+        gen.straight((-100.0, 60.0, 5.0), (1.0, 1.0, 0.0), 0.1, accel=0.02, duration=30.0),
+        gen.straight((0.0, 0.0), (1.0, 0.0), 1.0, accel=[0.1, -0.2, 0.0, 0.3], duration=8.0),
+    ]
+    for path in midpoint:
+        tr = path.sample(0.5)
+        p, v, a = path.evaluate(tr.t)
+        np.testing.assert_allclose(tr.p, p, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(tr.v, v, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(tr.u[:-1], path.evaluate(tr.t[:-1] + 0.25)[2])
 
 
 def test_path_derivatives_and_pieces():
-    path = gen.paper_lawnmower_path(3)
+    path = gen.paper_lawnmower(3)
     assert path.dim == 3 and path.duration == pytest.approx(path.breakpoints[-1])
     t = np.linspace(1.0, path.duration - 1.0, 400)
     h = 1e-5
@@ -255,7 +261,7 @@ def test_path_derivatives_and_pieces():
     with pytest.raises(InputError, match="3D"):
         lwo_path_report(path, make_model(2))
     with pytest.raises(InputError, match="points_per_piece"):
-        lwo_path_report(gen.circle_path(50, 2.6, 10), make_model(2), points_per_piece=2)
+        lwo_path_report(gen.circle(50, 2.6, 10), make_model(2), points_per_piece=2)
 
 
 # ------------------------------------------------------------------ 3. DVL on straight lines
@@ -279,8 +285,7 @@ def test_dvl_adds_at_most_n_minus_1_to_a_straight_line(n):
         0.1,
         accel=gen.sine_profile(0.02, 0.01, 20.0),
         duration=100.0,
-        dt=0.1,
-    )
+    ).sample(0.1)
     assert exact_rank_profile(line, make_model(n, "range")).rank == 4
     assert exact_rank_profile(line, make_model(n, "range,dvl")).rank == n + 3
     assert "n + 3" in paper.NOTES["gramian-straight-rank"]
@@ -350,7 +355,7 @@ def test_parabola_through_the_beacon_is_deficient_on_the_whole_segment():
 
 
 def test_parabola_generator():
-    tr = gen.parabola((0.0, 1.0), (1.0, 0.0), (0.0, 0.5), duration=4.0, dt=0.5)
+    tr = gen.parabola((0.0, 1.0), (1.0, 0.0), (0.0, 0.5), duration=4.0).sample(0.5)
     np.testing.assert_allclose(tr.p[-1], [4.0, 1.0 + 0.25 * 16])
     assert np.all(tr.u == [0.0, 0.5])
     with pytest.raises(ConfigError, match="both zero"):

@@ -233,7 +233,7 @@ def _lines(dim: int, accel) -> tuple[Trajectory, Trajectory]:
     off_p0 = radial_p0 + 60 * np.eye(dim)[1]
 
     def line(p0: np.ndarray) -> Trajectory:
-        return gen.straight(p0, e, 1.0, accel=accel, duration=40, dt=0.1)
+        return gen.straight(p0, e, 1.0, accel=accel, duration=40).sample(0.1)
 
     return line(radial_p0), line(off_p0)
 
@@ -260,7 +260,7 @@ def test_straight_gramian_rank_bound_and_beacon_independence(dim, accel, rank):
 
 
 def test_current_bottom_lock_kernel_and_water_profiling_circle():
-    circ = gen.circle(50, 2.6, 120, 0.1)
+    circ = gen.circle(50, 2.6, 120).sample(0.1)
     bottom = make_model(2, "range,dvl-bottom", current=True)
     G = gramian(circ, bottom)
     w = np.array([0.3, -1.1])
@@ -272,7 +272,7 @@ def test_current_bottom_lock_kernel_and_water_profiling_circle():
 
 def test_constant_vertical_acceleration_is_not_enough():
     """Note 'straight-z': constant u_z != 0 gives d_z ∝ t², collinear with the |ν0|² column."""
-    c = gen.circle(50, 2.6, 180, 0.1, z=4.0)
+    c = gen.circle(50, 2.6, 180, z=4.0).sample(0.1)
     u = c.u.copy()
     u[:, 2] = 0.001
     tr = Trajectory.from_inputs(c.t, c.p[0], c.v[0], u)

@@ -28,7 +28,6 @@ from obsplan.planning.objectives.estimator import (
 )
 from obsplan.planning.objectives.evaluate import better, kf_final_pos_std, objective_value
 from obsplan.planning.objectives.lwo import (
-    LWO_BETA,
     clipped_windows,
     lwo_condition,
     lwo_conditions,
@@ -40,7 +39,7 @@ from obsplan.planning.objectives.lwo import (
 )
 from obsplan.planning.objectives.windowed import window_settings
 from obsplan.planning.plan import plan
-from obsplan.planning.problem.feasibility import LIMIT_RTOL, check_limits
+from obsplan.planning.problem.feasibility import check_limits
 from obsplan.planning.problem.parse import LOCALISE_PROBLEM, problem_from_dict
 from obsplan.planning.problem.sections import Horizon, Limits
 from obsplan.planning.problem.validation_setup import estimation_config
@@ -50,6 +49,7 @@ from obsplan.planning.solver.ipopt import project as _project
 from obsplan.planning.solver.starts import run_forked
 from obsplan.planning.transcription.grid import Grid
 from obsplan.planning.transcription.guesses import initial_guesses, random_guess, reference_path
+from obsplan.planning.tuning import tuning
 from obsplan.planning.validation.validate import validate_paths
 from obsplan.trajectory.sampled import Trajectory, resample
 
@@ -76,8 +76,10 @@ def dense(traj: Trajectory, k: int = 41):
     return p.reshape(-1, n), v.reshape(-1, n)
 
 
-def assert_limits_and_dynamics(traj, pb, rtol=LIMIT_RTOL):
-    """Independent numpy check: exact ZOH integration, bounds, every limit on dense samples."""
+def assert_limits_and_dynamics(traj, pb, rtol=None):
+    """Independent numpy check: exact ZOH integration, bounds, every limit on dense samples
+    (``rtol``: the tuning's ``limit_rtol`` by default)."""
+    rtol = tuning().limit_rtol if rtol is None else rtol
     h = np.diff(traj.t)[:, None]
     u = traj.u[:-1]
     v = np.vstack([pb.v0, pb.v0 + np.cumsum(u * h, axis=0)])
@@ -88,7 +90,7 @@ def assert_limits_and_dynamics(traj, pb, rtol=LIMIT_RTOL):
     pp, vv = dense(traj)
     lim = pb.limits
     assert np.max(np.linalg.norm(vv, axis=1)) <= lim.speed * (1 + rtol)
-    tol = 1e-4  # m: feasibility.LimitCheck.ok's box tolerance (100 * LIMIT_RTOL)
+    tol = 1e-4  # m: feasibility.LimitCheck.ok's box tolerance (100 * limit_rtol)
     if lim.area is not None:
         assert pp[:, 0].min() >= lim.area.x[0] - tol and pp[:, 0].max() <= lim.area.x[1] + tol
         assert pp[:, 1].min() >= lim.area.y[0] - tol and pp[:, 1].max() <= lim.area.y[1] + tol
@@ -400,7 +402,8 @@ def test_lwo_condition_scale_free_is_a_soft_minimum_of_the_node_conditioning():
     g = lwo_conditions(grid, pb, grid.from_trajectory(res.trajectory)).ravel()
     assert res.objective == pytest.approx(lwo_softmin(g), rel=1e-12)
     # the soft minimum (a log-mean-exp) lies between the minimum and log(N + 1) / beta above it
-    assert g.min() - 1e-12 <= res.objective <= g.min() + np.log(g.size) / LWO_BETA + 1e-12
+    beta = tuning().lwo_beta
+    assert g.min() - 1e-12 <= res.objective <= g.min() + np.log(g.size) / beta + 1e-12
     # g is the geometric / arithmetic eigenvalue mean of O^T O: bounded by the exact ratio
     assert np.min(g) >= lwo_condition(res.trajectory, pb) - 1e-6
     assert res.objective >= max(s.initial_objective for s in res.starts)

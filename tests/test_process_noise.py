@@ -33,7 +33,7 @@ def resampled(traj: Trajectory, dt: float) -> Trajectory:
 @pytest.fixture(scope="module")
 def path():
     """A 600 s circle flown with 1 s inputs, range at 1 Hz (its epochs are on every grid)."""
-    return gen.circle(51.0, 1.0, 600.0, 1.0, center=(0.0, 2.0))
+    return gen.circle(51.0, 1.0, 600.0, center=(0.0, 2.0)).sample(1.0)
 
 
 def test_default_intensity_matches_the_paper_at_the_default_step():
@@ -112,7 +112,9 @@ def test_posterior_crlb_of_a_path_generated_at_each_step():
     model = make_model(2, "range,dvl-water")
     cfg = EstimationConfig(model=model, rates_hz={"range": 1.0, "dvl-water": 2.0})
     b = [
-        posterior_crlb(gen.circle(51.0, 1.0, 600.0, dt, center=(0.0, 2.0)), cfg).final_pos_std
+        posterior_crlb(
+            gen.circle(51.0, 1.0, 600.0, center=(0.0, 2.0)).sample(dt), cfg
+        ).final_pos_std
         for dt in STEPS
     ]
     np.testing.assert_allclose(b, b[1], rtol=0.02)

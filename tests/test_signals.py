@@ -51,7 +51,7 @@ GRACE_S = 10.0
 
 
 def _inputs(folder: Path) -> dict[str, list[str]]:
-    write_csv(gen.circle(30.0, 1.5, 20.0, 0.1), folder / "traj.csv")
+    write_csv(gen.circle(30.0, 1.5, 20.0).sample(0.1), folder / "traj.csv")
     (folder / "s.toml").write_text(
         f'[sweep]\nname = "s"\nbase = "{(ROOT / "problems" / "localise.toml").as_posix()}"\n'
         '[axes]\n"horizon.steps" = [20, 24]\n"objective.starts" = [1]\n"validation.runs" = [2]\n'

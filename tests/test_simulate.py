@@ -19,7 +19,7 @@ def circle_mc():
     P0 at Ts = 0.05 s, truth with process noise. Measured (seed 3): EKF NEES 4.02 over
     t >= 60 s (6.07 over the whole run: the first seconds are a nonlinear transient), KF NEES
     3.81; final RMSE / CRB = 1.07 (EKF) and 11.5 (KF)."""
-    traj = gen.circle(51.0, 2.6, 120.0, 0.05, center=(0.0, 2.0))
+    traj = gen.circle(51.0, 2.6, 120.0, center=(0.0, 2.0)).sample(0.05)
     cfg = EstimationConfig.paper(make_model(2, "range"), 0.05)
     return monte_carlo(traj, cfg, runs=50, seed=3)
 
@@ -57,7 +57,7 @@ def test_to_dict_has_the_stable_keys_first(circle_mc):
 
 @pytest.fixture(scope="module")
 def short():
-    traj = gen.circle(30.0, 1.5, 20.0, 0.1)
+    traj = gen.circle(30.0, 1.5, 20.0).sample(0.1)
     return traj, EstimationConfig.paper(make_model(2, "range"), 0.1)
 
 
@@ -90,7 +90,7 @@ def test_dropout_skips_updates_and_only_one_filter(short):
 
 
 def test_schedule_case_b():
-    traj = gen.circle(30.0, 1.5, 30.0, 0.01)
+    traj = gen.circle(30.0, 1.5, 30.0).sample(0.01)
     s = make_schedule(traj, ("range", "dvl-water"), {"range": 0.1})
     assert np.flatnonzero(s.reports("range")).tolist() == [0, 1000, 2000, 3000]
     assert s.reports("dvl-water").all()
@@ -99,7 +99,7 @@ def test_schedule_case_b():
 
 
 def test_range_at_low_rate_gives_less_information():
-    traj = gen.circle_z(50.0, 2.6, 60.0, 0.05, z0=5.0, z_amp=2.0, z_period=60.0)
+    traj = gen.circle_z(50.0, 2.6, 60.0, z0=5.0, z_amp=2.0, z_period=60.0).sample(0.05)
     cfg = EstimationConfig.paper(make_model(3, "range,dvl"), 0.05)
     a = monte_carlo(traj, cfg, runs=2, seed=0, filters=("ekf",))
     b = monte_carlo(traj, replace(cfg, rates_hz={"range": 0.1}), runs=2, seed=0, filters=("ekf",))
@@ -146,11 +146,11 @@ def test_bad_monte_carlo_arguments(short):
     with pytest.raises(ConfigError, match="monitor_window_s"):
         replace(cfg, monitor_window_s=-1.0)
     with pytest.raises(ConfigError, match="2D but the trajectory is 3D"):
-        monte_carlo(gen.circle(30.0, 1.5, 5.0, 0.1, z=1.0), cfg)
+        monte_carlo(gen.circle(30.0, 1.5, 5.0, z=1.0).sample(0.1), cfg)
 
 
 def test_current_scenario_runs():
-    traj = gen.circle(30.0, 1.5, 30.0, 0.1)
+    traj = gen.circle(30.0, 1.5, 30.0).sample(0.1)
     cfg = EstimationConfig.paper(make_model(2, "range,dvl-water", current=True), 0.1)
     res = monte_carlo(traj, cfg, runs=3, seed=0)
     assert cfg.true_current == (0.1, -0.05)
@@ -209,7 +209,7 @@ def test_sharded_runs_merge_to_the_unsharded_result(short):
 def straight_line():
     """A straight, accelerating line 30 m off the beacon (locally weakly observable, not
     globally), 1 m/s, 0.005 m/s², 200 s at 10 Hz, range at 1 Hz, paper's priors, 50 runs."""
-    traj = gen.straight((-100.0, 30.0), (1.0, 0.0), 1.0, accel=0.005, duration=200.0, dt=0.1)
+    traj = gen.straight((-100.0, 30.0), (1.0, 0.0), 1.0, accel=0.005, duration=200.0).sample(0.1)
     cfg = EstimationConfig.paper(make_model(2, "range"), 0.1, rates_hz={"range": 1.0})
     return traj, monte_carlo(traj, cfg, runs=50, seed=0, filters=("ekf", "gsf"))
 
@@ -252,6 +252,7 @@ def test_gaussian_sum_copes_better_with_the_straight_line(straight_line):
 
 def test_gaussian_sum_of_one_component_is_the_ekf(short):
     """Both filters run on the same readings: one component is the EKF (to 1e-12)."""
+    from obsplan.estimation.batch import RunBatch, RunRecord
     from obsplan.estimation.columns import N_INFO
     from obsplan.estimation.filters.gsf import GaussianSumFilter
     from obsplan.estimation.montecarlo.runs import PathSetup, draw_run, nav_of, start_of
@@ -274,7 +275,8 @@ def test_gaussian_sum_of_one_component_is_the_ekf(short):
     for f in (setup.filters["ekf"], g):
         Nr, n2 = setup.records.size, 2 * model.dim
         sums, info, ex = np.zeros((2, Nr, 3 + n2)), np.zeros((2, N_INFO)), np.zeros((2, Nr, n2))
-        f.run(setup.ctx, [f.start(*st) for st in starts], Y, truth, sums, info, 0, ex)
+        batch = RunBatch(setup.ctx, [f.start(*st) for st in starts], Y)
+        f.run(batch, RunRecord(truth, sums, info, 0, ex))
         out.append((sums, info, ex))
     assert np.any(out[0][2][1] > 0)  # the history was recorded
     for a, b in zip(out[0], out[1], strict=True):
@@ -284,7 +286,7 @@ def test_gaussian_sum_of_one_component_is_the_ekf(short):
 def test_a_path_from_the_beacon_is_finite():
     """Starting at the beacon: the range has no gradient there (skipped by the plain-range EKF)
     and the bound stays finite (never NaN)."""
-    traj = gen.straight((0.0, 0.0), (1.0, 0.3), 0.5, accel=0.01, duration=60.0, dt=0.1)
+    traj = gen.straight((0.0, 0.0), (1.0, 0.3), 0.5, accel=0.01, duration=60.0).sample(0.1)
     for form in ("half-squared", "range"):
         cfg = EstimationConfig.paper(make_model(2, "range", range_form=form), 0.1)
         res = monte_carlo(traj, cfg, runs=3, seed=0, filters=("ekf", "kf", "gsf"))

@@ -36,11 +36,13 @@ DT = 0.1  # exact ranks are per interval; 0.1 s keeps the conditioning times che
 
 
 def circle2d() -> Trajectory:
-    return gen.circle(50.0, 2.6, 120.0, DT)  # Fig. 2
+    return gen.circle(50.0, 2.6, 120.0).sample(DT)  # Fig. 2
 
 
 def circle_zsine() -> Trajectory:
-    return gen.circle_z(50.0, 2.6, 180.0, DT, z0=10.0, z_motion="sine", z_amp=5.0, z_period=90.0)
+    return gen.circle_z(
+        50.0, 2.6, 180.0, z0=10.0, z_motion="sine", z_amp=5.0, z_period=90.0
+    ).sample(DT)
 
 
 #: The three configurations of the exact record: (trajectory, sensors, current, profile).
@@ -106,7 +108,7 @@ def test_exact_deficiencies_are_structural():
     # lines along x carry exactly zero cross-track inputs: ranks 2 (u = 0), 3 (constant), 4
     e = (1.0, 0.0)
     for accel, rank in ((0.0, 2), (0.02, 3), (gen.sine_profile(0.02, 0.01, 10.0), 4)):
-        line = gen.straight((-100.0, 60.0), e, 0.5, accel=accel, duration=40.0, dt=DT)
+        line = gen.straight((-100.0, 60.0), e, 0.5, accel=accel, duration=40.0).sample(DT)
         assert exact_rank_profile(line, make_model(2, "range")).rank == rank
         dvl = exact_rank_profile(line, make_model(2, "range,dvl")).rank
         # DVL adds the n velocity directions; the range rows already hold (0, e, 0, 0) once
@@ -119,7 +121,7 @@ def test_round_off_does_not_read_as_excitation():
     exactly full rank 6, while the path's structure (a line) is rank 4, as its conditioning."""
     line = gen.straight(
         (-80.0, 60.0), (0.8, -0.6), 0.5, accel=gen.sine_profile(0.02, 0.01, 20.0), duration=60.0
-    )
+    ).sample()
     model = make_model(2, "range")
     u = line.u[:-1]
     assert np.any(u[:, 0] * 0.6 + u[:, 1] * 0.8 != 0)  # not exactly parallel to (0.8, -0.6)
@@ -131,8 +133,8 @@ def test_round_off_does_not_read_as_excitation():
 def _hidden_line_3d() -> Trajectory:
     e = np.array([0.48, -0.36, 0.8]) / np.linalg.norm([0.48, -0.36, 0.8])
     return gen.straight(
-        (-80.0, 60.0, 5.0), e, 0.5, accel=gen.sine_profile(0.02, 0.01, 20.0), duration=60.0, dt=0.25
-    )
+        (-80.0, 60.0, 5.0), e, 0.5, accel=gen.sine_profile(0.02, 0.01, 20.0), duration=60.0
+    ).sample(0.25)
 
 
 def test_hidden_straight_3d_line_is_rank_6_of_8_in_every_exact_key(tmp_path, capsys):
@@ -283,7 +285,7 @@ def test_analyze_json_reports_the_exact_interval_beside_full_rank_from_t(key, tm
 
 
 def test_analyze_without_exact_and_deficient_paths():
-    line = gen.straight((-100.0, 60.0), (1.0, 0.0), 0.1, accel=0.02, duration=30.0, dt=DT)
+    line = gen.straight((-100.0, 60.0), (1.0, 0.0), 0.1, accel=0.02, duration=30.0).sample(DT)
     rep = analyze(line, "range")
     d = rep.to_dict()["gramian"]
     assert d["rank_exact"] == 3 and d["full_rank_interval_exact"] is None

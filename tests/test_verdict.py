@@ -14,11 +14,10 @@ from obsplan.planning.objectives.evaluate import path_metrics
 from obsplan.planning.problem.parse import LOCALISE_PROBLEM
 from obsplan.planning.problem.sections import Horizon
 from obsplan.planning.transcription.guesses import reference_path
+from obsplan.planning.tuning import tuning
 from obsplan.planning.validation.validate import validate_paths
 from obsplan.planning.validation.verdict import (
     RUN_METRICS,
-    STRESS_NOTE_LEVEL,
-    STRESS_NOTE_RUNS,
     Comparison,
     Verdict,
     limit_notes,
@@ -203,8 +202,8 @@ def test_a_stressed_plan_is_warned_of_losses_too_rare_for_its_runs():
     assert "0.45" in note and "b1's at 0.20" in note and "50 runs" in note
     # enough runs to see a loss in a few hundred; below the level; every baseline as stressed;
     # no stress at all (no range epoch after the first); nothing to compare with
-    assert stress_notes(paths(0.45, 0.2), STRESS_NOTE_RUNS) == ()
-    assert stress_notes(paths(STRESS_NOTE_LEVEL, 0.2), 50) == ()
+    assert stress_notes(paths(0.45, 0.2), tuning().stress_note_runs) == ()
+    assert stress_notes(paths(tuning().stress_note_level, 0.2), 50) == ()
     assert stress_notes(paths(0.45, 0.5, 0.45), 50) == ()
     assert stress_notes(paths(float("nan"), 0.2), 50) == ()
     assert stress_notes(paths(0.45), 50) == ()

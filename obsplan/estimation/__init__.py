@@ -3,10 +3,11 @@ loop) and bounds.
 
 The floor (modules directly here) holds what every room shares: the filters' configuration and
 process noise (:mod:`~.config`), the double integrator's Kalman structure (:mod:`~.kalman`),
-measurement schedules and epochs (:mod:`~.schedule`, :mod:`~.epochs`), the batched output model
-(:mod:`~.sensors`) and the compiled kernels with their column layout (:mod:`~.kernels`,
-:mod:`~.columns`, :mod:`~.jitcache`). On it stand :mod:`~.filters`, :mod:`~.bounds` and, on
-both, :mod:`~.montecarlo`. Imports the model, trajectory and observability stages and the core.
+measurement schedules and epochs (:mod:`~.schedule`, :mod:`~.epochs`), a batch of runs as a
+filter sees it (:mod:`~.batch`), the batched output model (:mod:`~.sensors`) and the compiled
+kernels with their column layout (:mod:`~.kernels`, :mod:`~.columns`, :mod:`~.jitcache`). On
+it stand :mod:`~.filters`, :mod:`~.bounds` and, on both, :mod:`~.montecarlo`. Imports the model,
+trajectory and observability stages and the core.
 """
 
 from __future__ import annotations

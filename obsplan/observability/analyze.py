@@ -131,8 +131,9 @@ def analyze(
     --------
     A circle about the beacon is observable with range only (rank 6 of the augmented state):
 
-    >>> from obsplan import analyze, generators
-    >>> report = analyze(generators.circle(50.0, 1.0, 120.0, 1.0))
+    >>> from obsplan import analyze
+    >>> from obsplan.trajectory import generators
+    >>> report = analyze(generators.circle(50.0, 1.0, 120.0).sample(1.0))
     >>> g = report.to_dict()["gramian"]
     >>> g["full_rank"], g["rank"], g["dim"]
     (True, 6, 6)

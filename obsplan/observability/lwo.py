@@ -56,7 +56,7 @@ hold interval and ``d/dt det O = 0`` there (``tests/test_paper_record.py`` prove
 checking every sample of a held-input trajectory (a CSV) *is* the paper's "at all times" rule.
 For a smooth input (a path flown with ``u = p''``) it is not: O varies within a sampling interval
 and can lose rank between samples. :func:`lwo_path_report` checks analytic paths
-(``obsplan.trajectory.generators.AnalyticPath``) between samples by root finding.
+(``obsplan.trajectory.AnalyticPath``) between samples by root finding.
 
 The rank is always computed on the half-squared rows. For ``r > 0`` the plain-range rows of orders
 ``0..K`` span exactly the same space (triangular chain rule above), but they are badly conditioned:
@@ -405,7 +405,7 @@ def lwo_structural_max_rank(
 
 # ------------------------------------------------------------------ smooth paths, between samples
 class SmoothPath(Protocol):
-    """A path with analytic pieces, e.g. :class:`obsplan.trajectory.generators.AnalyticPath`."""
+    """A path with analytic pieces, e.g. :class:`obsplan.trajectory.AnalyticPath`."""
 
     @property
     def dim(self) -> int: ...

@@ -130,18 +130,18 @@ class PaperScenario:
 
 
 def _fig1(dt: float, quick: bool) -> Trajectory:
-    return gen.straight((-100.0, 60.0), (1.0, 0.0), 0.1, accel=0.005, duration=200.0, dt=dt)
+    return gen.straight((-100.0, 60.0), (1.0, 0.0), 0.1, accel=0.005, duration=200.0).sample(dt)
 
 
 def _fig2(dt: float, quick: bool) -> Trajectory:
-    return gen.circle(51.0, 2.6, 100.0 if quick else 300.0, dt, center=(0.0, 2.0))
+    return gen.circle(51.0, 2.6, 100.0 if quick else 300.0, center=(0.0, 2.0)).sample(dt)
 
 
 def _lawn(dt: float, quick: bool, from_rest: bool) -> Trajectory:
     kw: dict[str, Any] = {"initial_speed": 0.0} if from_rest else {}
     return gen.lawnmower(
-        (-80.0, 60.0), 160.0, 30.0, 3 if quick else 4, 2.0, dt, first_turn="right", **kw
-    )
+        (-80.0, 60.0), 160.0, 30.0, 3 if quick else 4, 2.0, first_turn="right", **kw
+    ).sample(dt)
 
 
 def _fig3(dt: float, quick: bool) -> Trajectory:
@@ -149,7 +149,7 @@ def _fig3(dt: float, quick: bool) -> Trajectory:
 
 
 def _fig5(dt: float, quick: bool) -> Trajectory:
-    xy = gen.circle(51.0, 2.6, 100.0 if quick else 300.0, dt, center=(0.0, 1.0))
+    xy = gen.circle(51.0, 2.6, 100.0 if quick else 300.0, center=(0.0, 1.0)).sample(dt)
     return _with_z(xy, 4.0, -0.01, _descent(xy.t))
 
 
@@ -159,11 +159,12 @@ def _fig6(dt: float, quick: bool) -> Trajectory:
 
 
 def _fig7(dt: float, quick: bool) -> Trajectory:
-    return gen.circle(50.0, 2.6, 100.0 if quick else 300.0, dt, z=5.0)
+    return gen.circle(50.0, 2.6, 100.0 if quick else 300.0, z=5.0).sample(dt)
 
 
 def _fig8(dt: float, quick: bool) -> Trajectory:
-    return gen.circle_z(50.0, 2.6, 100.0 if quick else 300.0, dt, z0=5.0, z_amp=4.0, z_period=90.0)
+    path = gen.circle_z(50.0, 2.6, 100.0 if quick else 300.0, z0=5.0, z_amp=4.0, z_period=90.0)
+    return path.sample(dt)
 
 
 SCENARIOS: tuple[PaperScenario, ...] = (

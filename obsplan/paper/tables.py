@@ -20,6 +20,7 @@ conditioning time ``full_rank_from_t`` at several tolerances.
 
 from __future__ import annotations
 
+import inspect
 import math
 import textwrap
 from collections.abc import Callable, Iterable, Sequence
@@ -40,7 +41,7 @@ from obsplan.observability.structural import (
     exact_rank_profile,
 )
 from obsplan.trajectory import generators as gen
-from obsplan.trajectory.generators import DT
+from obsplan.trajectory.analytic import DT, AnalyticPath
 from obsplan.trajectory.sampled import Trajectory
 
 QUICK_DT: float = 0.1
@@ -318,17 +319,25 @@ NOTES: dict[str, str] = {
 # ------------------------------------------------------------------ trajectories
 @dataclass(frozen=True)
 class _Call:
-    """A generator call that can be run (with a ``dt``) and printed with its parameters."""
+    """A generator call that can be flown (sampled at a ``dt``) and printed with its parameters.
 
-    fn: Callable[..., Trajectory]
+    A generator returns an :class:`AnalyticPath`, sampled at ``dt``; one that joins sampled
+    trajectories (``circle_then_straight``, ``then_straight`` of ``base``) takes ``dt`` itself.
+    """
+
+    fn: Callable[..., AnalyticPath | Trajectory]
     kwargs: tuple[tuple[str, object], ...]
     base: _Call | None = field(default=None)
 
     def __call__(self, dt: float) -> Trajectory:
-        kw = dict(self.kwargs, dt=dt)
+        kw = dict(self.kwargs)
         if self.base is not None:
-            return self.fn(self.base(dt), **kw)
-        return self.fn(**kw)
+            out = self.fn(self.base(dt), **kw, dt=dt)
+        elif "dt" in inspect.signature(self.fn).parameters:
+            out = self.fn(**kw, dt=dt)
+        else:
+            out = self.fn(**kw)
+        return out.sample(dt) if isinstance(out, AnalyticPath) else out
 
     def __str__(self) -> str:
         def fmt(v: object) -> str:
@@ -344,7 +353,7 @@ class _Call:
         return f"{self.fn.__name__}({', '.join(args)})"
 
 
-def _call(fn: Callable[..., Trajectory], **kw: object) -> _Call:
+def _call(fn: Callable[..., AnalyticPath | Trajectory], **kw: object) -> _Call:
     return _Call(fn, tuple(kw.items()))
 
 
@@ -651,7 +660,7 @@ def _turn_centre(p: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
 @cache
 def smooth_turns(quick: bool = False) -> SmoothTurns:
     """Point 1 of the record: the smooth turns of Fig. 3 have isolated LWO rank drops."""
-    path = gen.paper_lawnmower_path(2)
+    path = gen.paper_lawnmower(2)
     rep = lwo_path_report(path, make_model(2, RANGE))
     bp = path.breakpoints
     turns, legs = [], []

@@ -1,7 +1,8 @@
 """Observability-aware trajectory planning: problems, objectives, solver, baselines, validation.
 
 The rooms, from the bottom up (each imports only those before it, and the stages below
-planning): :mod:`~.missions`, :mod:`~.problem`, :mod:`~.baselines`, :mod:`~.transcription`,
+planning): the floor :mod:`~.tuning` (the planner's numeric tuning knobs, docs/tuning.md),
+:mod:`~.missions`, :mod:`~.problem`, :mod:`~.baselines`, :mod:`~.transcription`,
 :mod:`~.objectives`, :mod:`~.solver`, :mod:`~.validation`, then :mod:`~.figures`,
 :mod:`~.replan` and :mod:`~.plan` on top.
 

@@ -204,7 +204,7 @@ def plan(
     >>> from dataclasses import replace
     >>> from obsplan import load_problem, plan
     >>> from obsplan.planning.problem.parse import LOCALISE_PROBLEM
-    >>> from obsplan.planning.problem.definition import Horizon
+    >>> from obsplan.planning.problem.sections import Horizon
     >>> pb = load_problem(LOCALISE_PROBLEM)
     >>> pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=20),
     ...              objective=replace(pb.objective, starts=1))

@@ -20,11 +20,11 @@ changes bounds and the initial point:
 * the initial point is *flying on*: from the estimate back onto the plan in force over the
   recovery window below (the plan's inputs plus the least-energy correction that joins it,
   :func:`return_inputs`), the plan in force after it (IPOPT's warm-start options,
-  :data:`~obsplan.planning.solver.ipopt.WARM_START`). Re-integrating the plan's inputs from the
-  estimate instead carries the estimate's velocity offset to the end of the mission (a 1 cm/s
-  offset is 5 m after 500 s): on the median suite problem those drifted paths, kept or refined,
-  lost to the one-shot plan (EKF final error 1.13x, 200 runs); joined back, replanning ties it
-  (1.00x; ``benchmarks/bench_replan.py``, docs/replanning.md);
+  :func:`~obsplan.planning.solver.ipopt.warm_start_options`). Re-integrating the plan's inputs from
+  the estimate instead carries the estimate's velocity offset to the end of the mission (a 1 cm/s
+  offset is 5 m after 500 s): on the median suite problem those drifted paths, kept or refined, lost
+  to the one-shot plan (EKF final error 1.13x, 200 runs); joined back, replanning ties it (1.00x;
+  ``benchmarks/bench_replan.py``, docs/replanning.md);
 * a run whose estimate is already too close to the beacon (or too fast) cannot meet the limits
   at once: over a *recovery window* of :func:`recovery_steps` steps after ``k`` (the time to
   shed the full speed at the smallest acceleration bound) the inequality limits are loosened to
@@ -69,22 +69,11 @@ from obsplan.planning.solver.formulation import Formulation, build_formulation
 from obsplan.planning.solver.ipopt import SUCCESS_STATUS, _call, make_solver
 from obsplan.planning.solver.margins import keepout_margins, tighten
 from obsplan.planning.solver.starts import default_processes, run_forked
+from obsplan.planning.tuning import tuning
 from obsplan.planning.validation.validate import PathValidation, validate_paths
 from obsplan.planning.validation.verdict import Verdict, verdict
 from obsplan.trajectory.sampled import Trajectory, resample
 
-#: Runs per :class:`~obsplan.estimation.montecarlo.closedloop.ClosedLoop` of the replanned Monte
-#: Carlo (each run re-solves on its own; a batch advances its runs together between replans).
-BATCH = 5
-#: IPOPT's tolerance of a re-solve, relative to the objective's own (``objective.solver_tol``):
-#: a re-solve starts next to an optimum and has a vehicle's time budget. Measured on the default
-#: problem from estimates 0.7 m off the plan: tol 1e-4 took 20-100 iterations (median 3.6 s on a
-#: loaded machine), 1e-3 took 6-16 (0.6 s).
-REPLAN_TOL_FACTOR = 10.0
-#: IPOPT iterations of a re-solve: a deterministic budget (a wall-time limit would make results
-#: depend on the machine's load). Measured on the median suite problem (360 re-solves): median 11,
-#: 90 % <= 40, the longest 152.
-REPLAN_MAX_ITER = 60
 #: IPOPT statuses whose path is flown when it is within the limits: a converged solve, or one
 #: stopped by the iteration budget (its iterate is checked like any path, and never flown when
 #: flying on is better).
@@ -236,7 +225,8 @@ class Replanner:
         Expand the NLP to SX (faster iterations, slower construction).
     ipopt_options
         Extra IPOPT options (after the warm-start ones, the tolerance
-        :data:`REPLAN_TOL_FACTOR` ``* objective.solver_tol`` and :data:`REPLAN_MAX_ITER`).
+        ``Tuning.replan_tol_factor`` ``* objective.solver_tol`` and
+        ``Tuning.replan_max_iter``).
     """
 
     def __init__(
@@ -254,8 +244,8 @@ class Replanner:
             # the one-shot plan's keep-out margins (bounds only: the same compiled NLP)
             self.form = tighten(self.form, keepout_margins(plan, pb, replan_guidance(pb)))
         opts = {
-            "tol": REPLAN_TOL_FACTOR * pb.objective.solver_tol,
-            "max_iter": REPLAN_MAX_ITER,
+            "tol": tuning().replan_tol_factor * pb.objective.solver_tol,
+            "max_iter": tuning().replan_max_iter,
             **(ipopt_options or {}),
         }
         self.solver: ca.Function = make_solver(
@@ -437,7 +427,7 @@ class ReplanResult:
 
     @property
     def unconverged_flown(self) -> int:
-        """Re-solves stopped short of convergence (e.g. by :data:`REPLAN_MAX_ITER`) whose
+        """Re-solves stopped short of convergence (e.g. by ``replan_max_iter``) whose
         checked path was flown."""
         return sum(s.success and s.status != SUCCESS_STATUS for s in self.solves)
 
@@ -592,8 +582,8 @@ def replan_monte_carlo(
     runs
         Override ``validation.runs``.
     processes
-        Worker processes over batches of :data:`BATCH` runs (``fork``; 1: serial; None: one
-        per core).
+        Worker processes over batches of ``Tuning.replan_batch`` runs (``fork``; 1:
+        serial; None: one per core).
     progress
         A tqdm bar over runs (stderr).
     filters
@@ -640,7 +630,8 @@ def replan_monte_carlo(
         "crlb": posterior_crlb(fine, config),
         "replan_from": replan_from,
     }
-    batches = [(c, min(BATCH, n_runs - c)) for c in range(0, n_runs, BATCH)]
+    batch = tuning().replan_batch
+    batches = [(c, min(batch, n_runs - c)) for c in range(0, n_runs, batch)]
     nproc = default_processes(len(batches)) if processes is None else max(1, int(processes))
     with tqdm(total=n_runs, disable=not progress, unit="run", desc="replanned runs") as bar:
         parts = _fly_all(rp, job, batches, nproc, bar.update if progress else None)

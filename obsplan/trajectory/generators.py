@@ -1,33 +1,21 @@
-"""Trajectory generators for the motion classes of the paper's Tables 1–3.
+"""Generators of the motion classes of the paper's Tables 1–3, as analytic paths in continuous time.
 
-Every generator returns a :class:`~obsplan.trajectory.sampled.Trajectory` built by integrating
-piecewise-constant inputs exactly (:meth:`Trajectory.from_inputs`), so every sample is dynamically
-consistent (``consistency_error() ≈ 1e-12``): the observability verdicts, which depend on ``u``
-only through the trajectory, are verdicts on a path the double integrator really flies.
+Every generator returns an :class:`~obsplan.trajectory.analytic.AnalyticPath` (lines, arcs,
+parabolas and a z motion in continuous time); ``path.sample(dt)`` flies it as a held-input
+:class:`~obsplan.trajectory.sampled.Trajectory` (chord inputs on curved paths, the acceleration
+at interval midpoints on straight lines and parabolas: see :mod:`obsplan.trajectory.analytic`),
+and :func:`obsplan.observability.lwo.lwo_path_report` checks the path itself between samples.
 
-Curved paths are defined by an analytic velocity ``v*(t)`` and flown with the chord inputs
+* :func:`straight`, :func:`parabola`: constant-acceleration motion (or an acceleration profile
+  along a line);
+* :func:`circle`, :func:`circle_z`: horizontal circles, flat or with a motion along z;
+* :func:`lawnmower`, :func:`lawnmower_within_limits`, :func:`paper_lawnmower`: parallel legs
+  joined by semicircular turns.
 
-    u_k = (v*(t_{k+1}) - v*(t_k)) / (t_{k+1} - t_k),
-
-so the sampled velocities equal ``v*(t_k)`` (to round-off) and each position step is the
-trapezoidal rule of ``v*``: the position error is O(dt²). On a circle each step is shorter than
-the arc's chord by the factor ``1 - (ω dt)²/12``, so the radius error is at most ``ρ (ω dt)²/6``:
-measured on the paper's circle (ρ = 50 m, 2.6 m/s, one lap) 2.3e-6 m with ``dt = 0.01 s`` and
-2.3e-4 m with ``dt = 0.1 s`` (``tests/test_generators.py``). Chord inputs never exceed the
-analytic acceleration (``|u_k| = 2|v| sin(ω dt/2)/dt ≤ |v| ω``), so turns flown at an acceleration
-limit stay within it.
-
-Straight lines take their inputs along the line only, so they are exactly straight (radial lines
-stay exactly radial); a callable acceleration profile is sampled at interval midpoints
-(speed error O(dt²)).
-
-Smooth paths. ``circle_path``, ``circle_z_path``, ``lawnmower_path`` and ``paper_lawnmower_path``
-return the analytic path (:class:`AnalyticPath`: lines, arcs and a z motion, with positions,
-velocities and accelerations at any time) that ``circle``, ``circle_z``, ``lawnmower`` and
-``paper_lawnmower`` sample: ``path.sample(dt)`` is the generator's trajectory, bit for bit. The
-two are different inputs for the LWO test: the held-input trajectory has a constant input on each
-interval, the path a smooth one (``obsplan.observability.lwo.lwo_path_report`` checks it between
-samples).
+Three functions join *sampled* trajectories and so take ``dt`` and return a Trajectory:
+:func:`then_straight` (a straight leg from a trajectory's sampled final state),
+:func:`circle_then_straight` (a circle shifted by its sampling error so that the leg starts
+exactly at the exit point) and :func:`concat` (trajectories joined end to start).
 
 Units are SI: positions [m], speeds [m/s], accelerations [m/s²], times [s], angles [rad].
 ``dt`` defaults to 0.01 s, the paper's 100 Hz (section 7).
@@ -43,10 +31,23 @@ from typing import Any, Literal
 import numpy as np
 
 from obsplan.core.errors import ConfigError
+from obsplan.trajectory.analytic import (
+    DT,
+    AnalyticPath,
+    SineProfile,
+    _Arc,
+    _end,
+    _Line,
+    _Parabola,
+    _positive,
+    _profile_values,
+    _ProfileLine,
+    _Segment,
+    _ZLine,
+    _ZSine,
+)
 from obsplan.trajectory.sampled import Trajectory
 
-#: Default sampling interval [s] (the paper's T_s = 0.01 s, section 7).
-DT: float = 0.01
 #: Relative velocity mismatch tolerated where two trajectories are joined.
 JOIN_TOL: float = 1e-6
 
@@ -61,18 +62,14 @@ __all__ = [
     "LawnmowerLayout",
     "SineProfile",
     "circle",
-    "circle_path",
     "circle_then_straight",
     "circle_z",
-    "circle_z_path",
     "concat",
     "lawnmower",
     "lawnmower_layout",
-    "lawnmower_path",
     "lawnmower_within_limits",
     "turn_onto_end",
     "paper_lawnmower",
-    "paper_lawnmower_path",
     "parabola",
     "sine_profile",
     "straight",
@@ -81,16 +78,6 @@ __all__ = [
 
 
 # ------------------------------------------------------------------ argument checks
-def _positive(name: str, value: float) -> float:
-    try:
-        val = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(val) and val > 0):
-        raise ConfigError(f"{name} must be a positive number, got {value!r}")
-    return val
-
-
 def _finite(name: str, value: float) -> float:
     try:
         val = float(value)
@@ -112,261 +99,7 @@ def _vector(name: str, value: Vec, dims: tuple[int, ...] = (2, 3)) -> np.ndarray
     return arr
 
 
-def _check_timing(duration: float, dt: float) -> tuple[float, float]:
-    dt = _positive("dt", dt)
-    duration = _positive("duration", duration)
-    if duration <= dt:
-        raise ConfigError(
-            f"duration ({duration:g} s) must be longer than dt ({dt:g} s); "
-            "lengthen the duration or reduce dt"
-        )
-    return duration, dt
-
-
-def _time_grid(duration: float, dt: float) -> np.ndarray:
-    """``0, dt, 2dt, ...`` ending exactly at ``duration`` (a shorter last step if needed)."""
-    ratio = duration / dt
-    n = round(ratio) if abs(ratio - round(ratio)) < 1e-6 else math.ceil(ratio)
-    t = np.arange(n + 1, dtype=float) * dt
-    t[-1] = duration
-    return t
-
-
-# ------------------------------------------------------------------ analytic paths
-@dataclass(frozen=True)
-class _Line:
-    """``p0 + e (s0 τ + ½ a τ²)`` for ``τ ∈ [0, T]``."""
-
-    p0: np.ndarray
-    e: np.ndarray
-    s0: float
-    a: float
-    T: float
-
-    def pos(self, tau: np.ndarray) -> np.ndarray:
-        return self.p0 + np.outer(self.s0 * tau + 0.5 * self.a * tau**2, self.e)
-
-    def vel(self, tau: np.ndarray) -> np.ndarray:
-        return np.outer(self.s0 + self.a * tau, self.e)
-
-    def acc(self, tau: np.ndarray) -> np.ndarray:
-        return np.outer(np.full(np.shape(tau), self.a), self.e)
-
-
-@dataclass(frozen=True)
-class _Arc:
-    """``c + r (cos θ e1 + sin θ e2)``, ``θ = φ0 + ω τ`` for ``τ ∈ [0, T]`` (e1 ⟂ e2, unit)."""
-
-    c: np.ndarray
-    e1: np.ndarray
-    e2: np.ndarray
-    r: float
-    phi0: float
-    omega: float
-    T: float
-
-    def pos(self, tau: np.ndarray) -> np.ndarray:
-        th = self.phi0 + self.omega * tau
-        return self.c + self.r * (np.outer(np.cos(th), self.e1) + np.outer(np.sin(th), self.e2))
-
-    def vel(self, tau: np.ndarray) -> np.ndarray:
-        th = self.phi0 + self.omega * tau
-        return (self.r * self.omega) * (
-            np.outer(-np.sin(th), self.e1) + np.outer(np.cos(th), self.e2)
-        )
-
-    def acc(self, tau: np.ndarray) -> np.ndarray:
-        th = self.phi0 + self.omega * tau
-        return (-self.r * self.omega**2) * (
-            np.outer(np.cos(th), self.e1) + np.outer(np.sin(th), self.e2)
-        )
-
-
-_Segment = _Line | _Arc
-
-
-def _end(seg: _Segment) -> tuple[np.ndarray, np.ndarray]:
-    T = np.array([seg.T])
-    return seg.pos(T)[0], seg.vel(T)[0]
-
-
-def _tangent_arc(p: np.ndarray, v: np.ndarray, side: np.ndarray, r: float, sweep: float) -> _Arc:
-    """Arc of radius ``r`` leaving ``p`` with velocity ``v``, centre at ``p + r side``."""
-    speed = float(np.linalg.norm(v))
-    return _Arc(
-        c=p + r * side, e1=-side, e2=v / speed, r=r, phi0=0.0, omega=speed / r, T=sweep * r / speed
-    )
-
-
-def _piecewise(segments: Sequence[_Segment]) -> tuple[Callable, Callable, float]:
-    """Global ``pos(t)``, ``vel(t)`` of consecutive segments, and the total duration [s]."""
-    starts = np.concatenate([[0.0], np.cumsum([s.T for s in segments])])
-
-    def evaluate(t: np.ndarray, which: str) -> np.ndarray:
-        t = np.asarray(t, float)
-        idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(segments) - 1)
-        out = np.empty((t.size, segments[0].pos(np.zeros(1)).shape[1]))
-        for i in np.unique(idx):
-            sel = idx == i
-            out[sel] = getattr(segments[i], which)(t[sel] - starts[i])
-        return out
-
-    return (lambda t: evaluate(t, "pos")), (lambda t: evaluate(t, "vel")), float(starts[-1])
-
-
-def _fly(t: np.ndarray, p0: np.ndarray, vel: Callable[[np.ndarray], np.ndarray]) -> Trajectory:
-    """Fly the analytic velocity ``vel`` with chord inputs (velocity exact at the samples)."""
-    V = vel(t)
-    u = np.diff(V, axis=0) / np.diff(t)[:, None]
-    return Trajectory.from_inputs(t, p0, V[0], u)
-
-
-def _add_z(
-    vel_xy: Callable[[np.ndarray], np.ndarray], vz: Callable[[np.ndarray], np.ndarray]
-) -> Callable[[np.ndarray], np.ndarray]:
-    return lambda t: np.column_stack([vel_xy(t)[:, :2], vz(t)])
-
-
-# ------------------------------------------------------------------ smooth paths
-@dataclass(frozen=True)
-class _ZLine:
-    """``z(t) = z0 + w t``: a straight (constant-speed) motion along z, ``u_z = 0``."""
-
-    z0: float
-    w: float
-
-    @property
-    def start(self) -> float:
-        return self.z0
-
-    def pos(self, t: np.ndarray) -> np.ndarray:
-        return self.z0 + self.w * np.asarray(t)
-
-    def vel(self, t: np.ndarray) -> np.ndarray:
-        return np.full(np.shape(t), self.w)
-
-    def acc(self, t: np.ndarray) -> np.ndarray:
-        return np.zeros(np.shape(t))
-
-
-@dataclass(frozen=True)
-class _ZSine:
-    """``z(t) = z0 + amp sin(Ω t + phase)``."""
-
-    z0: float
-    amp: float
-    Om: float
-    ph: float
-
-    @property
-    def start(self) -> float:
-        return self.z0 + self.amp * math.sin(self.ph)
-
-    def pos(self, t: np.ndarray) -> np.ndarray:
-        return self.z0 + self.amp * np.sin(self.Om * np.asarray(t) + self.ph)
-
-    def vel(self, t: np.ndarray) -> np.ndarray:
-        return self.amp * self.Om * np.cos(self.Om * t + self.ph)
-
-    def acc(self, t: np.ndarray) -> np.ndarray:
-        return -self.amp * self.Om**2 * np.sin(self.Om * np.asarray(t) + self.ph)
-
-
-@dataclass(frozen=True)
-class AnalyticPath:
-    """A smooth path: consecutive lines and arcs (pieces), optionally with a motion along z.
-
-    The path the generators sample (module docstring). Within a piece, position, velocity and
-    acceleration are analytic in time; at a breakpoint the acceleration may jump (a leg meets a
-    turn). Picklable (no closures).
-
-    Attributes
-    ----------
-    segments
-        The pieces, in order; each lasts its ``T`` [s] from the previous one's end.
-    z
-        Motion along z for a path whose pieces are in (x, y); None for a 2D path or a path whose
-        pieces are already 3D (a circle in a plane ``z = const``).
-    """
-
-    segments: tuple[_Segment, ...]
-    z: _ZLine | _ZSine | None = None
-
-    @property
-    def dim(self) -> int:
-        """2 or 3."""
-        return 3 if self.z is not None else int(self.segments[0].pos(np.zeros(1)).shape[1])
-
-    @property
-    def breakpoints(self) -> np.ndarray:
-        """Start time of every piece and the end time, shape ``(n_pieces + 1,)`` [s]."""
-        return np.concatenate([[0.0], np.cumsum([s.T for s in self.segments])])
-
-    @property
-    def duration(self) -> float:
-        """Length of the path [s]."""
-        return float(self.breakpoints[-1])
-
-    def evaluate(
-        self, t: np.ndarray | float, piece: int | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position [m], velocity [m/s] and acceleration [m/s²] at times ``t`` [s], each (N, dim).
-
-        ``piece=None``: the piece that contains each time (right-continuous at breakpoints);
-        ``piece=i``: the formulas of piece ``i`` (e.g. its limit at its end time).
-        """
-        t = np.atleast_1d(np.asarray(t, float))
-        starts = self.breakpoints
-        if piece is None:
-            idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.segments) - 1)
-        elif not 0 <= int(piece) < len(self.segments):
-            raise ConfigError(f"piece must be in 0..{len(self.segments) - 1}, got {piece!r}")
-        else:
-            idx = np.full(t.size, int(piece))
-        out = [np.empty((t.size, self.dim)) for _ in range(3)]
-        for i in np.unique(idx):
-            sel, seg = idx == i, self.segments[i]
-            tau = t[sel] - starts[i]
-            for arr, f in zip(out, (seg.pos, seg.vel, seg.acc), strict=True):
-                val = f(tau)
-                arr[sel, : val.shape[1]] = val
-        if self.z is not None:
-            for arr, f in zip(out, (self.z.pos, self.z.vel, self.z.acc), strict=True):
-                arr[:, 2] = f(t)
-        return out[0], out[1], out[2]
-
-    def sample(self, dt: float = DT, duration: float | None = None) -> Trajectory:
-        """The held-input trajectory of the path: chord inputs (module docstring), sampled at
-        ``dt`` [s] for ``duration`` [s] (default: the whole path)."""
-        dt = _positive("dt", dt)
-        _, vel, total = _piecewise(self.segments)
-        t = _time_grid(total if duration is None else duration, dt)
-        p0 = self.segments[0].pos(np.zeros(1))[0]
-        if self.z is None:
-            return _fly(t, p0, vel)
-        return _fly(t, np.append(p0, self.z.start), _add_z(vel, self.z.vel))
-
-
 # ------------------------------------------------------------------ straight lines
-@dataclass(frozen=True)
-class SineProfile:
-    """``mean + amplitude sin(2π t / period + phase)`` [m/s²]; call it with times [s]."""
-
-    mean: float
-    amplitude: float
-    period: float
-    phase: float = 0.0
-
-    def __call__(self, t: np.ndarray) -> np.ndarray:
-        return self.mean + self.amplitude * np.sin(
-            2.0 * np.pi * np.asarray(t) / self.period + self.phase
-        )
-
-    def __repr__(self) -> str:
-        extra = f", phase={self.phase:g}" if self.phase else ""
-        return f"sine_profile({self.mean:g}, {self.amplitude:g}, {self.period:g}{extra})"
-
-
 def sine_profile(mean: float, amplitude: float, period: float, phase: float = 0.0) -> SineProfile:
     """Acceleration profile ``mean + amplitude sin(2π t / period + phase)`` for :func:`straight`.
 
@@ -379,6 +112,11 @@ def sine_profile(mean: float, amplitude: float, period: float, phase: float = 0.
         [s], positive.
     phase
         [rad].
+
+    Returns
+    -------
+    SineProfile
+        A callable ``a(t)`` [m/s²] of times [s] (array in, array out), with closed-form integrals.
     """
     return SineProfile(
         _finite("mean", mean),
@@ -388,34 +126,35 @@ def sine_profile(mean: float, amplitude: float, period: float, phase: float = 0.
     )
 
 
-def _accel_samples(accel: AccelProfile, t: np.ndarray) -> np.ndarray:
-    """The along-line acceleration on each interval, shape ``(N-1,)`` [m/s²]."""
-    K = t.size - 1
-    if callable(accel):
-        mid = 0.5 * (t[:-1] + t[1:])  # midpoint: speed error O(dt²)
-        try:
-            a = np.broadcast_to(np.asarray(accel(mid), float), (K,)).copy()
-        except (TypeError, ValueError):  # a scalar-only callable
-            try:
-                a = np.array([float(accel(float(s))) for s in mid])
-            except (TypeError, ValueError) as exc:
-                raise ConfigError(
-                    "accel: the callable must map times [s] to accelerations [m/s²] "
-                    f"(an array of the same shape, or one number per time): {exc}"
-                ) from None
-    elif np.ndim(accel) == 0:
-        a = np.full(K, _finite("accel", accel))  # type: ignore[arg-type]
-    else:
+#: Times at which a callable acceleration profile is checked when a line is built [count].
+_PROBES = 257
+
+
+def _not_moving() -> ConfigError:
+    return ConfigError("speed0 and accel are both zero: the vehicle would not move")
+
+
+def _held_pieces(
+    p: np.ndarray, e: np.ndarray, s0: float, accel: Sequence[float] | np.ndarray, duration: float
+) -> tuple[_Line, ...]:
+    """One constant-acceleration piece per value of ``accel``, each ``duration / len`` long."""
+    try:
         a = np.asarray(accel, float).reshape(-1)
-        if a.size not in (K, K + 1):
-            raise ConfigError(
-                f"accel array must have one value per interval ({K}) or per sample ({K + 1}), "
-                f"got {a.size}"
-            )
-        a = a[:K]
+    except (TypeError, ValueError):
+        raise ConfigError(f"accel must be a number, a callable or numbers, got {accel!r}") from None
+    if a.size == 0:
+        raise ConfigError("accel array must have at least one value (one per interval)")
     if not np.all(np.isfinite(a)):
         raise ConfigError("accel must be finite at every sample")
-    return a
+    if s0 == 0.0 and not np.any(a):
+        raise _not_moving()
+    h = duration / a.size
+    speeds = s0 + h * np.concatenate([[0.0], np.cumsum(a[:-1])])
+    dist = np.concatenate([[0.0], np.cumsum(speeds * h + 0.5 * a * h**2)[:-1]])
+    return tuple(
+        _Line(p if k == 0 else p + dist[k] * e, e, float(speeds[k]), float(a[k]), h)
+        for k in range(a.size)
+    )
 
 
 def straight(
@@ -425,8 +164,7 @@ def straight(
     *,
     accel: AccelProfile = 0.0,
     duration: float,
-    dt: float = DT,
-) -> Trajectory:
+) -> AnalyticPath:
     """Straight line from ``p0`` along ``direction``: constant speed, constant or varying accel.
 
     Parameters
@@ -440,17 +178,22 @@ def straight(
         Initial speed along ``direction`` [m/s], ``>= 0``.
     accel
         Acceleration along ``direction`` [m/s²]: a number (0 = constant speed), a callable of
-        time ``a(t)`` (sampled at interval midpoints; see :func:`sine_profile`) or an array with
-        one value per interval (or per sample).
-    duration, dt
-        Length [s] and sampling interval [s].
+        time ``a(t)`` (see :func:`sine_profile`; checked at 257 times here, and at every sample
+        when sampled) or an array, a piecewise-constant profile whose values are held on
+        consecutive equal intervals of ``duration / len(accel)`` (e.g. one per step of a
+        planning grid: sampling at that step gives exactly these inputs).
+    duration
+        Length [s], positive.
 
     Returns
     -------
-    Trajectory
-        Inputs, velocities and displacements all parallel to ``direction``: exactly straight.
+    AnalyticPath
+        ``n``-D, lasting ``duration``, with midpoint inputs: ``sample(dt)`` holds ``a`` (a
+        number), ``a`` at each interval's midpoint (a callable; speed error O(dt²)) or the
+        array's values (sampled at ``duration / len(accel)``). Inputs, velocities and
+        displacements are all parallel to ``direction``: exactly straight.
     """
-    duration, dt = _check_timing(duration, dt)
+    duration = _positive("duration", duration)
     p = _vector("p0", p0)
     e = _vector("direction", direction, (p.size,))
     norm = float(np.linalg.norm(e))
@@ -460,14 +203,23 @@ def straight(
     s0 = _finite("speed0", speed0)
     if s0 < 0:
         raise ConfigError(f"speed0 must be >= 0 (reverse direction instead), got {speed0!r}")
-    t = _time_grid(duration, dt)
-    a = _accel_samples(accel, t)
-    if s0 == 0.0 and not np.any(a):
-        raise ConfigError("speed0 and accel are both zero: the vehicle would not move")
-    return Trajectory.from_inputs(t, p, s0 * e, np.outer(a, e))
+    segs: tuple[_Segment, ...]
+    if callable(accel):
+        probe = _profile_values(accel, np.linspace(0.0, duration, _PROBES))
+        if s0 == 0.0 and not np.any(probe):
+            raise _not_moving()
+        segs = (_ProfileLine(p, e, s0, accel, duration),)
+    elif np.ndim(accel) == 0:
+        a = _finite("accel", accel)  # type: ignore[arg-type]
+        if s0 == 0.0 and a == 0.0:
+            raise _not_moving()
+        segs = (_Line(p, e, s0, a, duration),)
+    else:
+        segs = _held_pieces(p, e, s0, accel, duration)  # type: ignore[arg-type]
+    return AnalyticPath(segs, inputs="midpoint", t_end=duration)
 
 
-def parabola(p0: Vec, v0: Vec, accel: Vec, *, duration: float, dt: float = DT) -> Trajectory:
+def parabola(p0: Vec, v0: Vec, accel: Vec, *, duration: float) -> AnalyticPath:
     """Constant acceleration in any direction: ``p(t) = p0 + v0 t + ½ a t²`` (a parabola).
 
     Parameters
@@ -475,24 +227,25 @@ def parabola(p0: Vec, v0: Vec, accel: Vec, *, duration: float, dt: float = DT) -
     p0, v0, accel : shape (n,)
         Start position [m], start velocity [m/s] and the constant acceleration [m/s²]; with
         ``accel`` parallel to ``v0`` the path is a straight line (use :func:`straight`).
-    duration, dt
-        Length [s] and sampling interval [s].
+    duration
+        Length [s], positive.
 
     Returns
     -------
-    Trajectory
-        One input held for the whole path: exactly the held-input trajectory of the parabola.
+    AnalyticPath
+        One ``n``-D piece lasting ``duration``, with midpoint inputs: ``sample(dt)`` holds
+        ``accel`` for the whole path, exactly the held-input trajectory of the parabola.
     """
-    duration, dt = _check_timing(duration, dt)
+    duration = _positive("duration", duration)
     p = _vector("p0", p0)
     v = _vector("v0", v0, (p.size,))
     a = _vector("accel", accel, (p.size,))
     if not (np.any(v) or np.any(a)):
         raise ConfigError("v0 and accel are both zero: the vehicle would not move")
-    t = _time_grid(duration, dt)
-    return Trajectory.from_inputs(t, p, v, np.tile(a, (t.size - 1, 1)))
+    return AnalyticPath((_Parabola(p, v, a, duration),), inputs="midpoint")
 
 
+# ------------------------------------------------------------------ joining sampled trajectories
 def then_straight(
     traj: Trajectory,
     *,
@@ -503,15 +256,26 @@ def then_straight(
 ) -> Trajectory:
     """Continue ``traj`` with a straight leg tangent to its final velocity.
 
+    The leg starts from the *sampled* final state of ``traj`` (which may be any trajectory, e.g.
+    a time-scaled one), so it takes ``dt`` and returns samples.
+
     Parameters
     ----------
     traj
         Trajectory to extend; its final speed must be non-zero.
-    duration, accel, dt
-        As in :func:`straight`.
+    duration, accel
+        As in :func:`straight`: the leg's length [s] and acceleration along it [m/s²].
     direction : shape (n,), optional
         Direction of the leg; it must be parallel to the final velocity (relative mismatch
         ``<= JOIN_TOL``). Use it to make a leg *exactly* radial, e.g. ``traj.p[-1]``.
+    dt
+        Sampling interval of the leg [s].
+
+    Returns
+    -------
+    Trajectory
+        ``traj`` followed by ``straight(traj.p[-1], e, |traj.v[-1]|, ...).sample(dt)`` (its first
+        sample replacing ``traj``'s last), ``n``-D.
     """
     v_end = traj.v[-1]
     speed = float(np.linalg.norm(v_end))
@@ -527,12 +291,24 @@ def then_straight(
             "then_straight: direction is not parallel to the final velocity; the "
             "join would need an infinite acceleration"
         )
-    leg = straight(traj.p[-1], e, speed, accel=accel, duration=duration, dt=dt)
+    leg = straight(traj.p[-1], e, speed, accel=accel, duration=duration).sample(dt)
     return traj.then(leg)
 
 
 def concat(*trajs: Trajectory) -> Trajectory:
     """Join trajectories end to start (:meth:`Trajectory.then`), checking positions and velocities.
+
+    Parameters
+    ----------
+    *trajs
+        Sampled trajectories (e.g. ``path.sample(dt)``), all 2D or all 3D; each must start where
+        the previous one ends, with its final velocity.
+
+    Returns
+    -------
+    Trajectory
+        The samples of all, each trajectory's first sample replacing the previous one's last;
+        times shifted to follow on.
 
     Raises
     ------
@@ -587,21 +363,20 @@ def circle(
     radius: float,
     speed: float,
     duration: float,
-    dt: float = DT,
     *,
     center: Vec = (0.0, 0.0),
     phase: float = 0.0,
     z: float | None = None,
     ccw: bool = True,
-) -> Trajectory:
+) -> AnalyticPath:
     """Horizontal circle at constant speed (eq. 37; eq. 46 in 3D).
 
     Parameters
     ----------
     radius, speed
         Radius ρ [m] and speed ρω [m/s], both positive.
-    duration, dt
-        Length [s] and sampling interval [s]; one lap lasts ``2π radius / speed``.
+    duration
+        Length [s]; one lap lasts ``2π radius / speed``.
     center : shape (2,) or (3,)
         Centre [m]; the beacon's position (origin) by default, as in eq. 37.
     phase
@@ -614,25 +389,10 @@ def circle(
 
     Returns
     -------
-    Trajectory
-        Velocities exact at the samples; radius error ``<= radius (ω dt)²/6``, ``ω = speed/radius``.
+    AnalyticPath
+        One arc, 2D or 3D, lasting ``duration``, with chord inputs: ``sample(dt)`` has velocities
+        exact at the samples and a radius error ``<= radius (ω dt)²/6``, ``ω = speed/radius``.
     """
-    duration, dt = _check_timing(duration, dt)
-    path = circle_path(radius, speed, duration, center=center, phase=phase, z=z, ccw=ccw)
-    return path.sample(dt)
-
-
-def circle_path(
-    radius: float,
-    speed: float,
-    duration: float,
-    *,
-    center: Vec = (0.0, 0.0),
-    phase: float = 0.0,
-    z: float | None = None,
-    ccw: bool = True,
-) -> AnalyticPath:
-    """The smooth path that :func:`circle` samples (same parameters, no ``dt``)."""
     duration = _positive("duration", duration)
     radius, speed = _positive("radius", radius), _positive("speed", speed)
     c, _ = _circle_plane(center, z)
@@ -643,57 +403,6 @@ def circle_z(
     radius: float,
     speed: float,
     duration: float,
-    dt: float = DT,
-    *,
-    z0: float,
-    z_motion: Literal["sine", "straight"] = "sine",
-    z_amp: float | None = None,
-    z_period: float | None = None,
-    z_speed: float | None = None,
-    z_phase: float = 0.0,
-    center: Vec = (0.0, 0.0),
-    phase: float = 0.0,
-    ccw: bool = True,
-) -> Trajectory:
-    """Circle in (x, y) combined with a motion along z (the 3D rows of Tables 1–2, Figs. 5 and 8).
-
-    ``z(t) = z0 + z_amp sin(2π t / z_period + z_phase)`` (``z_motion="sine"``) or
-    ``z(t) = z0 + z_speed t`` (``"straight"``, constant vertical speed, as in Fig. 5).
-
-    Parameters
-    ----------
-    radius, speed, duration, dt, center, phase, ccw
-        The horizontal circle, as in :func:`circle` (``center`` has 2 coordinates).
-    z0
-        Height at ``t = 0`` (sine: the mid height) [m].
-    z_amp, z_period
-        Amplitude [m] (non-zero) and period [s] of the sine. A period equal to the lap time
-        ``2π radius / speed`` puts the path in a tilted plane: planar, hence never globally
-        observable with range only.
-    z_speed
-        Vertical speed [m/s] (non-zero) of the straight motion. Note ``u_z = 0`` then.
-    """
-    duration, dt = _check_timing(duration, dt)
-    return circle_z_path(
-        radius,
-        speed,
-        duration,
-        z0=z0,
-        z_motion=z_motion,
-        z_amp=z_amp,
-        z_period=z_period,
-        z_speed=z_speed,
-        z_phase=z_phase,
-        center=center,
-        phase=phase,
-        ccw=ccw,
-    ).sample(dt)
-
-
-def circle_z_path(
-    radius: float,
-    speed: float,
-    duration: float,
     *,
     z0: float,
     z_motion: Literal["sine", "straight"] = "sine",
@@ -705,7 +414,31 @@ def circle_z_path(
     phase: float = 0.0,
     ccw: bool = True,
 ) -> AnalyticPath:
-    """The smooth path that :func:`circle_z` samples (same parameters, no ``dt``)."""
+    """Circle in (x, y) combined with a motion along z (the 3D rows of Tables 1–2, Figs. 5 and 8).
+
+    ``z(t) = z0 + z_amp sin(2π t / z_period + z_phase)`` (``z_motion="sine"``) or
+    ``z(t) = z0 + z_speed t`` (``"straight"``, constant vertical speed, as in Fig. 5).
+
+    Parameters
+    ----------
+    radius, speed, duration, center, phase, ccw
+        The horizontal circle, as in :func:`circle` (``center`` has 2 coordinates).
+    z0
+        Height at ``t = 0`` (sine: the mid height) [m].
+    z_amp, z_period
+        Amplitude [m] (non-zero) and period [s] of the sine. A period equal to the lap time
+        ``2π radius / speed`` puts the path in a tilted plane: planar, hence never globally
+        observable with range only.
+    z_speed
+        Vertical speed [m/s] (non-zero) of the straight motion. Note ``u_z = 0`` then.
+    z_phase
+        Phase of the sine [rad].
+
+    Returns
+    -------
+    AnalyticPath
+        3D: one arc in (x, y) and the z motion, lasting ``duration``, with chord inputs.
+    """
     duration = _positive("duration", duration)
     radius, speed = _positive("radius", radius), _positive("speed", speed)
     c = _vector("center", center, (2,))
@@ -748,9 +481,10 @@ def circle_then_straight(
 ) -> Trajectory:
     """2D circle then a tangent straight leg, radial or not (Tables 1–2, "Circular + Straight").
 
-    The leg leaves the circle tangentially along +x, so the velocity is continuous. The circle is
-    shifted by its O(dt²) integration error (``<= radius (ω dt)²/3``) so that the leg starts
-    exactly at the exit point.
+    The leg leaves the circle tangentially along +x, so the velocity is continuous. The sampled
+    circle is shifted by its O(dt²) integration error (``<= radius (ω dt)²/3``) so that the leg
+    starts exactly at the exit point: the result depends on ``dt`` beyond sampling one path, so
+    this function takes ``dt`` and returns samples.
 
     * ``radial=False``: circle centred on the beacon (origin); the leg starts at ``(0, -radius)``
       and runs along ``y = -radius``, at distance ``radius`` from the beacon.
@@ -765,8 +499,20 @@ def circle_then_straight(
         Circle radius [m] and speed [m/s].
     circle_duration, straight_duration
         Durations [s] of the two parts; the circle ends at the exit point.
+    radial
+        Make the leg radial (see above).
     straight_accel
         Acceleration along the leg [m/s²], as ``accel`` of :func:`straight`.
+    exit_distance
+        Distance of the exit point from the beacon [m] (``radial=True`` only).
+    dt
+        Sampling interval [s] of both parts.
+
+    Returns
+    -------
+    Trajectory
+        2D, lasting ``circle_duration + straight_duration``: the circle's chord inputs, then the
+        leg's midpoint inputs.
     """
     radius, speed = _positive("radius", radius), _positive("speed", speed)
     T = _positive("circle_duration", circle_duration)
@@ -778,7 +524,7 @@ def circle_then_straight(
             raise ConfigError("exit_distance only applies to radial=True")
         center = (0.0, 0.0)
     phase_end = -0.5 * np.pi  # exit point straight below the centre, moving along +x (ccw)
-    circ = circle(radius, speed, T, dt, center=center, phase=phase_end - speed / radius * T)
+    circ = circle(radius, speed, T, center=center, phase=phase_end - speed / radius * T).sample(dt)
     # shift by the O(dt²) integration error so that the leg starts exactly at the exit point
     exit_point = np.array([center[0], center[1] - radius])
     circ = circ.translated(exit_point - circ.p[-1])
@@ -795,6 +541,14 @@ def _rot2(heading: float, dim: int) -> tuple[np.ndarray, np.ndarray]:
     left = np.zeros(dim)
     left[:2] = (-math.sin(heading), math.cos(heading))
     return h, left
+
+
+def _tangent_arc(p: np.ndarray, v: np.ndarray, side: np.ndarray, r: float, sweep: float) -> _Arc:
+    """Arc of radius ``r`` leaving ``p`` with velocity ``v``, centre at ``p + r side``."""
+    speed = float(np.linalg.norm(v))
+    return _Arc(
+        c=p + r * side, e1=-side, e2=v / speed, r=r, phi0=0.0, omega=speed / r, T=sweep * r / speed
+    )
 
 
 def _turn_onto(start: Vec, velocity: Vec, heading: float, accel: float) -> _Arc | None:
@@ -820,10 +574,26 @@ def _turn_onto(start: Vec, velocity: Vec, heading: float, accel: float) -> _Arc 
 
 
 def turn_onto_end(start: Vec, velocity: Vec, heading: float, accel: float) -> np.ndarray:
-    """Where a vehicle at ``start`` [m] moving at ``velocity`` [m/s] is, shape (2,) [m], once it
-    has turned onto ``heading`` [rad] the shorter way at constant speed and centripetal
-    acceleration ``accel`` [m/s²] (``start`` itself at rest or already on the heading): the
-    first leg's start of :func:`lawnmower_within_limits` with ``initial_velocity``."""
+    """Where a vehicle is once it has turned onto ``heading`` the shorter way at constant speed.
+
+    The first leg's start of :func:`lawnmower_within_limits` with ``initial_velocity``.
+
+    Parameters
+    ----------
+    start : shape (2,) or (3,)
+        Position [m] (x and y are used).
+    velocity : shape (2,) or (3,)
+        Velocity [m/s] (x and y are used).
+    heading
+        Direction to turn onto, from the x axis [rad].
+    accel
+        Centripetal acceleration of the turn [m/s²], positive (radius ``|v|² / accel``).
+
+    Returns
+    -------
+    ndarray, shape (2,)
+        End of the turn [m]: ``start`` itself at rest or already on the heading.
+    """
     arc = _turn_onto(start, velocity, heading, accel)
     return np.asarray(start, float)[:2].copy() if arc is None else _end(arc)[0]
 
@@ -888,16 +658,6 @@ def _segments_path(segs: Sequence[_Segment], z: float | None, z_speed: float) ->
     return AnalyticPath(tuple(segs), _ZLine(_finite("z", z), w))
 
 
-def _fly_segments(
-    segs: Sequence[_Segment],
-    dt: float,
-    z: float | None,
-    z_speed: float,
-    duration: float | None = None,
-) -> Trajectory:
-    return _segments_path(segs, z, z_speed).sample(dt, duration)
-
-
 def _check_turn(turn: str, first_turn: str) -> None:
     if turn != "semicircle":
         raise ConfigError(f"turn must be 'semicircle' (the only turn implemented), got {turn!r}")
@@ -911,7 +671,6 @@ def lawnmower(
     spacing: float,
     n_legs: int,
     speed: float,
-    dt: float = DT,
     *,
     heading: float = 0.0,
     turn: str = "semicircle",
@@ -921,7 +680,7 @@ def lawnmower(
     start_with_circle: bool = False,
     initial_speed: float | None = None,
     initial_accel: float | None = None,
-) -> Trajectory:
+) -> AnalyticPath:
     """Lawn-mower: ``n_legs`` parallel legs at constant speed joined by semicircular turns.
 
     Covered area: the legs span a ``leg_length × (n_legs - 1) spacing`` rectangle whose first
@@ -943,6 +702,8 @@ def lawnmower(
         Direction of the first leg from the x axis [rad].
     turn
         Only ``"semicircle"``.
+    first_turn
+        Side (``"left"`` or ``"right"`` of the first leg) the next legs are stacked on.
     z, z_speed
         For a 3D lawn-mower: start height [m] and constant vertical speed [m/s] (Fig. 6's
         "straight motion along z"; ``u_z = 0``).
@@ -952,43 +713,12 @@ def lawnmower(
         Start the first leg at ``initial_speed`` [m/s] (e.g. 0, from rest as in Fig. 3) and
         accelerate at ``initial_accel`` [m/s²] (default: the constant value reaching ``speed`` at
         the end of the first leg), then cruise.
+
+    Returns
+    -------
+    AnalyticPath
+        2D (3D with ``z``), with chord inputs: legs and turns as separate pieces.
     """
-    dt = _positive("dt", dt)
-    return lawnmower_path(
-        start,
-        leg_length,
-        spacing,
-        n_legs,
-        speed,
-        heading=heading,
-        turn=turn,
-        first_turn=first_turn,
-        z=z,
-        z_speed=z_speed,
-        start_with_circle=start_with_circle,
-        initial_speed=initial_speed,
-        initial_accel=initial_accel,
-    ).sample(dt)
-
-
-def lawnmower_path(
-    start: Vec,
-    leg_length: float,
-    spacing: float,
-    n_legs: int,
-    speed: float,
-    *,
-    heading: float = 0.0,
-    turn: str = "semicircle",
-    first_turn: Literal["left", "right"] = "left",
-    z: float | None = None,
-    z_speed: float = 0.0,
-    start_with_circle: bool = False,
-    initial_speed: float | None = None,
-    initial_accel: float | None = None,
-) -> AnalyticPath:
-    """The smooth path that :func:`lawnmower` samples (same parameters, no ``dt``): legs and
-    semicircular turns as separate pieces."""
     _check_turn(turn, first_turn)
     p = _vector("start", start, (2,))
     L, s = _positive("leg_length", leg_length), _positive("spacing", spacing)
@@ -1059,6 +789,18 @@ def lawnmower_layout(
 ) -> LawnmowerLayout:
     """Tightest lawn-mower of an area at ``speed`` whose turns stay within ``accel_max``.
 
+    Parameters
+    ----------
+    area_width, area_height
+        Area along / across the legs [m].
+    speed, accel_max
+        Cruise speed [m/s] and acceleration limit [m/s²], positive.
+
+    Returns
+    -------
+    LawnmowerLayout
+        Spacing, legs and extent (lengths [m], acceleration [m/s²]).
+
     Raises
     ------
     ConfigError
@@ -1092,7 +834,6 @@ def lawnmower_within_limits(
     speed: float,
     accel_max: float,
     duration: float,
-    dt: float = DT,
     *,
     heading: float = 0.0,
     first_turn: Literal["left", "right"] = "left",
@@ -1100,7 +841,7 @@ def lawnmower_within_limits(
     z_speed: float = 0.0,
     initial_speed: float | None = None,
     initial_velocity: Vec | None = None,
-) -> Trajectory:
+) -> AnalyticPath:
     """Baseline lawn-mower "at the limits", flown for exactly ``duration``.
 
     Legs at ``speed``, turns at exactly ``accel_max`` (:func:`lawnmower_layout`; the inputs stay
@@ -1119,8 +860,12 @@ def lawnmower_within_limits(
         Area along / across ``heading`` [m].
     speed, accel_max
         Cruise speed [m/s] and acceleration limit [m/s²].
-    duration, dt
-        Exact length [s] and sampling interval [s].
+    duration
+        Exact length [s].
+    heading
+        Direction of the first leg from the x axis [rad].
+    first_turn
+        Side (``"left"`` or ``"right"`` of the first leg) the next legs are stacked on.
     z, z_speed
         Optional height [m] and constant vertical speed [m/s] (3D).
     initial_speed
@@ -1129,8 +874,13 @@ def lawnmower_within_limits(
         A moving start [m/s]: from ``start`` the vehicle first turns onto ``heading`` at
         ``accel_max`` and its speed (:func:`turn_onto_end`), and the first leg starts where that
         turn ends, at that speed (``initial_speed`` is then ``|initial_velocity|``).
+
+    Returns
+    -------
+    AnalyticPath
+        2D (3D with ``z``), lasting exactly ``duration`` (its ``t_end``), with chord inputs.
     """
-    duration, dt = _check_timing(duration, dt)
+    duration = _positive("duration", duration)
     lay = lawnmower_layout(area_width, area_height, speed, accel_max)
     _check_turn("semicircle", first_turn)
     p = _vector("start", start, (2,))
@@ -1165,19 +915,21 @@ def lawnmower_within_limits(
         None if initial_speed is None else accel_max,
         False,
     )
-    return _fly_segments(lead + segs, dt, z, z_speed, duration=duration)
+    path = _segments_path(lead + segs, z, z_speed)
+    # the pieces flown before `duration` (one starting exactly there included)
+    flown = int(np.count_nonzero(path.breakpoints[:-1] <= duration))
+    return AnalyticPath(path.segments[:flown], path.z, t_end=duration)
 
 
 def paper_lawnmower(
     dim: int = 2,
-    dt: float = DT,
     *,
     speed: float = 2.0,
     leg_length: float = 160.0,
     spacing: float = 30.0,
     n_legs: int = 5,
     z_speed: float = -0.01,
-) -> Trajectory:
+) -> AnalyticPath:
     """Paper-like lawn-mower of Figs. 3 (2D) and 6 (3D): straight legs joined by circular arcs.
 
     The paper gives only the start states (section 7.1–7.2): Fig. 3 starts at ``(-80, 60)`` m from
@@ -1187,30 +939,29 @@ def paper_lawnmower(
     ``speed`` at its end) and the first turn is the "circular motion" after which the Gramian is
     full rank; in 3D the vehicle starts at ``speed`` with the constant vertical speed ``z_speed``
     (Fig. 6's "straight motion along z"; the paper does not state its value).
-    """
-    dt = _positive("dt", dt)
-    path = paper_lawnmower_path(
-        dim, speed=speed, leg_length=leg_length, spacing=spacing, n_legs=n_legs, z_speed=z_speed
-    )
-    return path.sample(dt)
 
+    Parameters
+    ----------
+    dim
+        2 (Fig. 3) or 3 (Fig. 6).
+    speed
+        Cruise speed [m/s].
+    leg_length, spacing
+        Leg length [m] and distance between legs [m].
+    n_legs
+        Number of legs.
+    z_speed
+        Vertical speed [m/s] (3D only).
 
-def paper_lawnmower_path(
-    dim: int = 2,
-    *,
-    speed: float = 2.0,
-    leg_length: float = 160.0,
-    spacing: float = 30.0,
-    n_legs: int = 5,
-    z_speed: float = -0.01,
-) -> AnalyticPath:
-    """The smooth path that :func:`paper_lawnmower` samples (same parameters, no ``dt``).
-
-    In 2D its pieces are: the accelerating first leg, then (turn, leg) four times; the turns are
-    semicircles of radius ``spacing / 2`` centred at ``(±80, 45)``, ``(±80, -15)``.
+    Returns
+    -------
+    AnalyticPath
+        ``dim``-D, with chord inputs (:func:`lawnmower`). In 2D its pieces are: the accelerating
+        first leg, then (turn, leg) four times; the turns are semicircles of radius
+        ``spacing / 2`` centred at ``(±80, 45)``, ``(±80, -15)``.
     """
     if dim == 2:
-        return lawnmower_path(
+        return lawnmower(
             (-80.0, 60.0),
             leg_length,
             spacing,
@@ -1220,7 +971,7 @@ def paper_lawnmower_path(
             initial_speed=0.0,
         )
     if dim == 3:
-        return lawnmower_path(
+        return lawnmower(
             (-80.0, 60.0),
             leg_length,
             spacing,

@@ -285,8 +285,9 @@ def write_csv(traj: Trajectory, path: str | Path, overwrite: bool = True) -> Pat
     --------
     >>> import tempfile
     >>> from pathlib import Path
-    >>> from obsplan import generators, write_csv
-    >>> line = generators.straight((0.0, 0.0), (1.0, 0.0), 10.0, duration=5.0, dt=1.0)
+    >>> from obsplan import write_csv
+    >>> from obsplan.trajectory import generators
+    >>> line = generators.straight((0.0, 0.0), (1.0, 0.0), 10.0, duration=5.0).sample(1.0)
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     path = write_csv(line, Path(tmp) / "line.csv")
     ...     path.read_text().splitlines()[0]
@@ -316,8 +317,9 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
     >>> import tempfile
     >>> from pathlib import Path
     >>> import numpy as np
-    >>> from obsplan import generators, read_csv, write_csv
-    >>> traj = generators.circle(50.0, 1.0, 60.0, 1.0)
+    >>> from obsplan import read_csv, write_csv
+    >>> from obsplan.trajectory import generators
+    >>> traj = generators.circle(50.0, 1.0, 60.0).sample(1.0)
     >>> with tempfile.TemporaryDirectory() as tmp:
     ...     back = read_csv(write_csv(traj, Path(tmp) / "circle.csv"))
     >>> back.n_samples, bool(np.allclose(back.p, traj.p))

@@ -3,10 +3,11 @@
 Every filter (:mod:`~obsplan.estimation.filters.ekf`, :mod:`~obsplan.estimation.filters.kf`,
 :mod:`~obsplan.estimation.filters.gsf`) is a :class:`Filter`: built from a configuration
 (:meth:`Filter.from_config`), it turns a run's common start into its own initial state
-(:meth:`Filter.start`) and filters a batch of runs over the epochs of a
-:class:`~obsplan.estimation.epochs.RunContext`, either in one compiled call with the statistics
-(:meth:`Filter.run`, what the Monte Carlo uses) or epoch by epoch (:meth:`Filter.begin`, then
-:meth:`Filter.predict` / :meth:`Filter.update`, with :meth:`Filter.state` and
+(:meth:`Filter.start`) and filters a batch of runs, a :class:`~obsplan.estimation.batch.RunBatch`
+(the epochs of a :class:`~obsplan.estimation.epochs.RunContext`, the runs' starts and readings),
+either in one compiled call with the statistics (:meth:`Filter.run`, what the Monte Carlo uses,
+into a :class:`~obsplan.estimation.batch.RunRecord`) or epoch by epoch (:meth:`Filter.begin`,
+then :meth:`Filter.predict` / :meth:`Filter.update`, with :meth:`Filter.state` and
 :meth:`Filter.covariance` at any epoch). Both paths call the same kernels
 (:mod:`obsplan.estimation.kernels`) through the same argument bundles
 (:mod:`obsplan.estimation.filters.bundles`).
@@ -25,6 +26,7 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 
 from obsplan.core.errors import ConfigError
+from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.config import EstimationConfig, ProcessNoise
 from obsplan.estimation.epochs import RunContext
 from obsplan.model.vehicle import VehicleModel
@@ -98,31 +100,14 @@ class Filter(ABC):
         """A run's initial filter state from the common start ``(x̂0, extra0, r0)``."""
 
     @abstractmethod
-    def run(
-        self,
-        ctx: RunContext,
-        states: list,
-        Y: np.ndarray,
-        truth_rec: np.ndarray,
-        sums: np.ndarray,
-        info: np.ndarray,
-        ex_run: int = -1,
-        example: np.ndarray | None = None,
-        corrections: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> None:
-        """Filter a batch of runs over all epochs in one compiled call, adding the statistics
-        to ``sums`` and ``info`` (:meth:`ExtendedKalmanFilter.run
+    def run(self, batch: RunBatch, record: RunRecord) -> None:
+        """Filter ``batch`` over all its epochs in one compiled call, adding the statistics to
+        ``record`` (:meth:`ExtendedKalmanFilter.run
         <obsplan.estimation.filters.ekf.ExtendedKalmanFilter.run>`)."""
 
     @abstractmethod
-    def begin(
-        self,
-        ctx: RunContext,
-        states: list,
-        Y: np.ndarray,
-        corrections: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> FilterRun:
-        """Runs ``states`` (from :meth:`start`) at epoch 0, before its update."""
+    def begin(self, batch: RunBatch) -> FilterRun:
+        """The runs of ``batch`` (states from :meth:`start`) at epoch 0, before its update."""
 
     @abstractmethod
     def predict(self, run: FilterRun) -> None:

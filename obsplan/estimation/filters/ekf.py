@@ -22,12 +22,14 @@ long range-only leg, a close pass.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from obsplan.core.errors import ConfigError
 from obsplan.estimation import kalman
+from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.config import EstimationConfig, ProcessNoise
-from obsplan.estimation.epochs import RunContext
 from obsplan.estimation.filters import bundles
 from obsplan.estimation.filters.base import Filter, FilterRun, register
 from obsplan.model.vehicle import VehicleModel
@@ -89,32 +91,20 @@ class ExtendedKalmanFilter(Filter):
         extras and anchor range are not used)."""
         return np.array(xhat0, dtype=float), self.p0.copy()
 
-    def run(
-        self,
-        ctx: RunContext,
-        states: list[tuple[np.ndarray, np.ndarray]],
-        Y: np.ndarray,
-        truth_rec: np.ndarray,
-        sums: np.ndarray,
-        info: np.ndarray,
-        ex_run: int = -1,
-        example: np.ndarray | None = None,
-        corrections: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> None:
-        """Filter a batch of runs over the epochs of ``ctx`` and add their statistics to ``sums``.
+    def run(self, batch: RunBatch, record: RunRecord) -> None:
+        """Filter ``batch`` over its epochs and add the runs' statistics to ``record``.
 
-        ``states`` from :meth:`start` (one per run), ``Y`` (E, output_dim, R) the readings at
-        the epochs (NaN: no report), ``truth_rec`` (R, Nr, 2n) the true ``(p, p')`` at the
-        records; ``info`` (R, N_INFO) receives the runs' verdicts (``stats.INFO_*``) and
-        ``example`` (2, Nr, 2n) the estimate and std of run ``ex_run`` of the batch.
-        ``corrections`` ``(ce (E, 2n, R), cr (Nr, 2n, R))``: each run's response to its input
-        corrections at the epochs and records (closed loop: the inputs it applied are the
-        plan's plus corrections); ``None``: the plan's inputs.
+        ``batch.states`` from :meth:`start` (one per run); shapes and units as documented on
+        :class:`~obsplan.estimation.batch.RunBatch` and
+        :class:`~obsplan.estimation.batch.RunRecord`: ``record.sums`` is added to,
+        ``record.info`` receives the runs' verdicts and ``record.example`` the estimate and std
+        of run ``record.ex_run`` of the batch. With ``batch.corrections`` (closed loop) each
+        run's inputs are the plan's plus its corrections.
         """
-        X0, P0, lw0 = self._members(states)
-        self._batch(ctx, X0, P0, lw0, 1, Y, truth_rec, sums, info, ex_run, example, corrections)
+        X0, P0, lw0 = self._members(batch.states)
+        self._batch(batch, record, X0, P0, lw0, 1)
 
-    def _members(self, states: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _members(self, states: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``X0`` (m, R), ``P0`` (m, m, R), ``lw0`` (R,) of the runs' starts."""
         X0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
         P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
@@ -122,52 +112,46 @@ class ExtendedKalmanFilter(Filter):
 
     def _batch(
         self,
-        ctx: RunContext,
+        batch: RunBatch,
+        record: RunRecord,
         X0: np.ndarray,
         P0: np.ndarray,
         lw0: np.ndarray,
         G: int,
-        Y: np.ndarray,
-        truth_rec: np.ndarray,
-        sums: np.ndarray,
-        info: np.ndarray,
-        ex_run: int,
-        example: np.ndarray | None,
-        corrections: tuple[np.ndarray, np.ndarray] | None,
     ) -> None:
+        """The compiled run of ``batch``'s members ``X0, P0, lw0`` (``G`` per run)."""
         from obsplan.estimation import kernels  # numba is loaded on first use
 
+        ctx = batch.ctx
         kernels.ekf_batch(
             X0,
             P0,
             lw0,
             G,
-            np.ascontiguousarray(Y),
+            np.ascontiguousarray(batch.Y),
             mdl=bundles.ekf_model(self.model, ctx, self),
-            rcd=bundles.records(ctx, truth_rec, self.q_nav),
-            out=bundles.outputs(ctx, sums, info, ex_run, example),
-            cor=bundles.corrections(ctx, corrections),
+            rcd=bundles.records(ctx, record.truth_rec, self.q_nav),
+            out=bundles.outputs(ctx, record.sums, record.info, record.ex_run, record.example),
+            cor=bundles.corrections(ctx, batch.corrections),
         )
 
     # ------------------------------------------------------------------ epoch by epoch
-    def begin(
-        self,
-        ctx: RunContext,
-        states: list,
-        Y: np.ndarray,
-        corrections: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> FilterRun:
-        X0, P0, lw0 = self._members(states)
-        return self._begin(ctx, X0, P0, lw0, 1, Y, corrections)
+    def begin(self, batch: RunBatch) -> FilterRun:
+        X0, P0, lw0 = self._members(batch.states)
+        return self._begin(batch, X0, P0, lw0, 1)
 
-    def _begin(self, ctx, X0, P0, lw0, G, Y, corrections) -> FilterRun:
+    def _begin(
+        self, batch: RunBatch, X0: np.ndarray, P0: np.ndarray, lw0: np.ndarray, G: int
+    ) -> FilterRun:
+        """``batch``'s members ``X0, P0, lw0`` (``G`` per run) at epoch 0."""
         from obsplan.estimation import kernels
 
+        ctx = batch.ctx
         m, B = X0.shape
         ws, iw, _ = kernels.workspaces(m, B, self.model.dim, np.zeros(self.model.dim), self.q_nav)
         parts = {
             "mdl": bundles.ekf_model(self.model, ctx, self),
-            "cor": bundles.corrections(ctx, corrections),
+            "cor": bundles.corrections(ctx, batch.corrections),
             "Q": np.zeros((m, m, B)),
             "ws": ws,
             "iw": iw,
@@ -176,7 +160,7 @@ class ExtendedKalmanFilter(Filter):
         R = B // G
         return FilterRun(
             ctx=ctx,
-            Y=np.ascontiguousarray(Y),
+            Y=np.ascontiguousarray(batch.Y),
             X=X0.copy(),
             P=P0.copy(),
             lw=np.array(lw0, dtype=float),

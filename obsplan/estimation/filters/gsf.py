@@ -29,12 +29,13 @@ spread of the means, so an unresolved ambiguity shows in the covariance instead 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 
 import numpy as np
 
 from obsplan.core.errors import ConfigError
+from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.config import EstimationConfig, ProcessNoise
-from obsplan.estimation.epochs import RunContext
 from obsplan.estimation.filters.base import Filter, FilterRun, register
 from obsplan.estimation.filters.ekf import ExtendedKalmanFilter
 from obsplan.model.vehicle import VehicleModel
@@ -135,37 +136,13 @@ class GaussianSumFilter(Filter):
         )
         return np.ascontiguousarray(X0), P0.copy(), self.log_weights.copy()
 
-    def run(
-        self,
-        ctx: RunContext,
-        states: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
-        Y: np.ndarray,
-        truth_rec: np.ndarray,
-        sums: np.ndarray,
-        info: np.ndarray,
-        ex_run: int = -1,
-        example: np.ndarray | None = None,
-        corrections: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> None:
+    def run(self, batch: RunBatch, record: RunRecord) -> None:
         """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`): the EKF's kernel on
         every run's components, which it mixes by their weights."""
-        X0, P0, lw0 = self._members(states)
-        self.ekf._batch(
-            ctx,
-            X0,
-            P0,
-            lw0,
-            self.components,
-            Y,
-            truth_rec,
-            sums,
-            info,
-            ex_run,
-            example,
-            corrections,
-        )
+        X0, P0, lw0 = self._members(batch.states)
+        self.ekf._batch(batch, record, X0, P0, lw0, self.components)
 
-    def _members(self, states: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _members(self, states: Sequence) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The runs' components side by side: ``X0`` (m, R C), ``P0`` (m, m, R C), ``lw0``."""
         X0 = np.ascontiguousarray(np.concatenate([st[0] for st in states], axis=0).T)
         P0 = np.ascontiguousarray(
@@ -174,15 +151,9 @@ class GaussianSumFilter(Filter):
         return X0, P0, np.concatenate([st[2] for st in states])
 
     # ------------------------------------------------------------------ epoch by epoch
-    def begin(
-        self,
-        ctx: RunContext,
-        states: list,
-        Y: np.ndarray,
-        corrections: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> FilterRun:
-        X0, P0, lw0 = self._members(states)
-        return self.ekf._begin(ctx, X0, P0, lw0, self.components, Y, corrections)
+    def begin(self, batch: RunBatch) -> FilterRun:
+        X0, P0, lw0 = self._members(batch.states)
+        return self.ekf._begin(batch, X0, P0, lw0, self.components)
 
     def predict(self, run: FilterRun) -> None:
         self.ekf.predict(run)

@@ -49,12 +49,14 @@ range variance instead (over-confident: the common error is averaged as if indep
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from obsplan.core.errors import ConfigError
 from obsplan.estimation import kalman
+from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.config import EstimationConfig, ProcessNoise, Y0Mode
-from obsplan.estimation.epochs import RunContext
 from obsplan.estimation.filters import bundles
 from obsplan.estimation.filters.base import Filter, FilterRun, register
 from obsplan.model.vehicle import VehicleModel
@@ -180,35 +182,25 @@ class AugmentedKalmanFilter(Filter):
             P[mx, mx] += float(var0)
         return M @ zp, kalman.symmetrize(P), float(y0), float(var0)
 
-    def run(
-        self,
-        ctx: RunContext,
-        states: list[tuple[np.ndarray, np.ndarray, float, float]],
-        Y: np.ndarray,
-        truth_rec: np.ndarray,
-        sums: np.ndarray,
-        info: np.ndarray,
-        ex_run: int = -1,
-        example: np.ndarray | None = None,
-        corrections: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> None:
-        """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`; ``states`` from
+    def run(self, batch: RunBatch, record: RunRecord) -> None:
+        """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`; ``batch.states`` from
         :meth:`start`)."""
         from obsplan.estimation import kernels  # numba is loaded on first use
 
-        Z0, P0, anc = self._members(states)
+        ctx = batch.ctx
+        Z0, P0, anc = self._members(batch.states)
         kernels.kf_batch(
             Z0,
             P0,
-            np.ascontiguousarray(Y),
+            np.ascontiguousarray(batch.Y),
             mdl=bundles.kf_model(self.model, ctx, self),
             anc=anc,
-            rcd=bundles.records(ctx, truth_rec, self.q_nav),
-            out=bundles.outputs(ctx, sums, info, ex_run, example),
-            cor=bundles.corrections(ctx, corrections),
+            rcd=bundles.records(ctx, record.truth_rec, self.q_nav),
+            out=bundles.outputs(ctx, record.sums, record.info, record.ex_run, record.example),
+            cor=bundles.corrections(ctx, batch.corrections),
         )
 
-    def _members(self, states: list) -> tuple[np.ndarray, np.ndarray, bundles.Anchors]:
+    def _members(self, states: Sequence) -> tuple[np.ndarray, np.ndarray, bundles.Anchors]:
         """``Z0`` (m, R), ``P0`` (m, m, R) and the anchors of the runs' starts."""
         Z0 = np.ascontiguousarray(np.stack([st[0] for st in states], axis=1))
         P0 = np.ascontiguousarray(np.stack([st[1] for st in states], axis=2))
@@ -217,23 +209,18 @@ class AugmentedKalmanFilter(Filter):
         return Z0, P0, bundles.Anchors(y0=y0, var0=var0)
 
     # ------------------------------------------------------------------ epoch by epoch
-    def begin(
-        self,
-        ctx: RunContext,
-        states: list,
-        Y: np.ndarray,
-        corrections: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> FilterRun:
+    def begin(self, batch: RunBatch) -> FilterRun:
         from obsplan.estimation import kernels
 
-        Z0, P0, anc = self._members(states)
+        ctx = batch.ctx
+        Z0, P0, anc = self._members(batch.states)
         m, B = Z0.shape
         n = self.model.dim
         ws, iw, _ = kernels.workspaces(m, B, n, self.model.beacon_array, self.q_nav)
         parts = {
             "mdl": bundles.kf_model(self.model, ctx, self),
             "anc": anc,
-            "cor": bundles.corrections(ctx, corrections),
+            "cor": bundles.corrections(ctx, batch.corrections),
             "Q": np.zeros((m, m, B)),
             "kw": np.zeros((8, self.q.shape[0], B)),
             "Sp": np.full(3, -1.0),
@@ -242,7 +229,7 @@ class AugmentedKalmanFilter(Filter):
         }
         return FilterRun(
             ctx=ctx,
-            Y=np.ascontiguousarray(Y),
+            Y=np.ascontiguousarray(batch.Y),
             X=Z0.copy(),
             P=P0.copy(),
             lw=np.zeros(B),

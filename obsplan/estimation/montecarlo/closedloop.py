@@ -37,6 +37,7 @@ import numpy as np
 
 from obsplan.core.errors import ConfigError
 from obsplan.estimation import kalman
+from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.bounds.crlb import CRLBResult, posterior_crlb
 from obsplan.estimation.columns import COL_AXES
 from obsplan.estimation.config import EstimationConfig
@@ -478,19 +479,9 @@ class ClosedLoop:
             if name == nav:
                 continue
             f = s.filters[name]
-            states = [f.start(*st) for st in starts]
+            batch = RunBatch(ctx, [f.start(*st) for st in starts], io.Y, (io.ce, io.cr))
             ex = np.zeros((2, Nr, 2 * n)) if io.ex_run >= 0 else None
-            f.run(
-                ctx,
-                states,
-                io.Y,
-                truth_rec,
-                s.sums[name],
-                s.info[name],
-                io.ex_run,
-                ex,
-                corrections=(io.ce, io.cr),
-            )
+            f.run(batch, RunRecord(truth_rec, s.sums[name], s.info[name], io.ex_run, ex))
             if ex is not None:
                 s.hist[name] = ex
         if io.ex_run >= 0:

@@ -33,6 +33,7 @@ from tqdm import tqdm
 
 from obsplan.core.errors import ConfigError
 from obsplan.estimation import jitcache
+from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.bounds.crlb import posterior_crlb
 from obsplan.estimation.columns import TM_ACCEL
 from obsplan.estimation.config import EstimationConfig
@@ -130,8 +131,9 @@ def monte_carlo(
 
     Examples
     --------
-    >>> from obsplan import EstimationConfig, generators, make_model, monte_carlo
-    >>> traj = generators.circle(30.0, 1.5, 20.0, 0.1)
+    >>> from obsplan import EstimationConfig, make_model, monte_carlo
+    >>> from obsplan.trajectory import generators
+    >>> traj = generators.circle(30.0, 1.5, 20.0).sample(0.1)
     >>> cfg = EstimationConfig.paper(make_model(2, "range"), 0.1)
     >>> res = monte_carlo(traj, cfg, runs=4, seed=0, filters=("ekf",))
     >>> res.runs, "ekf" in res.to_dict()
@@ -307,9 +309,9 @@ def _run_batch(job: PathSetup, chunk, run_start: int, draws: list[tuple[RunDraws
     sl = slice(chunk.start - run_start, chunk.stop - run_start)
     Nr = job.records.size
     for name, f in job.filters.items():
-        states = [f.start(*st) for st in starts]
+        batch = RunBatch(job.ctx, [f.start(*st) for st in starts], Y)
         ex = np.zeros((2, Nr, 2 * n)) if ex_run >= 0 else None
-        f.run(job.ctx, states, Y, truth_rec, job.sums[name], job.info[name][sl], ex_run, ex)
+        f.run(batch, RunRecord(truth_rec, job.sums[name], job.info[name][sl], ex_run, ex))
         if ex is not None:
             job.hist[name] = ex
     if ex_run >= 0:

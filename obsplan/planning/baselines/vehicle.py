@@ -22,7 +22,8 @@ of piecewise-constant inputs that respect the acceleration and speed limits:
 Every baseline must satisfy the problem's limits on the continuous path
 (:func:`~obsplan.planning.problem.feasibility.check_limits`: area, depth, distance to the beacon,
 speed through the water). The lawn-mower tries its leg directions and, when a leg or turn would pass
-inside ``limits.min_range``, slightly slower cruise speeds (which shift its legs) until one fits.
+inside ``limits.min_range``, slightly slower cruise speeds (which shift its legs) until one fits
+(``Tuning.lawnmower_speed_step``, ``Tuning.lawnmower_speed_tries``).
 A baseline that cannot be built for a problem (e.g. a start velocity not tangent to the circle)
 is not silently dropped: :func:`unfitted_baselines` gives the reason, and reports show it.
 """
@@ -31,7 +32,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 
@@ -42,15 +42,9 @@ from obsplan.planning.missions.schedule import planner_schedule
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.feasibility import check_limits, range_extremes
 from obsplan.planning.problem.sections import Area
+from obsplan.planning.tuning import cache_per_tuning, tuning
 from obsplan.trajectory import generators
 from obsplan.trajectory.sampled import Trajectory
-
-#: Cruise-speed factors the lawn-mower tries (fastest first) when a leg passes too close to the
-#: beacon: each changes the leg spacing 2 v² / a and so where the legs lie.
-_SPEED_FACTORS = tuple(1.0 - 0.03 * i for i in range(11))
-#: The paper's lawn-mower is a baseline only if its time-scaled version fits in this many
-#: samples per planning sample (at tiny limits it would take ages to fly and to build).
-_PAPER_MAX_OVERSAMPLING = 50
 
 #: Velocity mismatch [m/s] below which two start velocities are "the same".
 _START_TOL = 1e-6
@@ -103,9 +97,12 @@ def lawnmower_baseline(pb: PlanningProblem) -> Baseline:
     # (legs along the velocity may not fit: a diagonal pattern leaves a box by its corners)
     first = 0.0 if area.x[1] - p0[0] >= p0[0] - area.x[0] else math.pi
     axes = [first, math.pi - first, 0.5 * math.pi, -0.5 * math.pi]
-    tries = [(f, h) for f in _SPEED_FACTORS for h in axes]
+    tun = tuning()
+    # cruise-speed factors, fastest first: each changes the leg spacing 2 v² / a
+    factors = tuple(1.0 - tun.lawnmower_speed_step * i for i in range(tun.lawnmower_speed_tries))
+    tries = [(f, h) for f in factors for h in axes]
     if s0 > 0:
-        tries = [(f, math.atan2(v0[1], v0[0])) for f in _SPEED_FACTORS] + tries
+        tries = [(f, math.atan2(v0[1], v0[0])) for f in factors] + tries
     last: str = ""
     for factor, heading in tries:
         try:
@@ -170,7 +167,7 @@ def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -
         raise BaselineUnfit("no room to fly a leg from the start inside the area")
     a = min(a, math.pi * speed / (4.0 * h))
     radius = speed**2 / a
-    # chord inputs fly a turn up to radius (w h)^2 / 6 outside the arc (generators docstring):
+    # chord inputs fly a turn up to radius (w h)^2 / 6 outside the arc (analytic.py docstring):
     # keep that margin inside the area
     margin = 1.5 * radius * (speed / radius * pb.horizon.dt) ** 2 / 6.0
     turn_time = math.pi * radius / speed
@@ -187,13 +184,12 @@ def _lawnmower(pb: PlanningProblem, area: Area, heading: float, factor: float) -
             speed,
             a,
             pb.horizon.duration,
-            pb.horizon.dt,
             heading=heading,
             first_turn=first_turn,  # type: ignore[arg-type]
             z=float(pb.p0[2]) if pb.dim == 3 else None,
             z_speed=0.0,
             initial_velocity=v0[:2],
-        )
+        ).sample(pb.horizon.dt)
     except ConfigError as exc:
         where = "limits.area" if pb.limits.area is not None else "the default coverage area"
         raise BaselineUnfit(
@@ -318,7 +314,8 @@ def straight_baseline(pb: PlanningProblem) -> Baseline:
         s += acc[k] * h
     if s0 == 0 and not np.any(acc):
         acc[0] = min(a_line, 1e-3)
-    traj = _check_grid(generators.straight(pb.p0, e, s0, accel=acc, duration=T, dt=h), pb, "x")
+    line = generators.straight(pb.p0, e, s0, accel=acc, duration=T)  # acc: one per step
+    traj = _check_grid(line.sample(h), pb, "x")
     if not check_limits(traj, pb).ok():
         raise BaselineUnfit(f"straight: {_violation_words(traj, pb)}")
     desc = f"straight line, cruise {v:.3g} m/s"
@@ -334,12 +331,13 @@ def paper_lawnmower_baseline(pb: PlanningProblem) -> Baseline:
         When the start velocity does not match or the scaled path breaks a limit.
     """
     h = pb.horizon.dt
-    coarse = generators.paper_lawnmower(pb.dim, dt=0.5)
+    path = generators.paper_lawnmower(pb.dim)
+    coarse = path.sample(0.5)
     s_est = max(
         float(np.max(np.linalg.norm(coarse.v, axis=1))) / pb.limits.speed,
         math.sqrt(float(np.max(np.abs(coarse.u[:-1]) / pb.accel))),
     )
-    if s_est * coarse.t[-1] / h > _PAPER_MAX_OVERSAMPLING * pb.horizon.steps:
+    if s_est * coarse.t[-1] / h > tuning().paper_max_oversampling * pb.horizon.steps:
         raise BaselineUnfit(
             f"paper-lawnmower: at these limits the paper's pattern takes {s_est * coarse.t[-1]:.3g}"
             f" s to fly, {s_est * coarse.t[-1] / pb.horizon.duration:.3g} times the horizon"
@@ -348,7 +346,7 @@ def paper_lawnmower_baseline(pb: PlanningProblem) -> Baseline:
     # t -> s t divides speeds by s and accelerations by s^2; the chord inputs depend on the
     # sampling step h / s, so iterate to the fixed point (converges in a few steps)
     for _ in range(30):
-        ref = generators.paper_lawnmower(pb.dim, dt=h / s)
+        ref = path.sample(h / s)
         speed = float(np.max(np.linalg.norm(ref.v, axis=1)))
         accel = float(np.max(np.abs(ref.u[:-1]) / pb.accel))
         # a hair above the fixed point, so that round-off keeps the path inside the limits
@@ -356,7 +354,7 @@ def paper_lawnmower_baseline(pb: PlanningProblem) -> Baseline:
         if abs(s_new - s) <= 1e-12 * s:
             break
         s = s_new
-    ref = generators.paper_lawnmower(pb.dim, dt=h / s)
+    ref = path.sample(h / s)
     v_start = ref.v[0] / s
     if np.linalg.norm(v_start - pb.v0) > _START_TOL:
         raise BaselineUnfit(
@@ -391,7 +389,9 @@ def _mission_baseline(pb: PlanningProblem, accelerated: bool, planner: bool = Fa
     if planner:
         name += "+lead-in"
     try:
-        traj, desc = (planner_lawnmower if planner else mission_lawnmower)(pb, accelerated)
+        traj, desc = (planner_lawnmower if planner else mission_lawnmower)(
+            pb.mission_context, accelerated
+        )
     except ProblemError as exc:
         raise BaselineUnfit(f"{name}: {exc}") from None
     if not check_limits(traj, pb).ok():
@@ -433,7 +433,7 @@ def _all_mission(pb: PlanningProblem) -> tuple[dict[str, Baseline], dict[str, st
     return fitted, unfit
 
 
-@cache
+@cache_per_tuning
 def _all(pb: PlanningProblem) -> tuple[dict[str, Baseline], dict[str, str]]:
     if pb.mission is not None:
         return _all_mission(pb)

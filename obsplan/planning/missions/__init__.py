@@ -5,5 +5,6 @@ schedule flown on the planning grid (:mod:`~.lawnmower`).
 
 Mission functions take what they use, a :class:`~obsplan.planning.missions.spec.MissionContext`
 (the mission, the start, the limits and the horizon), never a whole problem: the problem, one
-floor up, holds a mission. Imports the model, the trajectory stage and the core only.
+floor up, holds a mission. Imports the model, the trajectory stage, the core and the planning
+stage's floor (:mod:`obsplan.planning.tuning`) only.
 """

@@ -1,13 +1,13 @@
 """Independent check that a path completes its problem's mission, on the continuous path.
 
 Numpy only, and independent of the planner's constraints: the path (piecewise-constant inputs,
-exact quadratics between samples) is evaluated at ``SUBSAMPLES`` points per interval. For each
+exact quadratics between samples) is evaluated at ``check_subsamples`` points per interval. For each
 survey line (in the order flown: ``mission.lines``, which ``order = "free"`` may have
 reordered and reversed) the *pass* is the stretch of the path from the last time it is at or
 before the line's start (along the line) to the first time after it reaches the line's end;
 over the part of the pass between the two ends:
 
-* ``coverage``: the fraction of the line's length (``COVERAGE_BINS`` stations) passed within
+* ``coverage``: the fraction of the line's length (``coverage_bins`` stations) passed within
   the cross-track tolerance;
 * ``max_cross_track_m``: the largest distance from the line;
 * ``max_heading_err_deg``: the largest angle between the velocity and the line's direction;
@@ -20,6 +20,9 @@ A line is complete when its coverage is 1 and the three errors are within ``miss
 Waypoints are complete when passed in order within
 ``mission.radius`` (inside their windows, if any), the end region when ``|p(T) - position| <=
 radius`` (and ``|v(T)| <= speed``).
+
+``check_subsamples``, ``coverage_bins`` and the tolerances' relative slack ``check_rtol`` are
+:class:`~obsplan.planning.tuning.Tuning`'s, read at call time.
 """
 
 from __future__ import annotations
@@ -30,14 +33,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from obsplan.planning.missions.spec import MissionContext, Seabed
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
-
-#: Evaluation points per interval of the path.
-SUBSAMPLES = 16
-#: Stations along each line for its coverage.
-COVERAGE_BINS = 1000
-#: Relative slack of the tolerances (round-off of the solver's constraints).
-RTOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -123,9 +120,11 @@ class MissionCheck:
 
 
 def _dense(traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Times, positions and velocities at ``SUBSAMPLES`` points per interval (and the end)."""
+    """Times, positions and velocities at ``check_subsamples`` points per interval (and the
+    end)."""
     h = np.diff(traj.t)
-    sig = np.arange(SUBSAMPLES) / SUBSAMPLES
+    subsamples = tuning().check_subsamples
+    sig = np.arange(subsamples) / subsamples
     s = h[:, None] * sig[None, :]  # (K, S)
     t = (traj.t[:-1, None] + s).reshape(-1)
     p = traj.p[:-1, None, :] + traj.v[:-1, None, :] * s[..., None]
@@ -151,6 +150,8 @@ def _line(
     """The check of the line ``a -> b`` on the dense path from index ``first`` (``band``: the
     seabed and the altitude band)."""
     m_tol, h_tol, (lo, hi) = tol
+    tun = tuning()
+    rtol = tun.check_rtol
     length = float(np.linalg.norm(b - a))
     e = (b - a) / length
     r = p[first:] - a
@@ -166,18 +167,18 @@ def _line(
     ia = int(before[-1]) if before.size else 0
     seg = slice(ia, ib + 1)
     ss, cc, vv = s[seg], c[seg], v[first:][seg]
-    ok = cc <= m_tol * (1 + RTOL) + 1e-9
+    ok = cc <= m_tol * (1 + rtol) + 1e-9
     alt = None
     if band is not None:
         seabed, (alt_lo, alt_hi) = band
         pp = p[first:][seg]
         alt = seabed.depth_at(pp[:, :2]) - pp[:, 2]
-        ok &= (alt >= alt_lo * (1 - RTOL) - 1e-9) & (alt <= alt_hi * (1 + RTOL) + 1e-9)
+        ok &= (alt >= alt_lo * (1 - rtol) - 1e-9) & (alt <= alt_hi * (1 + rtol) + 1e-9)
     # stations passed within tolerance: every step between two samples within tolerance
     # covers the stations between them
-    edges = np.linspace(0.0, length, COVERAGE_BINS + 1)
+    edges = np.linspace(0.0, length, tun.coverage_bins + 1)
     centres = 0.5 * (edges[:-1] + edges[1:])
-    cover = np.zeros(COVERAGE_BINS + 1, int)
+    cover = np.zeros(tun.coverage_bins + 1, int)
     both = ok[:-1] & ok[1:]
     lo_s = np.minimum(ss[:-1], ss[1:])[both]
     hi_s = np.maximum(ss[:-1], ss[1:])[both]
@@ -203,10 +204,10 @@ def _line(
     done = (
         coverage >= 1.0
         and reached.size > 0
-        and check.max_cross_track_m <= m_tol * (1 + RTOL) + 1e-9
-        and check.max_heading_err_deg <= h_tol * (1 + RTOL) + 1e-9
-        and check.speed_range_mps[0] >= lo * (1 - RTOL)
-        and check.speed_range_mps[1] <= hi * (1 + RTOL)
+        and check.max_cross_track_m <= m_tol * (1 + rtol) + 1e-9
+        and check.max_heading_err_deg <= h_tol * (1 + rtol) + 1e-9
+        and check.speed_range_mps[0] >= lo * (1 - rtol)
+        and check.speed_range_mps[1] <= hi * (1 + rtol)
         and (alt is None or bool(np.all(ok[on])))
     )
     return LineCheck(**{**check.__dict__, "complete": bool(done)}), first + ib
@@ -219,6 +220,7 @@ def mission_check(traj: Trajectory, ctx: MissionContext) -> MissionCheck | None:
         return None
     t, p, v = _dense(traj)
     n = ctx.dim
+    rtol = tuning().check_rtol
     lines: list[LineCheck] = []
     last_t = 0.0
     first = 0
@@ -241,16 +243,16 @@ def mission_check(traj: Trajectory, ctx: MissionContext) -> MissionCheck | None:
             points.append(PointCheck(math.inf, math.nan, None, False))
             continue
         j = int(np.flatnonzero(allowed)[np.argmin(d[allowed])])
-        points.append(PointCheck(float(d[j]), float(t[j]), None, d[j] <= m.radius * (1 + RTOL)))
+        points.append(PointCheck(float(d[j]), float(t[j]), None, d[j] <= m.radius * (1 + rtol)))
         first, last_t = j, float(t[j])
     end = None
     if m.end is not None:
         goal = np.asarray(m.end.position, float)
         d = np.linalg.norm(p - goal, axis=1)
         speed = float(np.linalg.norm(v[-1]))
-        ok = d[-1] <= m.end.radius * (1 + RTOL)
+        ok = d[-1] <= m.end.radius * (1 + rtol)
         if m.end.speed is not None:
-            ok = ok and speed <= m.end.speed * (1 + RTOL) + 1e-9
+            ok = ok and speed <= m.end.speed * (1 + rtol) + 1e-9
         outside = np.flatnonzero(d > m.end.radius)
         arrive = float(t[outside[-1] + 1]) if outside.size and outside[-1] + 1 < t.size else 0.0
         end = PointCheck(float(d[-1]), arrive if ok else float(t[-1]), speed, bool(ok))

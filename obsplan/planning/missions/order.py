@@ -4,18 +4,18 @@ A surveyor's freedom is the order and the direction of the lines; what the plann
 it is time. The horizon is fixed, so every second the transits between lines do not need is
 speed headroom left to the planner on the lines (:mod:`obsplan.planning.missions.schedule`: the
 lawn-mower's constant speed ``v_c`` is the slowest that ends within the horizon). The free
-order is the one that lets the schedule fly slowest, found on a grid of ``SPEEDS`` speeds across
-the band ``mission.speed``, slowest first: at each speed ``s`` the order of the shortest transit
-path (from the start pose, along the schedule's bounded-curvature Dubins transits at ``s``, turn
-radius ``s² / a_turn`` and run-in and run-out ``lead`` as the schedule's, to every line's run-in
-point in turn, each line flown whole in the direction chosen, then straight to the end region
+order is the one that lets the schedule fly slowest, found on a grid of ``order_speeds`` speeds
+across the band ``mission.speed``, slowest first: at each speed ``s`` the order of the shortest
+transit path (from the start pose, along the schedule's bounded-curvature Dubins transits at ``s``,
+turn radius ``s² / a_turn`` and run-in and run-out ``lead`` as the schedule's, to every line's
+run-in point in turn, each line flown whole in the direction chosen, then straight to the end region
 if any); the first of these orders whose schedule at ``s`` ends within the horizon is kept
-(``mission_schedule`` then refines ``v_c`` for it). The speed matters: with turns wider than
-the line spacing the shortest path skips a line and comes back, with tight turns it takes the
-next. When no speed fits, the order of the shortest mission is kept (and the fit check refuses
-it with the shortest horizon).
+(``mission_schedule`` then refines ``v_c`` for it). The speed matters: with turns wider than the
+line spacing the shortest path skips a line and comes back, with tight turns it takes the next. When
+no speed fits, the order of the shortest mission is kept (and the fit check refuses it with the
+shortest horizon).
 
-* Up to ``EXACT_LINES`` lines the order is exact: dynamic programming over the subsets of lines
+* Up to ``exact_lines`` lines the order is exact: dynamic programming over the subsets of lines
   flown (Held–Karp) on precomputed transit lengths.
 * Beyond, the greedy nearest next line and direction, improved by reversing runs of the order
   (2-opt, each run's lines reversed too) while that shortens the path.
@@ -26,6 +26,9 @@ its lines in the flown order resolves to the same order. The lawn-mower baseline
 order, so the comparison stays like for like. The observability objective does not choose the
 order: it chooses the speed, the turns and the manoeuvres between lines in the windows the
 order leaves.
+
+``order_speeds`` and ``exact_lines`` are :class:`~obsplan.planning.tuning.Tuning`'s, read at call
+time (the order is resolved when the problem is built).
 """
 
 from __future__ import annotations
@@ -35,16 +38,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from obsplan.planning.missions.schedule import ACCEL_USE, LEAD_STEPS, build_schedule, dubins
+from obsplan.planning.missions.schedule import build_schedule, dubins
 from obsplan.planning.missions.spec import Mission, MissionContext
+from obsplan.planning.tuning import tuning
 
-#: Lines up to which the order is exact (dynamic programming over subsets).
-EXACT_LINES = 10
 #: Most lines a free order is searched for (its transit table grows as the square of the lines,
 #: on every speed of the search); more are refused before any work.
 MAX_FREE_LINES = 60
-#: Speeds across the band at which the order is searched (slowest first).
-SPEEDS = 13
 #: Relative tolerance under which two path lengths are a tie (round-off of the Dubins lengths).
 _TIE = 1e-9
 
@@ -69,8 +69,9 @@ def _costs(ctx: MissionContext, segs: list[tuple[np.ndarray, np.ndarray]], speed
     oriented lines, and from each oriented line to the end region (0 without one)."""
     m = ctx.mission
     assert m is not None
-    r = speed * speed / (ACCEL_USE * float(np.min(ctx.accel)))
-    lead = LEAD_STEPS * speed * ctx.dt
+    tun = tuning()
+    r = speed * speed / (tun.accel_use * float(np.min(ctx.accel)))
+    lead = tun.lead_steps * speed * ctx.dt
     runin, exit_ = _poses(segs, lead)
     k = len(runin)
     p0 = ctx.p0[:2].astype(float)
@@ -205,9 +206,10 @@ def free_order(ctx: MissionContext) -> Mission:
     k = len(segs)
     lo, hi = m.speed_band(ctx.speed_limit)
     fallback: tuple[float, Mission] | None = None
-    for s in np.linspace(lo, hi, SPEEDS):
+    tun = tuning()
+    for s in np.linspace(lo, hi, tun.order_speeds):
         first, between, last = _costs(ctx, segs, float(s))
-        seq = (_exact if k <= EXACT_LINES else _greedy)(first, between, last, k)
+        seq = (_exact if k <= tun.exact_lines else _greedy)(first, between, last, k)
         cand = _flown(m, canon, swapped, segs, seq)
         end = build_schedule(ctx, float(s), mission=cand).end_s
         if end <= ctx.duration:

@@ -3,11 +3,11 @@ shortest horizon a mission needs, and the planner's (:func:`planner_schedule`: t
 flown faster after a lead-in at the start), which fixes the planner's line windows.
 
 The schedule flies the whole mission at one horizontal speed ``v_c``: from the start it speeds
-up (or slows down) along its heading at ``ACCEL_USE`` of the acceleration bound to ``v_c``, then
+up (or slows down) along its heading at ``accel_use`` of the acceleration bound to ``v_c``, then
 for each survey line it flies the shortest path of bounded curvature (a Dubins path, turns of
-radius ``v_c² / a_turn`` with ``a_turn = ACCEL_USE * min(limits.accel)``: the tightest turns the
+radius ``v_c² / a_turn`` with ``a_turn = accel_use * min(limits.accel)``: the tightest turns the
 limits allow, less a margin for the discrete inputs) to a run-in point ``lead`` before the line's
-start, then the line with a run-in and a run-out of ``lead = LEAD_STEPS * v_c * h`` (so that the
+start, then the line with a run-in and a run-out of ``lead = lead_steps * v_c * h`` (so that the
 planning nodes just before the line's start and just after its end lie on the line's track).
 Waypoints are passed the same way, each on a short straight of ``2 lead`` along the leg that
 reaches it. After the mission (or at the end region, approached along the line from the last
@@ -23,28 +23,22 @@ that would (at the band speed of the shortest mission).
 The sinusoidally accelerated variant (the paper's remedy) flies each line at
 ``v_c + A sin(2 π k σ)`` (``σ`` the fraction of the line's time, ``k`` whole cycles), so that it
 covers the line in the same time: both lawn-mowers share the windows.
+
+The knobs (``accel_use``, ``lead_steps``, the sinusoid's, the speed search's and the lead-in's)
+are :class:`~obsplan.planning.tuning.Tuning`'s, read at call time; the cached schedules are cached
+per tuning.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 
 from obsplan.core.errors import field_error
 from obsplan.planning.missions.spec import Mission, MissionContext
-
-#: Fraction of the acceleration bound the schedule's turns and speed changes use (the rest is
-#: the margin of the piecewise-constant inputs that fly it on the planning grid).
-ACCEL_USE = 0.85
-#: Run-in and run-out of each line, in planning steps at the line speed.
-LEAD_STEPS = 1.5
-#: Cycles of the accelerated lawn-mower's speed sinusoid per line (at most).
-ACCEL_CYCLES = 2
-#: Fraction of the speed headroom the accelerated lawn-mower's sinusoid uses.
-ACCEL_AMPLITUDE = 0.9
+from obsplan.planning.tuning import cache_per_tuning, tuning
 
 
 @dataclass(frozen=True, eq=False)
@@ -348,9 +342,10 @@ def build_schedule(
     m = ctx.mission if mission is None else mission
     assert m is not None
     n = ctx.dim
-    a = ACCEL_USE * float(np.min(ctx.accel))
+    tun = tuning()
+    a = tun.accel_use * float(np.min(ctx.accel))
     r = v * v / a
-    lead = LEAD_STEPS * v * ctx.dt
+    lead = tun.lead_steps * v * ctx.dt
     lo, hi = m.speed_band(ctx.speed_limit)
     targets = _targets(ctx, m, lead)
     p = ctx.p0.astype(float).copy()
@@ -403,10 +398,11 @@ def build_schedule(
 
 def _sinusoid(v: float, lo: float, hi: float, a: float, line_t: float) -> tuple[float, int]:
     """Amplitude [m/s] and cycles of the accelerated lawn-mower's speed on one line."""
-    room = ACCEL_AMPLITUDE * min(hi - v, v - lo)
+    tun = tuning()
+    room = tun.accel_amplitude * min(hi - v, v - lo)
     if room <= 0 or line_t <= 0:
         return 0.0, 0
-    cycles = ACCEL_CYCLES
+    cycles = tun.accel_cycles
     amp = min(room, a * line_t / (2 * math.pi * cycles))
     return amp, cycles
 
@@ -439,10 +435,6 @@ def _finish(ctx, pieces, t, p, th, v, a, r):
     return pieces, t
 
 
-#: Speeds tried (fractions of the band from hi down to lo) before the bisection.
-_SPEED_GRID = 24
-
-
 def _slowest_fit(
     ctx: MissionContext, delay: float | None = None
 ) -> tuple[float | None, float, float]:
@@ -452,7 +444,7 @@ def _slowest_fit(
     assert m is not None
     lo, hi = m.speed_band(ctx.speed_limit)
     T = ctx.duration
-    speeds = [float(x) for x in np.linspace(lo, hi, _SPEED_GRID + 1)]
+    speeds = [float(x) for x in np.linspace(lo, hi, tuning().speed_grid + 1)]
     ends = [build_schedule(ctx, s, delay=delay).end_s for s in speeds]
     best = int(np.argmin(ends))
     fits = [i for i, e in enumerate(ends) if e <= T]
@@ -471,13 +463,13 @@ def _slowest_fit(
     return fit, speeds[best], ends[best]
 
 
-@cache
+@cache_per_tuning
 def mission_schedule(ctx: MissionContext) -> MissionSchedule:
     """The schedule at the slowest band speed that ends within the horizon (module docstring).
 
     The mission time is not monotonic in the speed (faster lines, wider turns), so
-    ``_SPEED_GRID + 1`` speeds across the band are tried; the slowest that fits is refined by
-    bisection towards the next slower one.
+    ``Tuning.speed_grid + 1`` speeds across the band are tried; the slowest that fits is refined
+    by bisection towards the next slower one.
 
     Raises
     ------
@@ -496,11 +488,6 @@ def mission_schedule(ctx: MissionContext) -> MissionSchedule:
             f"{math.ceil(end)} s, a wider mission.speed, or fewer lines",
         )
     return build_schedule(ctx, fit)
-
-
-#: ``mission.lead_in = "auto"``: the lines are scheduled for the planner at the speed this far
-#: from the lawn-mower's up to the top of the band, and the time saved is the lead-in.
-LEAD_IN_SPEED_SHARE = 0.5
 
 
 def lead_in_seconds(ctx: MissionContext) -> float:
@@ -537,14 +524,14 @@ def lead_in_seconds(ctx: MissionContext) -> float:
     if base.headroom <= 0:
         return 0.0
     _, hi = m.speed_band(ctx.speed_limit)
-    v = base.speed + LEAD_IN_SPEED_SHARE * (hi - base.speed)
+    v = base.speed + tuning().lead_in_speed_share * (hi - base.speed)
     slack = ctx.duration - build_schedule(ctx, v, delay=0.0).end_s
     # whole planning steps: the windows then fall on the nodes as the schedule's do
     h = ctx.dt
     return max(0.0, math.floor(slack / h) * h)
 
 
-@cache
+@cache_per_tuning
 def planner_schedule(ctx: MissionContext) -> MissionSchedule:
     """The schedule whose line windows the planner flies: the lawn-mower's
     (:func:`mission_schedule`) delayed by the lead-in (``mission.lead_in``), the lines at the

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from functools import cache
 
 import casadi as ca
 import numpy as np
@@ -44,6 +43,7 @@ from obsplan.planning.problem.validation_setup import estimation_config, filter_
 from obsplan.planning.transcription.blocks import NLPContext, Objective, ObjectiveTerm
 from obsplan.planning.transcription.grid import Grid, apply_operator
 from obsplan.planning.transcription.guesses import reference_path
+from obsplan.planning.tuning import cache_per_tuning
 from obsplan.trajectory.sampled import Trajectory
 
 
@@ -343,7 +343,7 @@ def _kf_range_rows(pb: PlanningProblem, s: np.ndarray, sigma: float, extra: floa
     return rows
 
 
-@cache
+@cache_per_tuning
 def covariance_objective(pb: PlanningProblem, kind: str | None = None) -> CovarianceObjective:
     """The :class:`CovarianceObjective` of ``kind`` (default: the problem's objective), built
     once per problem (its CasADi functions are shared by the planner, the metrics and the
@@ -362,7 +362,7 @@ def covariance_stds(traj: Trajectory, pb: PlanningProblem, kind: str) -> tuple[f
     return covariance_objective(pb, kind).evaluate(grid, grid.from_trajectory(traj))
 
 
-@cache
+@cache_per_tuning
 def _reference_stds(pb: PlanningProblem, kind: str) -> tuple:
     """``(mission-average, final, lines)`` std [m] on the reference path (lines: None without)."""
     grid = Grid.from_problem(pb)
@@ -411,7 +411,7 @@ def pcrb_problem(pb: PlanningProblem) -> PlanningProblem:
     return replace(pb, objective=obj)
 
 
-@cache
+@cache_per_tuning
 def _reference_timed(pb: PlanningProblem, kind: str) -> float:
     """The ``kind`` recursion on the reference path in the problem's time mode (> 0)."""
     ref = _reference_stds(pb, kind)

@@ -37,11 +37,11 @@ of every sensor, so the bound costs most with a 10 Hz DVL (``range-dvl3d.toml``:
 ``b`` is evaluated on the posterior CRB's recursion (:func:`~obsplan.planning.
 estimator_objectives.pcrb_objective`: the validation's prior, process noise, rates and noises,
 what the EKF's covariance follows on a nominal run) at every range epoch after the first. The
-penalty is ``PENALTY Σ_j max(0, b_j / (κ σ_r) - 1)²``: one scalar, whose gradient is one reverse
-sweep of the recursion (a constraint per epoch needs the recursion's dense Jacobian: the first
-trial took minutes to build where the penalty adds nothing measurable), and elastic where the
-bound cannot hold (a start close to the beacon with a wide prior is above it before the
-vehicle can move).
+penalty is ``c Σ_j max(0, b_j / (κ σ_r) - 1)²`` (``c``: ``Tuning.linearisation_penalty``): one
+scalar, whose gradient is one reverse sweep of the recursion (a constraint per epoch needs the
+recursion's dense Jacobian: the first trial took minutes to build where the penalty adds nothing
+measurable), and elastic where the bound cannot hold (a start close to the beacon with a wide prior
+is above it before the vehicle can move).
 """
 
 from __future__ import annotations
@@ -54,13 +54,8 @@ from obsplan.planning.objectives.estimator import covariance_objective
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.transcription.blocks import FormulationPart
 from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
-
-#: Cost, in the units of the normalised objective (order 1 on the lawn-mower), of an excess of
-#: the whole bound (``b = 2 κ σ_r``) at one range epoch: the unbounded offset-beacon plan above
-#: exceeded the bound at 25 epochs (a penalty of ~20, the objective's whole range being ~1), and
-#: bounded it ended at ``1.00 κ`` with a log det 0.1 % lower.
-PENALTY = 1.0
 
 
 def _stress_function(n: int, m: int) -> ca.Function:
@@ -97,11 +92,13 @@ def linearisation_stress(traj: Trajectory, pb: PlanningProblem) -> np.ndarray:
 
 
 def penalty_expr(pb: PlanningProblem, grid: Grid, W, bound: float):
-    """``PENALTY Σ_j max(0, b_j / (bound σ_r) - 1)²`` on the path ``W`` (CasADi or float)."""
+    """``c Σ_j max(0, b_j / (bound σ_r) - 1)²`` on the path ``W`` (CasADi or float; ``c`` the
+    cost of an excess of the whole bound at one range epoch, ``Tuning.linearisation_penalty``)."""
     x = stress_expr(pb, grid, W) / bound - 1.0
+    penalty = tuning().linearisation_penalty
     if isinstance(W, np.ndarray):
-        return PENALTY * float(np.sum(np.maximum(x, 0.0) ** 2))
-    return PENALTY * ca.sumsqr(ca.fmax(x, 0.0))
+        return penalty * float(np.sum(np.maximum(x, 0.0) ** 2))
+    return penalty * ca.sumsqr(ca.fmax(x, 0.0))
 
 
 def linearisation_part(pb: PlanningProblem, grid: Grid, W: ca.MX) -> FormulationPart | None:

@@ -58,14 +58,8 @@ from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.validation_setup import estimation_config
 from obsplan.planning.transcription.blocks import NLPContext, Objective, ObjectiveTerm
 from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
-
-#: Temperature of the soft minimum over nodes of the LWO conditioning: within log(N + 1) / β of
-#: the true minimum (0.35 at N = 1000), while the objective stays separable over the nodes.
-LWO_BETA = 20.0
-#: Ridge added to the normalised LWO Gram matrix before its pivots are logged: keeps log finite
-#: at rank-deficient nodes (their conditioning reads ~1e-9^(1/m) instead of 0).
-LWO_RIDGE = 1e-9
 
 
 def _at_beacon(pb: PlanningProblem, range_form: RangeForm | None = None) -> VehicleModel:
@@ -79,10 +73,11 @@ def _at_beacon(pb: PlanningProblem, range_form: RangeForm | None = None) -> Vehi
 def lwo_node_function(pb: PlanningProblem) -> ca.Function:
     """``g(x, u)``: conditioning of the LWO matrix at one node, in the metric scales.
 
-    ``g = det(M̃)^(1/m)`` with ``M̃ = OᵀO / (tr(OᵀO)/m) + LWO_RIDGE I``: the ratio of the geometric
-    to the arithmetic mean of the eigenvalues of ``OᵀO`` (``O`` of eq. 9 with the input held),
-    1 for a perfectly conditioned node and 0 for a rank-deficient one. The determinant comes
-    from an unpivoted Cholesky factor (``M̃`` is positive definite), so ``g`` is smooth.
+    ``g = det(M̃)^(1/m)`` with ``M̃ = OᵀO / (tr(OᵀO)/m) + ridge I`` (``Tuning.lwo_ridge``): the
+    ratio of the geometric to the arithmetic mean of the eigenvalues of ``OᵀO`` (``O`` of eq. 9 with
+    the input held), 1 for a perfectly conditioned node and 0 for a rank-deficient one. The
+    determinant comes from an unpivoted Cholesky factor (``M̃`` is positive definite), so ``g`` is
+    smooth.
     """
     nd = _at_beacon(pb)
     O = lwo_matrix_function(nd, 0)
@@ -91,7 +86,7 @@ def lwo_node_function(pb: PlanningProblem) -> ca.Function:
     Ox = O(x, u)
     M = Ox.T @ Ox
     m = nd.state_dim
-    _, logdet = window_criteria_function(m)(M / (ca.trace(M) / m), LWO_RIDGE)
+    _, logdet = window_criteria_function(m)(M / (ca.trace(M) / m), tuning().lwo_ridge)
     return ca.Function("lwo_condition", [x, u], [ca.exp(logdet / m)])
 
 
@@ -192,10 +187,12 @@ def lwo_conditions(grid: Grid, pb: PlanningProblem, W):
 
 
 def lwo_softmin(g) -> float:
-    """``-log(mean exp(-β g)) / β``, the soft minimum the scale-free form maximises."""
+    """``-log(mean exp(-β g)) / β``, the soft minimum the scale-free form maximises (``β``:
+    ``Tuning.lwo_beta``, within ``log(N + 1) / β`` of the true minimum)."""
+    beta = tuning().lwo_beta
     g = np.asarray(g, float).ravel()
     lo = float(g.min())  # shifted for a stable log-sum-exp
-    return lo - float(np.log(np.mean(np.exp(-LWO_BETA * (g - lo))))) / LWO_BETA
+    return lo - float(np.log(np.mean(np.exp(-beta * (g - lo))))) / beta
 
 
 def lwo_harmonic_mean(q) -> float:
@@ -238,10 +235,11 @@ def lwo_term(ctx: NLPContext) -> ObjectiveTerm:
         return ObjectiveTerm(
             f=ca.sum2(1.0 / g_nodes) / s_ref, to_objective=lambda fv: float(K / (fv * s_ref))
         )
-    s_ref = float(np.sum(np.exp(-LWO_BETA * g_ref)))
+    beta = tuning().lwo_beta
+    s_ref = float(np.sum(np.exp(-beta * g_ref)))
     return ObjectiveTerm(
-        f=ca.sum2(ca.exp(-LWO_BETA * g_nodes)) / s_ref,
-        to_objective=lambda fv: float(-np.log(fv * s_ref / K) / LWO_BETA),
+        f=ca.sum2(ca.exp(-beta * g_nodes)) / s_ref,
+        to_objective=lambda fv: float(-np.log(fv * s_ref / K) / beta),
     )
 
 

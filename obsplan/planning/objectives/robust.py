@@ -39,6 +39,7 @@ from obsplan.planning.transcription.blocks import (
 )
 from obsplan.planning.transcription.grid import Grid
 from obsplan.planning.transcription.guesses import reference_path
+from obsplan.planning.tuning import cache_per_tuning
 from obsplan.trajectory.sampled import Trajectory
 
 
@@ -74,7 +75,7 @@ def condition_problems(pb: PlanningProblem) -> tuple[PlanningProblem, ...]:
     return tuple(scaled_problem(pb, a, b) for a, b in conditions(pb))
 
 
-@cache
+@cache_per_tuning
 def _reference_values(pb: PlanningProblem) -> tuple[float, ...]:
     ref = reference_path(pb)
     return tuple(max(covariance_value(ref, c), 1e-12) for c in condition_problems(pb))

@@ -68,14 +68,11 @@ from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.validation_setup import estimation_config
 from obsplan.planning.transcription.blocks import Hessian, NLPContext, ObjectiveTerm
 from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
 
 #: The criterion of each windowed kind: which output of :func:`window_criteria` it aggregates.
 CRITERIA: dict[str, str] = {"gramian-min-eig": "trace-inverse", "gramian-log-det": "log-det"}
-#: Floor ``ε`` of every window Gramian, relative to the information of one window of unit
-#: excitation (a range at the length scale over the window): finite criteria at rank-deficient
-#: windows, far below the information of any window a vehicle can excite.
-FLOOR_REL = 1e-8
 #: IPOPT's quasi-Newton Hessian of each criterion. Every window couples all its intervals, so
 #: the exact Hessian is dense over a band of a window's width (its symbolic construction did not
 #: finish in 5 min at N = 200, 3D); lifting each window's Gramian with a Cholesky variable (as
@@ -121,10 +118,6 @@ START_RANGE_CRITERIA: frozenset[str] = frozenset({"log-det"})
 OPENING_CRITERIA: frozenset[tuple[str, str]] = frozenset(
     {("log-det", "augmented"), ("log-det", "linearised"), ("trace-inverse", "linearised")}
 )
-#: Fewest range samples an ``"auto"`` window spans.
-MIN_WINDOW_SAMPLES = 10.0
-#: ``"auto"`` stride: this fraction of the window.
-AUTO_STRIDE_FRACTION = 1.0 / 8.0
 
 
 def paper_form(pb: PlanningProblem) -> bool:
@@ -144,7 +137,7 @@ def velocity_noise_density(pb: PlanningProblem) -> float:
 
 def auto_window_s(pb: PlanningProblem) -> float:
     """``2 τ_f`` [s], ``τ_f = (3 σ_r² / q_v)^{1/3}`` (module docstring), at least
-    :data:`MIN_WINDOW_SAMPLES` range samples, at most the horizon.
+    ``Tuning.min_window_samples`` range samples, at most the horizon.
 
     Half of it (``τ_f``) was measured for ``gramian-min-eig`` on its 12 problems of
     ``problems/``, ``problems/suite/`` and ``benchmarks/unseen_problems.py`` seeds 5 and 36
@@ -155,7 +148,7 @@ def auto_window_s(pb: PlanningProblem) -> float:
     val = pb.validation
     q = velocity_noise_density(pb)
     tau_f = (3.0 * val.range_std**2 / q) ** (1.0 / 3.0) if q > 0 else np.inf
-    w = max(2.0 * tau_f, MIN_WINDOW_SAMPLES / val.range_rate)
+    w = max(2.0 * tau_f, tuning().min_window_samples / val.range_rate)
     return float(min(w, pb.horizon.duration))
 
 
@@ -198,7 +191,7 @@ def window_settings(pb: PlanningProblem) -> WindowSettings:
         w = auto_window_s(pb)
     else:
         w = min(float(obj.window), pb.horizon.duration)
-    stride = w * AUTO_STRIDE_FRACTION if obj.stride == "auto" else float(obj.stride)
+    stride = w * tuning().auto_stride_fraction if obj.stride == "auto" else float(obj.stride)
     w_steps = max(1, int(round(w / h)))
     s_steps = max(1, int(round(stride / h)))
     a, b = window_layout(N, w_steps, s_steps)
@@ -266,7 +259,8 @@ def local_weights(pb: PlanningProblem, ws: WindowSettings) -> np.ndarray:
 
 
 def window_floor(pb: PlanningProblem, ws: WindowSettings) -> float:
-    """``ε`` of every window Gramian (:data:`FLOOR_REL`), in the metric scales."""
+    """``ε`` of every window Gramian, in the metric scales: ``Tuning.window_floor_rel`` of the
+    information of one window of unit excitation (a range at the length scale over the window)."""
     L, T = pb.scales.length_m, pb.scales.time_s
     unit = 1.0
     if ws.weighted and ws.system == "linearised":
@@ -275,7 +269,7 @@ def window_floor(pb: PlanningProblem, ws: WindowSettings) -> float:
         info = sensor_information(pb)
         c_range, _ = row_weight_factors(augmented_model(pb.model), info, pb.scales)
         unit = c_range * float(range_information(L**2, info.range_std, info.start_range))
-    return FLOOR_REL * unit * ws.window_s / T
+    return tuning().window_floor_rel * unit * ws.window_s / T
 
 
 def _aggregate(values, anchor: str, mean):

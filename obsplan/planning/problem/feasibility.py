@@ -1,7 +1,8 @@
 """Independent (numpy-only) check that a path respects a problem's limits and dynamics.
 
 Used on every solver output and every baseline, and by the tests, without CasADi: the planner's
-constraints are verified here on the continuous path, not only at the nodes.
+constraints are verified here on the continuous path, not only at the nodes. The tolerances are
+``Tuning.limit_rtol`` and ``Tuning.consistency_tol``, read at call time.
 """
 
 from __future__ import annotations
@@ -11,14 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
-
-#: Relative tolerance on every limit (acceleration, speed, box) for "within limits": IPOPT
-#: satisfies bounds to ~1e-8 relative (bound_relax_factor, constraint tolerance), so 1e-6 flags
-#: only real violations.
-LIMIT_RTOL: float = 1e-6
-#: Dynamic consistency: one-step mismatch [m] and [m/s] (exact integration gives ~1e-12).
-CONSISTENCY_TOL: float = 1e-6
 
 
 @dataclass(frozen=True)
@@ -56,8 +51,13 @@ class LimitCheck:
     consistency_pos: float
     consistency_vel: float
 
-    def ok(self, rtol: float = LIMIT_RTOL, box_tol_m: float | None = None) -> bool:
-        """True when every limit holds to ``rtol`` and the samples are consistent."""
+    def ok(self, rtol: float | None = None, box_tol_m: float | None = None) -> bool:
+        """True when every limit holds to ``rtol`` (default ``Tuning.limit_rtol``; the
+        box and ranges to ``box_tol_m``, default ``100 rtol`` [m]) and the samples are
+        consistent (``Tuning.consistency_tol``)."""
+        tun = tuning()
+        if rtol is None:
+            rtol = tun.limit_rtol
         btol = rtol * 100.0 if box_tol_m is None else box_tol_m
         return (
             self.accel <= rtol
@@ -66,8 +66,8 @@ class LimitCheck:
             and self.range <= btol
             and self.water_speed <= rtol
             and self.start <= 1e-6
-            and self.consistency_pos <= CONSISTENCY_TOL
-            and self.consistency_vel <= CONSISTENCY_TOL
+            and self.consistency_pos <= tun.consistency_tol
+            and self.consistency_vel <= tun.consistency_tol
         )
 
     def to_dict(self) -> dict:

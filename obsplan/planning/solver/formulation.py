@@ -41,11 +41,9 @@ from obsplan.planning.transcription.blocks import (
 from obsplan.planning.transcription.grid import Grid, dynamics_residual, midpoints
 from obsplan.planning.transcription.guesses import reference_path
 from obsplan.planning.transcription.mission import mission_part
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
 
-#: Squared-speed floor [-] inside the smooth ``|v|`` of the range-limit margins (the margin is
-#: conservative by at most ``τ sqrt(eps)`` = 1e-4 τ v_max).
-_SPEED_EPS = 1e-8
 #: Builders of the parts appended to every NLP after the objective, in order (each returns None
 #: for a problem it does not apply to): a mission's survey lines with their timing variables, the
 #: penalty on the EKF's linearisation stress.
@@ -158,7 +156,9 @@ def path_constraints(grid: Grid, pb: PlanningProblem, Wsym) -> list[ConstraintBl
     K = 2 * N
     if lim.min_range > 0 or lim.max_range is not None:
         dist = ca.sqrt(ca.sum1(pts_p**2))
-        spd = ca.sqrt(ca.sum1(pts_v**2) + _SPEED_EPS * grid.v_max**2)
+        # the smooth |v| (a squared-speed floor, Tuning.speed_eps): the margin is conservative
+        # by at most τ sqrt(eps) v_max
+        spd = ca.sqrt(ca.sum1(pts_v**2) + tuning().speed_eps * grid.v_max**2)
         slack = 0.5 * a_norm * tau**2
         L = grid.Lp
         if lim.min_range > 0:

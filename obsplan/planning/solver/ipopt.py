@@ -24,22 +24,27 @@ from obsplan.core import interrupts
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.solver.formulation import Formulation, path_constraints
 from obsplan.planning.transcription.mission import mission_part
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
 
 #: IPOPT's status of a converged solve (``Solved_To_Acceptable_Level`` is not).
 SUCCESS_STATUS = "Solve_Succeeded"
-#: IPOPT tolerance of the projection onto the limits (constraint violation and optimality, in
-#: intrinsic units): far below the feasibility check's ``LIMIT_RTOL = 1e-6``.
-PROJECTION_TOL = 1e-10
 
-#: IPOPT options of a warm start (guesses that are coarse-grid optima): begin at the guess, not
-#: 1 % inside the bounds (bound_push / bound_frac), with a small barrier. Measured on 3D min-eig
-#: at N = 1000: 194 iterations to Solve_Succeeded, against no progress in 400 with the defaults.
-#: With the L-BFGS Hessian only the small barrier: starting on the bounds its first steps
-#: wandered off (3D kf-position-std at N = 1000 ended at 0.41 m from a 0.118 m warm start; with
-#: the default push it improved it, in 4 iterations).
-WARM_START = {"bound_push": 1e-9, "bound_frac": 1e-9, "mu_init": 1e-6}
-WARM_START_LBFGS = {"mu_init": 1e-6}
+
+def warm_start_options(limited: bool) -> dict[str, float]:
+    """IPOPT options of a warm start (guesses that are coarse-grid optima): begin at the guess,
+    not 1 % inside the bounds (``bound_push`` / ``bound_frac``), with a small barrier
+    (``mu_init``); with the L-BFGS Hessian (``limited``) only the small barrier, starting on
+    the bounds its first steps wander off (``Tuning.warm_bound_push``,
+    ``warm_bound_frac``, ``warm_mu_init``)."""
+    tun = tuning()
+    if limited:
+        return {"mu_init": tun.warm_mu_init}
+    return {
+        "bound_push": tun.warm_bound_push,
+        "bound_frac": tun.warm_bound_frac,
+        "mu_init": tun.warm_mu_init,
+    }
 
 
 def make_solver(
@@ -51,7 +56,7 @@ def make_solver(
 ) -> ca.Function:
     """The IPOPT ``nlpsol`` of a formulation (MUMPS; exact Hessian or L-BFGS per objective).
 
-    ``warm`` adds :data:`WARM_START` (or :data:`WARM_START_LBFGS`); ``ipopt_options`` are
+    ``warm`` adds :func:`warm_start_options`; ``ipopt_options`` are
     passed last (e.g.
     ``{"max_wall_time": 120.0}`` in the benchmark).
     """
@@ -75,7 +80,7 @@ def make_solver(
         # reach the same objective as twenty in fewer seconds (measured at N = 200 and 1000)
         ipopt["limited_memory_max_history"] = 6
     if warm:
-        ipopt.update(WARM_START_LBFGS if limited else WARM_START)
+        ipopt.update(warm_start_options(limited))
 
     ipopt.update(ipopt_options or {})
     opts: dict[str, Any] = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
@@ -129,8 +134,8 @@ def make_projection(pb: PlanningProblem, form: Formulation) -> ca.Function:
         "linear_solver": "mumps",
         "print_level": 0,
         "sb": "yes",
-        "tol": PROJECTION_TOL,
-        "constr_viol_tol": PROJECTION_TOL,
+        "tol": tuning().projection_tol,
+        "constr_viol_tol": tuning().projection_tol,
         "max_iter": 200,
         # start at the given path, not 1 % inside the bounds (IPOPT's default bound_push
         # moves inputs at their limit by 1 %, which over a long horizon moves the path by

@@ -33,14 +33,14 @@ path it covers (:mod:`obsplan.planning.solver.formulation`), and the largest val
 below the bound come from the linearised loop's second moments
 (:mod:`obsplan.estimation.bounds.loop_covariance`, the CRB's gains along the path): per interval,
 ``k`` times the largest std of the feedback command ``-(Kp ε_p + Kd ε_v)`` over the epochs acting on
-it (at most :data:`RESERVE_CAP` of the bound, at least :data:`RESERVE_FLOOR`: the EKF's transients
-beyond the linearisation need room to be recovered from), and ``k`` times the filter's velocity
-std plus the std of the estimated velocity's deviation (the guidance keeps the estimated speed
-``k σ_v`` below the bound, and the plan must leave room for the estimate's deviation above
-that). Between epochs the estimate moves with the known input, so the command moves only with
-the filter's corrections, which are white: this is the command's std, not a bound, and much
-smaller than the bound above applied to it (a slowly varying estimation error moves the vehicle,
-not the command).
+it (at most ``Tuning.reserve_cap`` of the bound, at least ``Tuning.reserve_floor``: the EKF's
+transients beyond the linearisation need room to be recovered from), and ``k`` times the filter's
+velocity std plus the std of the estimated velocity's deviation (the guidance keeps the estimated
+speed ``k σ_v`` below the bound, and the plan must leave room for the estimate's deviation above
+that). Between epochs the estimate moves with the known input, so the command moves only with the
+filter's corrections, which are white: this is the command's std, not a bound, and much smaller than
+the bound above applied to it (a slowly varying estimation error moves the vehicle, not the
+command).
 
 **Robust planning.** A plan made for a family of conditions (``objective.robust_prior``,
 ``robust_range_noise``, :mod:`obsplan.planning.objectives.robust`) keeps its limits in every one of
@@ -52,7 +52,7 @@ without margins (the full multi-start strategy), the margins are computed on it,
 re-solved warm from it with every limit tightened by its margin (only the bounds ``lbg``, ``ubg``,
 ``lbx``, ``ubx`` change: the compiled NLP is the same). The margins are then recomputed on the new
 path; where they grew, the tightening takes the larger value and the NLP is solved again, at most
-:data:`MAX_ROUNDS` times. The margins only grow, so the rounds stop; ``held`` says whether the
+``Tuning.max_rounds`` times. The margins only grow, so the rounds stop; ``held`` says whether the
 returned path keeps the margins computed on itself. Symbolic margins (the recursion inside every
 constraint) would make every limit row dense in the whole path; this costs one or two warm
 re-solves.
@@ -68,7 +68,6 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from functools import cache
 
 import casadi as ca
 import numpy as np
@@ -91,55 +90,8 @@ from obsplan.planning.solver.formulation import Formulation, build_formulation
 from obsplan.planning.solver.solve import SolveResult, solve
 from obsplan.planning.solver.starts import StartOutcome, run_start, start_context
 from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.tuning import cache_per_tuning, tuning
 from obsplan.trajectory.sampled import Trajectory
-
-#: Re-solves with tightened limits at most (module docstring, "Fixed point").
-MAX_ROUNDS = 3
-#: A re-solve that stopped at IPOPT's iteration limit without keeping its margins is continued,
-#: warm from its own iterate, at most this many times before it counts as failed. Without it an
-#: unconverged first round dropped the speed reserve of a plan that had room for it (unseen
-#: ``--wide`` seed 202, file 05: 0.2 Hz ranges of 0.5 m, 0.185 m/s²): the true path broke the
-#: speed limit on 9 of 100 runs and the plan lost the EKF RMSE, 1.92x the lawn-mower's; continued
-#: once, the round converged with the reserve: 2 of 50 runs, every verdict won (EKF RMSE 0.95x).
-CONTINUE_UNCONVERGED = 2
-#: A margin [m] that grew by less than this between rounds counts as unchanged.
-MARGIN_ATOL_M = 1e-2
-#: Each round tightens by the margins recomputed on its path times ``1 + INFLATE`` (never less
-#: than before), so that the next round's path, which moves a little, stays inside them.
-INFLATE = 0.1
-#: Relative tolerance of "the path keeps its margins" on the tightened constraints (intrinsic
-#: units, as IPOPT's constraint tolerance).
-HELD_TOL = 1e-6
-#: Largest fraction of the acceleration bound kept for the guidance's feedback, and the change
-#: of a reserve that counts as a change between rounds.
-RESERVE_CAP = 0.5
-RESERVE_ATOL = 0.01
-#: Smallest fraction of the acceleration bound kept for the feedback, whatever the linearised
-#: loop predicts: the EKF's transients beyond its linearisation (an early error of 10-13 m on
-#: ``suite/far-start.toml``, found by the filter tens of seconds later) must be recovered from
-#: before the plan's next close pass. Measured there (1000 closed-loop runs of the plan): with
-#: the linear reserve alone (median 5 % of the bound after 120 s) the vehicle took ~250 s to recover
-#: and 3 runs entered ``min_range``; with 20 % one, with 30 % none. On the default survey and
-#: the generated one the 30 % floor cost nothing measurable on the lines (EKF RMSE on the lines
-#: 0.62 and 0.60 of the lawn-mower's, against 0.62 and 0.59 without it).
-RESERVE_FLOOR = 0.3
-#: Largest fraction of the area's (or depth band's) width that margins may take from each side.
-BOX_SHARE = 0.45
-#: Share of the distance the vehicle can put between itself and an area or depth limit by each
-#: node, from its start at the acceleration the reserve leaves, that the margin there may claim
-#: beyond the start's own distance to the limit. A start closer to a limit than its margin (a
-#: survey from the area's corner, a vehicle near the surface with its depth known only from the
-#: ranges) made the tightened NLP infeasible at the first nodes, and the plan then kept no margin
-#: at all: on the 3D range-only ``10-3d-range-gramian-log-det`` of ``benchmarks/
-#: unseen_problems.py --seed 36`` (3.2 m below the band's top) the true path left the depth band
-#: in 54 % of the closed-loop runs; with the margins grown in, none of 50 did (and the plan's EKF
-#: RMSE went from 0.09 to 0.08 of the lawn-mower's). Half: the NLP keeps room to do its job while
-#: the margin grows in.
-START_REACH_SHARE = 0.5
-#: The change [m/s] of a speed reserve that counts as a change between rounds (the reserve takes
-#: at most :data:`~obsplan.estimation.montecarlo.guidance.SPEED_RESERVE_CAP` of the bound, as the
-#: guidance's).
-SPEED_ATOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -224,7 +176,7 @@ class PathCovariance:
         return np.sqrt(np.maximum(np.maximum(var[:, :-1], var[:, 1:]), 0.0))
 
 
-@cache
+@cache_per_tuning
 def _pcrb(pb: PlanningProblem) -> CovarianceObjective:
     return covariance_objective(pb, "pcrb-position")
 
@@ -326,7 +278,7 @@ class KeepoutMargins:
         Per axis at nodes 1..N (the area's x, y and the depth band's z); zeros where unbounded.
     accel_reserve : ndarray (n, N)
         Per axis and interval, the fraction of the acceleration bound kept for the guidance's
-        feedback (at most :data:`RESERVE_CAP`).
+        feedback (at most ``Tuning.reserve_cap``).
     speed : ndarray (N,)
         At nodes 1..N, the speed reserve [m/s]: the guidance bounds the *estimated* speed by
         ``speed - k σ_v`` (:class:`~obsplan.estimation.montecarlo.guidance.Guidance`, ``speed_k``),
@@ -348,8 +300,8 @@ class KeepoutMargins:
 
     def maximum(self, other: KeepoutMargins, scale: float = 1.0) -> KeepoutMargins:
         """The larger of these margins and ``scale`` times ``other``'s at every point (the
-        reserves capped at :data:`RESERVE_CAP` and :attr:`speed_cap`)."""
-        reserve = np.minimum(scale * other.accel_reserve, RESERVE_CAP)
+        reserves capped at ``Tuning.reserve_cap`` and :attr:`speed_cap`)."""
+        reserve = np.minimum(scale * other.accel_reserve, tuning().reserve_cap)
         speed = np.minimum(scale * other.speed, min(self.speed_cap, other.speed_cap))
         return replace(
             self,
@@ -363,13 +315,18 @@ class KeepoutMargins:
         """These margins with no speed reserve (every other margin kept)."""
         return replace(self, speed=np.zeros_like(self.speed), speed_cap=0.0)
 
-    def grew(self, other: KeepoutMargins, atol: float = MARGIN_ATOL_M) -> bool:
-        """True when ``other`` exceeds these margins anywhere by more than ``atol`` [m]."""
+    def grew(self, other: KeepoutMargins, atol: float | None = None) -> bool:
+        """True when ``other`` exceeds these margins anywhere by more than ``atol`` [m]
+        (default ``Tuning.margin_atol_m``), its reserves by more than
+        ``Tuning.reserve_atol`` and ``Tuning.speed_atol``."""
+        tun = tuning()
+        if atol is None:
+            atol = tun.margin_atol_m
         return bool(
             np.any(other.range_points > self.range_points + atol)
             or np.any(other.box > self.box + atol)
-            or np.any(other.accel_reserve > self.accel_reserve + RESERVE_ATOL)
-            or np.any(np.minimum(other.speed, self.speed_cap) > self.speed + SPEED_ATOL)
+            or np.any(other.accel_reserve > self.accel_reserve + tun.reserve_atol)
+            or np.any(np.minimum(other.speed, self.speed_cap) > self.speed + tun.speed_atol)
         )
 
     def to_dict(self) -> dict:
@@ -472,8 +429,9 @@ def condition_margins(traj: Trajectory, pb: PlanningProblem, guidance: Guidance)
     loop_cov = path_loop_covariance(traj, pb, guidance)
     window = _interval_epochs(loop_cov.time, grid.times)
     command = _window_max(loop_cov.command_std(guidance.kp, guidance.kd), window)  # (N, n)
+    tun = tuning()
     reserve = np.clip(
-        k * command.T / np.asarray(grid.a, float)[:, None], RESERVE_FLOOR, RESERVE_CAP
+        k * command.T / np.asarray(grid.a, float)[:, None], tun.reserve_floor, tun.reserve_cap
     )
     vel = loop_cov.std("filter", "vel").max(axis=1) + loop_cov.std("estimated", "vel").max(axis=1)
     speed = k * _window_max(vel[:, None], window)[:, 0]
@@ -505,20 +463,21 @@ def start_reach(grid: Grid, axis: int, sign: float, accel: float) -> np.ndarray:
 def _box_margin_limits(
     form: Formulation, margins: KeepoutMargins
 ) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Per area/depth axis: the margin [m] at most :data:`BOX_SHARE` of the width, and the room
+    """Per area/depth axis: the margin [m] at most ``Tuning.box_share`` of the width, and the room
     the start leaves below and above (:func:`box_margins`), each ``(N,)``."""
     grid = form.grid
     n, N = grid.n, grid.N
     lbW = form.lbx[: form.n_w].reshape(3 * n, N, order="F")
     ubW = form.ubx[: form.n_w].reshape(3 * n, N, order="F")
     out = {}
+    tun = tuning()
     for axis, (lo, hi) in _box_axes(form.problem):
-        full = np.minimum(margins.box[axis], BOX_SHARE * (hi - lo))
+        full = np.minimum(margins.box[axis], tun.box_share * (hi - lo))
         reserve = float(np.max(margins.accel_reserve[axis], initial=0.0))
         accel = float(grid.a[axis]) * (1.0 - reserve)
         p0 = float(grid.p0[axis])
-        up = START_REACH_SHARE * start_reach(grid, axis, 1.0, accel)
-        down = START_REACH_SHARE * start_reach(grid, axis, -1.0, accel)
+        up = tun.start_reach_share * start_reach(grid, axis, 1.0, accel)
+        down = tun.start_reach_share * start_reach(grid, axis, -1.0, accel)
         out[axis] = (full, p0 - lbW[n + axis] * grid.Lp + up, ubW[n + axis] * grid.Lp - p0 + down)
     return out
 
@@ -527,9 +486,9 @@ def box_margins(
     form: Formulation, margins: KeepoutMargins
 ) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """Per area/depth axis, the margins [m] the NLP's lower and upper node bounds get, each
-    ``(N,)``: ``margins.box`` at most :data:`BOX_SHARE` of the width, and at most the start's
-    distance to the limit plus :data:`START_REACH_SHARE` of what the vehicle can add to it by
-    each node (:func:`start_reach`, at the acceleration the reserve leaves)."""
+    ``(N,)``: ``margins.box`` at most ``Tuning.box_share`` of the width, and at most the
+    start's distance to the limit plus ``Tuning.start_reach_share`` of what the vehicle can add
+    to it by each node (:func:`start_reach`, at the acceleration the reserve leaves)."""
     return {
         axis: (np.minimum(full, np.maximum(lo, 0.0)), np.minimum(full, np.maximum(hi, 0.0)))
         for axis, (full, lo, hi) in _box_margin_limits(form, margins).items()
@@ -540,8 +499,9 @@ def start_limited_s(form: Formulation, margins: KeepoutMargins) -> float:
     """Time [s] of the last node whose area or depth margin the start limits
     (:func:`box_margins`; 0 when none)."""
     last = 0.0
+    atol = tuning().margin_atol_m
     for full, lo, hi in _box_margin_limits(form, margins).values():
-        short = np.flatnonzero((lo < full - MARGIN_ATOL_M) | (hi < full - MARGIN_ATOL_M))
+        short = np.flatnonzero((lo < full - atol) | (hi < full - atol))
         if short.size:
             last = max(last, float(form.grid.times[1 + short[-1]]))
     return last
@@ -576,8 +536,11 @@ def tighten(form: Formulation, margins: KeepoutMargins) -> Formulation:
     return replace(form, lbg=lbg, ubg=ubg, lbx=lbx, ubx=ubx)
 
 
-def keeps_margins(form: Formulation, traj: Trajectory, tol: float = HELD_TOL) -> bool:
-    """True when ``traj`` satisfies the (tightened) path constraints and bounds of ``form``."""
+def keeps_margins(form: Formulation, traj: Trajectory, tol: float | None = None) -> bool:
+    """True when ``traj`` satisfies the (tightened) path constraints and bounds of ``form``
+    (to ``tol``, default ``Tuning.held_tol``)."""
+    if tol is None:
+        tol = tuning().held_tol
     W = form.grid.from_trajectory(traj)
     w = W.reshape(-1, order="F")
     k, nw = form.n_path_constraints, form.n_w
@@ -651,11 +614,11 @@ def _resolve(
     form: Formulation, margins: KeepoutMargins, guess: Trajectory, label: str
 ) -> tuple[StartOutcome, Trajectory | None, bool]:
     """One warm IPOPT run of the tightened NLP from ``guess`` (continued from its own iterate,
-    at most :data:`CONTINUE_UNCONVERGED` times, while it stops at the iteration limit without
+    at most ``Tuning.continue_unconverged`` times, while it stops at the iteration limit without
     keeping its margins); ``(outcome, path, keeps)``."""
     tight = tighten(form, margins)
     ctx = start_context(tight, warm=True)
-    for more in range(CONTINUE_UNCONVERGED + 1):
+    for more in range(tuning().continue_unconverged + 1):
         outcome, traj = run_start(ctx, label + (f" (continued {more})" if more else ""), guess)
         # a re-solve that IPOPT did not finish may keep the limits and margins yet break the
         # mission (a heading off a survey line): it is kept only if it still does the job
@@ -682,7 +645,7 @@ def keep_out(
     t0 = time.perf_counter()
     first = keepout_margins(nominal, pb, guidance)
     conf, k = first.confidence, first.k
-    margins = first.maximum(first, 1.0 + INFLATE)
+    margins = first.maximum(first, 1.0 + tuning().inflate)
     if k == 0:
         return nominal, _report(pb, margins, nominal, 0, True, (), t0), None
     form = build_formulation(pb)
@@ -691,7 +654,7 @@ def keep_out(
     path, best, statuses = nominal, None, []
     held = unreserved = False
     guess = nominal
-    for rnd in range(MAX_ROUNDS):
+    for rnd in range(tuning().max_rounds):
         outcome, traj, keeps = _resolve(form, margins, guess, f"keep-out round {rnd + 1}")
         statuses.append(outcome.status)
         if (not keeps or traj is None) and best is None and np.any(margins.speed > 0):
@@ -710,7 +673,7 @@ def keep_out(
         if not margins.grew(again):
             held = True
             break
-        margins = margins.maximum(again, 1.0 + INFLATE)
+        margins = margins.maximum(again, 1.0 + tuning().inflate)
     if best is None:
         notes = [f"the tightened re-solve failed ({statuses[-1]}); the nominal plan is returned"]
     else:

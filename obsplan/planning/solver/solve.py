@@ -4,10 +4,10 @@ What the returned plan guarantees (tested under several BLAS kernel sets, since 
 depends on the machine):
 
 * it satisfies every limit and the dynamics to the tolerances of
-  :mod:`obsplan.planning.problem.feasibility` (``LIMIT_RTOL``), checked by an independent numpy test
-  on the continuous path. A start whose path violates a limit (e.g. by 0.02 % when IPOPT stops at
-  its iteration limit) is first *projected*: the nearest path (least squares in the NLP's intrinsic
-  units) satisfying every constraint, found by a second small IPOPT problem
+  :mod:`obsplan.planning.problem.feasibility` (``Tuning.limit_rtol``), checked by an independent
+  numpy test on the continuous path. A start whose path violates a limit (e.g. by 0.02 % when IPOPT
+  stops at its iteration limit) is first *projected*: the nearest path (least squares in the NLP's
+  intrinsic units) satisfying every constraint, found by a second small IPOPT problem
   (:mod:`obsplan.planning.solver.ipopt`); its objective is then recomputed. Only if that fails is
   the start discarded;
 * its objective, recomputed with numpy on the path (never read from lifting variables), is the
@@ -18,9 +18,9 @@ depends on the machine):
   ``Solved_To_Acceptable_Level`` and iteration or time limits are reported as such, and their paths
   are used only if feasible and best. ``chosen`` names where the returned path came from.
 
-A fine grid (``N > COARSE_STEPS``) is first solved on a coarse grid from the same guesses, and
-each start's coarse plan becomes its fine guess (:mod:`obsplan.planning.transcription.guesses`). The
-starts run in parallel worker processes with results identical to a serial run
+A fine grid (``N > Tuning.coarse_steps``) is first solved on a coarse grid from the same guesses,
+and each start's coarse plan becomes its fine guess (:mod:`obsplan.planning.transcription.guesses`).
+The starts run in parallel worker processes with results identical to a serial run
 (:mod:`obsplan.planning.solver.starts`); Ctrl-C stops every start at once and raises
 ``KeyboardInterrupt``.
 """
@@ -46,11 +46,11 @@ from obsplan.planning.solver.starts import (
     start_context,
 )
 from obsplan.planning.transcription.guesses import (
-    COARSE_STEPS,
     coarse_problem,
     initial_guesses,
     refine,
 )
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
 
 
@@ -62,7 +62,7 @@ class SolveResult:
     guess or baseline: the best start's, with ``chosen`` saying so; after the keep-out re-solve
     of :func:`~obsplan.planning.solver.margins.solve_with_keepout`, the re-solve's); ``success`` is
     true when at least one start converged (``Solve_Succeeded``); ``wall_s`` is the whole
-    multi-start (the coarse-grid pass included, see :data:`COARSE_STEPS`); ``start_paths`` holds
+    multi-start (the coarse-grid pass included, see ``Tuning.coarse_steps``); ``start_paths`` holds
     each start's returned path by label.
     """
 
@@ -174,8 +174,8 @@ def solve(
 
 
 def default_expand(pb: PlanningProblem) -> bool:
-    """Whether :func:`solve` expands the NLP to SX by default: for ``N <= COARSE_STEPS`` and
-    for every mission.
+    """Whether :func:`solve` expands the NLP to SX by default: for ``N <=``
+    ``Tuning.coarse_steps`` and for every mission.
 
     A finer grid without a mission is warm-started from its coarse plan and needs few
     iterations, so construction dominates (measured at N = 1000, 2D min-eig: 9.6 s expanded
@@ -194,7 +194,7 @@ def default_expand(pb: PlanningProblem) -> bool:
     -------
     bool
     """
-    return pb.horizon.steps <= COARSE_STEPS or pb.mission is not None
+    return pb.horizon.steps <= tuning().coarse_steps or pb.mission is not None
 
 
 def _coarse_guesses(
@@ -204,7 +204,7 @@ def _coarse_guesses(
     ipopt_options: dict | None,
     progress: bool | Progress,
 ) -> tuple[list[tuple[str, Trajectory]], set[str]]:
-    """Each start first solved on the coarse grid (:data:`COARSE_STEPS`): its coarse plan
+    """Each start first solved on the coarse grid (``Tuning.coarse_steps``): its coarse plan
     refined onto the fine grid, or its own guess where the coarse start returned no path.
     Returns the fine guesses and the labels that come from a coarse plan."""
     cres = solve(coarse, processes=processes, ipopt_options=ipopt_options, progress=progress)

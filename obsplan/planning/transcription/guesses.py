@@ -9,7 +9,8 @@ coarse grid a fine problem is first solved on.
 * :func:`excited_path`: a seeded random path exciting every axis (the Gramian equilibration's
   second reference);
 * :func:`coarse_problem` / :func:`refine`: the coarse-to-fine pass of
-  :func:`~obsplan.planning.solver.solve.solve` (grids that nest, :data:`COARSE_STEPS`).
+  :func:`~obsplan.planning.solver.solve.solve` (grids that nest,
+  ``Tuning.coarse_steps``).
 """
 
 from __future__ import annotations
@@ -24,14 +25,8 @@ from obsplan.planning.baselines.vehicle import baselines as all_baselines
 from obsplan.planning.baselines.vehicle import mission_starts
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.sections import Horizon
+from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
-
-#: Largest N solved directly from the initial guesses: a finer grid is first solved at
-#: N / k <= COARSE_STEPS (k the smallest divisor of N that gets there), and each start's coarse
-#: plan, which is a path of the fine grid too, becomes that start's fine guess. From a good guess
-#: IPOPT needs a fraction of the iterations (3D min-eig at N = 1000 did not converge in 1000
-#: iterations from the lawn-mower).
-COARSE_STEPS = 250
 
 
 def random_guess(pb: PlanningProblem, seed: int | Sequence[int]) -> Trajectory:
@@ -84,16 +79,19 @@ def excited_path(pb: PlanningProblem) -> Trajectory:
 
 
 def coarse_problem(pb: PlanningProblem) -> PlanningProblem | None:
-    """The problem on the coarse grid of :data:`COARSE_STEPS` (None if N is small or prime, or
-    for a mission)."""
+    """The problem on the coarse grid ``N / k <= coarse_steps`` (``k`` the smallest divisor of
+    ``N`` that gets there, ``Tuning.coarse_steps``), each start's coarse plan, a path of
+    the fine grid too, then that start's fine guess (:func:`refine`); None if N is small or prime,
+    or for a mission."""
     N = pb.horizon.steps
-    if N <= COARSE_STEPS or pb.mission is not None:
+    coarse_steps = tuning().coarse_steps
+    if N <= coarse_steps or pb.mission is not None:
         # a mission's guesses (its lawn-mowers) are feasible and close: measured on the default
         # survey at N = 320 on a loaded machine, 26 s from them directly against 38 s with a
         # coarse pass first (not a controlled comparison: the load varied)
         return None
     for k in range(2, N // 50 + 1):
-        if N % k == 0 and N // k <= COARSE_STEPS:
+        if N % k == 0 and N // k <= coarse_steps:
             try:
                 coarse = replace(pb, horizon=Horizon(pb.horizon.duration, N // k))
             except ProblemError:  # e.g. the coarse step cannot keep a limit from the start

@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cache
 
 import casadi as ca
 import numpy as np
@@ -47,6 +46,7 @@ from obsplan.planning.missions.schedule import planner_schedule
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.transcription.blocks import ConstraintBlock, FormulationPart
 from obsplan.planning.transcription.grid import Grid, apply_operator
+from obsplan.planning.tuning import cache_per_tuning, tuning
 
 
 def line_nodes(pb: PlanningProblem, window: tuple[float, float]) -> tuple[int, int]:
@@ -66,19 +66,6 @@ def _normals(e: np.ndarray) -> np.ndarray:
     n1 = np.cross(e, a)
     n1 /= np.linalg.norm(n1)
     return np.vstack([n1, np.cross(e, n1)])
-
-
-#: Transition length of a flexible zone's relaxation, as a fraction of one step at top speed
-#: (a row is relaxed once a node and its neighbours are this far, and more, off the line's ends).
-FLEX_WIDTH = 0.1
-#: Sharpness of the relaxation's softplus: at the strict edge it is ``exp(-20) / 20`` (2e-10)
-#: of one width, so a row there is held to about 1e-9 of its tolerance.
-FLEX_SHARPNESS = 20.0
-#: Relaxation per width off the line's end, in row units: cross-track rows (tolerances; 10 m of
-#: cross-track per metre off the end, a funnel far wider than any turn) and velocity rows
-#: (``v_max``; 3 frees any velocity).
-FLEX_RELAX_CROSS = 10.0
-FLEX_RELAX_VEL = 3.0
 
 
 @dataclass(frozen=True)
@@ -129,9 +116,10 @@ class _Line:
             bend = np.abs(self.box_dirs) @ grid.a * grid.h**2 / 8.0
             self.box_tol = tols
             self.box_room = 1.0 - bend / tols
-        # parabola overshoot along the line between nodes, and the relaxation's width [m]
+        # parabola overshoot along the line between nodes, and the relaxation's width [m]: a row
+        # is relaxed once a node and its neighbours are this far, and more, off the line's ends
         self.overshoot = float(np.linalg.norm(grid.a)) * grid.h**2 / 8.0
-        self.width = FLEX_WIDTH * grid.v_max * grid.h
+        self.width = tuning().flex_width * grid.v_max * grid.h
 
     def along(self, p, k0: int, k1: int):
         """Along-line position [m] of nodes ``k0 .. k1`` (row)."""
@@ -160,11 +148,14 @@ class _Line:
 
     def relaxation(self, p, k: int, end: bool):
         """How far node ``k`` is off the line's start (``end``: past its end), in widths beyond
-        the strict band: a smooth ``max(0, x)`` that is ~0 within ``overshoot`` of the end."""
+        the strict band: a smooth ``max(0, x)`` that is ~0 within ``overshoot`` of the end (at
+        the strict edge ``exp(-sharpness) / sharpness`` of one width,
+        ``Tuning.flex_sharpness``)."""
+        sharpness = tuning().flex_sharpness
         s = self.along(p, k, k)[0]
         off = (s - self.length) if end else -s
-        x = FLEX_SHARPNESS * ((off - self.overshoot) / self.width - 1.0)
-        return (ca.fmax(x, 0) + ca.log1p(ca.exp(-ca.fabs(x)))) / FLEX_SHARPNESS
+        x = sharpness * ((off - self.overshoot) / self.width - 1.0)
+        return (ca.fmax(x, 0) + ca.log1p(ca.exp(-ca.fabs(x)))) / sharpness
 
     def strict_blocks(self, p, v, i: int, zone: LineZone) -> list[ConstraintBlock]:
         """Coverage at the zone's ends and every row at the core's nodes."""
@@ -219,8 +210,10 @@ class _Line:
     def flex_rows(self, p, v, k: int, end: bool):
         """Node ``k``'s rows in a flexible zone, each ``<= 0``: every row of the core, relaxed
         by the least relaxation of ``k`` and its neighbours (a segment that reaches the line
-        holds its rows at both ends)."""
+        holds its rows at both ends), per width off the end
+        (``Tuning.flex_relax_cross``, ``flex_relax_vel``)."""
         g = self.grid
+        tun = tuning()
         q = self.rows(p, v, k, k)
         av, side, cross = q["along_v"][0], q["side"], q["cross"]
         base = [-av + self.lo / g.v_max, q["speed2"][0] - (self.hi / g.v_max) ** 2]
@@ -228,27 +221,27 @@ class _Line:
         if g.n == 2:
             cr = [cross[0] - self.room, -cross[0] - self.room]
             vel = [side[0] - self.tan * av, -side[0] - self.tan * av]
-            relax_c = FLEX_RELAX_CROSS
+            relax_c = tun.flex_relax_cross
         elif self.band:
             box = q["box"]
             cr = [sign * box[j] - self.box_room[j] for j in range(2) for sign in (1, -1)]
             vel = [ca.sumsqr(side) - self.tan**2 * av**2]
-            relax_c = FLEX_RELAX_CROSS
+            relax_c = tun.flex_relax_cross
         else:
             cr = [ca.sumsqr(cross) - self.room**2]
             vel = [ca.sumsqr(side) - self.tan**2 * av**2]
-            relax_c = FLEX_RELAX_CROSS**2
+            relax_c = tun.flex_relax_cross**2
         out = []
         for j in (k - 1, k, k + 1):
             if not 0 <= j <= g.N:
                 continue
             r = self.relaxation(p, j, end)
             out += [c - relax_c * r for c in cr]
-            out += [c - FLEX_RELAX_VEL * r for c in base + vel]
+            out += [c - tun.flex_relax_vel * r for c in base + vel]
         return ca.vertcat(*out)
 
 
-@cache
+@cache_per_tuning
 def line_zones(pb: PlanningProblem) -> tuple[LineZone, ...]:
     """The nodes of every survey line's constraints (:class:`LineZone`).
 

@@ -7,8 +7,9 @@ on which the plan loses, and every verdict that is a tie, so that a user is neve
 
 Confidence. Every path is validated with the same seeds, so the runs are paired. For the metrics
 estimated from the runs (EKF and KF RMSE and final error) the ratio ``plan / baseline`` gets a
-paired bootstrap interval: :data:`BOOTSTRAP` resamples of the runs with replacement (the same runs
-on both paths), the percentile interval at :data:`CONFIDENCE`, seeded by the validation's seed.
+paired bootstrap interval: ``bootstrap`` resamples of the runs with replacement (the same runs
+on both paths), the percentile interval at ``confidence``, seeded by the validation's seed
+(both :class:`~obsplan.planning.tuning.Tuning`'s, as the divergence and stress thresholds).
 The final error is the mean over runs of each run's final error, so its interval is exactly that
 of the reported ratio. The RMSE is the time average of the RMS over runs, which the per-run
 values do not determine: the bootstrap is of the ratio of the runs' RMS over runs and time
@@ -40,6 +41,7 @@ from obsplan.estimation.montecarlo.simulate import DEFAULT_FILTERS
 from obsplan.estimation.montecarlo.stats import FilterStats
 from obsplan.planning.objectives.evaluate import PathMetrics
 from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.tuning import tuning
 from obsplan.planning.validation.validate import PathValidation, merge_validations, validate_paths
 from obsplan.trajectory.sampled import Trajectory
 
@@ -59,11 +61,6 @@ LINES_METRICS: tuple[tuple[str, str], ...] = (
 )
 #: The metrics a plan must win on against every baseline to be called a win.
 HEADLINE = ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos")
-#: The EKF "diverges" on a path when the divergence monitor flags at least this fraction of its
-#: runs, or its final error is :data:`DIVERGED_RATIO` times the KF's; the KF "converges" when
-#: fewer than this fraction of its runs are flagged.
-DIVERGED_FRACTION = 0.1
-DIVERGED_RATIO = 3.0
 #: Metrics estimated from the runs, and the per-run array whose mean the interval is about.
 RUN_METRICS: dict[str, str] = {
     "ekf.rmse_pos": "rmse_pos_runs",
@@ -76,9 +73,6 @@ LINES_RUN_METRICS: dict[str, str] = {
     "ekf.rmse_pos_lines": "rmse_pos_lines_runs",
     "kf.rmse_pos_lines": "rmse_pos_lines_runs",
 }
-#: Confidence of the intervals, and the bootstrap resamples that estimate them.
-CONFIDENCE = 0.95
-BOOTSTRAP = 2000
 
 
 def metric_value(v: PathValidation, key: str) -> float | None:
@@ -195,7 +189,7 @@ class Verdict:
 
     @property
     def beats_all_decided(self) -> bool:
-        """:attr:`beats_all`, each of those verdicts decided at :data:`CONFIDENCE`."""
+        """:attr:`beats_all`, each of those verdicts decided at ``Tuning.confidence``."""
         return self.beats_all and all(
             c[k].decided for c in self.comparisons.values() for k in HEADLINE if k in c
         )
@@ -215,13 +209,13 @@ class Verdict:
         bv = "n/a" if c.baseline is None else f"{c.baseline:.3g} m"
         ratio = f" ({c.ratio:.2f}x" if c.ratio is not None else ""
         if ratio and c.ci is not None and c.ci[0] != c.ci[1]:
-            ratio += f", {100 * CONFIDENCE:.0f} % interval [{c.ci[0]:.2f}, {c.ci[1]:.2f}]"
+            ratio += f", {100 * tuning().confidence:.0f} % interval [{c.ci[0]:.2f}, {c.ci[1]:.2f}]"
         ratio += ")" if ratio else ""
         return f"against the {name}: {dict((*METRICS, *LINES_METRICS))[key]} {pv} vs {bv}{ratio}"
 
     def losses(self) -> list[str]:
         """One sentence per (baseline, metric) the plan does not win, ending in what it is: a
-        loss (decided at :data:`CONFIDENCE`) or a tie."""
+        loss (decided at ``Tuning.confidence``) or a tie."""
         out = []
         for name, comps in self.comparisons.items():
             for key, c in comps.items():
@@ -237,7 +231,7 @@ class Verdict:
         return out
 
     def ties(self) -> list[str]:
-        """One sentence per (baseline, metric) not decided at :data:`CONFIDENCE`."""
+        """One sentence per (baseline, metric) not decided at ``Tuning.confidence``."""
         return [
             self._words(name, key, c)
             for name, comps in self.comparisons.items()
@@ -268,13 +262,14 @@ class Verdict:
         ties = self.ties()
         if self.comparisons and ties:
             lines.append(
-                f"ties (not decided at {100 * CONFIDENCE:.0f} % confidence after {self.runs} "
+                f"ties (not decided at {100 * tuning().confidence:.0f} % confidence after "
+                f"{self.runs} "
                 "runs; the interval of the ratio contains 1):"
             )
             lines += [f"  - {s}" for s in ties]
         elif self.comparisons:
             lines.append(
-                f"every verdict is decided at {100 * CONFIDENCE:.0f} % confidence "
+                f"every verdict is decided at {100 * tuning().confidence:.0f} % confidence "
                 f"({self.runs} runs)"
             )
         lines += list(self.notes)
@@ -287,8 +282,8 @@ class Verdict:
             "beats_all": self.beats_all,
             "beats_all_decided": self.beats_all_decided,
             "headline_metrics": list(HEADLINE),
-            "confidence": CONFIDENCE,
-            "bootstrap": BOOTSTRAP,
+            "confidence": tuning().confidence,
+            "bootstrap": tuning().bootstrap,
             "runs": int(self.runs),
             "baselines": {
                 name: {k: c.to_dict() for k, c in comps.items()}
@@ -338,25 +333,14 @@ def objective_notes(pb: PlanningProblem) -> tuple[str, ...]:
     return ()
 
 
-#: Peak EKF linearisation stress [range stds] (:mod:`obsplan.planning.objectives.linearisation`)
-#: above which the verdict warns that the plan's EKF may lose track on runs too rare for its run
-#: count. Five of the six plans measured above it lost the EKF on 1 to 8 runs of 1000 (``benchmarks/
-#: bench_linearisation.py``, unbounded plans at 0.32-0.68: gramian-min-eig 0.32 and 0.42, 1 and 2;
-#: lwo-condition 0.45, 3, before its window input, and 0.47 after it, none; gramian-log-det 0.48
-#: and 0.68, 8 and 8); the lawn-mower and the circle (at most 0.24) lost none. Below it the
-#: stress does not predict a loss either way (plans at 0.23-0.29 lost 0 to 5).
-STRESS_NOTE_LEVEL = 0.3
-#: Runs from which the validation sees a loss of one run in a few hundred, and the note is moot.
-STRESS_NOTE_RUNS = 1000
-
-
 def stress_notes(metrics: Mapping[str, PathMetrics], runs: int) -> tuple[str, ...]:
     """A sentence when the plan's peak EKF linearisation stress is above
-    :data:`STRESS_NOTE_LEVEL` and some baseline's (the verdict against that one may not see the
-    plan's rare losses), and the validation ran fewer than :data:`STRESS_NOTE_RUNS` runs; empty
-    otherwise."""
+    ``Tuning.stress_note_level`` and some baseline's (the verdict
+    against that one may not see the plan's rare losses), and the validation ran fewer than
+    ``Tuning.stress_note_runs`` runs; empty otherwise."""
     plan = metrics.get("planned")
-    if plan is None or runs >= STRESS_NOTE_RUNS:
+    level = tuning().stress_note_level
+    if plan is None or runs >= tuning().stress_note_runs:
         return ()
     b = plan.ekf_linearisation_stress
     others = {
@@ -364,14 +348,14 @@ def stress_notes(metrics: Mapping[str, PathMetrics], runs: int) -> tuple[str, ..
         for name, m in metrics.items()
         if name != "planned" and math.isfinite(m.ekf_linearisation_stress)
     }
-    if not others or not math.isfinite(b) or b <= STRESS_NOTE_LEVEL:
+    if not others or not math.isfinite(b) or b <= level:
         return ()
     calm = min(others, key=others.__getitem__)
     if b <= others[calm]:
         return ()
     return (
         f"the plan's EKF linearisation stress peaks at {b:.2f} range stds (the {calm}'s at "
-        f"{others[calm]:.2f}): most plans measured above {STRESS_NOTE_LEVEL} lost the EKF on a "
+        f"{others[calm]:.2f}): most plans measured above {level} lost the EKF on a "
         f"few runs in 1000, which {runs} runs rarely see: validate with more runs (--runs 1000) "
         "before trusting the EKF's verdicts",
     )
@@ -391,8 +375,8 @@ def limit_notes(
     without them. The sentence states that difference, not a cause of the loss: a lawn-mower laid
     inside the area by the plan's margin can win the same verdict (README, "Choosing the
     objective"). "More often than allowed": the one-sided binomial test of its breaking runs against
-    the share ``1 - confidence`` rejects at :data:`CONFIDENCE` (with 100 runs at 0.999: 2 breaking
-    runs). ``confidence = 0`` (no margins): nothing to say."""
+    the share ``1 - confidence`` rejects at ``Tuning.confidence`` (with 100 runs at 0.999: 2
+    breaking runs). ``confidence = 0`` (no margins): nothing to say."""
     plan = validation.get("planned")
     if plan is None or not 0 < confidence < 1 or plan.result.truth is None:
         return ()
@@ -401,7 +385,7 @@ def limit_notes(
 
     def too_often(t) -> bool:
         k = t.any_violation_runs
-        return k > 0 and scipy.stats.binom.sf(k - 1, t.runs, allowed) < 1.0 - CONFIDENCE
+        return k > 0 and scipy.stats.binom.sf(k - 1, t.runs, allowed) < 1.0 - tuning().confidence
 
     out = []
     if too_often(tp):
@@ -470,15 +454,21 @@ def verdict(
 
 
 def ekf_diverges(v: PathValidation) -> bool:
-    """The EKF diverges on this path while the KF converges (:data:`DIVERGED_FRACTION`)."""
+    """The EKF diverges on this path while the KF converges: the divergence monitor flags at
+    least ``Tuning.diverged_fraction`` of its EKF runs (fewer of its
+    KF runs), or its final error is ``Tuning.diverged_ratio`` times
+    the KF's."""
     r = v.result
     e, k = r.ekf, r.kf
     if e is None or k is None or r.runs < 1:
         return False
-    if k.flagged_runs >= DIVERGED_FRACTION * r.runs:
+    tun = tuning()
+    if k.flagged_runs >= tun.diverged_fraction * r.runs:
         return False
-    far = not math.isfinite(e.final_pos_err) or e.final_pos_err > DIVERGED_RATIO * k.final_pos_err
-    return e.flagged_runs >= DIVERGED_FRACTION * r.runs or far
+    far = (
+        not math.isfinite(e.final_pos_err) or e.final_pos_err > tun.diverged_ratio * k.final_pos_err
+    )
+    return e.flagged_runs >= tun.diverged_fraction * r.runs or far
 
 
 def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
@@ -511,7 +501,7 @@ def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
 
 def _rare_losses(plan: PathValidation) -> str | None:
     """A sentence when the divergence monitor flagged some of the plan's EKF runs, fewer than
-    :data:`DIVERGED_FRACTION` (not a diverging EKF, but a few such runs dominate an RMSE over
+    ``Tuning.diverged_fraction`` (not a diverging EKF, but a few such runs dominate an RMSE over
     runs: one run of 200 at 21 m RMSE tripled an unseen plan's EKF RMSE); None otherwise."""
     r = plan.result
     e = r.ekf
@@ -571,7 +561,7 @@ def ratio_interval(
     seed: int | Sequence[int] = 0,
     rms: bool = False,
 ) -> tuple[float, float] | None:
-    """Paired bootstrap interval of ``mean(a) / mean(b)`` at :data:`CONFIDENCE` (``rms``: of
+    """Paired bootstrap interval of ``mean(a) / mean(b)`` at ``Tuning.confidence`` (``rms``: of
     ``sqrt(mean(a²) / mean(b²))``).
 
     Parameters
@@ -601,14 +591,16 @@ def ratio_interval(
     if not b.mean() > 0:
         return None
     rng = np.random.default_rng(seed)
-    ratios = np.empty(BOOTSTRAP)
+    tun = tuning()
+    resamples = tun.bootstrap
+    ratios = np.empty(resamples)
     chunk = max(1, 2_000_000 // n)  # bounded memory: chunk x n indices at a time
-    for s in range(0, BOOTSTRAP, chunk):
-        idx = rng.integers(0, n, size=(min(chunk, BOOTSTRAP - s), n))
+    for s in range(0, resamples, chunk):
+        idx = rng.integers(0, n, size=(min(chunk, resamples - s), n))
         mb = b[idx].mean(axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratios[s : s + idx.shape[0]] = a[idx].mean(axis=1) / mb
-    tail = 100.0 * (1.0 - CONFIDENCE) / 2.0
+    tail = 100.0 * (1.0 - tun.confidence) / 2.0
     lo, hi = np.nanpercentile(ratios, [tail, 100.0 - tail])
     if rms:
         lo, hi = math.sqrt(lo), math.sqrt(hi)
