@@ -33,6 +33,7 @@ def default_run(tmp_path_factory):
     return code, out
 
 
+@pytest.mark.slow
 def test_default_survey_plans_and_reports_its_mission(tmp_path, capsys):
     out = tmp_path / "o"
     assert main(["plan", "--out", str(out), "--steps", "96", "--runs", "2", "--quiet"]) == 0
@@ -233,6 +234,7 @@ def test_unwritable_out_is_refused_before_planning(tmp_path, capsys, monkeypatch
         assert (out / "keep.txt").read_text() == "mine"
 
 
+@pytest.mark.slow
 def test_interrupt_while_writing_leaves_nothing(tmp_path, capsys, monkeypatch):
     """Ctrl-C after plan.csv is written but before the figures: no half-written folder."""
     import obsplan.cli.plan as cli_plan

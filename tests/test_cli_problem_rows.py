@@ -79,6 +79,7 @@ def refusals(tmp_path_factory):
     return results
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("i", range(len(CASES)), ids=[c[2] for c in CASES])
 def test_problem_is_refused_at_once(refusals, i):
     proc, out = refusals[i]

@@ -416,6 +416,7 @@ def test_row24_the_code_fingerprint_follows_the_computing_code_not_the_cli(tmp_p
     assert fingerprint(copy) != base
 
 
+@pytest.mark.slow
 def test_row24_a_resume_after_the_code_changed_refuses_then_force_computes_again(
     tmp_path, capsys, monkeypatch
 ):
@@ -521,6 +522,7 @@ def pd_isna(v) -> bool:
     return bool(pd.isna(v))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("bokeh", [True, False])
 def test_row30_the_dashboard_link_only_when_the_scheduler_has_bokeh(
     bokeh, tmp_path, capsys, monkeypatch
@@ -545,6 +547,7 @@ def test_row30_has_bokeh_says_whether_bokeh_imports():
     assert has_bokeh() is (importlib.util.find_spec("bokeh") is not None)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("verb", ["simulate", "sweep"])
 def test_row31_a_cold_cache_labels_the_first_monte_carlo(verb, tmp_path, traj2):
     """The installed command with an empty numba cache: the progress bar names the compile step

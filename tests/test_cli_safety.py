@@ -127,6 +127,7 @@ def test_parents_of_the_working_folder_are_refused_before_work(
     assert _snapshot(home) == before
 
 
+@pytest.mark.slow
 def test_force_replaces_only_an_obsplan_output(tmp_path, capsys):
     mine = tmp_path / "mine"
     mine.mkdir()
@@ -213,6 +214,7 @@ def test_paper_force_replaces_the_folder_whole(tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["paper"]
 
 
+@pytest.mark.slow
 def test_a_killed_runs_leftovers_are_removed_by_the_next_run(tmp_path, capsys):
     """``kill -9`` mid-write leaves a staging folder; the next run there removes it."""
     out = tmp_path / "o"
@@ -340,6 +342,7 @@ def _signal_self(sig):
     return fake
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_signal_after_the_folder_was_swapped_in_undoes_it(sig, code, tmp_path, monkeypatch):
     out = tmp_path / "o"

@@ -180,6 +180,7 @@ def test_filters_option_and_problem_conflicts(csv_2d, capsys):
     assert "is 3D (vehicle.dim)" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_the_monte_carlo_exits_130_and_writes_nothing(csv_2d, tmp_path):
     out = tmp_path / "figs"
     from _interrupt import interrupt_after

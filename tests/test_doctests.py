@@ -21,6 +21,7 @@ def test_the_public_functions_are_found():
     assert {"analyze", "monte_carlo", "plan", "sweep", "read_csv"} <= set(FUNCTIONS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", FUNCTIONS)
 def test_examples_run(name, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # examples that write files use temporary folders anyway

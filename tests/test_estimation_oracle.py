@@ -638,6 +638,7 @@ def test_kf_with_noise_on_the_extras_and_a_full_q():
 
 
 # ----------------------------------------------------------------------------- physical noise
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(CASES))
 def test_physical_noise_equals_per_step_recursion(case):
     """The continuous white acceleration (and with a current its random walk) integrated over
@@ -653,6 +654,7 @@ def test_physical_noise_equals_per_step_recursion(case):
     check(circle(dim=dim), cfg)
 
 
+@pytest.mark.slow
 def test_physical_noise_on_irregular_steps_and_long_gaps():
     """Non-uniform steps (the truth's factor scales with each step) and 10 s gaps on a 20 Hz
     grid (the KF's coupled noise integrated by the Gauss–Legendre rule of the whole gap)."""
@@ -672,6 +674,7 @@ def test_physical_noise_on_irregular_steps_and_long_gaps():
 GUIDANCE = Guidance.from_limits(0.09, speed=1.55, error_scale_m=0.5)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(CASES))
 def test_closed_loop_equals_the_per_step_loop(case):
     """EKF + guidance + truth step by step in numpy (the truth as x_{k+1} = F x_k + G u_k +
@@ -687,6 +690,7 @@ def test_closed_loop_equals_the_per_step_loop(case):
     assert np.all(mc.truth.saturated_fraction_runs > 0)  # the saturation was exercised
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["2d-range-1hz", "2d-current-water", "3d-current-bottom"])
 def test_closed_loop_steered_on_the_gaussian_sum(case):
     """The vehicle steers on the Gaussian sum's mixture mean: in numpy, every member an EKF

@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 NUMBER = r"([-+0-9.eE]+|nan|inf)"
 
@@ -34,6 +36,7 @@ def _value(out: str, label: str) -> float:
     return float(m.group(1))
 
 
+@pytest.mark.slow
 def test_quickstart_quick(tmp_path):
     out = _run("quickstart.py", "--quick", cwd=tmp_path)
     assert re.search(r"^solver: \w+, \d+ iterations$", out, flags=re.MULTILINE), out

@@ -321,6 +321,7 @@ def test_filter_matches_its_reference(case, name):
 SECOND_ORDER = [(c, f) for c in CASES for f in ("half-squared", "range")]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["ekf", "gsf"])
 @pytest.mark.parametrize("case_name, range_form", SECOND_ORDER)
 def test_second_order_update_matches_its_reference(case_name, range_form, name):

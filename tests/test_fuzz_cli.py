@@ -224,6 +224,7 @@ def argvs(draw) -> list[str]:
     database=None,
     suppress_health_check=[HealthCheck.too_slow],
 )
+@pytest.mark.slow
 @given(argvs())
 def test_fuzz_main_argv(argv):
     with pytest.MonkeyPatch.context() as mp:

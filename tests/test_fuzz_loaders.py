@@ -145,6 +145,7 @@ def test_fuzz_track_csv(text):
     _expect_trajectory(read_track_csv, _file(text))
 
 
+@pytest.mark.slow
 @FUZZ
 @given(CSV_INPUTS)
 def test_fuzz_trajectory_or_track_with_fit(text):
@@ -236,6 +237,7 @@ def plan_docs(draw):
     return json.dumps(doc)
 
 
+@pytest.mark.slow
 @FUZZ
 @given(plan_docs() | st.text(max_size=80))
 def test_fuzz_qgc_plan(text):
@@ -295,6 +297,7 @@ def problems(draw):
     return data
 
 
+@pytest.mark.slow
 @FUZZ
 @given(problems())
 def test_fuzz_problem_mapping(data):

@@ -119,6 +119,7 @@ def _toml(data: dict) -> str:
     )
 
 
+@pytest.mark.slow
 def test_geodetic_problem_plans_the_same_path_as_its_metric_twin(tmp_path, capsys):
     """Acceptance: the same path to 1 mm; the report carries the origin; geodetic plan.
 

@@ -82,6 +82,7 @@ def test_default_bound_applies_to_log_det_weighted_by_information():
     assert asked.hessian == "exact-without-penalty" and not asked.penalty.is_constant()
 
 
+@pytest.mark.slow
 def test_the_solver_hessian_is_the_unbounded_problems():
     # IPOPT gets the exact Hessian of the Lagrangian without the penalty's curvature: the same
     # matrix, to round-off, as the unbounded formulation's (same variables and constraints).
@@ -124,6 +125,7 @@ def test_the_bound_round_trips():
     assert problem_from_dict(problem_to_dict(pb)) == pb
 
 
+@pytest.mark.slow
 def test_the_penalty_keeps_a_log_det_plan_off_the_line_of_sight():
     # 0.2 Hz ranges, the start 100 m from the beacon: unbounded, the log-det plan closes on the
     # beacon along the line of sight (b about 0.5 σ_r at N = 200; at N = 200 such plans lost the

@@ -98,6 +98,7 @@ ORACLE_CASES = [(*c, "half-squared", m) for c in SENSOR_CASES for m in (0, 1)] +
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim,sensors,current,range_form,m", ORACLE_CASES)
 def test_matches_independent_sympy_derivation(dim, sensors, current, range_form, m):
     model = make_model(dim, sensors, current, range_form=range_form)

@@ -168,6 +168,7 @@ def test_keepout_confidence_is_read_written_and_checked():
             problem_from_dict(data)
 
 
+@pytest.mark.slow
 def test_a_mission_plan_keeps_its_speed_reserve_and_its_waypoints():
     """With a mission the speed reserve still tightens the plan (the true vehicle holds the
     speed limit) and the path returned still passes every waypoint: a re-solve that the
@@ -190,6 +191,7 @@ def test_a_mission_plan_keeps_its_speed_reserve_and_its_waypoints():
     assert (report.max_speed_margin_mps > 0) != dropped, report  # kept, or said
 
 
+@pytest.mark.slow
 def test_keep_out_never_trades_the_mission_for_its_margins():
     """On a survey with no time to spare the tightened re-solves may stop unfinished: a path they
     return is kept only if it still completes the mission (independent check)."""
@@ -222,6 +224,7 @@ def test_the_plans_speed_reserve_is_never_inflated_past_the_guidances_cap(short_
     assert np.all(grown.range_points >= 1.1 * m.range_points - 1e-12)  # the others do grow
 
 
+@pytest.mark.slow
 def test_a_mission_with_no_room_for_the_speed_reserve_keeps_every_other_margin():
     """The default survey on a horizon whose timing needs more speed than the reserve leaves:
     the path returned still completes the mission, and the report says what was kept (a

@@ -96,6 +96,7 @@ def test_shifting_zones_hold_the_schedule_and_never_overlap(path):
     assert any(z.first < z.k0 or z.last > z.k1 for z in zones)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", SURVEYS, ids=lambda p: p.stem)
 def test_both_lawnmowers_meet_every_row_of_a_shifted_mission(path):
     # the lawn-mowers on the planner's schedule are its starts: a zone reaches only where they
@@ -149,6 +150,7 @@ def test_the_relaxation_frees_nodes_well_before_the_line_and_holds_those_at_it()
     assert float(ca.mmax(ln.flex_rows(p, v, 1, end=True))) > 0.5
 
 
+@pytest.mark.slow
 def test_a_shifted_plan_completes_the_survey_within_its_shifted_windows():
     pb = problem_from_dict(_small(0.3))
     res = plan(pb, validate=False, processes=1)

@@ -728,6 +728,7 @@ def test_the_check_holds_the_altitude_band_and_the_horizontal_track():
         assert ("altitude_range_m" in moved.to_dict()["lines"][0]) is True
 
 
+@pytest.mark.slow
 def test_a_plan_flies_its_lines_inside_the_altitude_band():
     pb = load_problem(ALTITUDE)
     res = plan(pb, validate=False)

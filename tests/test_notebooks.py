@@ -14,6 +14,10 @@ from pathlib import Path
 import nbformat
 import pytest
 
+#: end-to-end: the slow tier (docs/development.md)
+pytestmark = pytest.mark.slow
+
+
 NOTEBOOK_DIR = Path(__file__).resolve().parents[1] / "notebooks"
 NOTEBOOKS = ("excitation_requirements", "paper_tour", "planning_tour")
 #: Seconds a single cell may take in quick mode before the run is abandoned.

@@ -149,6 +149,7 @@ def test_fig9_case_b_both_converge_more_slowly_than_fig8():
     assert t_full is not None and t_full > full_rank_time(r8)  # 50 s vs 7.75 s
 
 
+@pytest.mark.slow
 def test_write_figures_quick(tmp_path):
     paths = write_figures(tmp_path, quick=True, progress=False)
     assert [p.name for p in paths] == [f"fig{s.fig}.png" for s in SCENARIOS]

@@ -252,6 +252,7 @@ def test_the_pcrb_weight_plans_what_the_ekf_can_follow():
     assert kf[1.0] < 0.3 * covariance_stds(lm, pb, "kf-position-std")[0]
 
 
+@pytest.mark.slow
 def test_kf_objective_predicts_the_validation_filter():
     # the KF's std alone (pcrb_weight = 0): the objective is that filter's prediction [m]
     pb = small("kf-position-std", steps=20, starts=1, mode="final", pcrb_weight=0.0)
@@ -442,6 +443,7 @@ def test_projection_repairs_a_slightly_infeasible_path(pcrb_result):
     assert objective_value(fixed, pb) == pytest.approx(objective_value(bad, pb), rel=1e-2)
 
 
+@pytest.mark.slow
 def test_multistart_is_deterministic_and_parallel_equals_serial():
     pb = small("pcrb-position", steps=20, starts=3)
     guesses = initial_guesses(pb)
@@ -510,6 +512,7 @@ def test_problem_from_dict_3d_plans_without_area():
 @pytest.mark.parametrize(
     "name", ["localise", "range3d", "range-dvl3d", "range-dvl-water-current2d", "lowrate-range"]
 )
+@pytest.mark.slow
 def test_every_shipped_problem_solves_at_reduced_size(name):
     pb = load_problem(ROOT / "problems" / f"{name}.toml")
     pb = replace(
@@ -529,6 +532,7 @@ def test_every_shipped_problem_solves_at_reduced_size(name):
 
 
 # ------------------------------------------------------------------ Ctrl-C
+@pytest.mark.slow
 def test_sigint_during_a_solve_stops_at_once_with_exit_130(tmp_path):
     """The library's part of Ctrl-C: IPOPT (which CasADi runs with its own interrupt check) and
     the worker processes of the multi-start stop at once, and the command exits 130."""

@@ -34,6 +34,9 @@ from pathlib import Path
 
 import pytest
 
+#: end-to-end: the slow tier (docs/development.md)
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 #: What a clone holds that README commands read.
@@ -43,6 +46,7 @@ _DIRECTIVE = re.compile(r"^\s*<!--\s*readme-test:\s*(.*?)\s*-->\s*$")
 _INSTALL = re.compile(
     r"^(python3? -m venv\b|\. \.venv/bin/activate$|source \.venv/|pip3? install\b)"
 )
+
 _SHELL = {"", "bash", "sh", "shell", "console"}
 
 

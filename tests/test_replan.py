@@ -211,6 +211,7 @@ def test_clairvoyant_replanner_starts_from_the_truth_not_the_estimate(small, mon
         replan_monte_carlo(pb, res.trajectory, 300.0, runs=1, replanner=rp, replan_from="plan")
 
 
+@pytest.mark.slow
 def test_cli_replan_flag_writes_the_replan_report(tmp_path, capsys):
     out = tmp_path / "o"
     assert main(["plan", str(LOCALISE_PROBLEM), "--out", str(out), *SMALL, "--replan", "120"]) == 0

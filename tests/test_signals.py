@@ -39,6 +39,10 @@ import pytest
 from obsplan.trajectory import generators as gen
 from obsplan.trajectory.sampled import write_csv
 
+#: end-to-end: the slow tier (docs/development.md)
+pytestmark = pytest.mark.slow
+
+
 ROOT = Path(__file__).resolve().parents[1]
 #: Moments per verb by default (spread evenly over a whole run).
 POINTS = {"plan": 6, "simulate": 5, "paper": 5, "sweep": 4}

@@ -261,6 +261,7 @@ def test_exact_rank_matches_sympy():
 NEW_KEYS = {"rank_exact", "full_rank_interval_exact", "full_rank_from_t_exact", "rank_tol"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", list(CONFIGS))
 def test_analyze_json_reports_the_exact_interval_beside_full_rank_from_t(key, tmp_path, capsys):
     make, sensors, current, want = CONFIGS[key]

@@ -377,6 +377,7 @@ def test_invalid_toml_is_named(tmp_path):
         load_sweep(ok)
 
 
+@pytest.mark.slow
 def test_default_workers_follow_the_cpu_affinity():
     """A sweep pinned to one core (``taskset``, a batch allocation) starts one worker, not one per
     core of the machine."""

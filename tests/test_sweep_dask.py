@@ -44,6 +44,10 @@ from obsplan.sweeps import (
 )
 from obsplan.sweeps.store import read_report
 
+#: end-to-end: the slow tier (docs/development.md)
+pytestmark = pytest.mark.slow
+
+
 distributed = pytest.importorskip("distributed")
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -349,6 +349,7 @@ def _coarse_ratios(path: str, steps: int, **objective) -> dict:
     return {key: comps[key].ratio for key in VERDICT_KEYS}
 
 
+@pytest.mark.slow
 def test_default_plan_beats_the_lawnmower():
     # the windowed, information-weighted E-optimal plan (on its default linearised system) on
     # the offset-beacon problem (where the paper's form made the EKF diverge), coarser and with
