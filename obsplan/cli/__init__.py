@@ -21,7 +21,7 @@ from obsplan.core import interrupts, outputs
 from obsplan.core.errors import InputError, ObsplanError
 from obsplan.version import __version__
 
-VERBS = ("plan", "analyze", "simulate", "paper", "sweep", "import", "export")
+VERBS = ("plan", "analyze", "simulate", "paper", "sweep", "import", "export", "problems")
 #: Module of each verb whose name is not a valid module name.
 _MODULES = {"import": "import_track"}
 

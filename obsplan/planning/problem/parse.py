@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import replace
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -43,11 +44,25 @@ from obsplan.planning.problem.sections import (
     VehicleSpec,
 )
 
-#: Where ``obsplan plan`` looks when no problem file is given.
-PROBLEMS_DIR = Path(__file__).resolve().parents[3] / "problems"
+#: The shipped problems, suite and sweeps: package data (``obsplan/problems/``, also the clone's
+#: ``problems/``), so every install has them. A plain folder: obsplan is not run from a zip.
+PROBLEMS_DIR = Path(str(resources.files("obsplan").joinpath("problems")))
 DEFAULT_PROBLEM = PROBLEMS_DIR / "default.toml"
 #: The free localisation problem (no ``[mission]``): the default before missions.
 LOCALISE_PROBLEM = PROBLEMS_DIR / "localise.toml"
+
+
+def shipped_files() -> dict[str, Path]:
+    """Every shipped problem and sweep file by its name: its path under :data:`PROBLEMS_DIR`
+    without ``.toml`` (``"default"``, ``"suite/far-start"``, ``"sweeps/beacon-placement"``),
+    in that order: the problems at the top, then the suite, then the sweeps."""
+    files = sorted(PROBLEMS_DIR.rglob("*.toml"), key=lambda f: (len(f.parts), str(f)))
+    return {f.relative_to(PROBLEMS_DIR).with_suffix("").as_posix(): f for f in files}
+
+
+def shipped_file(name: str) -> Path | None:
+    """The shipped file called ``name`` (:func:`shipped_files`; ``.toml`` optional), or None."""
+    return shipped_files().get(name.removesuffix(".toml"))
 
 
 def _is_number(x: Any) -> bool:
@@ -464,7 +479,20 @@ def _scales(vals: dict[str, float]) -> Scales:
 
 
 def load_problem(path: str | Path | None = None) -> PlanningProblem:
-    """Load and validate a problem file (TOML); ``None`` loads ``problems/default.toml``.
+    """Load and validate a problem file (TOML); ``None`` loads the shipped default.
+
+    Parameters
+    ----------
+    path
+        A problem file, or the name of a shipped one (``"suite/far-start"``: ``obsplan
+        problems`` lists them, :func:`shipped_files`) when no such file exists; None: the
+        default problem (``problems/default.toml``, a 2D survey of three lines).
+
+    Returns
+    -------
+    PlanningProblem
+        Checked, its free line order resolved and its structure checked
+        (:func:`problem_from_dict`).
 
     Raises
     ------
@@ -478,19 +506,13 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
     >>> pb.model.dim, pb.objective.kind, pb.mission.kind, len(pb.mission.lines)
     (2, 'pcrb-position', 'survey', 3)
     """
-    if path is None:
-        # problems/ sits beside the package in a clone (editable install); a copied-out
-        # install finds it in the working directory instead
-        candidates = (DEFAULT_PROBLEM, Path.cwd() / "problems" / "default.toml")
-        path = next((c for c in candidates if c.is_file()), None)
-        if path is None:
-            raise ProblemError(
-                f"the default problem {DEFAULT_PROBLEM} is not installed; run from a clone of "
-                "the repository (pip install -e .) or pass a PROBLEM.toml"
-            )
-    path = Path(path)
+    path = Path(DEFAULT_PROBLEM if path is None else path)
     if not path.exists():
-        raise ProblemError(f"problem file not found: {path}")
+        path = shipped_file(str(path)) or path  # a shipped problem by name ("suite/far-start")
+    if not path.exists():
+        raise ProblemError(
+            f"problem file not found: {path} (`obsplan problems` lists the shipped ones by name)"
+        )
     data = read_toml(path, "a problem file (TOML)", error=ProblemError)
     try:
         return problem_from_dict(data, name=path.stem)
