@@ -61,7 +61,11 @@ def test_human_summary(circle_csv, capsys):
             ["--sensors", "range,depth"],
             "dim",
         ),
-        ("t,px,py,vx,vy,ux,uy\n0,1,0,1,0,0,0\n1,2,0,1,0,0,0\n", ["--time-scale", "-1"], "time_s"),
+        (
+            "t,px,py,vx,vy,ux,uy\n0,1,0,1,0,0,0\n1,2,0,1,0,0,0\n",
+            ["--time-scale", "-1"],
+            "--time-scale",
+        ),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, content, args, match):

@@ -1,8 +1,19 @@
 """The ``obsplan`` command. Each verb lives in its own module exposing ``add_parser`` and ``run``.
 
 Exit codes: 0 success, 1 solver or validation failure, 2 bad input (file, option, problem),
-130 / 143 interrupted by SIGINT / SIGTERM (:mod:`obsplan.core.interrupts`; nothing is left written).
+130 / 143 interrupted by SIGINT / SIGTERM (:mod:`obsplan.core.interrupts`; nothing is left written),
+141 the reader of the output went away (``obsplan paper --json | head -c 10``).
 Errors raised on purpose (:mod:`obsplan.core.errors`) are printed as one line, without a traceback.
+
+**A closed output.** When the reader of stdout (or stderr) closes it before the verb has said
+everything, the verb stops quietly, as a Unix tool killed by SIGPIPE does: nothing is printed,
+the exit code is 141 (128 + SIGPIPE, what a shell reports for ``yes | head``; never 1, which
+says the computation failed), and stdout is pointed at ``/dev/null`` so that the interpreter's
+last flush cannot complain either (Python's recommended handling of ``BrokenPipeError``, with
+the shell's code). stdout is flushed when the verb ends, so a pipe closed early is found there,
+not in the interpreter's last flush; output files already committed stay. A
+``BrokenPipeError`` of anything else (a worker's pipe, with stdout and stderr open) is a failure
+like any ``OSError`` (exit 1).
 """
 
 from __future__ import annotations
@@ -11,17 +22,21 @@ import argparse
 import atexit
 import importlib
 import os
+import select
 import signal
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
-from obsplan.cli.common import join_negative_values
+from obsplan.cli.common import check_option_numbers, join_negative_values
 from obsplan.core import interrupts, outputs
 from obsplan.core.errors import InputError, ObsplanError
 from obsplan.version import __version__
 
 VERBS = ("plan", "analyze", "simulate", "paper", "sweep", "import", "export", "problems")
+#: Exit code of a verb whose output's reader went away: 128 + SIGPIPE, as a shell reports a tool
+#: killed by the signal (module docstring).
+EXIT_CLOSED_OUTPUT = 128 + 13
 #: Module of each verb whose name is not a valid module name.
 _MODULES = {"import": "import_track"}
 
@@ -63,6 +78,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     code = 1
     try:
         code = _run(argv)
+    except BrokenPipeError:  # the reader of stderr went away while an error was said
+        code = _closed_output()
     except BaseException as exc:  # a signal turned into another error (e.g. inside CasADi)
         if interrupts.pending() is None:
             raise
@@ -121,9 +138,16 @@ def _run(argv: Sequence[str] | None) -> int:
             join_negative_values(parser, sys.argv[1:] if argv is None else argv)
         )
         verb = args.verb
+        check_option_numbers(parser, args)
         code = int(args._run(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's last flush
         interrupts.check()  # a swallowed signal: the exit code says so (outputs are undone)
         return code
+    except BrokenPipeError as exc:
+        if _output_is_closed():
+            return _closed_output()
+        print(f"{_who(verb)}: failed: {exc.strerror or exc}", file=sys.stderr)
+        return 1
     except InputError as exc:
         print(f"{_who(verb)}: error: {exc}", file=sys.stderr)
         return 2
@@ -141,6 +165,41 @@ def _run(argv: Sequence[str] | None) -> int:
         where = f" ({exc.filename})" if exc.filename else ""
         print(f"{_who(verb)}: failed: {exc.strerror or exc}{where}", file=sys.stderr)
         return 1
+
+
+def _is_closed(stream) -> bool | None:
+    """Whether ``stream`` is a pipe (or socket) whose reader went away; None when it cannot be
+    asked (no file descriptor, as under a test's capture)."""
+    try:
+        poll = select.poll()
+        poll.register(stream.fileno(), select.POLLOUT)
+        return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poll.poll(0))
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def _output_is_closed() -> bool:
+    """Whether the ``BrokenPipeError`` came from stdout or stderr: one of them is closed, or
+    cannot be asked (then the error came from writing to it)."""
+    return any(_is_closed(stream) is not False for stream in (sys.stdout, sys.stderr))
+
+
+def _closed_output() -> int:
+    """End a verb whose output's reader went away: stdout (and stderr, if closed too) pointed at
+    ``/dev/null``, so that no later write and not the interpreter's last flush fails; returns
+    :data:`EXIT_CLOSED_OUTPUT`."""
+    for stream in (sys.stdout, sys.stderr):
+        if stream is sys.stderr and not _is_closed(stream):
+            continue
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            try:
+                os.dup2(devnull, stream.fileno())
+            finally:
+                os.close(devnull)
+        except (OSError, ValueError, AttributeError):
+            pass  # not a real file (a test's capture): nothing will flush into a pipe
+    return EXIT_CLOSED_OUTPUT
 
 
 if __name__ == "__main__":  # pragma: no cover

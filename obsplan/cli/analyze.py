@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import json
 
+import numpy as np
+
 from obsplan.cli.common import add_vehicle_arguments, read_trajectory, resolve_beacon
+from obsplan.core.errors import InputError
 from obsplan.observability.analyze import ObservabilityReport, analyze
-from obsplan.observability.scaling import DEFAULT_SCALES, Scales
+from obsplan.observability.scaling import DEFAULT_SCALES, ScaleError, Scales, check_scale
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -63,9 +66,11 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``obsplan analyze``; exit code 0 (errors raise, mapped by the dispatcher)."""
+    check_scale(args.length_scale, "--length-scale", "m")
+    check_scale(args.time_scale, "--time-scale", "s")
+    scales = Scales(length_m=args.length_scale, time_s=args.time_scale)
     traj = read_trajectory(args.trajectory, "analyze")
     beacon, origin = resolve_beacon(args, traj.dim)
-    scales = Scales(length_m=args.length_scale, time_s=args.time_scale)
     rep = analyze(
         traj,
         sensors=args.sensors or "range",
@@ -73,6 +78,14 @@ def run(args: argparse.Namespace) -> int:
         beacon=beacon,
         scales=scales,
     )
+    try:
+        rep.gramian.check_metrics()  # never print min_eig 0, log_det -inf for a full rank
+    except ScaleError as exc:
+        size = float(np.max(np.ptp(traj.p, axis=0)))
+        raise InputError(
+            f"--length-scale {args.length_scale:g}, --time-scale {args.time_scale:g}: "
+            f"{exc.reason}; {args.trajectory} spans {size:.3g} m over {traj.duration:.3g} s"
+        ) from None
     if args.json:
         out = rep.to_dict()
         if origin is not None:

@@ -1,5 +1,16 @@
 """Options and checks shared by the verbs: vehicle options, beacon, inputs, and the outputs.
 
+Two rules of the argument layer hold for every verb, so that no option is silently accepted:
+
+* **numbers**: every option that takes a number (``type=float``) is judged by the one rule of
+  :func:`~obsplan.core.textfiles.check_magnitude` against its unit's limit in
+  :func:`option_limits` (:func:`check_option_numbers`, run by :func:`obsplan.cli.main` before
+  the verb; ``tests/test_cli_input_classes.py`` holds every float option to the table);
+* **what applies**: an option that only means something for some inputs (``--topic`` for ROS
+  bags, ``--origin`` with a geodetic beacon, ``--acceptance-radius`` with ``--qgc``) is declared
+  as an :class:`Applies` rule by its verb and refused by :func:`check_applies` when given where
+  it does not apply: ``"--topic applies to ROS bags; LOG is a CSV: remove it"``.
+
 Output folders and files (:class:`OutputDir`, :class:`OutputFile`) are those of
 :mod:`obsplan.core.outputs`, one implementation for every verb: checked before any work, written
 into a staging folder and swapped in place, ``--force`` replacing only an earlier obsplan output.
@@ -13,7 +24,9 @@ import math
 import re
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -25,6 +38,120 @@ from obsplan.core.textfiles import check_magnitude
 
 if TYPE_CHECKING:
     from obsplan.trajectory.sampled import Trajectory
+
+
+# ------------------------------------------------------------------------------ numbers
+@cache
+def option_limits() -> dict[str, tuple[float, str]]:
+    """Largest size and unit of every number option (``type=float``) of every verb; the
+    smallest non-zero size accepted is the inverse of the largest (a step of 1e-320 s overflows
+    what it divides).
+
+    The limits are the trajectory CSV's (:data:`~obsplan.core.csvtable.COLUMN_LIMITS`), the
+    scales' (:data:`~obsplan.observability.scaling.MAX_SCALE`) and the geodetic frame's
+    (:data:`~obsplan.model.frames.MAX_DEPTH_M`); a function, so that the command line loads
+    the model only once its signal handlers are installed.
+    """
+    from obsplan.model.frames import MAX_DEPTH_M
+    from obsplan.observability.scaling import MAX_SCALE
+
+    seconds, metres = COLUMN_LIMITS["t"], COLUMN_LIMITS["px"]
+    speed, accel = COLUMN_LIMITS["vx"], COLUMN_LIMITS["ux"]
+    return {
+        "--length-scale": (MAX_SCALE, "m"),
+        "--time-scale": (MAX_SCALE, "s"),
+        "--dt": seconds,
+        "--accel-noise": (accel[0], "m/s²/√Hz"),
+        "--accel": accel,
+        "--speed": speed,
+        "--grid": seconds,
+        "--position-std": metres,
+        "--velocity-std": speed,
+        "--max-gap": seconds,
+        "--every": seconds,
+        "--spacing": metres,
+        "--depth": (MAX_DEPTH_M, "m"),
+        "--acceptance-radius": metres,
+        "--replan": seconds,
+    }
+
+
+def verb_parser(parser: argparse.ArgumentParser, verb: str) -> argparse.ArgumentParser:
+    """The sub-parser of ``verb`` in the ``obsplan`` parser."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices[verb]
+    raise KeyError(verb)  # pragma: no cover - the parser always has its verbs
+
+
+def check_option_numbers(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Refuse a number option of ``args.verb`` beyond its limit in :func:`option_limits`, or
+    non-zero below its inverse, or not finite: one line naming the option and its unit."""
+    for action in verb_parser(parser, args.verb)._actions:
+        value = getattr(args, action.dest, None)
+        if action.type is float and value is not None:
+            option = action.option_strings[-1]
+            limit, unit = option_limits()[option]
+            check_magnitude(value, option, limit, unit, smallest=1.0 / limit)
+
+
+# ------------------------------------------------------------------------------ what applies
+@dataclass(frozen=True)
+class Applies:
+    """An option that means something only for some inputs.
+
+    Attributes
+    ----------
+    option : str
+        The option, ``"--topic"``.
+    to : str
+        Where it applies, in words: ``"ROS bags"``.
+    when : str
+        The name of the fact (a key of :func:`check_applies`'s ``facts``) that holds where it
+        applies: ``"rosbag"``.
+    """
+
+    option: str
+    to: str
+    when: str
+
+
+def option_given(args: argparse.Namespace, option: str) -> bool:
+    """Whether ``option`` was given (options that a rule judges default to None or False)."""
+    value = getattr(args, option.lstrip("-").replace("-", "_"), None)
+    return value is not None and value is not False
+
+
+def check_applies(
+    args: argparse.Namespace, rules: Iterable[Applies], facts: Mapping[str, str | None]
+) -> None:
+    """Refuse the first option given whose rule's fact does not hold.
+
+    Parameters
+    ----------
+    args
+        The parsed arguments.
+    rules
+        The verb's rules.
+    facts
+        Fact name -> None when it holds, else what holds instead, in words (``"LOG is a
+        CSV"``). Rules whose fact is not in ``facts`` are not judged (yet: an input's content
+        is known once it is read).
+
+    Raises
+    ------
+    InputError
+        ``"<option> applies to <to>; <what holds instead>: remove it"``.
+    """
+    for rule in rules:
+        instead = facts.get(rule.when)
+        if instead is not None and option_given(args, rule.option):
+            raise InputError(f"{rule.option} applies to {rule.to}; {instead}: remove it")
+
+
+def given_fact(holds: bool, instead: str) -> str | None:
+    """A fact for :func:`check_applies`: None when it ``holds``, else ``instead``."""
+    return None if holds else instead
 
 
 # ------------------------------------------------------------------------------ arguments
@@ -132,6 +259,13 @@ def parse_beacon(text: str | None, dim: int) -> tuple[float, ...] | None:
     return values
 
 
+#: The vehicle options that apply only to some inputs (:func:`resolve_beacon`).
+VEHICLE_APPLIES = (
+    Applies("--origin", "a geodetic beacon (--beacon-geodetic, whose frame it fixes)", "geodetic"),
+)
+NO_GEODETIC = "no --beacon-geodetic is given"
+
+
 def resolve_beacon(args: argparse.Namespace, dim: int):
     """Beacon position (metric, or geodetic about ``--origin``) and the origin, from ``args``.
 
@@ -139,8 +273,9 @@ def resolve_beacon(args: argparse.Namespace, dim: int):
     """
     from obsplan.io.geodetic import parse_geodetic_point, parse_origin
 
-    origin = parse_origin(args.origin) if getattr(args, "origin", None) else None
     geo = getattr(args, "beacon_geodetic", None)
+    check_applies(args, VEHICLE_APPLIES, {"geodetic": given_fact(geo is not None, NO_GEODETIC)})
+    origin = parse_origin(args.origin) if getattr(args, "origin", None) else None
     if geo is not None and args.beacon is not None:
         raise InputError("give either --beacon X,Y[,Z] [m] or --beacon-geodetic, not both")
     if geo is not None:
@@ -193,14 +328,21 @@ def output_dir(path: str | Path, force: bool) -> Path:
 
 
 __all__ = [
+    "Applies",
     "OutputDir",
     "OutputFile",
     "add_output_arguments",
     "add_vehicle_arguments",
+    "check_applies",
+    "check_option_numbers",
     "check_seed",
+    "given_fact",
     "join_negative_values",
+    "option_given",
+    "option_limits",
     "output_dir",
     "parse_beacon",
     "read_trajectory",
     "resolve_beacon",
+    "verb_parser",
 ]

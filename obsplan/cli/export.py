@@ -8,10 +8,20 @@ import math
 import sys
 from pathlib import Path
 
-from obsplan.cli.common import OutputFile, read_trajectory
+from obsplan.cli.common import Applies, OutputFile, check_applies, given_fact, read_trajectory
 from obsplan.core.errors import InputError
+from obsplan.core.textfiles import read_json
+from obsplan.model.frames import check_local_points
 
 DEFAULT_EVERY_S = 30.0
+DEFAULT_ACCEPTANCE_M = 1.0
+#: Options that apply only to some outputs (:func:`obsplan.cli.common.check_applies`).
+APPLIES = (
+    Applies("--origin", "geodetic output (--geodetic, --qgc)", "geodetic"),
+    Applies("--geodetic", "the waypoint CSV (--waypoints)", "waypoints"),
+    Applies("--depth", "the QGroundControl mission of a 2D plan (--qgc)", "qgc"),
+    Applies("--acceptance-radius", "the QGroundControl mission (--qgc)", "qgc"),
+)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -60,8 +70,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--acceptance-radius",
         metavar="M",
         type=float,
-        default=1.0,
-        help="waypoint acceptance radius of the mission [m] (default 1)",
+        default=None,
+        help=f"waypoint acceptance radius of the --qgc mission [m] (default "
+        f"{DEFAULT_ACCEPTANCE_M:g})",
     )
     p.add_argument("--force", action="store_true", help="replace existing output files")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
@@ -69,24 +80,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 
 def _origin(args: argparse.Namespace):
+    """The origin of the plan's frame and where it came from: ``--origin``, or the report.json
+    beside the plan (read only when geodetic output is asked for)."""
     from obsplan.io.geodetic import parse_origin
     from obsplan.model.frames import GeodeticOrigin
 
     if args.origin is not None:
         return parse_origin(args.origin), "--origin"
     report = Path(args.plan).with_name("report.json")
-    if report.is_file():
+    if not (args.geodetic or args.qgc) or not report.exists():
+        return None, None
+    doc = read_json(report, "the report.json of `obsplan plan` (or give --origin)")
+    o = doc.get("origin") if isinstance(doc, dict) else None
+    if isinstance(o, dict):
         try:
-            o = json.loads(report.read_text(encoding="utf-8")).get("origin")
-        except (OSError, ValueError, AttributeError):
-            o = None
-        if isinstance(o, dict):
-            try:
-                return GeodeticOrigin(o["latitude"], o["longitude"], o.get("altitude", 0.0)), str(
-                    report
-                )
-            except (KeyError, TypeError, InputError):
-                raise InputError(f"{report}: its 'origin' is malformed; give --origin") from None
+            origin = GeodeticOrigin(o["latitude"], o["longitude"], o.get("altitude", 0.0))
+        except (KeyError, TypeError, InputError):
+            raise InputError(f"{report}: its 'origin' is malformed; give --origin") from None
+        return origin, str(report)
     return None, None
 
 
@@ -103,30 +114,41 @@ def run(args: argparse.Namespace) -> int:
         outs.append(OutputFile(args.qgc, args.force, "--qgc", inputs=[args.plan]))
     if len(outs) == 2 and outs[0].path.resolve() == outs[1].path.resolve():
         raise InputError("--waypoints and --qgc name the same file; give two names")
+    geodetic = args.geodetic or args.qgc is not None
+    check_applies(
+        args,
+        APPLIES,
+        {
+            "geodetic": given_fact(geodetic, "no --geodetic or --qgc is given"),
+            "waypoints": given_fact(args.waypoints is not None, "no --waypoints is given"),
+            "qgc": given_fact(args.qgc is not None, "no --qgc is given"),
+        },
+    )
     origin, origin_from = _origin(args)
-    if (args.geodetic or args.qgc) and origin is None:
+    if geodetic and origin is None:
         raise InputError(
             ("--qgc" if args.qgc else "--geodetic")
             + " needs geodetic coordinates: give --origin LAT,LON[,ALT] (the origin of the "
             "plan's north-east-down frame), or export a plan whose report.json has an origin"
         )
-    if args.depth is not None and args.qgc is None:
-        raise InputError("--depth is the depth of a 2D plan in the --qgc mission; give --qgc")
-    if args.depth is not None and not (math.isfinite(args.depth) and args.depth >= 0):
-        raise InputError(
-            f"--depth {args.depth:g}: a depth must be a finite number of metres >= 0 "
-            "(0: at the surface)"
-        )
-    if not (math.isfinite(args.acceptance_radius) and args.acceptance_radius > 0):
-        raise InputError(
-            f"--acceptance-radius {args.acceptance_radius:g}: must be a positive number of metres"
-        )
+    if args.depth is not None:
+        if not (math.isfinite(args.depth) and args.depth >= 0):
+            raise InputError(
+                f"--depth {args.depth:g}: a depth must be a finite number of metres >= 0 "
+                "(0: at the surface)"
+            )
+    radius = DEFAULT_ACCEPTANCE_M if args.acceptance_radius is None else args.acceptance_radius
+    if not (math.isfinite(radius) and radius > 0):
+        raise InputError(f"--acceptance-radius {radius:g}: must be a positive number of metres")
     traj = read_trajectory(args.plan, "export")
     if args.depth is not None and traj.dim == 3:
         raise InputError(
             f"--depth: {args.plan} is a 3D plan, whose mission flies its own depths (pz); "
             "drop --depth"
         )
+    if origin is not None:  # the frame serves 50 km about its origin (docs/geodetic.md)
+        by = "" if origin_from == "--origin" else f" (origin from {origin_from})"
+        check_local_points(traj.p, origin, f"{args.plan}{by}")
     every = args.every if (args.every is not None or args.spacing is not None) else DEFAULT_EVERY_S
     wp = waypoints_from_trajectory(traj, every=every, spacing=args.spacing, origin=origin)
     written = []
@@ -136,9 +158,7 @@ def run(args: argparse.Namespace) -> int:
         written.append(str(outs[0].path))
     if args.qgc is not None:
         with outs[-1].writing() as tmp:
-            write_qgc_plan(
-                wp, tmp, depth_2d=args.depth or 0.0, acceptance_radius=args.acceptance_radius
-            )
+            write_qgc_plan(wp, tmp, depth_2d=args.depth or 0.0, acceptance_radius=radius)
         written.append(str(outs[-1].path))
     summary = {
         "waypoints": len(wp),

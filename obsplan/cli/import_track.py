@@ -9,8 +9,15 @@ import argparse
 import json
 import sys
 
-from obsplan.cli.common import OutputFile
-from obsplan.io.tracks import DEFAULT_VELOCITY_STD, MAX_GAP_INTERVALS, fit_track, read_track
+from obsplan.cli.common import Applies, OutputFile, check_applies, given_fact
+from obsplan.io.tracks import (
+    DEFAULT_VELOCITY_STD,
+    FORMAT_NAMES,
+    MAX_GAP_INTERVALS,
+    fit_track,
+    read_track,
+    track_format,
+)
 from obsplan.trajectory.sampled import write_csv
 
 
@@ -43,7 +50,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument(
         "--ros-frame",
         choices=("enu", "ned"),
-        default="enu",
+        default=None,
         help="frame of the bag's positions: enu (ROS REP-103, converted to north-east-down; "
         "default) or ned (kept)",
     )
@@ -79,8 +86,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "--velocity-std",
         metavar="M/S",
         type=float,
-        default=DEFAULT_VELOCITY_STD,
-        help=f"noise of logged velocities [m/s] (default {DEFAULT_VELOCITY_STD:g})",
+        default=None,
+        help=f"noise of logged velocities [m/s] (default {DEFAULT_VELOCITY_STD:g}; for logs "
+        "with velocities)",
     )
     p.add_argument(
         "--max-gap",
@@ -93,9 +101,31 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     return p
 
 
+#: Options that apply only to some logs (:func:`obsplan.cli.common.check_applies`): the
+#: format's are judged before the log is read, the content's after.
+APPLIES = (
+    Applies("--topic", "ROS bags", "rosbag"),
+    Applies("--ros-frame", "ROS bags", "rosbag"),
+    Applies("--message", "MAVLink logs", "mavlink"),
+    Applies(
+        "--origin",
+        "geodetic logs (MAVLink GLOBAL_POSITION_INT, a waypoint CSV of latitude, longitude)",
+        "geodetic",
+    ),
+    Applies("--velocity-std", "logs with velocities (vx, vy[, vz]; MAVLink)", "velocities"),
+)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``obsplan import``; 0 on success."""
     # checked before reading the log
+    fmt = track_format(args.log, args.format)
+    where = f"{args.log} is {FORMAT_NAMES.get(fmt, fmt)}"
+    facts = {"rosbag": given_fact(fmt == "rosbag", where)}
+    facts["mavlink"] = given_fact(fmt == "mavlink", where)
+    if fmt == "rosbag":  # a bag has local positions and no velocities the fit reads
+        facts["geodetic"] = facts["velocities"] = where
+    check_applies(args, APPLIES, facts)
     out = OutputFile(args.out, args.force, "--out", inputs=[args.log])
     origin = None
     if args.origin is not None:
@@ -104,18 +134,27 @@ def run(args: argparse.Namespace) -> int:
         origin = parse_origin(args.origin)
     track = read_track(
         args.log,
-        args.format,
+        fmt,
         topic=args.topic,
         message=args.message,
         origin=origin,
-        ros_frame=args.ros_frame,
+        ros_frame=args.ros_frame or "enu",
+    )
+    read = f"{track.source} has"
+    check_applies(
+        args,
+        APPLIES,
+        {
+            "geodetic": given_fact(track.origin is not None, f"{read} local positions"),
+            "velocities": given_fact(track.v is not None, f"{read} no velocities"),
+        },
     )
     for note in track.notes:
         print(f"obsplan import: warning: {note}", file=sys.stderr)
     fit = fit_track(
         track,
         position_std=args.position_std,
-        velocity_std=args.velocity_std,
+        velocity_std=DEFAULT_VELOCITY_STD if args.velocity_std is None else args.velocity_std,
         grid=args.grid,
         max_gap=args.max_gap,
     )

@@ -12,7 +12,7 @@ import argparse
 import json
 import sys
 
-from obsplan.cli.common import OutputDir
+from obsplan.cli.common import Applies, OutputDir, check_applies, given_fact
 from obsplan.paper.tables import all_rows, claims, paper_report, render_tables, structural
 
 
@@ -43,8 +43,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     return p
 
 
+#: Options that apply only with an output folder (:func:`obsplan.cli.common.check_applies`).
+APPLIES = (
+    Applies("--force", "an output folder (--out)", "out"),
+    Applies("--no-figures", "an output folder (--out)", "out"),
+)
+
+
 def run(args: argparse.Namespace) -> int:
     """Compute, print and optionally write the tables; returns the exit code."""
+    check_applies(args, APPLIES, {"out": given_fact(args.out is not None, "no --out is given")})
     out = OutputDir(args.out, args.force, verb="paper") if args.out is not None else None
     if not args.quiet:
         dt = "0.1 s" if args.quick else "0.01 s"

@@ -87,6 +87,8 @@ def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningP
         raise InputError(f"--runs must be at least 1, got {args.runs}")
     if args.max_runs is not None and args.max_runs < 1:
         raise InputError(f"--max-runs must be at least 1, got {args.max_runs}")
+    if args.max_runs is not None:
+        budget.check_runs(args.max_runs, "--max-runs")
     if args.steps is not None:
         pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=args.steps))
     if args.starts is not None:

@@ -19,10 +19,13 @@ from typing import Any
 import numpy as np
 
 from obsplan.cli.common import (
+    Applies,
     OutputDir,
     add_output_arguments,
     add_vehicle_arguments,
+    check_applies,
     check_seed,
+    given_fact,
     read_trajectory,
     resolve_beacon,
 )
@@ -40,6 +43,8 @@ from obsplan.estimation.montecarlo.simulate import (
 from obsplan.estimation.schedule import sample_rate
 from obsplan.model.vehicle import make_model
 
+#: Options that apply only to some runs (:func:`obsplan.cli.common.check_applies`).
+APPLIES = (Applies("--navigation", "the closed loop (the filter it steers on)", "closed"),)
 #: Acceleration bound [m/s²] of the guidance without a problem (the default problem's), raised to
 #: the trajectory's largest input so that its own feed-forward never saturates.
 DEFAULT_GUIDANCE_ACCEL = 0.05
@@ -49,6 +54,7 @@ PROBLEM_REPLACES = {
     "current": "vehicle.current",
     "beacon": "beacon.position",
     "beacon_geodetic": "beacon.geodetic",
+    "origin": "[origin]",
     "rates": "validation.*_rate",
     "noise": "validation.*_std",
     "dt": "validation.dt",
@@ -329,6 +335,31 @@ def _filters(args: argparse.Namespace) -> tuple[str, ...]:
     return tuple(s.strip() for s in args.filters.split(",") if s.strip())
 
 
+def _check_beacon_clear(args: argparse.Namespace, traj, pb, beacon) -> None:
+    """Refuse a beacon at the trajectory's start: the geometry every plan refuses
+    (:func:`obsplan.planning.problem.checks.check_start_clear`, at the problem's
+    ``limits.min_range``, or the default one without a problem)."""
+    from obsplan.planning.problem.checks import check_start_clear
+
+    if pb is not None:
+        where = f"beacon.position of --problem {args.problem}"
+        check_start_clear(traj.p[0], pb.beacon, pb.limits.min_range, where=where, fix=_CLEAR)
+        return
+    if args.beacon is not None:
+        where = f"--beacon {args.beacon}"
+    elif args.beacon_geodetic is not None:
+        where = f"--beacon-geodetic {args.beacon_geodetic}"
+    else:
+        where = "the beacon (at the origin: no --beacon given)"
+    check_start_clear(traj.p[0], beacon or np.zeros(traj.dim), where=where, fix=_CLEAR)
+
+
+_CLEAR = (
+    "so close the range says nothing of the bearing and an EKF linearised there diverges: "
+    "place the beacon at least that far from the trajectory's first sample, as every plan does"
+)
+
+
 def run(args: argparse.Namespace) -> int:
     """Execute ``obsplan simulate``; 0, or 1 if a filter diverged."""
     check_seed(args.seed)
@@ -336,8 +367,12 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--runs {args.runs}: needs at least 1 run")
     if args.runs is not None:
         budget.check_runs(args.runs, "--runs")  # before reading the trajectory
+    closed = not args.open_loop
+    check_applies(args, APPLIES, {"closed": given_fact(closed, "--open-loop flies blind")})
     traj = read_trajectory(args.trajectory, "simulate")
     pb = _problem_mode(args, traj) if args.problem else None
+    beacon = None if pb is not None else resolve_beacon(args, traj.dim)[0]
+    _check_beacon_clear(args, traj, pb, beacon)
     runs = args.runs if args.runs is not None else (pb.validation.runs if pb else 50)
     check_filter_grid(traj, pb.validation.dt if pb else args.dt, runs)
     # the output folder is checked before the (long) simulation, written only at the end
@@ -367,7 +402,6 @@ def run(args: argparse.Namespace) -> int:
                 from obsplan.trajectory.sampled import resample
 
                 fine = resample(traj, args.dt, name="--dt")
-            beacon, _ = resolve_beacon(args, traj.dim)
             model = make_model(
                 traj.dim, args.sensors or "range", current=bool(args.current), beacon=beacon
             )

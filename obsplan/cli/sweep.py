@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from obsplan.cli.common import Applies, check_applies
 from obsplan.core.errors import InputError
 from obsplan.core.outputs import check_name
 
@@ -20,6 +21,20 @@ if TYPE_CHECKING:
 
 #: Failed tasks listed at the end (the rest are in the table's ``error`` column).
 SHOW_FAILED = 5
+#: Options of running a sweep, refused with ``--report``, which only redraws the figures
+#: (:func:`~obsplan.cli.common.check_applies`).
+APPLIES = tuple(
+    Applies(option, "running a sweep", "run")
+    for option in (
+        "--workers",
+        "--scheduler",
+        "--scheduler-file",
+        "--retry-failed",
+        "--no-figures",
+        "--force",
+        "--quiet",
+    )
+)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -136,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
                 "--report DIR redraws the figures of a finished sweep; give it alone "
                 "(no SWEEP.toml, no --out)"
             )
+        check_applies(args, APPLIES, {"run": "--report only redraws a sweep's figures"})
         written = redraw_figures(args.report)
         print(f"wrote {len(written)} figures to {Path(args.report) / FIGURES}")
         return 0

@@ -192,7 +192,10 @@ def estimate_rows(path: str | Path, probe_bytes: int = 1 << 16) -> float:
 
 def check_file_rows(path: str | Path, field: str, error=InputError) -> None:
     """Refuse a text file estimated (:func:`estimate_rows`) to hold more than :data:`MAX_ROWS`
-    rows, before reading it."""
+    rows, before reading it (a folder, a device or a named pipe is left to the reader, which
+    refuses it without opening it: :func:`obsplan.core.textfiles.check_regular_file`)."""
+    if not Path(path).is_file():
+        return
     try:
         rows = estimate_rows(path)
     except OSError:
@@ -237,11 +240,22 @@ def check_cost(cost: Cost, field: str, fix: str = "", error=InputError) -> None:
 
 
 def check_monte_carlo(
-    runs: int, samples: float, dim: int, field: str, fix: str = "", error=InputError
+    runs: int,
+    samples: float,
+    dim: int,
+    field: str,
+    fix: str = "",
+    error=InputError,
+    samples_field: str | None = None,
 ) -> None:
-    """Runs, samples per run, and the memory and time of the whole Monte Carlo."""
+    """Runs, samples per run, and the memory and time of the whole Monte Carlo.
+
+    ``field`` names the runs (and the whole cost); ``samples_field`` the setting that makes the
+    samples per run (a filter step such as ``validation.dt``; default ``field``), so that too
+    many samples are blamed on the step, not on the runs.
+    """
     check_runs(runs, field, error)
-    check_samples(samples, field, fix, error)
+    check_samples(samples, samples_field or field, fix, error)
     max_runs = max_memory() / (float(samples) * 3 * dim * MC_BYTES_PER_ELEMENT)
     hint = f"use at most {int(max_runs)} runs" + (f" or {fix}" if fix else "")
     check_cost(monte_carlo_cost(runs, samples, dim), field, hint, error)

@@ -224,6 +224,8 @@ def _check_unique(columns: tuple[str, ...], path: Path, header_line: int) -> Non
 
 def _check_rows(path: Path) -> None:
     """Refuse, before parsing, a file of more than :data:`MAX_ROWS` lines (counted in chunks)."""
+    if not path.is_file():
+        return  # read_text names the problem, without opening a device or a named pipe
     try:
         size = path.stat().st_size
     except OSError:

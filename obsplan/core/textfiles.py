@@ -1,17 +1,22 @@
 """The one place where user text files are opened and user numbers are judged by their size.
 
 Every reader of a user's text file (the trajectory and track CSVs, the problem and sweep TOML
-files: :func:`read_toml`) goes through :func:`read_text`, so that a missing file, a folder, a
-binary file, a byte-order mark, a file saved in another encoding than UTF-8 or a file far too
-large get the same one-line error everywhere, naming the file and the fix. :func:`check_magnitude`
-is the one test of "a number no vehicle problem can have" (``1e300`` m, ``1e200`` m of noise), so
-that such values are refused by name before any arithmetic overflows.
+files: :func:`read_toml`; the JSON a verb reads back: :func:`read_json`) goes through
+:func:`read_text`, so that a missing file, a folder, a device or a named pipe (``/dev/zero``, a
+FIFO: :func:`check_regular_file`, which never opens them), a binary file, a byte-order mark, a
+file saved in another encoding than UTF-8, a file far too large, arrays nested thousands of levels
+deep or an integer of thousands of digits get the same one-line error everywhere, naming the file
+and the fix. :func:`check_magnitude` is the one test of "a number no vehicle problem can have"
+(``1e300`` m, ``1e200`` m of noise, a scale of ``1e-300`` m), so that such values are refused by
+name before any arithmetic overflows or underflows.
 """
 
 from __future__ import annotations
 
 import codecs
+import json
 import math
+import stat
 import tomllib
 from collections.abc import Iterable
 from pathlib import Path
@@ -28,6 +33,51 @@ _BOMS = (
     (codecs.BOM_UTF16_LE, "UTF-16"),
     (codecs.BOM_UTF16_BE, "UTF-16"),
 )
+
+
+_KINDS = (
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a named pipe (FIFO)"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def check_regular_file(
+    path: str | Path, what: str, *, error: type[InputError] = InputError
+) -> Path:
+    """``path`` if it is a regular file (a link to one counts), else one clear error.
+
+    Nothing is opened: a named pipe would block the reader forever and a device such as
+    ``/dev/zero`` never ends.
+
+    Parameters
+    ----------
+    path
+        The file.
+    what
+        What the file should be, for messages (``"a problem file (TOML)"``).
+    error
+        The :class:`~obsplan.core.errors.InputError` subclass to raise.
+
+    Raises
+    ------
+    InputError
+        (as ``error``) for a missing path, a folder, a device, a named pipe or a socket.
+    """
+    path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise error(f"file not found: {path}") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot be read: {exc.strerror or exc}") from None
+    if stat.S_ISREG(mode):
+        return path
+    if stat.S_ISDIR(mode):
+        raise error(f"{path} is a folder, not a file; give the path of {what}")
+    kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    raise error(f"{path} is not a regular file ({kind}); give the path of {what}")
 
 
 def read_text(
@@ -53,14 +103,11 @@ def read_text(
     Raises
     ------
     InputError
-        (as ``error``) for a missing file, a folder, an unreadable, too large or binary file, or
-        text that is not UTF-8 (with the line and column of the first bad byte).
+        (as ``error``) for a missing file, a folder, a device or a named pipe
+        (:func:`check_regular_file`), an unreadable, too large or binary file, or text that is
+        not UTF-8 (with the line and column of the first bad byte).
     """
-    path = Path(path)
-    if not path.exists():
-        raise error(f"file not found: {path}")
-    if not path.is_file():
-        raise error(f"{path} is not a file; give the path of {what}")
+    path = check_regular_file(path, what, error=error)
     try:
         size = path.stat().st_size
         if size > max_bytes:
@@ -98,15 +145,79 @@ def read_text(
     return text
 
 
+#: Deepest nesting of arrays and tables (objects) read from a TOML or JSON file: the files
+#: obsplan reads nest a few levels (a mission's lines: section, field, list of lists), while
+#: thousands exhaust the stack of the parser or of whatever walks the result (a deep copy).
+MAX_NESTING = 64
+#: The refusal of a file nested too deeply (by the parser's stack, or by :data:`MAX_NESTING`).
+_NESTING_WORDS = (
+    "arrays or tables nested {depth} levels deep ({what} nests a few, and at most {limit} are "
+    "read); is it the right file?"
+)
+
+
+def _check_nesting(data: Any, path: str | Path, what: str, error: type[InputError]) -> Any:
+    """``data`` if no array or table in it is nested deeper than :data:`MAX_NESTING` (walked
+    without recursion), else one error naming the file."""
+    stack = [(data, 0)]
+    while stack:
+        obj, depth = stack.pop()
+        if isinstance(obj, dict | list):
+            if depth >= MAX_NESTING:
+                words = _NESTING_WORDS.format(
+                    depth=f"more than {MAX_NESTING}", limit=MAX_NESTING, what=what
+                )
+                raise error(f"{path}: {words}")
+            stack.extend((v, depth + 1) for v in (obj.values() if isinstance(obj, dict) else obj))
+    return data
+
+
 def read_toml(
     path: str | Path, what: str, *, error: type[InputError] = InputError
 ) -> dict[str, Any]:
-    """A TOML file (through :func:`read_text`) as a mapping, or one error naming the line."""
+    """A TOML file (through :func:`read_text`) as a mapping, or one error naming the line.
+
+    Raises
+    ------
+    InputError
+        (as ``error``) for everything :func:`read_text` refuses, text that is not TOML, arrays
+        or tables nested deeper than :data:`MAX_NESTING` levels, or an integer of more digits
+        than Python converts.
+    """
     text = read_text(path, what, error=error)
     try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise error(f"{path}: not valid TOML: {exc}") from None
+        data = tomllib.loads(text)
+    except RecursionError:
+        words = _NESTING_WORDS.format(depth="hundreds of", limit=MAX_NESTING, what=what)
+        raise error(f"{path}: {words}") from None
+    except ValueError as exc:  # TOMLDecodeError, or an integer of more than 4300 digits
+        raise error(f"{path}: not valid TOML: {_first_line(exc)}") from None
+    return _check_nesting(data, path, what, error)
+
+
+def read_json(path: str | Path, what: str, *, error: type[InputError] = InputError) -> Any:
+    """A JSON file (through :func:`read_text`) as plain data, or one error naming the file.
+
+    Raises
+    ------
+    InputError
+        (as ``error``) for everything :func:`read_text` refuses, text that is not JSON, arrays
+        or objects nested deeper than :data:`MAX_NESTING` levels, or an integer of more digits
+        than Python converts.
+    """
+    text = read_text(path, what, error=error)
+    try:
+        data = json.loads(text)
+    except RecursionError:
+        words = _NESTING_WORDS.format(depth="hundreds of", limit=MAX_NESTING, what=what)
+        raise error(f"{path}: {words}") from None
+    except ValueError as exc:
+        raise error(f"{path}: not valid JSON: {_first_line(exc)}") from None
+    return _check_nesting(data, path, what, error)
+
+
+def _first_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def check_magnitude(
@@ -115,18 +226,40 @@ def check_magnitude(
     limit: float,
     unit: str,
     *,
+    smallest: float = 0.0,
     error: type[InputError] = InputError,
 ) -> None:
-    """Refuse a value that is not finite or larger in size than ``limit`` (same unit).
+    """Refuse a value that is not finite, larger in size than ``limit`` or, when ``smallest``
+    is given, non-zero and smaller in size than ``smallest`` (all in ``unit``).
 
-    ``name`` is how the message calls the value (an option, a field, a row and column).
+    Parameters
+    ----------
+    values
+        One number or several (each is judged; the first bad one is named).
+    name
+        How the message calls the value: an option, a field, a row and column.
+    limit
+        Largest size accepted.
+    unit
+        Unit of the values and limits, for the message (``""`` or ``"-"``: none).
+    smallest
+        Smallest non-zero size accepted (a scale or a step of ``1e-300`` underflows what it
+        divides); 0: no lower bound.
+    error
+        The :class:`~obsplan.core.errors.InputError` subclass to raise.
     """
     vals = [values] if isinstance(values, int | float) else list(values)
+    u = "" if unit in ("", "-") else f" {unit}"
     for v in vals:
         if not math.isfinite(v):
             raise error(f"{name}: {v!r} is not a finite number")
         if abs(v) > limit:
             raise error(
-                f"{name}: {v:g} {unit} is beyond ±{limit:g} {unit}, more than any vehicle "
+                f"{name}: {v:g}{u} is beyond ±{limit:g}{u}, more than any vehicle problem has; "
+                "check the units (SI: m, s, m/s, m/s²)"
+            )
+        if 0 < abs(v) < smallest:
+            raise error(
+                f"{name}: {v:g}{u} is below {smallest:g}{u} in size, less than any vehicle "
                 "problem has; check the units (SI: m, s, m/s, m/s²)"
             )

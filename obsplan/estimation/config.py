@@ -56,7 +56,9 @@ from typing import Literal
 
 import numpy as np
 
+from obsplan.core.csvtable import COLUMN_LIMITS
 from obsplan.core.errors import ConfigError
+from obsplan.core.textfiles import check_magnitude
 from obsplan.estimation.kalman import integrated_noise
 from obsplan.model.vehicle import SENSOR_ALIASES, SENSORS, VehicleModel
 from obsplan.observability.gramian import augmented_model
@@ -366,6 +368,11 @@ class EstimationConfig:
                     f"init_error: expected {mx} finite numbers ({', '.join(model.state_names)}), "
                     f"got {got}"
                 )
+            for name, x in zip(model.state_names, e, strict=True):
+                # the limits of a trajectory's position and velocity columns: an error of 1e9 m
+                # overflows the filters' squares into a NaN NEES
+                limit, unit = COLUMN_LIMITS[name[0] + name[-1]]
+                check_magnitude(float(x), f"init_error {name}", limit, unit, error=ConfigError)
             e.setflags(write=False)
             object.__setattr__(self, "init_error", e)
 

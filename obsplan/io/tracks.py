@@ -46,10 +46,11 @@ from typing import Any
 
 import numpy as np
 
-from obsplan.core.csvtable import CsvTable, read_table
+from obsplan.core.csvtable import COLUMN_LIMITS, CsvTable, read_table
 from obsplan.core.errors import InputError, TrajectoryFormatError
+from obsplan.core.textfiles import check_magnitude, check_regular_file
 from obsplan.estimation.filters import linear
-from obsplan.model.frames import GeodeticOrigin, geodetic_to_local
+from obsplan.model.frames import first_point_origin, geodetic_to_local
 from obsplan.trajectory.sampled import Trajectory, check_samples, csv_columns, trajectory_from_table
 
 #: Fewest samples a fit accepts (three fix the quadratic of one hold; one more leaves a residual).
@@ -259,10 +260,10 @@ def _waypoint_track(table: CsvTable, origin: Any) -> Track | None:
         names = ["t", "latitude", "longitude", *(["depth"] if "depth" in cols else [])]
         data = table.numbers(names)
         first = origin is None
-        if first:
-            origin = GeodeticOrigin(latitude=float(data[0, 1]), longitude=float(data[0, 2]))
-        depth = data[:, 3] if data.shape[1] == 4 else np.zeros(data.shape[0])
         where = f"{table.path}" + (" (origin: the first waypoint)" if first else "")
+        if first:  # the file's own latitudes are checked first: a bad one is the file's
+            origin = first_point_origin(data[:, 1], data[:, 2], f"{table.path}")
+        depth = data[:, 3] if data.shape[1] == 4 else np.zeros(data.shape[0])
         p = geodetic_to_local(
             data[:, 1], data[:, 2], depth, origin, dim=data.shape[1] - 1, where=where
         )
@@ -354,8 +355,8 @@ def read_track_rosbag(path: str | Path, topic: str | None = None, frame: str = "
     if frame not in ("enu", "ned"):
         raise InputError(f"frame must be 'enu' or 'ned', got {frame!r}")
     path = Path(path)
-    if not path.exists():
-        raise TrajectoryFormatError(f"bag not found: {path}")
+    if not path.is_dir():  # a ROS 2 bag is a folder; a ROS 1 bag or an .mcap a regular file
+        check_regular_file(path, "a ROS bag (file or folder)", error=TrajectoryFormatError)
     try:
         reader = AnyReader([path])
         reader.open()
@@ -430,9 +431,7 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
         from pymavlink import mavutil
     except ImportError:
         raise _missing_extra("pymavlink", "mavlink") from None
-    path = Path(path)
-    if not path.is_file():
-        raise TrajectoryFormatError(f"MAVLink log not found: {path}")
+    path = check_regular_file(path, "a MAVLink telemetry log (.tlog)", error=TrajectoryFormatError)
     if message is not None and message not in MAVLINK_MESSAGES:
         raise InputError(f"message must be one of {', '.join(MAVLINK_MESSAGES)}, got {message!r}")
     rows: dict[str, list[tuple[float, ...]]] = {m: [] for m in MAVLINK_MESSAGES}
@@ -488,8 +487,8 @@ def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any
     a = a[keep]
     if name == "GLOBAL_POSITION_INT":
         first_fix = origin is None
-        if origin is None:
-            origin = GeodeticOrigin(latitude=float(a[0, 1]), longitude=float(a[0, 2]))
+        if origin is None:  # the log's own fixes are checked first: a bad one is the log's
+            origin = first_point_origin(a[:, 1], a[:, 2], f"{path}: {name}")
         where = f"{path}: {name}" + (" (origin: the first fix)" if first_fix else "")
         p = geodetic_to_local(a[:, 1], a[:, 2], a[:, 3], origin, dim=3, where=where)
         return Track(
@@ -521,6 +520,25 @@ def _damage(path: Path, readable: int, name: str, t: np.ndarray) -> tuple[str, .
     return (text,)
 
 
+#: The log formats, in words (for messages).
+FORMAT_NAMES = {"csv": "a CSV", "rosbag": "a ROS bag", "mavlink": "a MAVLink log"}
+
+
+def track_format(path: str | Path, fmt: str = "auto") -> str:
+    """``fmt``, or with ``"auto"`` the format of ``path`` by its extension: ``.bag``/``.mcap``/
+    ``.db3`` or a folder -> ``"rosbag"``, ``.tlog``/``.mavlink`` -> ``"mavlink"``, else
+    ``"csv"``."""
+    if fmt != "auto":
+        return fmt
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext in (".bag", ".mcap", ".db3") or path.is_dir():
+        return "rosbag"
+    if ext in (".tlog", ".mavlink"):
+        return "mavlink"
+    return "csv"
+
+
 def read_track(
     path: str | Path,
     fmt: str = "auto",
@@ -530,17 +548,9 @@ def read_track(
     origin: Any = None,
     ros_frame: str = "enu",
 ) -> Track:
-    """Read a track from a CSV, a ROS bag or a MAVLink log (``fmt`` from the extension when
-    ``"auto"``: ``.bag``/``.mcap``/``.db3`` or a folder -> ROS, ``.tlog`` -> MAVLink, else CSV)."""
+    """Read a track from a CSV, a ROS bag or a MAVLink log (``fmt``: :func:`track_format`)."""
     path = Path(path)
-    if fmt == "auto":
-        ext = path.suffix.lower()
-        if ext in (".bag", ".mcap", ".db3") or path.is_dir():
-            fmt = "rosbag"
-        elif ext in (".tlog", ".mavlink"):
-            fmt = "mavlink"
-        else:
-            fmt = "csv"
+    fmt = track_format(path, fmt)
     if fmt == "csv":
         return read_track_csv(path, origin)
     if fmt == "rosbag":
@@ -739,9 +749,14 @@ def fit_track(
             f"{track.source}: {t.size} samples; fitting accelerations needs at least "
             f"{MIN_SAMPLES} (three fix one parabola, one more checks it)"
         )
-    for name, val in (("position_std", position_std), ("velocity_std", velocity_std)):
+    for name, val, col in (
+        ("position_std", position_std, "px"),
+        ("velocity_std", velocity_std, "vx"),
+    ):
         if val is not None and not (math.isfinite(val) and val > 0):
             raise InputError(f"{name} must be a positive number, got {val!r}")
+        if val is not None:
+            check_magnitude(val, name, *COLUMN_LIMITS[col])
     scale = float(np.max(np.abs(y - y[0]))) if y.size else 0.0
     if not math.isfinite(scale) or scale > 1e8 or float(np.ptp(t)) > 1e9:
         raise TrackFitError(
@@ -756,19 +771,24 @@ def fit_track(
     w = track.v
     with np.errstate(all="ignore"):
         sp_grid = _S_GRID if position_std is None else np.array([float(position_std)])
-        qs, ss, edge = _search(nodes, y, w, velocity_std, n, _Q_GRID, sp_grid)
-        q_ref = qs[:, None] * 10.0 ** np.linspace(-1, 1, 9)[None, :]
-        s_ref = ss[:, None] * (
-            10.0 ** np.linspace(-0.25, 0.25, 9)[None, :] if position_std is None else 1.0
-        )
-        qs, ss = _refine(nodes, y, w, velocity_std, n, q_ref, s_ref)
-        _, moments = _kalman(nodes, y, w, qs, ss, velocity_std, np.arange(n), store=True)
-        xs, u_var = _rts(nodes, moments)
+        try:
+            qs, ss, edge = _search(nodes, y, w, velocity_std, n, _Q_GRID, sp_grid)
+            q_ref = qs[:, None] * 10.0 ** np.linspace(-1, 1, 9)[None, :]
+            s_ref = ss[:, None] * (
+                10.0 ** np.linspace(-0.25, 0.25, 9)[None, :] if position_std is None else 1.0
+            )
+            qs, ss = _refine(nodes, y, w, velocity_std, n, q_ref, s_ref)
+            _, moments = _kalman(nodes, y, w, qs, ss, velocity_std, np.arange(n), store=True)
+            xs, u_var = _rts(nodes, moments)
+        except np.linalg.LinAlgError:
+            xs = u_var = np.full(1, np.nan)  # refused just below, in words
     if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(u_var))):
         raise TrackFitError(
             f"{track.source}: the fit did not give finite values (positions {scale:.3g} m over "
             f"{float(np.ptp(t)):.3g} s); check the units and the samples"
+            + (f", and --position-std {position_std:g} m" if position_std is not None else "")
         )
+    _check_fitted(xs, nodes, t, track.source)
     out = nodes.out
     t_out = nodes.t[out]
     u = xs[out, :, 2]
@@ -796,6 +816,27 @@ def fit_track(
         source=track.source,
         origin=track.origin,
     )
+
+
+def _check_fitted(xs: np.ndarray, nodes: _Nodes, t: np.ndarray, source: str) -> None:
+    """Refuse a fit whose velocities or accelerations no vehicle has (the limits of the
+    trajectory CSV's columns, :data:`~obsplan.core.csvtable.COLUMN_LIMITS`): samples 1e-12 s
+    apart, or times in another unit, fit "exactly" with absurd inputs, which no warning may
+    pass on as a trajectory."""
+    h = float(np.median(np.diff(t)))
+    for what, col, j in (("velocity", "vx", 1), ("acceleration", "ux", 2)):
+        limit, unit = COLUMN_LIMITS[col]
+        big = np.argwhere(np.abs(xs[:, :, j]) > limit)
+        if big.size:
+            k, axis = (int(i) for i in big[0])
+            check_magnitude(
+                float(xs[k, axis, j]),
+                f"{source}: the fit needs a {what} along {'xyz'[axis]} at t = "
+                f"{nodes.t[k]:.6g} s (the samples are {h:.3g} s apart, median)",
+                limit,
+                unit,
+                error=TrackFitError,
+            )
 
 
 def _search(nodes, y, w, sv, n, q_grid, s_grid):

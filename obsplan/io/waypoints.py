@@ -36,6 +36,7 @@ import numpy as np
 from obsplan.core.atomic import atomic_file
 from obsplan.core.csvtable import read_table, write_table
 from obsplan.core.errors import InputError, TrajectoryFormatError
+from obsplan.core.textfiles import read_json
 from obsplan.model.frames import local_to_geodetic
 from obsplan.trajectory.sampled import Trajectory, grid_times
 
@@ -278,7 +279,7 @@ def waypoint_rows(wp: Waypoints, geodetic: bool) -> tuple[list[str], np.ndarray]
                 "geodetic waypoints need an origin: give --origin LAT,LON[,ALT] or plan a "
                 "problem with an [origin] section"
             )
-        lat, lon, depth = local_to_geodetic(wp.p, wp.origin)
+        lat, lon, depth = local_to_geodetic(wp.p, wp.origin, "waypoint")
         pos = np.column_stack([lat, lon, depth][: wp.dim])
     else:
         pos = wp.p
@@ -307,7 +308,7 @@ def read_waypoints_csv(path: str | Path) -> dict[str, np.ndarray]:
 
 def write_geodetic_samples(traj: Trajectory, origin: Any, path: str | Path) -> Path:
     """The plan's samples as ``t,latitude,longitude[,depth],speed`` (atomic)."""
-    lat, lon, depth = local_to_geodetic(traj.p, origin)
+    lat, lon, depth = local_to_geodetic(traj.p, origin, "plan")
     cols = ["t", "latitude", "longitude", "depth"][: 1 + traj.dim] + ["speed"]
     rows = np.column_stack(
         [grid_times(traj.t), *[lat, lon, depth][: traj.dim], np.linalg.norm(traj.v, axis=1)]
@@ -342,7 +343,7 @@ def qgc_plan(
         )
     if not (math.isfinite(depth_2d) and depth_2d >= 0):
         raise InputError(f"depth {depth_2d!r}: must be a number of metres >= 0 (0: the surface)")
-    lat, lon, depth = local_to_geodetic(wp.p, wp.origin)
+    lat, lon, depth = local_to_geodetic(wp.p, wp.origin, "waypoint")
     if wp.dim == 2:
         depth = np.full(lat.size, float(depth_2d))
     items: list[dict] = []
@@ -412,8 +413,8 @@ def read_qgc_plan(path: str | Path) -> dict[str, np.ndarray]:
     """The waypoints of a ``.plan`` file: ``latitude``, ``longitude``, ``altitude`` and the
     ground ``speed`` in force on the leg to each waypoint (NaN before any DO_CHANGE_SPEED)."""
     path = Path(path)
+    doc = read_json(path, "a QGroundControl plan (.plan)", error=TrajectoryFormatError)
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
         if doc.get("fileType") != "Plan":
             raise ValueError('fileType is not "Plan"')
         items = doc["mission"]["items"]

@@ -75,6 +75,38 @@ def check_lat_lon(lat: Any, lon: Any, where: str) -> None:
             )
 
 
+def check_lat_lons(lat: Any, lon: Any, where: str) -> None:
+    """Refuse the first of an array of points (or one point) whose latitude is not in [-90, 90]
+    degrees or whose longitude is not finite, naming it ``where (sample k)`` (``where`` for a
+    scalar point). Longitudes of points wrap (370 is 10); an origin's must be in [-180, 360)."""
+    la, lo = np.atleast_1d(np.asarray(lat, float)), np.atleast_1d(np.asarray(lon, float))
+    bad = np.flatnonzero(~((np.abs(la) <= 90.0) & np.isfinite(lo)))  # False for NaN
+    if bad.size:
+        k = int(bad[0])
+        at = "" if np.ndim(lat) == 0 else f" (sample {k})"
+        name, val, rng = (
+            ("latitude", la[k], "in [-90, 90] degrees")
+            if not abs(la[k]) <= 90.0
+            else ("longitude", lo[k], "a finite number of degrees")
+        )
+        raise InputError(
+            f"{where}{at}: {name} {float(val)!r} is not {rng} (WGS84 decimal degrees, e.g. "
+            "43.7167, 10.4)"
+        )
+
+
+def first_point_origin(lat: Any, lon: Any, where: str) -> GeodeticOrigin:
+    """The origin at the first of the points ``lat``, ``lon`` [deg], at the surface: the default
+    frame of a geodetic log or waypoint CSV. Every point is checked first, so a bad latitude is
+    named as the file's own (``where (sample k)``), not as an origin the user never gave; the
+    first longitude is wrapped into [-180, 180) if it is outside an origin's range."""
+    check_lat_lons(lat, lon, where)
+    lat0, lon0 = float(np.atleast_1d(lat)[0]), float(np.atleast_1d(lon)[0])
+    if not -180.0 <= lon0 < 360.0:
+        lon0 = (lon0 + 180.0) % 360.0 - 180.0
+    return GeodeticOrigin(latitude=lat0, longitude=lon0)
+
+
 #: Farthest a point may be from the origin of a local frame [m]: at 50 km the tangent plane is
 #: ~200 m below the surface and the flat-frame distances are off by ~1 part in 10^5.
 MAX_LOCAL_DISTANCE_M = 50_000.0
@@ -113,6 +145,7 @@ def geodetic_to_local(
     """
     pm = _pymap3d()
     scalar = np.ndim(lat) == 0
+    check_lat_lons(lat, lon, where)
     la, lo, de = (np.atleast_1d(np.asarray(a, float)) for a in (lat, lon, depth))
     n, e, d = pm.geodetic2ned(
         la, lo, origin.altitude - de, origin.latitude, origin.longitude, origin.altitude
@@ -151,14 +184,31 @@ def check_local_range(
         )
 
 
-def local_to_geodetic(p: Any, origin: GeodeticOrigin) -> tuple[np.ndarray, ...]:
+def check_local_points(p: Any, origin: GeodeticOrigin, where: str) -> None:
+    """:func:`check_local_range` of local NED positions ``(N, 2)`` or ``(N, 3)`` [m] (2D: at
+    depth 0), naming the first bad one ``where (sample k)``."""
+    p = np.atleast_2d(np.asarray(p, float))
+    z = p[:, 2] if p.shape[1] == 3 else np.zeros(p.shape[0])
+    check_local_range(np.column_stack([p[:, :2], z]), z, origin, where)
+
+
+def local_to_geodetic(
+    p: Any, origin: GeodeticOrigin, where: str = "local point"
+) -> tuple[np.ndarray, ...]:
     """Local NED positions ``(N, n)`` [m] -> ``(latitude, longitude, depth)`` arrays.
 
     In 2D the points are taken at ``z = 0`` and the depth returned is that of the tangent plane.
+
+    Raises
+    ------
+    InputError
+        Naming ``where``, for a point farther than :data:`MAX_LOCAL_DISTANCE_M` from the origin
+        or deeper than :data:`MAX_DEPTH_M` (:func:`check_local_range`, as the other way).
     """
     pm = _pymap3d()
     p = np.atleast_2d(np.asarray(p, float))
     z = p[:, 2] if p.shape[1] == 3 else np.zeros(p.shape[0])
+    check_local_points(p, origin, where)
     lat, lon, h = pm.ned2geodetic(
         p[:, 0], p[:, 1], z, origin.latitude, origin.longitude, origin.altitude
     )

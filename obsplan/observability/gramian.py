@@ -47,6 +47,7 @@ and do not sum to ``G(t, t0)``. The paper's conclusion survives (a full-rank win
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
@@ -58,6 +59,7 @@ from obsplan.model.vehicle import VehicleModel
 from obsplan.observability.scaling import (
     DEFAULT_SCALES,
     RANK_TOL,
+    ScaleError,
     Scales,
     numerical_rank,
     psd_metrics,
@@ -348,6 +350,26 @@ class GramianReport:
     condition: float
     scales: Scales = DEFAULT_SCALES
 
+    def check_metrics(self) -> None:
+        """Refuse metrics that the scales made meaningless.
+
+        Raises
+        ------
+        ScaleError
+            When the Gramian is full rank by the unit-invariant test yet singular in
+            ``scales`` (``min_eig`` 0, ``log_det`` -inf, ``condition`` inf): the scales pushed
+            its eigenvalues below round-off (``L = 1e300 m`` printed exactly that for a circle).
+        """
+        finite = math.isfinite(self.log_det) and math.isfinite(self.condition)
+        if self.full_rank and not (self.min_eig > 0 and finite):
+            reason = (
+                "the Gramian is full rank, but in these scales its eigenvalues fall below "
+                f"round-off (min_eig {self.min_eig:g}, log_det {self.log_det:g}); choose scales "
+                "near the trajectory's size and duration (default 100 m, 100 s)"
+            )
+            where = f"scales (L = {self.scales.length_m:g} m, T = {self.scales.time_s:g} s)"
+            raise ScaleError(f"{where}: {reason}", reason)
+
     def to_dict(self) -> dict:
         def num(x: float) -> float | None:
             return float(x) if np.isfinite(x) else None
@@ -410,6 +432,10 @@ def gramian_report(
 
     ``rank``, ``full_rank`` and ``full_rank_from_t`` come from the unit-invariant test
     (Gramian in :func:`rank_scales`, equilibrated); the metrics from the Gramian in ``scales``.
+
+    A full-rank Gramian whose metrics come out singular in ``scales`` (``min_eig`` 0,
+    ``log_det`` -inf: the scales, not the trajectory) keeps its verdicts;
+    :meth:`GramianReport.check_metrics` refuses such metrics before they are shown.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     Gcum = cumulative_gramians(traj, aug, rank_scales(traj))

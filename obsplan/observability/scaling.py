@@ -37,25 +37,52 @@ from dataclasses import dataclass
 import numpy as np
 
 from obsplan.core.errors import ConfigError
+from obsplan.core.textfiles import check_magnitude
 
 #: Absolute tolerance on the eigenvalues of an equilibrated (unit-diagonal) symmetric matrix.
 RANK_TOL: float = 1e-10
 #: A diagonal entry this small relative to the largest one marks a column with no information.
 ZERO_DIAG_TOL: float = 1e-14
+#: Largest scale accepted (length [m] and time [s]), and its inverse the smallest: the Gramian's
+#: entries grow as (T/L)^4 and (1/L)^4, so a scale of 1e300 underflows them to 0 (a full-rank
+#: Gramian reported with min_eig 0, log_det -inf) and 1e-300 overflows them; within 1e±7 they
+#: stay far inside floating point.
+MAX_SCALE: float = 1e7
+
+
+class ScaleError(ConfigError):
+    """Scales that make the fixed-scale metrics meaningless (out of range, or a full-rank
+    Gramian whose eigenvalues they push below round-off).
+
+    ``reason`` is the message without the scales it is about (a caller names them its way:
+    ``--length-scale``, ``scales.length_m``).
+    """
+
+    def __init__(self, message: str, reason: str | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason or message
+
+
+def check_scale(value: float, name: str, unit: str) -> None:
+    """Refuse a scale that is not a positive number within ``1/MAX_SCALE`` to
+    :data:`MAX_SCALE` (the one rule of :func:`obsplan.core.textfiles.check_magnitude`);
+    ``name`` is the field or option (``scales.length_m``, ``--length-scale``)."""
+    if not (isinstance(value, int | float) and np.isfinite(value) and value > 0):
+        raise ScaleError(f"{name} must be a positive number, got {value!r}")
+    check_magnitude(value, name, MAX_SCALE, unit, smallest=1.0 / MAX_SCALE, error=ScaleError)
 
 
 @dataclass(frozen=True)
 class Scales:
-    """Fixed nondimensionalisation: a length [m] and a time [s]."""
+    """Fixed nondimensionalisation: a length [m] and a time [s], each within 1e±7
+    (:func:`check_scale`)."""
 
     length_m: float = 100.0
     time_s: float = 100.0
 
     def __post_init__(self) -> None:
-        for name in ("length_m", "time_s"):
-            val = getattr(self, name)
-            if not (np.isfinite(val) and val > 0):
-                raise ConfigError(f"scales.{name} must be a positive number, got {val!r}")
+        for name, unit in (("length_m", "m"), ("time_s", "s")):
+            check_scale(getattr(self, name), f"scales.{name}", unit)
 
 
 DEFAULT_SCALES = Scales()

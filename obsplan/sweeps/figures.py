@@ -271,7 +271,7 @@ def redraw_figures(out: str | Path) -> list[Path]:
     InputError
         If ``out`` holds no sweep or no results table.
     """
-    manifest = read_manifest(Path(out))
-    if not (Path(out) / RESULTS_PARQUET).is_file():
+    manifest = read_manifest(Path(out), axes=True)
+    if not (Path(out) / RESULTS_PARQUET).exists():
         raise InputError(f"{out} has no {RESULTS_PARQUET}; run the sweep first")
     return figures_from_manifest(read_table(out), out, manifest["sweep"])

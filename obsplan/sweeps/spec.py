@@ -156,9 +156,9 @@ def load_sweep(path: str | Path) -> SweepSpec:
         Missing file, invalid TOML, unknown key, bad axis path or values, missing base.
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise SweepFileError(f"sweep file not found: {path}")
-    data = _read_toml(path)
+    data = _read_toml(path)  # a folder, a device or a named pipe is refused by its kind
     try:
         return sweep_from_dict(data, base_dir=path.parent, name=path.stem, source=path)
     except SweepFileError as exc:
@@ -196,7 +196,9 @@ def sweep_from_dict(
     axes_raw = _table(data, "axes")
     if not axes_raw:
         raise SweepFileError('[axes] is empty; give at least one axis, e.g. "limits.accel" = [...]')
-    axes = tuple(_axis(p, v) for p, v in _flatten_axes(axes_raw))
+    flat = _flatten_axes(axes_raw)
+    axes = tuple(_axis(p, v) for p, v, _ in flat)
+    _check_distinct(axes, [w for _, _, w in flat])
     if combine == "zip":
         lengths = {a.path: len(a.values) for a in axes}
         if len(set(lengths.values())) > 1:
@@ -285,12 +287,12 @@ def _base(
         if not isinstance(rel, str):
             raise SweepFileError(f"sweep.base: expected a problem file path, got {rel!r}")
         path = base_dir / rel
-        if not path.is_file():
+        if not path.exists():
             raise SweepFileError(
                 f"sweep.base: problem file {rel!r} not found (looked for {path}; the path is "
                 "relative to the sweep file)"
             )
-        base = _read_toml(path, "sweep.base")
+        base = _read_toml(path, "sweep.base")  # a folder, a device, a FIFO: said by its kind
         base_name = path.stem
     inline = _table(data, "base")
     for section, values in inline.items():
@@ -312,26 +314,67 @@ def _base(
     return base, base_name
 
 
-def _flatten_axes(raw: Mapping[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
-    """``[axes]`` with TOML dotted keys (nested tables) back to dotted paths, in file order."""
-    out: list[tuple[str, Any]] = []
+def _flatten_axes(raw: Mapping[str, Any], prefix: str = "") -> list[tuple[str, Any, str]]:
+    """``[axes]`` with TOML dotted keys (nested tables) back to dotted paths, in file order.
+
+    Returns ``(path, value, written)`` per axis, ``written`` the key as the file spells it (a
+    key holding dots quoted: ``"limits.speed"`` is one TOML key, ``limits.speed`` two), for the
+    message that names two axes setting the same field.
+    """
+    out: list[tuple[str, Any, str]] = []
     for key, value in raw.items():
         path = f"{prefix}{key}"
-        if isinstance(value, dict) and not (set(value) & set(GENERATORS)) and _table_path(path):
+        if (
+            isinstance(value, dict)
+            and not (set(value) & set(GENERATORS))
+            and _table_path(path, value)
+        ):
             out.extend(_flatten_axes(value, path + "."))
         else:
-            out.append((path, value))
+            written = prefix + (f'"{key}"' if "." in key or not key else key)
+            out.append((path, value, written))
     return out
 
 
-def _table_path(path: str) -> bool:
-    """Whether a table at ``path`` of [axes] holds more axes (a section, or an area's sides)
-    rather than being a (mistyped) generator table."""
+def _table_path(path: str, value: Mapping[str, Any]) -> bool:
+    """Whether a table at ``path`` of [axes] holds more axes (a section, an area's sides, or
+    bare component keys: ``limits.accel.0 = [...]`` is the table ``{"0": [...]}`` at
+    ``limits.accel``) rather than being a (mistyped) generator table."""
     parts = path.split(".")
     if len(parts) == 1:
         return True
     specs = {s.name: s for s in SCHEMA.get(parts[0], ())}
-    return len(parts) == 2 and parts[1] in specs and specs[parts[1]].kind == "area"
+    spec = specs.get(parts[1])
+    if spec is None or len(parts) > 3:
+        return False
+    digits = bool(value) and all(k.isdigit() for k in value)
+    if len(parts) == 2:
+        return spec.kind == "area" or (spec.kind in _INDEXABLE and digits)
+    return spec.kind == "area" and parts[2] in ("x", "y") and digits
+
+
+def _check_distinct(axes: Sequence[Axis], written: Sequence[str]) -> None:
+    """Refuse two axes that set the same field, or a field and a part of it (the same path
+    spelt twice, quoted and as dotted keys, ``limits.accel.0`` and ``limits.accel[0]``, or
+    ``limits.accel`` and ``limits.accel.2``): one would silently overwrite the other."""
+    for j, b in enumerate(axes):
+        for i, a in enumerate(axes[:j]):
+            n = min(len(a.keys), len(b.keys))
+            if a.keys[:n] != b.keys[:n]:
+                continue
+            both = f"axes: {written[i]} and {written[j]}"
+            if len(a.keys) == len(b.keys):
+                field = ".".join(map(str, a.keys))
+                raise SweepFileError(
+                    f"{both} both set {field}, so one would be dropped; give the axis once "
+                    "(one key, one list of values)"
+                )
+            whole, part = (a, b) if len(a.keys) < len(b.keys) else (b, a)
+            raise SweepFileError(
+                f"{both} overlap: {'.'.join(map(str, part.keys))} is a part of "
+                f"{'.'.join(map(str, whole.keys))}, which the other sets whole, so one would "
+                "overwrite the other; sweep either the whole field or its parts"
+            )
 
 
 _INDEX = re.compile(r"^(.*)\[(\d+)\]$")

@@ -24,6 +24,7 @@ from typing import Any
 from obsplan.core.atomic import atomic_file
 from obsplan.core.errors import InputError
 from obsplan.core.outputs import check_resumable_dir, has_marker, write_marker
+from obsplan.core.textfiles import read_json
 
 MANIFEST = "sweep.json"
 TASKS = "tasks"
@@ -70,10 +71,11 @@ def check_out(out: str | Path, force: bool, name: str) -> Path:
                 f"--out {out} is not empty and holds no sweep ({MANIFEST}); choose another "
                 "folder, or pass --force to write the sweep into this obsplan output folder"
             )
-        other = read_manifest(out).get("sweep", {}).get("name")
+        other = read_manifest(out)["sweep"].get("name")
         if other != name:
+            shown = f"sweep {other!r}" if isinstance(other, str) else "a sweep without a name"
             raise InputError(
-                f"--out {out} holds the results of sweep {other!r}, not {name!r}; choose another "
+                f"--out {out} holds the results of {shown}, not {name!r}; choose another "
                 "folder, or pass --force to add this sweep's tasks to it (its table and figures "
                 "are then replaced)"
             )
@@ -147,20 +149,41 @@ def write_manifest(out: Path, manifest: dict[str, Any]) -> Path:
     return atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
 
-def read_manifest(out: Path) -> dict[str, Any]:
+def read_manifest(out: Path, *, axes: bool = False) -> dict[str, Any]:
     """``DIR/sweep.json``.
+
+    Parameters
+    ----------
+    out
+        The sweep's folder.
+    axes
+        Also require the sweep's ``"axes"`` (what redrawing the figures reads).
 
     Raises
     ------
     InputError
-        If ``out`` holds no sweep.
+        If ``out`` holds no sweep, or a ``sweep.json`` that is not a sweep's manifest (not
+        JSON, or JSON of another kind: no ``"sweep"`` object, or without its ``"axes"``).
     """
     path = Path(out) / MANIFEST
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
+    if not path.exists():
         raise InputError(
             f"{out} holds no sweep ({MANIFEST} not found); give the --out folder of a sweep"
-        ) from None
-    except ValueError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc})") from None
+        )
+    what = "the manifest of an obsplan sweep"
+    data = read_json(path, what)
+    sweep = data.get("sweep") if isinstance(data, dict) else None
+    got = None
+    if not isinstance(data, dict):
+        kinds = {list: "a list", str: "a string", bool: "a boolean", type(None): "null"}
+        got = kinds.get(type(data), "a number")
+    elif not isinstance(sweep, dict):
+        got = "an object without a 'sweep' object"
+    elif axes and not isinstance(sweep.get("axes"), dict):
+        got = "a 'sweep' object without its 'axes'"
+    if got is not None:
+        raise InputError(
+            f"{path}: not {what} (it holds {got}); {out} is not a sweep's --out folder: give "
+            "another folder"
+        )
+    return data

@@ -27,6 +27,8 @@ from typing import Any
 
 import pandas as pd
 
+from obsplan.core.errors import InputError
+from obsplan.core.textfiles import check_regular_file
 from obsplan.sweeps.spec import Task, axis_column
 from obsplan.sweeps.store import RESULTS_CSV, RESULTS_PARQUET, atomic_write
 
@@ -175,8 +177,24 @@ def write_table(df: pd.DataFrame, out: Path) -> tuple[Path, Path]:
 
 
 def read_table(out: str | Path) -> pd.DataFrame:
-    """``DIR/results.parquet`` as a DataFrame (the column types of :func:`build_table`)."""
-    return pd.read_parquet(Path(out) / RESULTS_PARQUET)
+    """``DIR/results.parquet`` as a DataFrame (the column types of :func:`build_table`).
+
+    Raises
+    ------
+    InputError
+        If the file is missing or damaged (it is rewritten from the tasks' reports by running
+        the sweep again).
+    """
+    path = Path(out) / RESULTS_PARQUET
+    check_regular_file(path, "a sweep's results table (Parquet)")
+    try:
+        return pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises its own error types for every damaged file
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(
+            f"{path}: not a readable results table ({text[:200]}); run the sweep again to "
+            "rewrite it from the tasks' reports"
+        ) from None
 
 
 def comparable(df: pd.DataFrame, drop: Iterable[str] = RUN_DEPENDENT_SUFFIXES) -> pd.DataFrame:

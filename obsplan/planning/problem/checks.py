@@ -15,6 +15,7 @@ construction does not. Every error is a :class:`~obsplan.core.errors.ProblemErro
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 from functools import cache
 from typing import TypeVar
@@ -41,6 +42,7 @@ from obsplan.planning.problem.schema import (
     OBJECTIVE_KINDS,
     OBJECTIVES,
     PROCESS_NOISE_MODELS,
+    SCHEMA,
     TIMED_OBJECTIVES,
     VALIDATION_MODES,
 )
@@ -493,6 +495,7 @@ def _check_validation(pb: ProblemData) -> None:
         )
     if val.max_runs < 1:
         raise field_error("validation.max_runs", f"must be at least 1, got {val.max_runs}")
+    budget.check_runs(val.max_runs, "validation.max_runs", ProblemError)
     ratio = hor.dt / val.dt
     if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
         raise field_error(
@@ -531,7 +534,13 @@ def _check_budget(pb: ProblemData) -> None:
         )
     samples = hor.duration / val.dt + 1
     budget.check_monte_carlo(
-        val.runs, samples, n, "validation.runs", "a longer validation.dt", ProblemError
+        val.runs,
+        samples,
+        n,
+        "validation.runs",
+        "a longer validation.dt",
+        ProblemError,
+        samples_field="validation.dt",
     )
     obj = pb.objective
     cost = budget.planning_cost(hor.steps, obj.starts, obj.max_iter)
@@ -549,6 +558,48 @@ def _margins(pb: ProblemData) -> tuple[float, float]:
     return pb.horizon.dt / 4.0, float(np.linalg.norm(pb.accel))
 
 
+#: ``limits.min_range`` when a problem does not set it [m] (the schema's default).
+DEFAULT_MIN_RANGE: float = next(s.default for s in SCHEMA["limits"] if s.name == "min_range")
+
+
+def check_start_clear(
+    start: Sequence[float] | np.ndarray,
+    beacon: Sequence[float] | np.ndarray,
+    min_range: float = DEFAULT_MIN_RANGE,
+    *,
+    where: str = "start.position",
+    fix: str = "move the start away from the beacon or lower limits.min_range",
+) -> float:
+    """Refuse a start closer to the beacon than ``min_range`` (the geometry every plan refuses:
+    a range of 0 has no bearing, and an EKF linearised there diverges); returns the distance.
+
+    Parameters
+    ----------
+    start, beacon
+        Positions [m].
+    min_range
+        The least distance [m] (a problem's ``limits.min_range``; default the schema's).
+    where
+        What the error names first: ``start.position`` for a problem, an option elsewhere
+        (``obsplan simulate --beacon``).
+    fix
+        What to do about it, for the message.
+
+    Raises
+    ------
+    ProblemError
+        ``"<where>: the start is r m from the beacon, inside limits.min_range = ... m; <fix>"``.
+    """
+    r0 = float(np.linalg.norm(np.asarray(start, float) - np.asarray(beacon, float)))
+    if r0 < min_range:
+        raise field_error(
+            where,
+            f"the start is {r0:.4g} m from the beacon, inside limits.min_range = "
+            f"{min_range:g} m; {fix}",
+        )
+    return r0
+
+
 def _check_range_and_speed_limits(pb: ProblemData) -> None:
     lim = pb.limits
     for name in ("min_range", "min_speed"):
@@ -561,16 +612,10 @@ def _check_range_and_speed_limits(pb: ProblemData) -> None:
             "limits.keepout_confidence",
             f"must be a probability in [0, 1) such as 0.999 (0 disables the margins), got {c!r}",
         )
-    r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon, float)))
+    r0 = check_start_clear(pb.p0, pb.beacon, lim.min_range)
     tau, a = _margins(pb)
     s0 = float(np.linalg.norm(pb.v0))
     need = lim.min_range + s0 * tau + 0.5 * a * tau**2 if lim.min_range > 0 else 0.0
-    if r0 < lim.min_range:
-        raise field_error(
-            "start.position",
-            f"the start is {r0:.4g} m from the beacon, inside limits.min_range = "
-            f"{lim.min_range:g} m; move the start away from the beacon or lower limits.min_range",
-        )
     if r0 < need:
         raise field_error(
             "horizon.steps",

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from obsplan.core.errors import ConfigError, InputError, ProblemError, field_error
-from obsplan.core.textfiles import read_toml
+from obsplan.core.textfiles import check_magnitude, read_toml
 from obsplan.model.frames import GeodeticOrigin, check_lat_lon, geodetic_to_local
 from obsplan.model.vehicle import parse_sensors
 from obsplan.observability.scaling import Scales
@@ -34,7 +34,7 @@ from obsplan.planning.missions.spec import (
 )
 from obsplan.planning.problem.checks import check_structure, order_lines
 from obsplan.planning.problem.definition import PlanningProblem
-from obsplan.planning.problem.schema import SCHEMA, FieldSpec
+from obsplan.planning.problem.schema import MAX_MAGNITUDE, SCHEMA, FieldSpec
 from obsplan.planning.problem.sections import (
     Area,
     Horizon,
@@ -69,8 +69,27 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool)
 
 
+def _magnitude(where: str, values: Any, unit: str) -> None:
+    """The one rule of a number no vehicle problem has
+    (:func:`~obsplan.core.textfiles.check_magnitude`, :data:`MAX_MAGNITUDE`), applied to every
+    number of the file before any arithmetic (a range_std of 1e300 would overflow its square)."""
+    check_magnitude(values, where, MAX_MAGNITUDE, unit, error=ProblemError)
+
+
 def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
     where = f"{section}.{spec.name}"
+    value = _parse_raw(where, spec, raw, dim)
+    k = spec.kind
+    if k in ("float", "float-or-str") and not isinstance(value, str):
+        _magnitude(where, value, spec.unit)
+    elif k in ("float-list", "vec", "vec-or-float", "range"):
+        _magnitude(where, value, spec.unit)
+    elif k in ("lines", "tracks", "points", "windows"):
+        _magnitude(where, [x for row in value for x in row], spec.unit)
+    return value
+
+
+def _parse_raw(where: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
     k = spec.kind
     if k == "int":
         if not isinstance(raw, int) or isinstance(raw, bool):
