@@ -561,7 +561,8 @@ class ResumableDir:
     Accepted: a new folder, an empty one, or one whose marker names ``verb`` (what it holds then
     is the caller's to judge, e.g. which sweep); refused: a file, a link, a protected folder,
     any other non-empty folder (even with ``--force``), a read-only one, one another run is
-    writing into (it is locked, :func:`fcntl.flock`, from this check to :meth:`release`).
+    writing into (it is locked, :func:`fcntl.flock`, until :meth:`release`: an existing folder
+    from this check on, a new one from :meth:`claim` on).
     :meth:`claim` creates the folder whole with its marker (never over a newcomer), or checks
     that it is still the folder the check saw. Nothing is written before :meth:`claim`.
 

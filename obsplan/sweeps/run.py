@@ -346,7 +346,8 @@ def sweep(
     spec
         A sweep file path, a parsed sweep mapping or a :class:`SweepSpec`.
     out
-        Output folder (``DIR``): created, or resumed if it holds this or another sweep.
+        Output folder (``DIR``): created, or resumed if it holds this sweep (or, with
+        ``force``, another); locked while the sweep runs.
     workers
         Worker processes of a new local cluster (default: one per core).
     scheduler
@@ -366,8 +367,9 @@ def sweep(
     figures
         Draw ``DIR/figures/`` when every task has finished.
     force
-        Write into a non-empty ``DIR`` that holds no sweep or another sweep, or one whose
-        finished tasks were computed by other code (every task is then computed again).
+        Write into a ``DIR`` that holds another sweep, or one whose finished tasks were
+        computed by other code (every task is then computed again). Never into a folder no
+        sweep made (:class:`obsplan.core.outputs.ResumableDir`).
     on_start
         Called once with a :class:`SweepStart` before the first task is sent.
     runner
