@@ -189,9 +189,13 @@ def test_force_replaces_the_results_folder_whole(tmp_path, capsys):
     """The old filters.png no longer stays beside a new plan written with --no-validate."""
     out = tmp_path / "results"
     out.mkdir()
-    write_marker(out, "plan")  # an earlier obsplan output: --force may replace it
-    for name in ("filters.png", "plan.csv", "notes.txt"):
+    for name in ("filters.png", "plan.csv"):
         (out / name).write_text("old")
+    write_marker(out, "plan")  # an earlier obsplan output (these files): --force may replace it
+    (out / "notes.txt").write_text("the user's")  # but not a file the user added
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 2
+    assert "notes.txt" in capsys.readouterr().err
+    (out / "notes.txt").unlink()
     assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
     names = {p.name for p in out.iterdir()}
     assert names == {MARKER, "plan.csv", "report.json", "path.png", "gramian.png"}
@@ -211,8 +215,8 @@ def test_unwritable_out_is_refused_before_planning(tmp_path, capsys, monkeypatch
     elif case == "read-only-folder":
         out, extra = tmp_path / "ro", ["--force"]
         out.mkdir()
-        write_marker(out, "plan")
         (out / "keep.txt").write_text("mine")
+        write_marker(out, "plan")
         out.chmod(0o555)
     else:
         out, extra = Path("/sys/obsplan-test-out"), []
@@ -249,8 +253,8 @@ def test_interrupt_while_writing_leaves_nothing(tmp_path, capsys, monkeypatch):
     assert list(tmp_path.iterdir()) == []
     # an existing results folder replaced with --force is left untouched
     out.mkdir()
-    write_marker(out, "plan")
     (out / "plan.csv").write_text("old plan")
+    write_marker(out, "plan")
     assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 130
     assert [p.name for p in tmp_path.iterdir()] == ["o"]
     assert sorted(p.name for p in out.iterdir()) == [MARKER, "plan.csv"]
@@ -267,8 +271,8 @@ def test_ctrl_c_during_the_solve_exits_130_and_writes_nothing(tmp_path, existing
     extra = []
     if existing:
         out.mkdir()
-        write_marker(out, "plan")
         (out / "plan.csv").write_text("old plan")
+        write_marker(out, "plan")
         extra = ["--force"]
     # the free localisation problem at N = 1000 (a coarse pass, then 4 fine starts): tens of
     # seconds

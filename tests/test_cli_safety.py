@@ -135,11 +135,17 @@ def test_force_replaces_only_an_obsplan_output(tmp_path, capsys):
     assert main(["plan", LOCALISE, "--out", str(mine), "--force", "--no-validate", *SMALL]) == 2
     assert "not an obsplan output folder" in capsys.readouterr().err
     assert [p.name for p in mine.iterdir()] == ["notes.txt"]
-    # what obsplan wrote carries the marker, and --force replaces it whole
+    # what obsplan wrote carries the marker, with the files it wrote
     out = tmp_path / "res"
     assert main(["plan", LOCALISE, "--out", str(out), "--no-validate", *SMALL]) == 0
     assert (out / MARKER).is_file()
+    # a file the user added there keeps the folder (the marker lists what obsplan wrote)
     (out / "stale.txt").write_text("from before")
+    assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 2
+    assert "stale.txt" in capsys.readouterr().err
+    assert (out / "stale.txt").read_text() == "from before"
+    # a file an earlier run wrote (in its marker) that this run does not write goes: whole
+    write_marker(out, "plan")
     assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == 0
     assert not (out / "stale.txt").exists() and (out / "plan.csv").is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine", "res"]
@@ -209,6 +215,9 @@ def test_paper_force_replaces_the_folder_whole(tmp_path, capsys):
     assert main(argv) == 0
     assert (out / MARKER).is_file()
     (out / "fig1.png").write_bytes(b"an old figure")
+    assert main([*argv, "--force"]) == 2  # a file the marker does not list is the user's
+    assert "fig1.png" in capsys.readouterr().err
+    write_marker(out, "paper")  # as a run with figures recorded it
     assert main([*argv, "--force"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [MARKER, "tables.json", "tables.txt"]
     assert [p.name for p in tmp_path.iterdir()] == ["paper"]

@@ -158,8 +158,8 @@ def test_unwritable_out_is_refused_before_any_work(csv_2d, tmp_path, capsys, whe
 def test_force_replaces_the_figure_folder_whole(csv_2d, tmp_path, capsys):
     out = tmp_path / "figs"
     out.mkdir()
-    write_marker(out, "simulate")
     (out / "stale.png").write_bytes(b"from an earlier run")
+    write_marker(out, "simulate")  # an earlier run wrote it (the marker lists it)
     args = ["simulate", str(csv_2d), "--runs", "2", "--quiet", "--out", str(out), "--force"]
     assert main(args) == 0
     assert sorted(p.name for p in out.iterdir()) == [MARKER, "estimation.png", "monte_carlo.png"]

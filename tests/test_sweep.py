@@ -17,6 +17,7 @@ import pandas as pd
 import pytest
 
 from obsplan.cli import main
+from obsplan.core.outputs import write_marker
 from obsplan.planning.problem.parse import problem_from_dict
 from obsplan.sweeps import SweepFileError, expand, load_sweep, sweep, sweep_from_dict
 from obsplan.sweeps.spec import apply_axes, combinations, parse_path, set_fields, unique_tasks
@@ -319,6 +320,10 @@ def test_cli_refuses_a_foreign_folder_and_another_sweeps_folder(tmp_path, capsys
     other = tmp_path / "other"
     other.mkdir()
     (other / "sweep.json").write_text(json.dumps({"sweep": {"name": "another"}}))
+    # a sweep.json alone does not make a sweep's folder: its marker does (the user's otherwise)
+    assert main(["sweep", str(f), "--out", str(other), "--force"]) == 2
+    assert "not an obsplan output folder" in capsys.readouterr().err
+    write_marker(other, "sweep", record=False)
     assert main(["sweep", str(f), "--out", str(other)]) == 2
     assert "holds the results of sweep 'another'" in capsys.readouterr().err
 

@@ -13,7 +13,8 @@ Two rules of the argument layer hold for every verb, so that no option is silent
 
 Output folders and files (:class:`OutputDir`, :class:`OutputFile`) are those of
 :mod:`obsplan.core.outputs`, one implementation for every verb: checked before any work, written
-into a staging folder and swapped in place, ``--force`` replacing only an earlier obsplan output.
+into a staging folder and swapped in place, ``--force`` replacing only an earlier output of the
+same verb that holds nothing but what it wrote.
 Signals are mapped to exit 130 / 143 by :func:`obsplan.cli.main` (:mod:`obsplan.core.interrupts`).
 """
 
@@ -27,13 +28,12 @@ import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from obsplan.core.budget import check_file_rows
 from obsplan.core.csvtable import COLUMN_LIMITS
 from obsplan.core.errors import InputError
-from obsplan.core.outputs import OutputDir, OutputFile, write_marker
+from obsplan.core.outputs import OutputDir, OutputFile
 from obsplan.core.textfiles import check_magnitude
 
 if TYPE_CHECKING:
@@ -314,19 +314,6 @@ def read_trajectory(path: str, verb: str) -> Trajectory:
     return traj
 
 
-# ------------------------------------------------------------------------------ outputs
-def output_dir(path: str | Path, force: bool) -> Path:
-    """Deprecated simple form: check and create ``path`` (not atomic; prefer :class:`OutputDir`).
-
-    Kept for callers that write their files one by one; the folder gets the marker.
-    """
-    OutputDir(path, force)
-    out = Path(path)
-    out.mkdir(parents=True, exist_ok=True)
-    write_marker(out, "")
-    return out
-
-
 __all__ = [
     "Applies",
     "OutputDir",
@@ -340,7 +327,6 @@ __all__ = [
     "join_negative_values",
     "option_given",
     "option_limits",
-    "output_dir",
     "parse_beacon",
     "read_trajectory",
     "resolve_beacon",

@@ -83,8 +83,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument(
         "--force",
         action="store_true",
-        help="write into a DIR that holds another sweep (or another obsplan output), or whose "
-        "tasks were computed by other obsplan code (they are computed again)",
+        help="write into a DIR that holds another sweep, or whose tasks were computed by other "
+        "obsplan code (they are computed again); never into a folder no obsplan sweep made",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p

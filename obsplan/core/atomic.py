@@ -9,7 +9,12 @@ Ctrl-C never leaves a half-written file or a folder that mixes old and new resul
   any, is renamed aside first and removed after the swap), with SIGINT deferred during the two
   renames so that Ctrl-C cannot fall between them;
 * :func:`staging_dir` creates a fresh, empty folder beside a target (hidden name, permissions from
-  the umask, unlike :func:`tempfile.mkdtemp`'s 0700).
+  the umask, unlike :func:`tempfile.mkdtemp`'s 0700);
+* :func:`put_in_place` moves a finished file or folder to its target only if the target is still
+  what was checked before the work (:func:`identity`): absent (then a newcomer is never replaced:
+  ``renameat2(RENAME_NOREPLACE)``), or the same file or folder (then the two are exchanged in one
+  step, ``RENAME_EXCHANGE``, and checked again; a mismatch exchanges them back). Exactly one of
+  two runs that commit to the same target wins; the other gets :class:`TargetChanged`.
 
 Temporary names are ``.<name>.tmp-<pid>-<random><suffix>`` (and ``.old-`` for a folder renamed
 aside): :func:`dead_leftovers` recognises those of a process that no longer runs (``kill -9``, a
@@ -19,11 +24,15 @@ power cut), and the next run removes them.
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import errno
+import functools
 import os
 import re
 import secrets
 import shutil
-from collections.abc import Iterator
+import stat
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from obsplan.core.interrupts import deferred
@@ -155,3 +164,151 @@ def replace_dir(staging: str | Path, target: str | Path) -> Path:
 def remove_tree(path: str | Path) -> None:
     """Delete a staging folder (no error if it is already gone)."""
     shutil.rmtree(path, ignore_errors=True)
+
+
+# ------------------------------------------------------------------------------ commit checked
+_AT_FDCWD = -100
+_RENAME_NOREPLACE = 1
+_RENAME_EXCHANGE = 2
+_UNSUPPORTED = {errno.ENOSYS, errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP}
+
+
+class TargetChanged(Exception):
+    """The target of a commit is no longer what was checked before the work.
+
+    Attributes
+    ----------
+    appeared : bool
+        True if it did not exist at the check and exists now; False if it was replaced, removed
+        or (a file) modified since.
+    """
+
+    def __init__(self, target: Path, appeared: bool) -> None:
+        super().__init__(str(target))
+        self.target, self.appeared = target, appeared
+
+
+Identity = tuple[int, ...]
+
+
+def identity(path: str | Path) -> Identity | None:
+    """What a later commit compares: device, inode and type (and for a file its size and
+    modification time); None if nothing is at ``path``. A link is not followed."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return None
+    kind = stat.S_IFMT(st.st_mode)
+    if stat.S_ISDIR(st.st_mode):
+        return (st.st_dev, st.st_ino, kind)
+    return (st.st_dev, st.st_ino, kind, st.st_size, st.st_mtime_ns)
+
+
+@functools.cache
+def _libc() -> ctypes.CDLL:
+    return ctypes.CDLL(None, use_errno=True)
+
+
+def _renameat2(src: Path, dst: Path, flags: int) -> bool:
+    """``renameat2(2)``; False where the C library or the file system lacks it."""
+    fn = getattr(_libc(), "renameat2", None)
+    if fn is None:  # pragma: no cover - glibc < 2.28
+        return False
+    if fn(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst), flags) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in _UNSUPPORTED:  # pragma: no cover - e.g. some network file systems
+        return False
+    raise OSError(err, os.strerror(err), str(src), None, str(dst))
+
+
+def rename_noreplace(src: str | Path, dst: str | Path) -> None:
+    """Rename ``src`` to ``dst`` unless something is at ``dst`` (:class:`FileExistsError`).
+
+    Atomic with ``renameat2``; elsewhere checked just before the rename (a folder then never
+    replaces a non-empty one, a file is linked, which fails on an existing name).
+    """
+    src, dst = Path(src), Path(dst)
+    if _renameat2(src, dst, _RENAME_NOREPLACE):
+        return
+    if os.path.lexists(dst):  # pragma: no cover - fallback
+        raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(dst))
+    if src.is_dir():  # pragma: no cover - fallback
+        os.rename(src, dst)
+    else:  # pragma: no cover - fallback
+        os.link(src, dst)
+        os.unlink(src)
+
+
+def exchange(a: str | Path, b: str | Path) -> bool:
+    """Swap two paths in one step (``renameat2(RENAME_EXCHANGE)``); False if unsupported."""
+    return _renameat2(Path(a), Path(b), _RENAME_EXCHANGE)
+
+
+def put_in_place(
+    staged: str | Path,
+    target: str | Path,
+    expected: Identity | None,
+    verify: Callable[[Path], None] | None = None,
+) -> Path | None:
+    """Move the finished ``staged`` file or folder to ``target`` if ``target`` is still what was
+    checked; returns where the old target now is (a hidden sibling, for the caller to delete or to
+    put back), or None if there was none.
+
+    Parameters
+    ----------
+    staged
+        The finished file or folder, beside ``target``.
+    target
+        Where it goes.
+    expected
+        :func:`identity` of ``target`` at the check (None: it did not exist).
+    verify
+        Called with the old target once it is out of the way; an exception puts it back (and is
+        raised): e.g. a check that the old folder holds nothing new.
+
+    Raises
+    ------
+    TargetChanged
+        If ``target`` appeared, was replaced or removed, or (a file) was modified since the
+        check. Nothing is moved then: the newcomer stays, ``staged`` stays for its owner to remove.
+    """
+    staged, target = Path(staged), Path(target)
+    with deferred():
+        if expected is None:
+            try:
+                rename_noreplace(staged, target)
+            except FileExistsError:
+                raise TargetChanged(target, appeared=True) from None
+            except OSError as exc:  # pragma: no cover - fallback: a non-empty folder appeared
+                if exc.errno in (errno.ENOTEMPTY, errno.EEXIST):
+                    raise TargetChanged(target, appeared=True) from None
+                raise
+            return None
+        if identity(target) != expected:
+            raise TargetChanged(target, appeared=False)
+        if exchange(staged, target):
+            try:  # the old target is now under the staged name
+                if identity(staged) != expected:  # replaced between the look and the exchange
+                    raise TargetChanged(target, appeared=False)
+                if verify is not None:
+                    verify(staged)
+            except BaseException:
+                exchange(staged, target)  # the newcomer (or the old folder) back in place
+                raise
+            old = _tmp_name(target, "old")
+            os.rename(staged, old)
+            return old
+        old = _tmp_name(target, "old")  # pragma: no cover - fallback: two renames
+        os.rename(target, old)  # pragma: no cover
+        try:  # pragma: no cover
+            if identity(old) != expected:
+                raise TargetChanged(target, appeared=False)
+            if verify is not None:
+                verify(old)
+            rename_noreplace(staged, target)
+        except BaseException:  # pragma: no cover
+            with contextlib.suppress(OSError):
+                rename_noreplace(old, target)
+            raise
+        return old  # pragma: no cover

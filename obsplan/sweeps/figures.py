@@ -27,6 +27,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from obsplan.core.errors import InputError
+from obsplan.core.outputs import ResumableDir
 from obsplan.sweeps.spec import axis_column
 from obsplan.sweeps.store import FIGURES, RESULTS_PARQUET, atomic_write, read_manifest
 from obsplan.sweeps.table import read_table
@@ -274,4 +275,6 @@ def redraw_figures(out: str | Path) -> list[Path]:
     manifest = read_manifest(Path(out), axes=True)
     if not (Path(out) / RESULTS_PARQUET).exists():
         raise InputError(f"{out} has no {RESULTS_PARQUET}; run the sweep first")
-    return figures_from_manifest(read_table(out), out, manifest["sweep"])
+    # only a folder an obsplan sweep made, and no sweep is writing into it now
+    with ResumableDir(out, "sweep", "--report"):
+        return figures_from_manifest(read_table(out), out, manifest["sweep"])

@@ -346,7 +346,8 @@ def sweep(
     spec
         A sweep file path, a parsed sweep mapping or a :class:`SweepSpec`.
     out
-        Output folder (``DIR``): created, or resumed if it holds this or another sweep.
+        Output folder (``DIR``): created, or resumed if it holds this sweep (or, with
+        ``force``, another); locked while the sweep runs.
     workers
         Worker processes of a new local cluster (default: one per core).
     scheduler
@@ -366,8 +367,9 @@ def sweep(
     figures
         Draw ``DIR/figures/`` when every task has finished.
     force
-        Write into a non-empty ``DIR`` that holds no sweep or another sweep, or one whose
-        finished tasks were computed by other code (every task is then computed again).
+        Write into a ``DIR`` that holds another sweep, or one whose finished tasks were
+        computed by other code (every task is then computed again). Never into a folder no
+        sweep made (:class:`obsplan.core.outputs.ResumableDir`).
     on_start
         Called once with a :class:`SweepStart` before the first task is sent.
     runner
@@ -414,66 +416,70 @@ def sweep(
     if retries < 0:
         raise InputError(f"retries must be >= 0, got {retries}")
     _one_cluster(workers, scheduler, scheduler_file)  # before any work
-    out = check_out(out, force, spec.name)  # nothing is written before the cluster is up
-    code = specs.code_fingerprint()
-    check_code(out, code, force)
-    unique = unique_tasks(tasks)
-    stored: dict[str, dict[str, Any] | None] = {t.id: read_report(out, t.id) for t in unique}
-    todo = [t for t in unique if not _finished(stored[t.id], retry_failed)]
-    manifest = {
-        "obsplan": __version__,
-        "code": code,
-        "sweep": spec.to_dict(),
-        "tasks": [{"id": t.id, "task": t.index + 1, "axes": t.axes} for t in tasks],
-    }
-    started = False
-    info = SweepStart(
-        name=spec.name,
-        tasks=len(tasks),
-        unique=len(unique),
-        finished=len(unique) - len(todo),
-        to_run=len(todo),
-    )
+    # checked, nothing written before the cluster is up; locked against another run
+    target = check_out(out, force, spec.name)
+    out = target.path
+    with target:
+        code = specs.code_fingerprint()
+        check_code(out, code, force)
+        unique = unique_tasks(tasks)
+        stored: dict[str, dict[str, Any] | None] = {t.id: read_report(out, t.id) for t in unique}
+        todo = [t for t in unique if not _finished(stored[t.id], retry_failed)]
+        manifest = {
+            "obsplan": __version__,
+            "code": code,
+            "sweep": spec.to_dict(),
+            "tasks": [{"id": t.id, "task": t.index + 1, "axes": t.axes} for t in tasks],
+        }
+        started = False
+        info = SweepStart(
+            name=spec.name,
+            tasks=len(tasks),
+            unique=len(unique),
+            finished=len(unique) - len(todo),
+            to_run=len(todo),
+        )
 
-    def flush() -> None:
-        write_table(build_table(tasks, stored), out)
+        def flush() -> None:
+            write_table(build_table(tasks, stored), out)
 
-    try:
-        if todo:
-            with dask_client(workers, scheduler, client, scheduler_file) as c:
-                write_manifest(out, manifest)
+        try:
+            if todo:
+                with dask_client(workers, scheduler, client, scheduler_file) as c:
+                    write_manifest(target, manifest)
+                    started = True
+                    threads = c.nthreads()
+                    info = dataclasses.replace(
+                        info,
+                        scheduler=c.scheduler.address,
+                        dashboard=_dashboard(c),
+                        worker_threads=tuple(threads.values()),
+                    )
+                    if on_start is not None:
+                        on_start(info)
+                    # workers on this machine share its numba cache: say when they compile first
+                    local = client is None and scheduler is None and scheduler_file is None
+                    note = (
+                        jitcache.compile_note()
+                        if progress and local and workers_local(workers)
+                        else None
+                    )
+                    task_runner = runner or run_task
+                    _run(c, todo, out, stored, spec, task_runner, retries, progress, flush, note)
+            else:
+                write_manifest(target, manifest)
                 started = True
-                threads = c.nthreads()
-                info = dataclasses.replace(
-                    info,
-                    scheduler=c.scheduler.address,
-                    dashboard=_dashboard(c),
-                    worker_threads=tuple(threads.values()),
-                )
                 if on_start is not None:
                     on_start(info)
-                # workers on this machine share its numba cache: say when they compile first
-                local = client is None and scheduler is None and scheduler_file is None
-                note = (
-                    jitcache.compile_note()
-                    if progress and local and workers_local(workers)
-                    else None
-                )
-                _run(c, todo, out, stored, spec, runner or run_task, retries, progress, flush, note)
-        else:
-            write_manifest(out, manifest)
-            started = True
-            if on_start is not None:
-                on_start(info)
-    finally:
-        df = build_table(tasks, stored)
-        if started:
-            write_table(df, out)
-    if figures and not (df["status"] == "pending").any():
-        from obsplan.sweeps.figures import figures_from_manifest
+        finally:
+            df = build_table(tasks, stored)
+            if started:
+                write_table(df, out)
+        if figures and not (df["status"] == "pending").any():
+            from obsplan.sweeps.figures import figures_from_manifest
 
-        figures_from_manifest(df, out, spec.to_dict())
-    return df
+            figures_from_manifest(df, out, spec.to_dict())
+        return df
 
 
 def has_bokeh() -> bool:

@@ -23,7 +23,7 @@ from typing import Any
 
 from obsplan.core.atomic import atomic_file
 from obsplan.core.errors import InputError
-from obsplan.core.outputs import check_resumable_dir, has_marker, write_marker
+from obsplan.core.outputs import ResumableDir
 from obsplan.core.textfiles import read_json
 
 MANIFEST = "sweep.json"
@@ -50,36 +50,49 @@ def atomic_write_text(path: Path, text: str) -> Path:
     return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
-def check_out(out: str | Path, force: bool, name: str) -> Path:
+def check_out(out: str | Path, force: bool, name: str) -> ResumableDir:
     """Check that the sweep called ``name`` may write into ``out`` (nothing is written).
 
-    A folder that holds a sweep of that name (``sweep.json``) is resumed, even if its axes
-    changed (tasks are keyed by their problem, so the finished ones are reused); an empty or new
-    folder is used; a folder holding another sweep (or another obsplan output) is refused unless
-    ``force``; a link, a folder of the user's, the working or home folder (or a parent) are
-    always refused (:func:`obsplan.core.outputs.check_resumable_dir`).
+    Accepted: a new or empty folder, or one an earlier ``obsplan sweep`` made (its marker says
+    so): the sweep of that name (``sweep.json``) is resumed, even if its axes changed (tasks are
+    keyed by their problem, so the finished ones are reused); another sweep's folder only with
+    ``force`` (its table and figures are then replaced). Refused whatever ``force``: a folder
+    without the sweep marker (the user's, or another verb's output), a link, the working or
+    home folder (or a parent), a folder another run is writing into
+    (:class:`obsplan.core.outputs.ResumableDir`, which stays locked until its ``release``).
 
     Raises
     ------
     InputError
-        If ``out`` is a file, or a non-empty folder that is not this sweep's, without ``force``.
+        If ``out`` is not a folder this sweep may write into.
     """
-    out = check_resumable_dir(out, "--out", ours=lambda d: (d / MANIFEST).is_file())
-    if out.is_dir() and any(out.iterdir()) and not force:
-        if not (out / MANIFEST).is_file():
-            raise InputError(
-                f"--out {out} is not empty and holds no sweep ({MANIFEST}); choose another "
-                "folder, or pass --force to write the sweep into this obsplan output folder"
-            )
-        other = read_manifest(out)["sweep"].get("name")
-        if other != name:
-            shown = f"sweep {other!r}" if isinstance(other, str) else "a sweep without a name"
-            raise InputError(
-                f"--out {out} holds the results of {shown}, not {name!r}; choose another "
-                "folder, or pass --force to add this sweep's tasks to it (its table and figures "
-                "are then replaced)"
-            )
-    return out
+    target = ResumableDir(out, "sweep", "--out")
+    try:
+        path = target.path
+        if (path / MANIFEST).is_file() and not force:
+            other = sweep_name(read_manifest(path))
+            if other is None:
+                raise InputError(
+                    f"--out {path}: its {MANIFEST} names no sweep, so it cannot be resumed; "
+                    "choose a new folder, or pass --force to write this sweep's manifest over it"
+                )
+            if other != name:
+                raise InputError(
+                    f"--out {path} holds the results of sweep {other!r}, not {name!r}; choose "
+                    "another folder, or pass --force to add this sweep's tasks to it (its table "
+                    "and figures are then replaced)"
+                )
+    except BaseException:
+        target.release()
+        raise
+    return target
+
+
+def sweep_name(manifest: dict[str, Any]) -> str | None:
+    """The name a sweep manifest gives, or None if it names none."""
+    sweep = manifest.get("sweep")
+    name = sweep.get("name") if isinstance(sweep, dict) else None
+    return name if isinstance(name, str) else None
 
 
 def check_code(out: Path, code: str, force: bool) -> None:
@@ -140,13 +153,16 @@ def write_task(out: Path, task_id: str, report: dict[str, Any], plan_csv: str | 
     return folder
 
 
-def write_manifest(out: Path, manifest: dict[str, Any]) -> Path:
-    """``DIR/sweep.json`` (creates ``DIR``, with the output marker): from then on ``DIR`` is
-    this sweep's folder."""
-    out.mkdir(parents=True, exist_ok=True)
-    if not has_marker(out):
-        write_marker(out, "sweep")
-    return atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=2) + "\n")
+def write_manifest(out: ResumableDir | str | Path, manifest: dict[str, Any]) -> Path:
+    """``DIR/sweep.json``, after :meth:`~obsplan.core.outputs.ResumableDir.claim` (which creates
+    ``DIR`` with the sweep marker, or checks it is still the folder checked): from then on
+    ``DIR`` is this sweep's folder. A path is checked first (:class:`ResumableDir`)."""
+    if isinstance(out, ResumableDir):
+        path = out.claim()
+    else:
+        with ResumableDir(out, "sweep") as target:
+            path = target.claim()
+    return atomic_write_text(path / MANIFEST, json.dumps(manifest, indent=2) + "\n")
 
 
 def read_manifest(out: Path, *, axes: bool = False) -> dict[str, Any]:
