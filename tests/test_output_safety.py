@@ -631,7 +631,7 @@ def test_the_read_only_rule_is_the_same_as_root_and_as_a_user(tmp_path):
     "manifest, phrase",
     [
         ({"sweep": {"combine": "zip"}}, "names no sweep, so it cannot be resumed"),
-        ([1, 2], "is not a sweep manifest"),
+        ([1, 2], "not the manifest of an obsplan sweep (it holds a list)"),
         ({"sweep": {"name": "another"}}, "holds the results of sweep 'another', not 's'"),
     ],
 )
