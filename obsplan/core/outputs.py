@@ -152,15 +152,16 @@ def _holds_input(folder: Path, inputs: Sequence[str | Path | None]) -> str | Non
     return None
 
 
-def _not_ours(option: str, out: Path, force: bool) -> InputError:
+def _not_ours(option: str, out: Path, force: bool, force_option: str = "--force") -> InputError:
     if not force:
         return InputError(
-            f"{option} {out} is not empty; choose another folder, or pass --force to replace "
-            "an earlier obsplan output whole"
+            f"{option} {out} is not empty; choose another folder, or pass {force_option} to "
+            "replace an earlier obsplan output whole"
         )
     return InputError(
-        f"{option} {out} is not an obsplan output folder (it has no {MARKER} file), so --force "
-        "will not replace it; choose a new folder name, or remove the folder yourself"
+        f"{option} {out} is not an obsplan output folder (it has no {MARKER} file), so "
+        f"{force_option} will not replace it; choose a new folder name, or remove the folder "
+        "yourself"
     )
 
 
@@ -204,6 +205,8 @@ class OutputDir:
         Files the verb reads: a folder holding one of them is never replaced.
     verb
         Recorded in the marker.
+    force_option
+        How messages name ``force`` (``"--force"``; ``"force=True"`` for a Python call).
     """
 
     def __init__(
@@ -213,6 +216,7 @@ class OutputDir:
         option: str = "--out",
         inputs: Sequence[str | Path | None] = (),
         verb: str = "",
+        force_option: str = "--force",
     ) -> None:
         out = check_name(path, option)
         self.path, self.option, self.verb = out, option, verb
@@ -226,7 +230,7 @@ class OutputDir:
                     "delete; choose another output folder"
                 )
             if any(out.iterdir()) and not (force and has_marker(out)):
-                raise _not_ours(option, out, force)
+                raise _not_ours(option, out, force, force_option)
             if _read_only(out):
                 raise InputError(
                     f"{option} {out} is read-only; make it writable or choose another folder"
