@@ -67,7 +67,8 @@ ROOMS: dict[str, tuple[str, ...]] = {
         "validation",  # Monte Carlo of every path, verdict, robustness
         "figures",
         "replan",  # receding-horizon re-solves inside the closed-loop Monte Carlo
-        "plan",  # solve + baselines + metrics + validation
+        "results",  # PlanResult, ValidationResult: summary, figures, report, files
+        "plan",  # solve + baselines + metrics + validation; validate a given path
         "__init__",
     ),
 }

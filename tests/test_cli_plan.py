@@ -241,12 +241,12 @@ def test_unwritable_out_is_refused_before_planning(tmp_path, capsys, monkeypatch
 @pytest.mark.slow
 def test_interrupt_while_writing_leaves_nothing(tmp_path, capsys, monkeypatch):
     """Ctrl-C after plan.csv is written but before the figures: no half-written folder."""
-    import obsplan.cli.plan as cli_plan
+    import obsplan.planning.results as results
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli_plan, "save_figure", interrupted)
+    monkeypatch.setattr(results, "save_figure", interrupted)
     out = tmp_path / "o"
     assert main(["plan", LOCALISE, "--out", str(out), "--no-validate", *SMALL]) == 130
     assert "interrupted" in capsys.readouterr().err

@@ -357,7 +357,8 @@ def test_a_signal_after_the_folder_was_swapped_in_undoes_it(sig, code, tmp_path,
     out = tmp_path / "o"
     assert main(["plan", LOCALISE, "--out", str(out), "--no-validate", *SMALL]) == 0
     before = _snapshot(out)
-    monkeypatch.setattr("obsplan.cli.plan.summary_table", _signal_self(sig))  # after commit
+    # printing the summary comes after the commit
+    monkeypatch.setattr("obsplan.planning.results.PlanResult.summary", _signal_self(sig))
     assert main(["plan", LOCALISE, "--out", str(out), "--force", "--no-validate", *SMALL]) == code
     assert _snapshot(out) == before
     assert [p.name for p in tmp_path.iterdir()] == ["o"]

@@ -33,7 +33,6 @@ from obsplan.core import budget
 from obsplan.core.errors import InputError
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE, EstimationConfig
 from obsplan.estimation.montecarlo.guidance import NAVIGATION_FILTERS, Guidance, TruthLimits
-from obsplan.estimation.montecarlo.plots import filter_stats
 from obsplan.estimation.montecarlo.simulate import (
     DEFAULT_FILTERS,
     FILTERS,
@@ -220,45 +219,6 @@ def _init_error(text: str) -> str | np.ndarray:
         ) from None
 
 
-def format_result(res: MonteCarloResult, path: str) -> str:
-    """Human-readable table of a Monte Carlo result."""
-    cfg = res.config
-    lines = [
-        f"{path}: {res.runs} runs, seed {res.seed}, {res.t[-1] - res.t[0]:.1f} s, "
-        f"sensors {','.join(cfg.model.sensors)}",
-        f"{'filter':8s} {'final err':>10s} {'final std':>10s} {'RMSE':>9s} {'NEES':>7s} "
-        f"{'conv. time':>11s} {'converged':>9s}",
-    ]
-    for name, s in filter_stats(res).items():
-        conv = "never" if s.convergence_time is None else f"{s.convergence_time:.1f} s"
-        lines.append(
-            f"{name.upper():8s} {s.final_pos_err:9.3f}m {s.final_pos_std:9.3f}m "
-            f"{s.rmse_pos:8.3f}m {s.nees_mean:7.2f} {conv:>11s} {100 * s.converged_fraction:8.0f}%"
-        )
-    lo, hi = next(iter(filter_stats(res).values())).nees_bounds
-    lines.append(
-        f"CRB final position std {res.crlb_final_pos_std:.3f} m; consistent NEES in "
-        f"[{lo:.2f}, {hi:.2f}] (95 %, dof {2 * cfg.model.dim}); "
-        f"convergence: error below {cfg.convergence_threshold_m:g} m"
-    )
-    tr = res.truth
-    if tr is not None:
-        steer = f" (steered on the {res.guidance.navigation.upper()})" if res.guidance else ""
-        lines.append(
-            f"{res.mode}{steer}: true paths' closest approach {tr.closest_range_m:.2f} m over all "
-            f"runs, tracking error {tr.tracking_rmse_m:.3f} m RMS, final drift "
-            f"{tr.final_drift_rms_m:.3f} m RMS, {100 * tr.any_violation_fraction:.1f} % of runs "
-            f"break a limit"
-            + (f" ({broken})" if (broken := tr.breaks_words()) else "")
-            + (
-                f"; {tr.runs_inside_min_range} runs inside min_range"
-                if tr.limits is not None and tr.limits.min_range is not None
-                else ""
-            )
-        )
-    return "\n".join(lines)
-
-
 def check_filter_grid(traj, dt: float | None, runs: int) -> None:
     """Refuse, before allocating anything, a filter grid or Monte Carlo beyond the limits of
     :mod:`obsplan.core.budget` (samples per run, runs, memory and time)."""
@@ -432,12 +392,12 @@ def run(args: argparse.Namespace) -> int:
                 out_json["problem"] = pb.name or str(args.problem)
             print(json.dumps(out_json, indent=2))
         else:
-            print(format_result(res, args.trajectory))
+            print(res.summary(args.trajectory))
         if out is not None:
             written = _write_figures(out, res, fine, pb, args)
             if not args.json:
                 print("figures: " + ", ".join(str(p) for p in written))
-    diverged = [n for n, s in filter_stats(res).items() if s.diverged_runs]
+    diverged = [n for n, s in res.filter_stats().items() if s.diverged_runs]
     if diverged:
         print(
             f"obsplan simulate: failed: {', '.join(diverged)} diverged (non-finite estimates)",

@@ -256,60 +256,68 @@ def _contents(folder: Path) -> list[str]:
     return [rel + ("/" if e.is_dir() and not e.is_symlink() else "") for rel, e in _walk(folder)]
 
 
-def _not_obsplans(head: str, folder: Path, marker: Marker | None, verb: str) -> str | None:
+def _not_obsplans(
+    head: str, folder: Path, marker: Marker | None, verb: str, force_option: str = "--force"
+) -> str | None:
     """The refusal of a non-empty folder no ``verb`` run wrote, or None."""
     if marker is None:
         return (
             f"{head} is not empty and is not an obsplan output folder (it has no {MARKER} file; "
             f"it holds {_listing(_contents(folder))}), so `obsplan {verb}` will not write there, "
-            "even with --force; choose a new or empty folder"
+            f"even with {force_option}; choose a new or empty folder"
         )
     if marker.verb is None:
         return (
             f"{head} has a {MARKER} file that obsplan did not write, so it is not known to be an "
-            "obsplan output folder and is never written into, even with --force; choose a new "
-            "or empty folder"
+            f"obsplan output folder and is never written into, even with {force_option}; choose "
+            "a new or empty folder"
         )
     if marker.verb != verb:
         return (
             f"{head} {_holds(marker.verb)}, which `obsplan {verb}` never writes over, even with "
-            "--force; choose another folder"
+            f"{force_option}; choose another folder"
         )
     return None
 
 
 def replace_refusal(
-    folder: str | Path, verb: str, force: bool, option: str = "--out", shown: Path | None = None
+    folder: str | Path,
+    verb: str,
+    force: bool,
+    option: str = "--out",
+    shown: Path | None = None,
+    force_option: str = "--force",
 ) -> str | None:
     """Why ``obsplan verb`` may not replace the existing ``folder`` (the rules of the module
-    doc), in one line naming ``option`` and the fix; None if it may (an empty folder, or with
-    ``force`` an earlier output of ``verb`` holding only what it wrote)."""
+    doc), in one line naming ``option``, ``force_option`` and the fix; None if it may (an empty
+    folder, or with ``force`` an earlier output of ``verb`` holding only what it wrote)."""
     folder = Path(folder)
     if not any(folder.iterdir()):
         return None
     head = f"{option} {shown or folder}"
     marker = read_marker(folder)
-    why = _not_obsplans(head, folder, marker, verb)
+    why = _not_obsplans(head, folder, marker, verb, force_option)
     if why is not None:
         return why
     assert marker is not None
     if marker.files is None:
         return (
             f"{head} {_holds(verb)} of an older obsplan that did not record the files it wrote, "
-            "so --force cannot tell them from yours; move what you want to keep and remove the "
-            "folder yourself, or choose another folder"
+            f"so {force_option} cannot tell them from yours; move what you want to keep and "
+            "remove the folder yourself, or choose another folder"
         )
     foreign = foreign_files(folder, marker)
     if foreign:
         n = len(foreign)
         return (
             f"{head} holds {n} file{'s' if n != 1 else ''} that obsplan did not write (or that "
-            f"changed since): {_listing(foreign)}; --force replaces only what obsplan wrote, so "
-            f"move {'them' if n != 1 else 'it'} out of {shown or folder} or choose another folder"
+            f"changed since): {_listing(foreign)}; {force_option} replaces only what obsplan "
+            f"wrote, so move {'them' if n != 1 else 'it'} out of {shown or folder} or choose "
+            "another folder"
         )
     if not force:
         return (
-            f"{head} is not empty: it holds an earlier {_kind(verb)}; pass --force to "
+            f"{head} is not empty: it holds an earlier {_kind(verb)}; pass {force_option} to "
             "replace it, or choose another folder"
         )
     return None
@@ -452,6 +460,8 @@ class OutputDir:
         Files the verb reads: a folder holding one of them is never replaced.
     verb
         Recorded in the marker; an existing output of another verb is never replaced.
+    force_option
+        How messages name ``force`` (``"--force"``; ``"force=True"`` for a Python call).
     """
 
     def __init__(
@@ -461,6 +471,7 @@ class OutputDir:
         option: str = "--out",
         inputs: Sequence[str | Path | None] = (),
         verb: str = "",
+        force_option: str = "--force",
     ) -> None:
         out = check_name(path, option)
         self.path, self.option, self.verb, self.force = out, option, verb, force
@@ -473,7 +484,7 @@ class OutputDir:
                     f"{option} {out} holds the input {held}, which replacing the folder would "
                     "delete; choose another output folder"
                 )
-            why = replace_refusal(out, verb, force, option)
+            why = replace_refusal(out, verb, force, option, force_option=force_option)
             if why is not None:
                 raise InputError(why)
             if _read_only(out):

@@ -8,7 +8,8 @@ file saved in another encoding than UTF-8, a file far too large, arrays nested t
 deep or an integer of thousands of digits get the same one-line error everywhere, naming the file
 and the fix. :func:`check_magnitude` is the one test of "a number no vehicle problem can have"
 (``1e300`` m, ``1e200`` m of noise, a scale of ``1e-300`` m), so that such values are refused by
-name before any arithmetic overflows or underflows.
+name before any arithmetic overflows or underflows. :func:`toml_text` writes the
+TOML that :func:`read_toml` reads back (a problem file written from Python).
 """
 
 from __future__ import annotations
@@ -16,9 +17,11 @@ from __future__ import annotations
 import codecs
 import json
 import math
+import numbers
+import re
 import stat
 import tomllib
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -218,6 +221,85 @@ def read_json(path: str | Path, what: str, *, error: type[InputError] = InputErr
 
 def _first_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def toml_text(data: Mapping[str, Any], header: str = "") -> str:
+    """A mapping as TOML text that :func:`read_toml` (``tomllib``) reads back equal.
+
+    Parameters
+    ----------
+    data
+        Top-level keys: scalars first, then one ``[table]`` per mapping value. Values: bool,
+        int, float (written by ``repr``: exact; ``inf``/``nan`` as TOML's), str, lists of
+        values, and mappings inside a table as inline tables.
+    header
+        Text written first as ``#`` comment lines.
+
+    Returns
+    -------
+    str
+        The TOML document, ending with a newline.
+
+    Raises
+    ------
+    TypeError
+        A value (named by its dotted key) that TOML cannot hold, such as None.
+
+    Examples
+    --------
+    >>> print(toml_text({"horizon": {"duration": 600.0, "steps": 200}}, header="a problem"), end="")
+    # a problem
+    <BLANKLINE>
+    [horizon]
+    duration = 600.0
+    steps = 200
+    """
+    lines = [f"# {ln}".rstrip() for ln in header.splitlines()]
+    if lines:
+        lines.append("")
+    tables = {k: v for k, v in data.items() if isinstance(v, Mapping)}
+    for key, value in data.items():
+        if key not in tables:
+            lines.append(f"{_toml_key(key)} = {_toml_value(value, key)}")
+    if len(tables) < len(data):
+        lines.append("")
+    for name, table in tables.items():
+        lines.append(f"[{_toml_key(name)}]")
+        for key, value in table.items():
+            lines.append(f"{_toml_key(key)} = {_toml_value(value, f'{name}.{key}')}")
+        lines.append("")
+    return "\n".join(lines[:-1] if lines and lines[-1] == "" else lines) + "\n"
+
+
+def _toml_key(key: str) -> str:
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _toml_string(key)
+
+
+def _toml_string(s: str) -> str:
+    # JSON's escapes (\", \\, \n, \uXXXX) are TOML's; DEL must be escaped in TOML too
+    return json.dumps(s, ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
+def _toml_value(value: Any, where: str) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real):
+        x = float(value)
+        if math.isnan(x):
+            return "nan"
+        if math.isinf(x):
+            return "inf" if x > 0 else "-inf"
+        return repr(x)
+    if isinstance(value, str):
+        return _toml_string(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v, f"{where}[]") for v in value) + "]"
+    if isinstance(value, Mapping):
+        items = (f"{_toml_key(k)} = {_toml_value(v, f'{where}.{k}')}" for k, v in value.items())
+        return "{" + ", ".join(items) + "}"
+    raise TypeError(f"{where}: {value!r} has no TOML form (TOML has no null)")
 
 
 def check_magnitude(

@@ -306,16 +306,6 @@ def read_waypoints_csv(path: str | Path) -> dict[str, np.ndarray]:
     return {c: data[:, i] for i, c in enumerate(cols)}
 
 
-def write_geodetic_samples(traj: Trajectory, origin: Any, path: str | Path) -> Path:
-    """The plan's samples as ``t,latitude,longitude[,depth],speed`` (atomic)."""
-    lat, lon, depth = local_to_geodetic(traj.p, origin, "plan")
-    cols = ["t", "latitude", "longitude", "depth"][: 1 + traj.dim] + ["speed"]
-    rows = np.column_stack(
-        [grid_times(traj.t), *[lat, lon, depth][: traj.dim], np.linalg.norm(traj.v, axis=1)]
-    )
-    return write_table(path, cols, rows)
-
-
 def qgc_plan(
     wp: Waypoints,
     *,

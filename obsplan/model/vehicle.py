@@ -57,6 +57,10 @@ def parse_sensors(sensors: str | Iterable[str]) -> tuple[str, ...]:
     return tuple(s for s in SENSORS if s in out)
 
 
+#: The cached CasADi attributes of :class:`VehicleModel` (left out of its pickle).
+_CASADI_CACHE = frozenset({"x_sym", "u_sym", "f", "h", "H"})
+
+
 @dataclass(frozen=True)
 class VehicleModel:
     """Double integrator with a range beacon and optional DVL, depth gauge and ocean current.
@@ -151,6 +155,11 @@ class VehicleModel:
         return len(self.output_names)
 
     # ----------------------------------------------------------------- CasADi symbols
+    def __getstate__(self) -> dict:
+        """The pickled state: the fields without the cached CasADi symbols and functions (SX
+        symbols do not pickle; they are rebuilt on first use)."""
+        return {k: v for k, v in self.__dict__.items() if k not in _CASADI_CACHE}
+
     @cached_property
     def x_sym(self) -> ca.SX:
         """State symbol, shape ``(state_dim, 1)``."""

@@ -1,160 +1,33 @@
-"""``plan(problem)``: solve, compare with the baselines, validate by Monte Carlo."""
+"""``plan(problem)``: solve, compare with the baselines, validate by Monte Carlo;
+``validate(trajectory, problem)``: the same comparison and validation of a given path.
+
+Both build their result (:mod:`obsplan.planning.results`) through one function, :func:`_assess`
+(the baselines' metrics, the mission checks, the Monte Carlo in batches until decided, the
+Gaussian-sum filter when the EKF is lost, the robustness row), so that a path validated by
+:func:`validate` gets exactly the numbers :func:`plan` reported for it (same settings, runs and
+seeds).
+"""
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import fields
 from pathlib import Path
 
+from obsplan.core.errors import ProblemError
 from obsplan.estimation.montecarlo.runs import DEFAULT_FILTERS
 from obsplan.planning.baselines.vehicle import Baseline, baselines, unfitted_baselines
-from obsplan.planning.missions.check import MissionCheck, mission_check
-from obsplan.planning.missions.schedule import mission_schedule, planner_schedule
-from obsplan.planning.objectives.evaluate import PathMetrics, path_metrics
+from obsplan.planning.missions.check import mission_check
+from obsplan.planning.objectives.evaluate import path_metrics
 from obsplan.planning.problem.definition import PlanningProblem
-from obsplan.planning.problem.parse import load_problem, problem_to_dict
-from obsplan.planning.solver.margins import KeepoutReport, solve_with_keepout
-from obsplan.planning.solver.solve import SolveResult
-from obsplan.planning.validation.stress import Robustness, stress_active, stress_validate
+from obsplan.planning.problem.parse import load_problem
+from obsplan.planning.replan import replan_monte_carlo, replan_nodes
+from obsplan.planning.results import PlanResult, ValidationResult
+from obsplan.planning.solver.margins import solve_with_keepout
+from obsplan.planning.validation.stress import stress_active, stress_validate
 from obsplan.planning.validation.validate import PathValidation
-from obsplan.planning.validation.verdict import (
-    Verdict,
-    ekf_diverges,
-    objective_notes,
-    stress_notes,
-    validate_until_decided,
-    verdict,
-)
+from obsplan.planning.validation.verdict import ekf_diverges, validate_until_decided
 from obsplan.trajectory.sampled import Trajectory
-
-
-@dataclass(frozen=True, eq=False)
-class PlanResult:
-    """Everything ``obsplan plan`` reports.
-
-    Attributes
-    ----------
-    problem : PlanningProblem
-    solve : SolveResult
-        Multi-start outcome (status, iterations, wall time, every start).
-    baselines : dict[str, Baseline]
-    metrics : dict[str, PathMetrics]
-        ``"planned"`` (if a path was found) and every baseline, computed the same way.
-    validation : dict[str, PathValidation]
-        Monte Carlo per path (empty when not run).
-    wall_s : float
-        Total time [s].
-    not_fitted : dict[str, str]
-        Baselines the problem cannot fit, with the reason.
-    keepout : KeepoutReport or None
-        How the plan keeps its limits with the keep-out margins
-        (:mod:`obsplan.planning.solver.margins`).
-    robustness : Robustness or None
-        Every path re-validated at ``validation.stress_*``
-        (:mod:`obsplan.planning.validation.stress`).
-    """
-
-    problem: PlanningProblem
-    solve: SolveResult
-    baselines: dict[str, Baseline]
-    metrics: dict[str, PathMetrics]
-    validation: dict[str, PathValidation]
-    wall_s: float
-    not_fitted: dict[str, str] = field(default_factory=dict)
-    keepout: KeepoutReport | None = None
-    robustness: Robustness | None = None
-    #: Per path, the independent mission check (empty without a ``[mission]``).
-    missions: dict[str, MissionCheck] = field(default_factory=dict)
-
-    @property
-    def verdict(self) -> Verdict:
-        """The plan against every validated baseline (:mod:`obsplan.planning.validation.verdict`);
-        with a mission, only against the paths that complete it."""
-        val = dict(self.validation)
-        not_fitted = dict(self.not_fitted)
-        for name, chk in self.missions.items():
-            if not chk.complete and name in val and name != "planned":
-                del val[name]
-                not_fitted[name] = "does not complete the mission (not compared)"
-        survey = self.problem.mission is not None and bool(self.problem.mission.lines)
-        runs = int(val["planned"].result.runs) if "planned" in val else 0
-        notes = (*objective_notes(self.problem), *stress_notes(self.metrics, runs))
-        return verdict(
-            val,
-            not_fitted,
-            notes,
-            lines=survey,
-            keepout_confidence=self.problem.limits.keepout_confidence,
-        )
-
-    @property
-    def success(self) -> bool:
-        return self.solve.success and self.trajectory is not None
-
-    @property
-    def trajectory(self) -> Trajectory | None:
-        """The planned path on the planning grid (None if no feasible path was found)."""
-        return self.solve.trajectory
-
-    def validation_dict(self) -> dict:
-        """``report.json``'s ``validation``: ``mode`` (``"closed-loop"`` or ``"open-loop"``)
-        and one entry per validated path (empty when no validation was run)."""
-        if not self.validation:
-            return {}
-        return {
-            "mode": self.problem.validation.mode,
-            **{k: v.to_dict() for k, v in self.validation.items()},
-        }
-
-    def paths(self) -> dict[str, Trajectory]:
-        """``planned`` (when found) then every baseline."""
-        out: dict[str, Trajectory] = {}
-        if self.trajectory is not None:
-            out["planned"] = self.trajectory
-        out.update({k: b.trajectory for k, b in self.baselines.items()})
-        return out
-
-    def to_dict(self) -> dict:
-        """``report.json`` (stable keys ``solver``, ``metrics``, ``validation``)."""
-        pb = self.problem
-        return {
-            "solver": self.solve.to_dict(),
-            "metrics": {k: m.to_dict() for k, m in self.metrics.items()},
-            "validation": self.validation_dict(),
-            "verdict": self.verdict.to_dict(),
-            "problem": {
-                "name": pb.name,
-                "dim": pb.dim,
-                "sensors": list(pb.vehicle.sensors),
-                "current": pb.vehicle.current,
-                "objective": pb.objective.kind,
-                "objective_mode": pb.objective_mode,
-                "steps": pb.horizon.steps,
-                "duration_s": pb.horizon.duration,
-                "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
-                "schedule": _schedule_dict(pb),
-            },
-            "baselines": {k: b.description for k, b in self.baselines.items()},
-            "baselines_not_fitted": dict(self.not_fitted),
-            "mission": {k: c.to_dict() for k, c in self.missions.items()},
-            "problem_file": problem_to_dict(pb),
-            "keepout": None if self.keepout is None else self.keepout.to_dict(),
-            "robustness": None if self.robustness is None else self.robustness.to_dict(),
-            "wall_s": float(self.wall_s),
-        }
-
-
-def _schedule_dict(pb: PlanningProblem) -> dict | None:
-    """The mission's schedules: the lawn-mower's speed, the planner's line speed and lead-in."""
-    if pb.mission is None:
-        return None
-    base, lead = mission_schedule(pb.mission_context), planner_schedule(pb.mission_context)
-    return {
-        "lawnmower_speed_mps": float(base.speed),
-        "planner_speed_mps": float(lead.speed),
-        "lead_in_s": float(lead.lead_in),
-        "headroom": float(base.headroom),
-    }
 
 
 def plan(
@@ -166,18 +39,21 @@ def plan(
     progress: bool = False,
     verbose: bool = False,
     processes: int | None = None,
+    replan: float | None = None,
 ) -> PlanResult:
     """Solve a planning problem and compare the plan with the baselines.
 
     Parameters
     ----------
     problem
-        A :class:`PlanningProblem`, a path to a problem TOML, or None for ``problems/default.toml``.
+        A :class:`PlanningProblem`, a problem file or a shipped problem's name
+        (:func:`~obsplan.planning.problem.parse.load_problem`), or None for the default problem.
     validate
         Run the EKF/KF Monte Carlo on the plan and every baseline (in closed loop unless
         ``validation.mode = "open-loop"``), adding batches of runs until every verdict is
         decided or ``validation.max_runs`` is reached
-        (:func:`~obsplan.planning.validation.verdict.validate_until_decided`).
+        (:func:`~obsplan.planning.validation.verdict.validate_until_decided`); :func:`validate`
+        repeats it on any path.
     runs
         Override ``validation.runs`` (the first batch).
     max_runs
@@ -187,40 +63,148 @@ def plan(
     verbose
         IPOPT output.
     processes
-        Worker processes for the multi-start (None: one per core, at most one per start; 1: all
-        starts in this process, e.g. inside a Dask worker).
+        Worker processes for the multi-start and the replanned Monte Carlo (None: one per core,
+        at most one per start; 1: all in this process, e.g. inside a Dask worker).
+    replan
+        Also validate with receding-horizon replanning every ``replan`` seconds (a multiple of
+        the planning step; :func:`~obsplan.planning.replan.replan_monte_carlo`, ``obsplan plan
+        --replan``); needs ``validate``. Default: no replanning.
 
     Returns
     -------
     PlanResult
         ``success`` is False when no start converged (the best feasible iterate, if any, is still
-        reported, flagged by ``solve.status``).
+        reported, flagged by ``solve.status``). ``summary()``, ``plot()``, ``save()`` and
+        ``to_dict()`` give what ``obsplan plan`` prints, draws and writes.
+
+    Raises
+    ------
+    ProblemError
+        A problem file that does not load, or a ``replan`` period that does not fit the grid.
 
     Examples
     --------
     The free localisation problem on a coarse horizon, one start, without the Monte Carlo
     validation:
 
-    >>> from dataclasses import replace
     >>> from obsplan import load_problem, plan
-    >>> from obsplan.planning.problem.parse import LOCALISE_PROBLEM
-    >>> from obsplan.planning.problem.sections import Horizon
-    >>> pb = load_problem(LOCALISE_PROBLEM)
-    >>> pb = replace(pb, horizon=Horizon(duration=pb.horizon.duration, steps=20),
-    ...              objective=replace(pb.objective, starts=1))
+    >>> pb = load_problem("localise").with_changes(horizon={"steps": 20}, objective={"starts": 1})
     >>> result = plan(pb, validate=False)
-    >>> result.solve.trajectory.n_samples, len(result.baselines) > 0
+    >>> result.trajectory.n_samples, len(result.baselines) > 0
     (21, True)
+    >>> print(result.summary().splitlines()[-1])
+    no validation was run: nothing says the plan localises better
     """
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
+    if replan is not None:
+        if not validate:
+            raise ProblemError(
+                "replan re-solves inside the validation: pass validate=True, or no replan"
+            )
+        replan_nodes(pb, replan)  # a bad period is refused before any work
     bls = baselines(pb)
     res, keepout = solve_with_keepout(
         pb, baselines=bls, progress=progress, verbose=verbose, processes=processes
     )
+    checked = _assess(res.trajectory, pb, bls, validate, runs, max_runs, progress)
+    rep = None
+    if replan is not None and res.trajectory is not None:
+        rep = replan_monte_carlo(
+            pb,
+            res.trajectory,
+            replan,
+            baselines={k: b.trajectory for k, b in bls.items()},
+            runs=runs,
+            processes=processes,
+            progress=progress,
+        )
+    return PlanResult(
+        **{f.name: getattr(checked, f.name) for f in fields(checked)},
+        solve=res,
+        wall_s=time.perf_counter() - t0,
+        keepout=keepout,
+        replan=rep,
+    )
+
+
+def validate(
+    trajectory: Trajectory,
+    problem: PlanningProblem | str | Path | None = None,
+    *,
+    runs: int | None = None,
+    max_runs: int | None = None,
+    progress: bool = False,
+) -> ValidationResult:
+    """Validate a path against the problem's baselines exactly as :func:`plan` validates its
+    plan.
+
+    The path is flown as ``"planned"`` beside every baseline of the problem, with the problem's
+    ``[validation]`` (closed loop unless ``validation.mode = "open-loop"``, its filters, noises,
+    prior and seed), in batches of runs until every verdict is decided or
+    ``validation.max_runs`` is reached, with the Gaussian-sum filter beside the EKF and KF when
+    the EKF is lost on the path; then the robustness row when ``validation.stress_*`` asks for
+    it. ``obsplan.validate(obsplan.read_csv("plan.csv"), problem)`` reproduces the numbers of
+    that plan's ``report.json`` (its ``validation``, ``verdict``, ``metrics``) to the last digit.
+    Use it, not :func:`~obsplan.estimation.montecarlo.simulate.monte_carlo` (open loop and the
+    EKF settings of its :class:`~obsplan.estimation.config.EstimationConfig` by default), to
+    re-check a plan.
+
+    Parameters
+    ----------
+    trajectory
+        The path, on the problem's planning grid (``plan.csv``; any grid whose steps
+        ``validation.dt`` divides runs, but the metrics and the baselines are the planning
+        grid's).
+    problem
+        A :class:`PlanningProblem`, a problem file or a shipped problem's name, or None for the
+        default problem.
+    runs
+        Override ``validation.runs`` (the first batch), as :func:`plan`'s ``runs``.
+    max_runs
+        Override ``validation.max_runs``, as :func:`plan`'s ``max_runs``.
+    progress
+        A progress bar (tqdm, on stderr) over the runs.
+
+    Returns
+    -------
+    ValidationResult
+        ``validation``, ``metrics``, ``verdict`` and the rest as :func:`plan` reports them for
+        its plan; ``summary()``, ``plot()``, ``to_dict()`` and ``save()`` as for a plan.
+
+    Examples
+    --------
+    A plan of a short horizon, validated again: the same numbers.
+
+    >>> from obsplan import load_problem, plan, validate
+    >>> pb = load_problem("localise").with_changes(
+    ...     horizon={"duration": 120, "steps": 40},
+    ...     objective={"starts": 1},
+    ...     validation={"runs": 4, "max_runs": 4},
+    ... )
+    >>> result = plan(pb)
+    >>> again = validate(result.trajectory, pb)
+    >>> again.to_dict()["validation"] == result.to_dict()["validation"]
+    True
+    """
+    pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
+    return _assess(trajectory, pb, baselines(pb), True, runs, max_runs, progress)
+
+
+def _assess(
+    trajectory: Trajectory | None,
+    pb: PlanningProblem,
+    bls: dict[str, Baseline],
+    validate: bool,
+    runs: int | None,
+    max_runs: int | None,
+    progress: bool,
+) -> ValidationResult:
+    """The path (as ``planned``) beside the baselines: metrics, mission checks, validation and
+    robustness, as :func:`plan` reports them."""
     paths: dict[str, Trajectory] = {}
-    if res.trajectory is not None:
-        paths["planned"] = res.trajectory
+    if trajectory is not None:
+        paths["planned"] = trajectory
     paths.update({k: b.trajectory for k, b in bls.items()})
     metrics = {k: path_metrics(tr, pb) for k, tr in paths.items()}
     missions = {
@@ -231,15 +215,13 @@ def plan(
     robustness = None
     if validate and stress_active(pb):
         robustness = stress_validate(paths, pb, runs=runs, progress=progress)
-    return PlanResult(
+    return ValidationResult(
         problem=pb,
-        solve=res,
+        trajectory=trajectory,
         baselines=bls,
         metrics=metrics,
         validation=validation,
-        wall_s=time.perf_counter() - t0,
         not_fitted=unfitted_baselines(pb),
-        keepout=keepout,
         robustness=robustness,
         missions=missions,
     )

@@ -16,6 +16,7 @@ import numpy as np
 
 from obsplan.core.csvtable import CsvTable, read_table, write_table
 from obsplan.core.errors import InputError, TrajectoryFormatError
+from obsplan.model.frames import GeodeticOrigin, local_to_geodetic
 
 _AXES = "xyz"
 #: Default tolerance of the consistency check: positions within 1 mm, velocities within 1 mm/s.
@@ -299,6 +300,32 @@ def write_csv(traj: Trajectory, path: str | Path, overwrite: bool = True) -> Pat
     data = traj.to_array().copy()
     data[:, 0] = grid_times(traj.t)
     return write_table(path, csv_columns(traj.dim), data)
+
+
+def write_geodetic_samples(traj: Trajectory, origin: GeodeticOrigin, path: str | Path) -> Path:
+    """Write the samples as ``t,latitude,longitude[,depth],speed`` about ``origin``, atomically.
+
+    Parameters
+    ----------
+    traj
+        Positions in the local north-east-down frame about ``origin`` [m].
+    origin
+        The frame's origin (:class:`~obsplan.model.frames.GeodeticOrigin`).
+    path
+        The CSV file written (``plan-geodetic.csv`` of ``obsplan plan``).
+
+    Returns
+    -------
+    Path
+        ``path``: times [s] on their grid, latitude and longitude [deg], depth [m] (3D),
+        speed ``|v|`` [m/s].
+    """
+    lat, lon, depth = local_to_geodetic(traj.p, origin, "plan")
+    cols = ["t", "latitude", "longitude", "depth"][: 1 + traj.dim] + ["speed"]
+    rows = np.column_stack(
+        [grid_times(traj.t), *[lat, lon, depth][: traj.dim], np.linalg.norm(traj.v, axis=1)]
+    )
+    return write_table(path, cols, rows)
 
 
 def read_csv(path: str | Path, check: bool = True) -> Trajectory:

@@ -2,18 +2,58 @@
 
 Every function takes ``ax=None`` (a new figure is made when None) and returns the Figure; nothing
 is shown. Use the Agg backend in scripts and tests (``MPLBACKEND=Agg``).
+
+The figures of a whole result read it through :class:`MonteCarloData` (what a
+:class:`~obsplan.estimation.montecarlo.results.MonteCarloResult` has), so that this module sits
+below the result, whose ``plot()`` draws them.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Protocol
 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from obsplan.estimation.montecarlo.simulate import MonteCarloResult, RunHistory
+from obsplan.estimation.config import EstimationConfig
+from obsplan.estimation.montecarlo.history import RunHistory
+from obsplan.estimation.montecarlo.stats import FilterStats, filter_stats
 from obsplan.trajectory.sampled import Trajectory
+
+
+class MonteCarloData(Protocol):
+    """What the figures read of a Monte Carlo result
+    (:class:`~obsplan.estimation.montecarlo.results.MonteCarloResult`)."""
+
+    @property
+    def runs(self) -> int: ...
+
+    @property
+    def seed(self) -> int: ...
+
+    @property
+    def t(self) -> np.ndarray: ...
+
+    @property
+    def ekf(self) -> FilterStats | None: ...
+
+    @property
+    def kf(self) -> FilterStats | None: ...
+
+    @property
+    def filters(self) -> dict | None: ...
+
+    @property
+    def crlb_pos_std_t(self) -> np.ndarray: ...
+
+    @property
+    def example(self) -> RunHistory | None: ...
+
+    @property
+    def config(self) -> EstimationConfig: ...
+
 
 COLORS = {"ekf": "tab:red", "kf": "tab:blue", "gsf": "tab:orange", "truth": "k", "crlb": "tab:gray"}
 LABELS = {"ekf": "EKF", "kf": "KF (augmented)", "gsf": "Gaussian-sum EKF"}
@@ -30,15 +70,6 @@ def _color(name: str) -> str:
 
 def _label(name: str) -> str:
     return LABELS.get(name, name.upper())
-
-
-def filter_stats(result: MonteCarloResult) -> dict:
-    """Every filter's statistics, by name (``ekf``, ``kf`` and any other that was run)."""
-    stats = dict(getattr(result, "filters", None) or {})
-    for name in ("ekf", "kf"):
-        if name not in stats and getattr(result, name, None) is not None:
-            stats[name] = getattr(result, name)
-    return stats
 
 
 def _ax(ax, projection: str | None = None):
@@ -135,7 +166,7 @@ def plot_range_measurements(hist: RunHistory, ax=None) -> Figure:
     return fig
 
 
-def plot_monte_carlo(result: MonteCarloResult, ax=None) -> Figure:
+def plot_monte_carlo(result: MonteCarloData, ax=None) -> Figure:
     """RMSE of position over the runs for each filter with its mean std and the CRB."""
     fig, ax = _ax(ax)
     for name, s in filter_stats(result).items():
@@ -151,19 +182,21 @@ def plot_monte_carlo(result: MonteCarloResult, ax=None) -> Figure:
 
 
 def scenario_figure(
-    traj: Trajectory,
-    result: MonteCarloResult,
+    traj: Trajectory | None,
+    result: MonteCarloData,
     rank_t: np.ndarray | None = None,
     rank: np.ndarray | None = None,
     full_rank: int | None = None,
     title: str = "",
 ) -> Figure:
     """Six panels like the paper's figures: (a) paths, (b) error norms, (c) position std,
-    (d) velocity std, (e) Gramian rank, (f) range readings."""
+    (d) velocity std, (e) Gramian rank (without ``rank``: the runs' RMSE), (f) range readings.
+
+    ``traj`` (the path flown, or None) is not drawn: run 0's history holds the true path."""
     hist = result.example
     if hist is None:
         raise ValueError("the result holds no run history (monte_carlo keeps run 0's history)")
-    n = traj.dim
+    n = hist.truth.shape[1] // 2 if traj is None else traj.dim
     fig = plt.figure(figsize=(13, 8))
     ax_a = fig.add_subplot(2, 3, 1, projection="3d" if n == 3 else None)
     plot_trajectory_estimates(hist, ax=ax_a, beacon=result.config.model.beacon)

@@ -1,59 +1,36 @@
 """Results of a Monte Carlo: statistics per filter, the bound, the truth, run 0's history.
 
 Shards of runs (``run_start``) merge exactly (:func:`merge_monte_carlo`): every statistic is
-recomputed from summed sufficient statistics and concatenated per-run arrays.
+recomputed from summed sufficient statistics and concatenated per-run arrays. A result carries
+what ``obsplan simulate`` prints (:meth:`MonteCarloResult.summary`), its ``--json``
+(:meth:`MonteCarloResult.to_dict`) and its figures (:meth:`MonteCarloResult.plot`, drawn by
+:mod:`obsplan.estimation.montecarlo.plots`).
 """
 
 from __future__ import annotations
 
+import html
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from obsplan.core.errors import ConfigError
 from obsplan.estimation.bounds.crlb import CRLBResult
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.montecarlo.guidance import Guidance
-from obsplan.estimation.montecarlo.stats import FilterStats, StatsSums, TruthStats
+from obsplan.estimation.montecarlo.history import RunHistory
+from obsplan.estimation.montecarlo.plots import plot_monte_carlo, scenario_figure
+from obsplan.estimation.montecarlo.stats import FilterStats, StatsSums, TruthStats, filter_stats
+
+#: The figures of :meth:`MonteCarloResult.plot`, by kind.
+PLOT_KINDS = ("errors", "run")
 
 
-@dataclass(frozen=True, eq=False)
-class RunHistory:
-    """Everything about one run (run 0), for figures.
-
-    Attributes
-    ----------
-    t : ndarray, shape (Nr,)
-        Recorded times [s].
-    truth : ndarray, shape (Nr, 2n)
-        True ``(p, p')``.
-    estimate, std : dict[str, ndarray (Nr, 2n)]
-        Per filter, the estimate of ``(p, p')`` and its per-component standard deviation.
-    range_t, range_m : ndarray
-        Times [s] and values [m] of the range readings (NaN where dropped).
-    """
-
-    t: np.ndarray
-    truth: np.ndarray
-    estimate: dict[str, np.ndarray]
-    std: dict[str, np.ndarray]
-    range_t: np.ndarray
-    range_m: np.ndarray
-
-    def pos_error(self, name: str) -> np.ndarray:
-        """``|p̂ - p|`` of filter ``name`` over time, shape (Nr,) [m]."""
-        n = self.truth.shape[1] // 2
-        return np.linalg.norm(self.estimate[name][:, :n] - self.truth[:, :n], axis=1)
-
-    def vel_error(self, name: str) -> np.ndarray:
-        """``|p̂' - p'|`` of filter ``name`` over time, shape (Nr,) [m/s]."""
-        n = self.truth.shape[1] // 2
-        return np.linalg.norm(self.estimate[name][:, n:] - self.truth[:, n:], axis=1)
-
-
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class MonteCarloResult:
     """Result of :func:`~obsplan.estimation.montecarlo.simulate.monte_carlo` (picklable).
 
@@ -135,6 +112,124 @@ class MonteCarloResult:
             if name not in ("ekf", "kf"):
                 out[name] = s.to_dict()
         return out
+
+    def filter_stats(self) -> dict[str, FilterStats]:
+        """Every filter's statistics, by name, in the order they were run."""
+        return filter_stats(self)
+
+    def summary(self, title: str = "Monte Carlo") -> str:
+        """What ``obsplan simulate`` prints: per filter the final error and standard deviation,
+        the RMSE, the NEES, the convergence; the bound; the true paths against the limits.
+
+        Parameters
+        ----------
+        title
+            How the first line names the path (``obsplan simulate``: the trajectory file).
+
+        Returns
+        -------
+        str
+            Lines for the terminal; errors and standard deviations in metres.
+        """
+        cfg = self.config
+        stats = self.filter_stats()
+        lines = [
+            f"{title}: {self.runs} runs, seed {self.seed}, {self.t[-1] - self.t[0]:.1f} s, "
+            f"sensors {','.join(cfg.model.sensors)}",
+            f"{'filter':8s} {'final err':>10s} {'final std':>10s} {'RMSE':>9s} {'NEES':>7s} "
+            f"{'conv. time':>11s} {'converged':>9s}",
+        ]
+        for name, s in stats.items():
+            conv = "never" if s.convergence_time is None else f"{s.convergence_time:.1f} s"
+            lines.append(
+                f"{name.upper():8s} {s.final_pos_err:9.3f}m {s.final_pos_std:9.3f}m "
+                f"{s.rmse_pos:8.3f}m {s.nees_mean:7.2f} {conv:>11s} "
+                f"{100 * s.converged_fraction:8.0f}%"
+            )
+        lo, hi = next(iter(stats.values())).nees_bounds
+        lines.append(
+            f"CRB final position std {self.crlb_final_pos_std:.3f} m; consistent NEES in "
+            f"[{lo:.2f}, {hi:.2f}] (95 %, dof {2 * cfg.model.dim}); "
+            f"convergence: error below {cfg.convergence_threshold_m:g} m"
+        )
+        tr = self.truth
+        if tr is not None:
+            steer = f" (steered on the {self.guidance.navigation.upper()})" if self.guidance else ""
+            lines.append(
+                f"{self.mode}{steer}: true paths' closest approach {tr.closest_range_m:.2f} m "
+                f"over all runs, tracking error {tr.tracking_rmse_m:.3f} m RMS, final drift "
+                f"{tr.final_drift_rms_m:.3f} m RMS, {100 * tr.any_violation_fraction:.1f} % of "
+                "runs break a limit"
+                + (f" ({broken})" if (broken := tr.breaks_words()) else "")
+                + (
+                    f"; {tr.runs_inside_min_range} runs inside min_range"
+                    if tr.limits is not None and tr.limits.min_range is not None
+                    else ""
+                )
+            )
+        return "\n".join(lines)
+
+    def plot(self, kind: str = "errors", ax=None) -> Figure:
+        """A figure of the runs (:mod:`obsplan.estimation.montecarlo.plots`).
+
+        Parameters
+        ----------
+        kind
+            ``"errors"``: each filter's position RMSE over the runs and its mean standard
+            deviation over time, with the posterior CRB (``monte_carlo.png`` of ``obsplan
+            simulate``); ``"run"``: six panels of run 0 like the paper's figures (paths, error
+            norms, position and velocity standard deviations, RMSE, range readings).
+        ax
+            A matplotlib Axes to draw ``"errors"`` into; None: a new figure.
+
+        Returns
+        -------
+        Figure
+            The figure drawn (``ax.figure`` when ``ax`` is given); nothing is shown or saved.
+
+        Raises
+        ------
+        ConfigError
+            An unknown kind, ``ax`` with ``"run"``, or ``"run"`` of a shard without run 0.
+        """
+        if kind == "errors":
+            return plot_monte_carlo(self, ax=ax)
+        if kind != "run":
+            raise ConfigError(f"plot kind {kind!r}: one of {', '.join(PLOT_KINDS)}")
+        if ax is not None:
+            raise ConfigError('plot("run") draws six panels of its own: give no ax')
+        if self.example is None:
+            raise ConfigError("this result holds no run 0 (a shard of later runs): plot 'errors'")
+        return scenario_figure(None, self)
+
+    def __repr__(self) -> str:
+        stats = self.filter_stats()
+        errs = ", ".join(f"{k} {_m(s.final_pos_err)}" for k, s in stats.items())
+        return (
+            f"<MonteCarloResult {self.runs} runs, seed {self.seed}, {self.mode}; final position "
+            f"error {errs}; bound {_m(self.crlb_final_pos_std)}>"
+        )
+
+    def _repr_html_(self) -> str:
+        head = "".join(
+            f"<th>{c}</th>"
+            for c in ("filter", "final err [m]", "final std [m]", "RMSE [m]", "NEES", "converged")
+        )
+        rows = "".join(
+            f"<tr><td>{html.escape(name.upper())}</td><td>{s.final_pos_err:.3g}</td>"
+            f"<td>{s.final_pos_std:.3g}</td><td>{s.rmse_pos:.3g}</td><td>{s.nees_mean:.3g}</td>"
+            f"<td>{100 * s.converged_fraction:.0f} %</td></tr>"
+            for name, s in self.filter_stats().items()
+        )
+        return (
+            f"<p><b>MonteCarloResult</b> {self.runs} runs, seed {self.seed}, "
+            f"{html.escape(self.mode)}; CRB final position std "
+            f"{_m(self.crlb_final_pos_std)}</p><table><tr>{head}</tr>{rows}</table>"
+        )
+
+
+def _m(x: float) -> str:
+    return f"{x:.3g} m" if math.isfinite(x) else "n/a"
 
 
 def merge_monte_carlo(parts: Sequence[MonteCarloResult]) -> MonteCarloResult:

@@ -128,6 +128,19 @@ def monte_carlo(
     Returns
     -------
     MonteCarloResult
+        Statistics per filter, the bound, the true paths; ``summary()``, ``plot()`` and
+        ``to_dict()`` give what ``obsplan simulate`` prints, draws and writes (``--json``).
+
+    Notes
+    -----
+    The defaults are those of a plain Monte Carlo of the filters, the paper's setting: open
+    loop (no ``guidance``), the EKF and the augmented KF, the EKF update of ``config``
+    (first-order unless ``ekf_update="second-order"``), one batch of ``runs``. A planning
+    problem's validation (``obsplan plan``, ``report.json``) flies every path in closed loop,
+    steered on the Gaussian sum's estimate, with the second-order EKF, in batches until its
+    verdicts are decided: to reproduce those numbers use ``obsplan.validate(trajectory,
+    problem)``, not this function. (These defaults stay: the paper's tables and figures, and
+    every caller of this function, depend on them.)
 
     Examples
     --------

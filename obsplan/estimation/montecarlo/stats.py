@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.special import chdtri
@@ -555,3 +556,24 @@ class TruthStats:
             "any_violation_fraction": self.any_violation_fraction,
             "limits": None if self.limits is None else self.limits.to_dict(),
         }
+
+
+def filter_stats(result: Any) -> dict[str, FilterStats]:
+    """Every filter's statistics of a Monte Carlo result, by name.
+
+    Parameters
+    ----------
+    result
+        A :class:`~obsplan.estimation.montecarlo.results.MonteCarloResult` (anything with its
+        ``filters``, ``ekf`` and ``kf``).
+
+    Returns
+    -------
+    dict[str, FilterStats]
+        ``ekf``, ``kf`` and any other filter that was run, in the order they were run.
+    """
+    stats = dict(getattr(result, "filters", None) or {})
+    for name in ("ekf", "kf"):
+        if name not in stats and getattr(result, name, None) is not None:
+            stats[name] = getattr(result, name)
+    return stats

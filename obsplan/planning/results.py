@@ -1,0 +1,545 @@
+"""What planning and validating return: the numbers a script lives on, in words, figures and files.
+
+:class:`ValidationResult` is a path validated as ``obsplan plan`` validates its plan
+(:func:`~obsplan.planning.plan.validate`): the path as ``planned`` beside every baseline, their
+metrics, the Monte Carlo of each, the verdict and the robustness row. :class:`PlanResult`
+(:func:`~obsplan.planning.plan.plan`) is that and the solve: the keep-out margins, the replanned
+Monte Carlo when asked for, the wall time.
+
+Both are frozen and picklable and carry what the command line shows: ``summary()`` (the printed
+table and the verdict in words), ``plot(kind)`` (the figures of :mod:`obsplan.planning.figures`,
+``ax`` for one panel), ``to_dict()`` (``report.json``), ``save(folder)`` (the files of ``obsplan
+plan``: ``plan.csv``, ``report.json``, the figures), a one-line ``repr`` and a small HTML table
+for notebooks. ``obsplan plan`` prints :meth:`PlanResult.summary` and writes
+:meth:`PlanResult.write_files` into its output folder.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from matplotlib.figure import Figure
+
+from obsplan.core.errors import ConfigError
+from obsplan.core.outputs import OutputDir
+from obsplan.planning.baselines.vehicle import Baseline
+from obsplan.planning.figures import (
+    plot_filter_errors,
+    plot_gramian_eigs,
+    plot_paths,
+    plot_speed,
+    save_figure,
+)
+from obsplan.planning.missions.check import MissionCheck
+from obsplan.planning.missions.schedule import mission_schedule, planner_schedule
+from obsplan.planning.objectives.evaluate import PathMetrics
+from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.replan import ReplanResult
+from obsplan.planning.solver.margins import KeepoutReport
+from obsplan.planning.solver.solve import SolveResult
+from obsplan.planning.validation.stress import Robustness
+from obsplan.planning.validation.validate import PathValidation
+from obsplan.planning.validation.verdict import (
+    Verdict,
+    metric_value,
+    objective_notes,
+    stress_notes,
+    verdict,
+)
+from obsplan.trajectory.sampled import Trajectory, write_csv, write_geodetic_samples
+
+#: The figures ``obsplan plan`` writes, by the ``kind`` of :meth:`ValidationResult.plot`:
+#: ``filters`` only with a validation, ``speed`` only with a ``[mission]``.
+FIGURES = {
+    "path": "path.png",
+    "gramian": "gramian.png",
+    "filters": "filters.png",
+    "speed": "speed.png",
+}
+#: The columns of the summary table: title, width (the first left-aligned, the rest right).
+_COLUMNS = (
+    ("path", 16),
+    ("objective", 10),
+    ("PCRB avg", 9),
+    ("PCRB fin", 9),
+    ("EKF rmse", 9),
+    ("EKF fin", 8),
+    ("KF rmse", 8),
+    ("closest", 8),
+    ("limits", 6),
+    ("true min", 8),
+    ("in min_r", 8),
+    ("breaks", 7),
+)
+_MISSION_COLUMNS = (("EKF lines", 9), ("mission", 8))
+
+
+def _fmt(x: float | None, spec: str = ".4g") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return format(x, spec)
+
+
+def _text_row(cells: list[str], widths: list[int]) -> str:
+    return " ".join(
+        f"{c:<{w}}" if i == 0 else f"{c:>{w}}"
+        for i, (c, w) in enumerate(zip(cells, widths, strict=True))
+    )
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class ValidationResult:
+    """A path validated against the baselines as ``obsplan plan`` validates its plan.
+
+    Returned by :func:`~obsplan.planning.plan.validate`; :class:`PlanResult` extends it with the
+    solve.
+
+    Attributes
+    ----------
+    problem : PlanningProblem
+    trajectory : Trajectory or None
+        The path validated as ``"planned"`` (the plan; None when no feasible path was found).
+    baselines : dict[str, Baseline]
+    metrics : dict[str, PathMetrics]
+        ``"planned"`` (when there is a path) and every baseline, computed the same way.
+    validation : dict[str, PathValidation]
+        Monte Carlo per path (empty when not run).
+    not_fitted : dict[str, str]
+        Baselines the problem cannot fit, with the reason.
+    robustness : Robustness or None
+        Every path re-validated at ``validation.stress_*``
+        (:mod:`obsplan.planning.validation.stress`).
+    missions : dict[str, MissionCheck]
+        Per path, the independent mission check (empty without a ``[mission]``).
+    """
+
+    problem: PlanningProblem
+    trajectory: Trajectory | None
+    baselines: dict[str, Baseline]
+    metrics: dict[str, PathMetrics]
+    validation: dict[str, PathValidation]
+    not_fitted: dict[str, str] = field(default_factory=dict)
+    robustness: Robustness | None = None
+    missions: dict[str, MissionCheck] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------------------ numbers
+    @property
+    def verdict(self) -> Verdict:
+        """The plan against every validated baseline (:mod:`obsplan.planning.validation.verdict`);
+        with a mission, only against the paths that complete it."""
+        val = dict(self.validation)
+        not_fitted = dict(self.not_fitted)
+        for name, chk in self.missions.items():
+            if not chk.complete and name in val and name != "planned":
+                del val[name]
+                not_fitted[name] = "does not complete the mission (not compared)"
+        survey = self.problem.mission is not None and bool(self.problem.mission.lines)
+        runs = int(val["planned"].result.runs) if "planned" in val else 0
+        notes = (*objective_notes(self.problem), *stress_notes(self.metrics, runs))
+        return verdict(
+            val,
+            not_fitted,
+            notes,
+            lines=survey,
+            keepout_confidence=self.problem.limits.keepout_confidence,
+        )
+
+    def paths(self) -> dict[str, Trajectory]:
+        """``planned`` (when there is a path) then every baseline."""
+        out: dict[str, Trajectory] = {}
+        if self.trajectory is not None:
+            out["planned"] = self.trajectory
+        out.update({k: b.trajectory for k, b in self.baselines.items()})
+        return out
+
+    def validation_dict(self) -> dict:
+        """``report.json``'s ``validation``: ``mode`` (``"closed-loop"`` or ``"open-loop"``)
+        and one entry per validated path (empty when no validation was run)."""
+        if not self.validation:
+            return {}
+        return {
+            "mode": self.problem.validation.mode,
+            **{k: v.to_dict() for k, v in self.validation.items()},
+        }
+
+    def to_dict(self) -> dict:
+        """The keys of ``report.json`` that a validation fills: ``metrics``, ``validation``,
+        ``verdict``, ``problem``, ``baselines``, ``baselines_not_fitted``, ``mission``,
+        ``problem_file``, ``robustness`` (and ``origin`` for a geodetic problem), with the values
+        ``obsplan plan`` writes for its plan.
+
+        Returns
+        -------
+        dict
+            JSON-serialisable with ``allow_nan=False``.
+        """
+        return self._report(None)
+
+    def _report(self, plan: PlanResult | None) -> dict:
+        """report.json in its key order; the solve's keys from ``plan``."""
+        pb = self.problem
+        out: dict = {} if plan is None else {"solver": plan.solve.to_dict()}
+        out.update(
+            {
+                "metrics": {k: m.to_dict() for k, m in self.metrics.items()},
+                "validation": self.validation_dict(),
+                "verdict": self.verdict.to_dict(),
+                "problem": {
+                    "name": pb.name,
+                    "dim": pb.dim,
+                    "sensors": list(pb.vehicle.sensors),
+                    "current": pb.vehicle.current,
+                    "objective": pb.objective.kind,
+                    "objective_mode": pb.objective_mode,
+                    "steps": pb.horizon.steps,
+                    "duration_s": pb.horizon.duration,
+                    "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
+                    "schedule": _schedule_dict(pb),
+                },
+                "baselines": {k: b.description for k, b in self.baselines.items()},
+                "baselines_not_fitted": dict(self.not_fitted),
+                "mission": {k: c.to_dict() for k, c in self.missions.items()},
+                "problem_file": pb.to_dict(),
+            }
+        )
+        if plan is not None:
+            out["keepout"] = None if plan.keepout is None else plan.keepout.to_dict()
+        out["robustness"] = None if self.robustness is None else self.robustness.to_dict()
+        if plan is not None:
+            out["wall_s"] = float(plan.wall_s)
+            if plan.replan is not None:
+                out["replan"] = plan.replan.to_dict()
+        if pb.origin is not None:
+            out["origin"] = pb.origin.to_dict()
+        return out
+
+    # ------------------------------------------------------------------------------- words
+    def _table_cells(self) -> tuple[list[tuple[str, int]], list[list[str]]]:
+        """The summary table's columns and rows, as the text table shows them."""
+        missions = self.missions
+        columns = list(_COLUMNS) + (list(_MISSION_COLUMNS) if missions else [])
+        rows = []
+        for name, m in self.metrics.items():
+            v = self.validation.get(name)
+            r = v.result if v is not None else None
+            ekf = r.ekf if r is not None else None
+            kf = r.kf if r is not None else None
+            truth = r.truth if r is not None else None
+            cells = [
+                name,
+                _fmt(m.objective),
+                _fmt(m.pcrb_mean_pos_std),
+                _fmt(m.pcrb_final_pos_std),
+                _fmt(ekf.rmse_pos if ekf else None),
+                _fmt(ekf.final_pos_err if ekf else None),
+                _fmt(kf.rmse_pos if kf else None),
+                _fmt(m.closest_approach_m, ".1f"),
+                "ok" if m.within_limits else "NO",
+                _fmt(truth.closest_range_m if truth else None, ".2f"),
+                "-" if truth is None else str(truth.runs_inside_min_range),
+                "-" if truth is None else f"{100 * truth.any_violation_fraction:.1f}%",
+            ]
+            if missions:
+                lines_rmse = metric_value(v, "ekf.rmse_pos_lines") if v is not None else None
+                done = missions[name].complete if name in missions else None
+                cells += [_fmt(lines_rmse), "-" if done is None else ("done" if done else "NOT")]
+            rows.append(cells)
+        return columns, rows
+
+    def table(self) -> str:
+        """Planned vs baselines: objective, bounds, Monte Carlo errors [m], closest approach [m]
+        of the path and of the true paths over all runs, runs inside ``min_range``, runs
+        breaking any limit on their true path [%] (with a mission: the EKF RMSE over the lines
+        and whether the path completes it); the lines under it name the validation.
+
+        Returns
+        -------
+        str
+            The table ``obsplan plan`` prints, one line per path.
+        """
+        columns, rows = self._table_cells()
+        widths = [w for _, w in columns]
+        head = _text_row([c for c, _ in columns], widths)
+        lines = [head, "-" * len(head)] + [_text_row(cells, widths) for cells in rows]
+        if self.validation:
+            r0 = next(iter(self.validation.values())).result
+            lines.append(
+                f"validation: {r0.mode}, {r0.runs} runs per path; 'true min' is the closest "
+                "approach of the true paths over all runs, 'breaks' the runs whose true path "
+                "breaks a limit"
+            )
+            for name, v in self.validation.items():
+                broken = "" if v.result.truth is None else v.result.truth.breaks_words()
+                if broken:
+                    lines.append(f"  {name}: the true path breaks {broken} of the runs")
+        return "\n".join(lines)
+
+    def summary(self) -> str:
+        """The table and the verdict in words (and the robustness row's), as ``obsplan plan``
+        prints them.
+
+        Returns
+        -------
+        str
+            Lines for the terminal.
+        """
+        lines = [self.table(), *self.verdict.summary()]
+        if self.robustness is not None:
+            r = self.robustness
+            lines.append(
+                f"robustness (prior x{r.prior:g}, range noise x{r.range_noise:g}, not replanned):"
+            )
+            lines += [f"  {line}" for line in r.verdict.summary()]
+        return "\n".join(lines)
+
+    def _headline(self) -> str:
+        pb = self.problem
+        return f"{pb.name or 'problem'}: {pb.objective.kind}, N = {pb.horizon.steps}"
+
+    def _verdict_word(self) -> str:
+        if not self.validation:
+            return "not validated"
+        v = self.verdict
+        runs = f"{v.runs} runs"
+        if v.beats_all_decided:
+            return f"beats every baseline ({runs})"
+        if v.beats_all:
+            return f"ahead of every baseline, with ties ({runs})"
+        return f"does not beat every baseline ({runs})"
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self._headline()}: {self._verdict_word()}>"
+
+    def _repr_html_(self) -> str:
+        columns, rows = self._table_cells()
+        esc = html.escape
+        head = "".join(f"<th>{esc(c)}</th>" for c, _ in columns)
+        body = "".join(
+            "<tr>" + "".join(f"<td>{esc(c)}</td>" for c in cells) + "</tr>" for cells in rows
+        )
+        words = "<br>".join(esc(s) for s in self.verdict.summary())
+        return (
+            f"<p><b>{esc(type(self).__name__)}</b> {esc(self._headline())}</p>"
+            f"<table><tr>{head}</tr>{body}</table><p>{words}</p>"
+        )
+
+    # ----------------------------------------------------------------------------- figures
+    def _figures(self) -> dict[str, Callable[..., Figure]]:
+        """The figures ``obsplan plan`` writes, by kind, each a function of ``ax``."""
+        pb, paths = self.problem, self.paths()
+        out: dict[str, Callable[..., Figure]] = {
+            "path": lambda ax=None: plot_paths(paths, pb, ax=ax),
+            "gramian": lambda ax=None: plot_gramian_eigs(paths, pb, ax=ax),
+        }
+        if self.validation:
+            val = self.validation
+            out["filters"] = lambda ax=None: plot_filter_errors(val, ax=ax, problem=pb.name)
+        if pb.mission is not None:
+            out["speed"] = lambda ax=None: plot_speed(paths, pb, ax=ax)
+        return out
+
+    def plot(self, kind: str = "path", ax=None) -> Figure | dict[str, Figure]:
+        """A figure of ``obsplan plan`` (:mod:`obsplan.planning.figures`).
+
+        Parameters
+        ----------
+        kind
+            ``"path"`` (the paths with the beacon, the limits and the mission; in 3D a depth
+            panel beside it unless ``ax`` is given), ``"gramian"`` (the smallest eigenvalue of
+            the scaled Gramian over time), ``"filters"`` (the filters' position RMSE and the
+            bound over time; needs a validation), ``"speed"`` (speed over time; needs a
+            ``[mission]``), or ``"all"``: each of those the command line writes.
+        ax
+            A matplotlib Axes to draw into (one kind only); None: a new figure.
+
+        Returns
+        -------
+        Figure or dict[str, Figure]
+            The figure drawn (``ax.figure`` when ``ax`` is given); for ``"all"``, the figures by
+            kind. Nothing is shown or saved.
+
+        Raises
+        ------
+        ConfigError
+            An unknown kind, one this result cannot draw, or ``ax`` with ``"all"``.
+        """
+        figures = self._figures()
+        if kind == "all":
+            if ax is not None:
+                raise ConfigError('plot("all") makes one figure per kind: give no ax')
+            return {k: make() for k, make in figures.items()}
+        if kind not in FIGURES:
+            raise ConfigError(f"plot kind {kind!r}: one of {', '.join((*FIGURES, 'all'))}")
+        if kind not in figures:
+            why = "no validation was run" if kind == "filters" else "the problem has no [mission]"
+            raise ConfigError(f"plot kind {kind!r}: {why}")
+        return figures[kind](ax=ax)
+
+    # ------------------------------------------------------------------------------- files
+    def write_files(self, folder: str | Path) -> list[Path]:
+        """Write ``plan.csv`` (when there is a path), ``report.json`` and the figures into
+        ``folder``, as ``obsplan plan`` does (no protection of what is there: :meth:`save`).
+
+        With a geodetic problem (an ``[origin]``) ``plan-geodetic.csv`` has the path as time,
+        latitude, longitude[, depth] and speed.
+
+        Parameters
+        ----------
+        folder
+            Created if missing; files of the same names are replaced.
+
+        Returns
+        -------
+        list of Path
+            The files written, in order.
+        """
+        out = Path(folder)
+        out.mkdir(parents=True, exist_ok=True)
+        written: list[Path] = []
+        pb = self.problem
+        if self.trajectory is not None:
+            written.append(write_csv(self.trajectory, out / "plan.csv"))
+            if pb.origin is not None:
+                written.append(
+                    write_geodetic_samples(self.trajectory, pb.origin, out / "plan-geodetic.csv")
+                )
+        report = out / "report.json"
+        report.write_text(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
+        written.append(report)
+        for kind, make in self._figures().items():  # one at a time: drawn, saved, closed
+            written.append(save_figure(make(), out / FIGURES[kind]))
+        return written
+
+    def save(self, folder: str | Path, *, force: bool = False) -> list[Path]:
+        """Save the files of ``obsplan plan`` into ``folder``, whole or not at all.
+
+        The folder is checked and replaced as the command line's ``--out`` is
+        (:class:`~obsplan.core.outputs.OutputDir`): a new or empty folder, or with ``force`` an
+        earlier obsplan output, replaced whole; any other folder is refused.
+
+        Parameters
+        ----------
+        folder
+            The output folder.
+        force
+            Replace an earlier obsplan output folder (its old files removed).
+
+        Returns
+        -------
+        list of Path
+            The files written (:meth:`write_files`), at their final place.
+
+        Raises
+        ------
+        InputError
+            A non-empty folder without ``force``, or one that is not an obsplan output.
+        """
+        out = OutputDir(folder, force, option="folder", verb="plan", force_option="force=True")
+        with out:  # an error or Ctrl-C while writing: no folder, an old one untouched
+            written = [out.final(p) for p in self.write_files(out.stage())]
+            out.commit()
+        return written
+
+
+@dataclass(frozen=True, eq=False, repr=False, kw_only=True)
+class PlanResult(ValidationResult):
+    """Everything ``obsplan plan`` reports: the solve, and the plan validated against the
+    baselines (:class:`ValidationResult`).
+
+    Attributes
+    ----------
+    solve : SolveResult
+        Multi-start outcome (status, iterations, wall time, every start); ``trajectory`` is its
+        path.
+    wall_s : float
+        Total time [s].
+    keepout : KeepoutReport or None
+        How the plan keeps its limits with the keep-out margins
+        (:mod:`obsplan.planning.solver.margins`).
+    replan : ReplanResult or None
+        The receding-horizon replanned Monte Carlo (``plan(..., replan=EVERY)``;
+        :mod:`obsplan.planning.replan`).
+    """
+
+    solve: SolveResult
+    wall_s: float
+    keepout: KeepoutReport | None = None
+    replan: ReplanResult | None = None
+
+    @property
+    def success(self) -> bool:
+        """At least one start converged and a path was found."""
+        return self.solve.success and self.trajectory is not None
+
+    def to_dict(self) -> dict:
+        """``report.json`` (stable keys ``solver``, ``metrics``, ``validation``; then
+        ``verdict``, ``problem``, ``baselines``, ``baselines_not_fitted``, ``mission``,
+        ``problem_file``, ``keepout``, ``robustness``, ``wall_s``, and ``replan`` / ``origin``
+        when there are).
+
+        Returns
+        -------
+        dict
+            JSON-serialisable with ``allow_nan=False``.
+        """
+        return self._report(self)
+
+    def header(self) -> str:
+        """The first lines ``obsplan plan`` prints: the solve's status, starts and times, its
+        note, and the keep-out margins."""
+        s, pb = self.solve, self.problem
+        converged = sum(st.success for st in s.starts)
+        lines = [
+            f"{pb.name or 'problem'}: {pb.objective.kind}, N = {pb.horizon.steps}: {s.status} "
+            f"({converged} of {len(s.starts)} starts converged; plan from {s.chosen}), "
+            f"{s.wall_s:.1f} s solve, {self.wall_s:.1f} s total"
+        ]
+        if s.note:
+            lines.append(f"note: {s.note}")
+        k = self.keepout
+        if k is not None and k.k > 0:
+            lines.append(
+                f"keep-out at {k.confidence:.4g} confidence: margins up to "
+                f"{k.max_range_margin_m:.2f} m "
+                f"(range), {k.max_box_margin_m:.2f} m (area/depth), up to "
+                f"{k.max_accel_reserve:.0%} of the acceleration kept for the guidance; "
+                f"{k.rounds} re-solve(s), "
+                + ("held" + (f" ({k.note})" if k.note else "") if k.held else f"NOT held: {k.note}")
+            )
+        return "\n".join(lines)
+
+    def summary(self) -> str:
+        """What ``obsplan plan`` prints (but the files it wrote): :meth:`header`, the table and
+        the verdict in words (:meth:`ValidationResult.summary`), and the replanned Monte
+        Carlo's lines.
+
+        Returns
+        -------
+        str
+            Lines for the terminal.
+        """
+        lines = [self.header(), super().summary()]
+        if self.replan is not None:
+            lines += self.replan.summary()
+        return "\n".join(lines)
+
+    def _verdict_word(self) -> str:
+        return f"{self.solve.status}, {super()._verdict_word()}"
+
+
+def _schedule_dict(pb: PlanningProblem) -> dict | None:
+    """The mission's schedules: the lawn-mower's speed, the planner's line speed and lead-in."""
+    if pb.mission is None:
+        return None
+    base, lead = mission_schedule(pb.mission_context), planner_schedule(pb.mission_context)
+    return {
+        "lawnmower_speed_mps": float(base.speed),
+        "planner_speed_mps": float(lead.speed),
+        "lead_in_s": float(lead.lead_in),
+        "headroom": float(base.headroom),
+    }
