@@ -324,7 +324,8 @@ def plot_filter_errors(
     Parameters
     ----------
     validation : Mapping of str to PathValidation
-        The Monte Carlo validation of each path, by name (:func:`~obsplan.planning.validation.validate.validate_paths`).
+        The Monte Carlo validation of each path, by name
+        (:func:`~obsplan.planning.validation.validate.validate_paths`).
     ax : matplotlib.axes.Axes, optional
         Axes to draw on; None makes a new figure.
     names : tuple of str, optional
