@@ -31,5 +31,21 @@ class PlanningProblem(ProblemData):
         check_values(self)
 
     def with_changes(self, **sections: Any) -> PlanningProblem:
-        """A copy with whole sections replaced (``horizon=Horizon(...)``, ``objective=...``)."""
+        """A copy with whole sections replaced (``horizon=Horizon(...)``, ``objective=...``).
+
+        Parameters
+        ----------
+        **sections
+            Section name -> its new value (a field of :class:`ProblemData`).
+
+        Returns
+        -------
+        PlanningProblem
+            The copy, checked on construction as any problem.
+
+        Raises
+        ------
+        ProblemError
+            When the changed problem fails the construction checks.
+        """
         return replace(self, **sections)

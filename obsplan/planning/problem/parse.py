@@ -55,13 +55,30 @@ LOCALISE_PROBLEM = PROBLEMS_DIR / "localise.toml"
 def shipped_files() -> dict[str, Path]:
     """Every shipped problem and sweep file by its name: its path under :data:`PROBLEMS_DIR`
     without ``.toml`` (``"default"``, ``"suite/far-start"``, ``"sweeps/beacon-placement"``),
-    in that order: the problems at the top, then the suite, then the sweeps."""
+    in that order: the problems at the top, then the suite, then the sweeps.
+
+    Returns
+    -------
+    dict of str to Path
+        Name -> the TOML file under :data:`PROBLEMS_DIR`.
+    """
     files = sorted(PROBLEMS_DIR.rglob("*.toml"), key=lambda f: (len(f.parts), str(f)))
     return {f.relative_to(PROBLEMS_DIR).with_suffix("").as_posix(): f for f in files}
 
 
 def shipped_file(name: str) -> Path | None:
-    """The shipped file called ``name`` (:func:`shipped_files`; ``.toml`` optional), or None."""
+    """The shipped file called ``name`` (:func:`shipped_files`; ``.toml`` optional), or None.
+
+    Parameters
+    ----------
+    name : str
+        A shipped name such as ``"default"`` or ``"suite/far-start"`` (``.toml`` optional).
+
+    Returns
+    -------
+    Path or None
+        The file, or None when no shipped file has that name.
+    """
     return shipped_files().get(name.removesuffix(".toml"))
 
 
@@ -347,6 +364,20 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
     """Build and validate a problem from the parsed TOML mapping (every check, the structural
     ones of :func:`~obsplan.planning.problem.checks.check_structure` included).
 
+    Parameters
+    ----------
+    data : Mapping of str to Any
+        The problem file's sections (``[vehicle]``, ``[limits]``, ``[mission]``, ...) as parsed
+        from TOML; geodetic fields are resolved about ``[origin]``.
+    name : str, optional
+        The problem's name when ``problem.name`` is not given (the loader passes the file's
+        stem).
+
+    Returns
+    -------
+    PlanningProblem
+        Checked, its free line order resolved and its structure checked.
+
     Raises
     ------
     ProblemError
@@ -405,7 +436,19 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
 def problem_to_dict(pb: PlanningProblem) -> dict[str, Any]:
     """The canonical problem-file mapping of ``pb``: ``problem_from_dict(problem_to_dict(pb))``
     rebuilds an equal problem. Every field of :data:`SCHEMA` is present (defaults resolved), so
-    the mapping identifies the problem (sweeps hash it)."""
+    the mapping identifies the problem (sweeps hash it).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    dict of str to Any
+        Section name -> its fields, as TOML values (lists for tuples; ``[mission]`` and
+        ``[origin]`` only when the problem has them).
+    """
     veh, lim, hor, obj, val = pb.vehicle, pb.limits, pb.horizon, pb.objective, pb.validation
     limits: dict[str, Any] = {
         "accel": list(lim.accel),
@@ -544,7 +587,25 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
 
 # ---------------------------------------------------------------------- geodetic problem fields
 def origin_of(data: Mapping[str, Any]) -> GeodeticOrigin | None:
-    """The ``[origin]`` section of a problem mapping as a :class:`GeodeticOrigin` (or None)."""
+    """The ``[origin]`` section of a problem mapping as a :class:`GeodeticOrigin` (or None).
+
+    Parameters
+    ----------
+    data : Mapping of str to Any
+        The problem file's sections as parsed from TOML.
+
+    Returns
+    -------
+    GeodeticOrigin or None
+        The origin of the local north-east-down frame (latitude and longitude [deg], altitude
+        [m], 0 by default); None without ``[origin]``.
+
+    Raises
+    ------
+    ProblemError
+        On ``origin`` or ``origin.<key>``: not a table, an unknown or missing key, a value that
+        is not a finite number or out of range.
+    """
     raw = data.get("origin")
     if raw is None:
         return None
@@ -577,6 +638,19 @@ def resolve_problem_geodetic(
     section removed, and the origin (None without one). A mapping with neither is returned
     unchanged (no pymap3d needed). Malformed sections that are not about geodetic fields are left
     for the problem parser to report.
+
+    Parameters
+    ----------
+    data : Mapping of str to Any
+        The problem file's sections as parsed from TOML.
+
+    Returns
+    -------
+    data : Mapping of str to Any
+        The sections with ``<section>.geodetic`` replaced by ``<section>.position`` [m] (local
+        north-east-down about the origin) and without ``[origin]``.
+    origin : GeodeticOrigin or None
+        The ``[origin]`` section (None without one).
 
     Raises
     ------
