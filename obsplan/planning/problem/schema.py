@@ -732,7 +732,7 @@ def schema_markdown() -> str:
     Returns
     -------
     str
-        Markdown: per section a ``### `[section]``` heading and a table of its fields (name,
+        Markdown: per section a level-3 heading naming it and a table of its fields (name,
         unit, default, meaning).
     """
     out: list[str] = []
