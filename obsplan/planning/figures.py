@@ -45,6 +45,26 @@ def plot_paths(
     Horizontal view [m]; in 3D (when ``ax`` is None) a second panel shows depth ``z`` over time
     with the depth band. With a geodetic problem (``pb.origin``) the horizontal view is a map:
     east to the right, north up.
+
+    Parameters
+    ----------
+    paths : Mapping of str to Trajectory
+        Paths by name (``"planned"``, baseline names), positions in the problem's local frame
+        [m].
+    pb : PlanningProblem
+        The problem: beacon, start, ``limits.area``, ``limits.min_range``, depth band and the
+        mission's lines, waypoints and end region are drawn from it.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw the horizontal view on; None makes a new figure (with the depth panel in
+        3D).
+    names : tuple of str, optional
+        Which of ``paths`` to draw; empty: ``"planned"`` and ``"lawnmower"`` when present, else
+        all.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure of ``ax`` (or the new one).
     """
     names = names or tuple(n for n in ("planned", "lawnmower") if n in paths) or tuple(paths)
     depth_panel = pb.dim == 3 and ax is None
@@ -153,7 +173,22 @@ def _draw_mission(ax, pb: PlanningProblem, ix: int, iy: int) -> None:
 def plot_speed(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None) -> Figure:
     """Speed ``|v(t)|`` [m/s] of each path, with the speed limit and, with a survey, the band
     ``mission.speed`` over the lines' passes (shaded: the plan's own, which may shift from the
-    schedule's windows, or the schedule's without a plan)."""
+    schedule's windows, or the schedule's without a plan).
+
+    Parameters
+    ----------
+    paths : Mapping of str to Trajectory
+        Paths by name; ``"planned"``, when present and complete, gives the shaded passes.
+    pb : PlanningProblem
+        The problem: ``limits.speed`` and the mission's speed band and schedule.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; None makes a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure of ``ax`` (or the new one).
+    """
     fig, ax = _ax(ax)
     for name, tr in paths.items():
         ax.plot(tr.t, np.linalg.norm(tr.v, axis=1), label=name, **_STYLE.get(name, {"lw": 1.0}))
@@ -236,7 +271,24 @@ def _beacon_zoom(ax, paths, names, pb: PlanningProblem, ix: int, iy: int) -> Non
 
 
 def plot_gramian_eigs(paths: Mapping[str, Trajectory], pb: PlanningProblem, ax=None) -> Figure:
-    """Smallest eigenvalue of the scaled Gramian ``G(t, t_0)`` over time, each path."""
+    """Smallest eigenvalue of the scaled Gramian ``G(t, t_0)`` over time, each path.
+
+    Parameters
+    ----------
+    paths : Mapping of str to Trajectory
+        Paths by name.
+    pb : PlanningProblem
+        The problem: its vehicle model and scales (``pb.scales``, length [m] and time [s]) of
+        the augmented Gramian.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; None makes a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure of ``ax`` (or the new one); the eigenvalue axis is logarithmic
+        (dimensionless, scaled Gramian).
+    """
     fig, ax = _ax(ax)
     for name, tr in paths.items():
         G = cumulative_gramians(tr, pb.model, pb.scales)[1:]
@@ -268,6 +320,23 @@ def plot_filter_errors(
     RMSE" is its time average over the mission and its "final error" the mean error at the end;
     when the plan's EKF curve ends above the lawn-mower's, a note under the title gives those
     numbers and the flagged runs, so the figure and the verdict tell one story.
+
+    Parameters
+    ----------
+    validation : Mapping of str to PathValidation
+        The Monte Carlo validation of each path, by name
+        (:func:`~obsplan.planning.validation.validate.validate_paths`).
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; None makes a new figure.
+    names : tuple of str, optional
+        Which paths to draw; empty: ``"planned"`` and ``"lawnmower"`` when present, else all.
+    problem : str, optional
+        The problem's name, heading the title; empty for none.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure of ``ax`` (or the new one); errors and bounds in metres, log scale.
     """
     fig, ax = _ax(ax)
     names = (
@@ -320,7 +389,22 @@ def _crossing_note(validation: Mapping[str, PathValidation], names: tuple[str, .
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
-    """Save and close."""
+    """Save and close.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure; it is closed after saving.
+    path : str or Path
+        The image file (its format from the suffix); missing parent folders are created.
+    dpi : int, optional
+        Resolution [dots per inch].
+
+    Returns
+    -------
+    Path
+        ``path``, as a :class:`~pathlib.Path`.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi)

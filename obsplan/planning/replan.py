@@ -90,6 +90,16 @@ _PER_NODE = {"dynamics", "speed", "min_range", "max_range", "min_speed"}
 def replan_guidance(pb: PlanningProblem) -> Guidance:
     """The closed-loop validation's guidance law (replanning runs only in closed loop).
 
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its limits and ``[validation]`` (mode, navigation filter, prior).
+
+    Returns
+    -------
+    Guidance
+        :func:`~obsplan.planning.problem.validation_setup.validation_guidance` of ``pb``.
+
     Raises
     ------
     ConfigError
@@ -106,6 +116,18 @@ def replan_guidance(pb: PlanningProblem) -> Guidance:
 
 def replan_nodes(pb: PlanningProblem, every: float) -> np.ndarray:
     """Planning nodes ``k`` at which the runs re-solve: every ``every`` s, before the end.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its planning step ``horizon.dt`` [s] and ``horizon.steps``.
+    every : float
+        Replanning period [s] (``--replan EVERY``).
+
+    Returns
+    -------
+    ndarray of int, shape (R,)
+        ``k, 2k, ...`` below ``horizon.steps``, with ``k = every / horizon.dt``.
 
     Raises
     ------
@@ -172,6 +194,13 @@ class ReplanSolve:
     kept_warm_start: bool = False
 
     def to_dict(self) -> dict:
+        """The re-solve's entry in the ``replan`` of ``report.json``.
+
+        Returns
+        -------
+        dict
+            Every field as JSON values (``objective`` None when missing or not finite).
+        """
         obj = self.objective
         return {
             "t": float(self.t),
@@ -188,7 +217,19 @@ class ReplanSolve:
 
 def recovery_steps(pb: PlanningProblem) -> int:
     """Steps after a replan node over which violated inequality limits are loosened (module
-    docstring): ``ceil(v_max / min(a) / h)``, at least 1."""
+    docstring): ``ceil(v_max / min(a) / h)``, at least 1.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: ``limits.speed`` [m/s], the acceleration bounds [m/s²] and the planning
+        step ``h`` [s].
+
+    Returns
+    -------
+    int
+        Number of planning steps of the recovery window.
+    """
     shed = float(pb.limits.speed) / float(np.min(pb.accel))
     return max(1, math.ceil(shed / pb.horizon.dt - 1e-9))
 
@@ -199,7 +240,26 @@ def return_inputs(
     """Input corrections [m/s²] that bring the vehicle ``error`` = ``(dp, dv)`` [m, m/s] off its
     plan back onto it in ``steps`` steps (at least 2, at most ``horizon``) of the exact
     zero-order hold ``e' = F e + G c`` (:meth:`~obsplan.model.vehicle.VehicleModel.transition`, its
-    ``(p, v)`` block): the least-energy sequence, zero after; shape ``(horizon, n)``."""
+    ``(p, v)`` block): the least-energy sequence, zero after; shape ``(horizon, n)``.
+
+    Parameters
+    ----------
+    F : ndarray, shape (2n, 2n)
+        State transition of one planning step on ``(p, v)``.
+    G : ndarray, shape (2n, n)
+        Input matrix of one planning step (zero-order hold).
+    error : ndarray, shape (2n,)
+        The state minus the plan's at the replan node, ``(dp [m], dv [m/s])``.
+    steps : int
+        Steps to join the plan in (clipped to ``2 .. horizon``).
+    horizon : int
+        Steps left to the end of the horizon.
+
+    Returns
+    -------
+    ndarray, shape (horizon, n)
+        The corrections [m/s²], added to the plan's inputs; zero after ``steps``.
+    """
     n = G.shape[1]
     m = max(1, min(max(2, int(steps)), int(horizon)))
     # e_m = F^m e_0 + sum_i F^(m-1-i) G c_i
@@ -265,7 +325,27 @@ class Replanner:
         """Flying on from ``state`` = ``(p, v)`` [m, m/s] at node ``k``: the plan in force's
         inputs plus :func:`return_inputs`, which join it within the recovery window
         (:func:`recovery_steps`, at least 2 steps), then the plan in force to the end (the
-        initial point of a re-solve, and what is flown when no re-solve beats it)."""
+        initial point of a re-solve, and what is flown when no re-solve beats it).
+
+        Parameters
+        ----------
+        plan : Trajectory
+            The plan in force, on the planning grid (``N + 1`` samples).
+        k : int
+            The replan node.
+        state : ndarray, shape (2n,)
+            Position [m] and inertial velocity [m/s] at node ``k`` (:func:`state_for_planner`).
+
+        Returns
+        -------
+        Trajectory
+            On the planning grid: ``plan`` before node ``k``, then flown on from ``state``.
+
+        Raises
+        ------
+        ConfigError
+            When ``state`` has fewer than ``2n`` values or ``plan`` is not on the planning grid.
+        """
         n = self.problem.dim
         x = np.asarray(state, float).reshape(-1)
         if x.size < 2 * n or plan.n_samples != self.form.grid.N + 1:
@@ -285,7 +365,22 @@ class Replanner:
 
     def bounds(self, guess: Trajectory, k: int) -> tuple[np.ndarray, ...]:
         """``(x0, lbx, ubx, lbg, ubg)`` of the re-solve at node ``k`` from the warm ``guess``
-        (module docstring)."""
+        (module docstring).
+
+        Parameters
+        ----------
+        guess : Trajectory
+            The warm start on the planning grid (:meth:`warm_guess`).
+        k : int
+            The replan node: the columns of ``W`` before it are fixed.
+
+        Returns
+        -------
+        tuple of ndarray
+            ``x0`` (the initial point, clipped to the bounds), ``lbx``, ``ubx`` (the past fixed)
+            and ``lbg``, ``ubg`` (past rows free, rows in the recovery window loosened to what
+            ``x0`` reaches), in the NLP's variable and constraint order.
+        """
         form = self.form
         grid = form.grid
         lbx, ubx = form.lbx.copy(), form.ubx.copy()
@@ -309,11 +404,27 @@ class Replanner:
         """Re-solve from node ``k`` (``1 <= k < N``) at ``state`` = ``(p, v)``, warm-started
         from ``plan`` (on the planning grid).
 
+        Parameters
+        ----------
+        plan : Trajectory
+            The plan in force, on the planning grid.
+        k : int
+            The replan node, ``1 <= k < N``.
+        state : ndarray, shape (2n,)
+            Position [m] and inertial velocity [m/s] at node ``k``.
+        run : int, optional
+            The Monte Carlo run's index (recorded in the outcome).
+
         Returns
         -------
         (ReplanSolve, Trajectory or None)
             The outcome and the new plan on the whole planning grid (its samples before ``k``
             are the old plan's, node ``k`` is ``state``), or None when the re-solve failed.
+
+        Raises
+        ------
+        ConfigError
+            When ``k`` is outside ``1 .. N - 1`` (or ``state``, ``plan`` are malformed).
         """
         pb, form = self.problem, self.form
         if not 1 <= int(k) < form.grid.N:
@@ -376,7 +487,21 @@ def _node_rows(form: Formulation) -> np.ndarray:
 
 def state_for_planner(pb: PlanningProblem, estimate: np.ndarray) -> np.ndarray:
     """``(p, p')`` [m, m/s] from the EKF's ``(p, v[, v_f])``: the planner's velocity is the
-    inertial one, ``p' = v + v_f`` with a current."""
+    inertial one, ``p' = v + v_f`` with a current.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its dimension ``n`` and whether the state holds a current.
+    estimate : ndarray, shape (2n,) or (3n,)
+        The filter's state: position [m], velocity through the water [m/s] and, with a current,
+        the current ``v_f`` [m/s].
+
+    Returns
+    -------
+    ndarray, shape (2n,)
+        Position [m] and inertial velocity [m/s].
+    """
     n = pb.dim
     x = np.asarray(estimate, float).reshape(-1)
     v = x[n : 2 * n] + (x[2 * n : 3 * n] if pb.vehicle.current else 0.0)
@@ -437,11 +562,30 @@ class ReplanResult:
         return sum(not s.success for s in self.solves)
 
     def solve_times(self, cpu: bool = False) -> np.ndarray:
-        """Wall (or CPU) time of every re-solve [s]."""
+        """Wall (or CPU) time of every re-solve [s].
+
+        Parameters
+        ----------
+        cpu : bool, optional
+            CPU time of the solving process instead of wall time.
+
+        Returns
+        -------
+        ndarray, shape (S,)
+            One time [s] per re-solve, in :attr:`solves` order.
+        """
         return np.array([s.cpu_s if cpu else s.wall_s for s in self.solves], float)
 
     def to_dict(self) -> dict:
-        """The ``replan`` entry of report.json."""
+        """The ``replan`` entry of report.json.
+
+        Returns
+        -------
+        dict
+            The period and times [s], counts of solves, failures and statuses, solve times
+            (median and max, wall and CPU [s]), build and total times [s], every path's
+            validation and the verdict.
+        """
         w, c = self.solve_times(), self.solve_times(cpu=True)
         statuses: dict[str, int] = {}
         for s in self.solves:
@@ -469,7 +613,14 @@ class ReplanResult:
         }
 
     def summary(self) -> list[str]:
-        """Lines for the terminal: the solve times, failures and the verdict's words."""
+        """Lines for the terminal: the solve times, failures and the verdict's words.
+
+        Returns
+        -------
+        list of str
+            A head line, one line each for ``"replanned"`` and ``"one-shot"`` (EKF and KF
+            errors [m]), then the verdict's lines.
+        """
         w = self.solve_times()
         med = f"{np.median(w):.2f}" if w.size else "-"
         mx = f"{np.max(w):.2f}" if w.size else "-"

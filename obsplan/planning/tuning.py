@@ -336,7 +336,13 @@ TUNING: Tuning = Tuning()
 
 
 def tuning() -> Tuning:
-    """The tuning in force (:data:`TUNING`): what every knob's use reads, at call time."""
+    """The tuning in force (:data:`TUNING`): what every knob's use reads, at call time.
+
+    Returns
+    -------
+    Tuning
+        The defaults, or the tuning of the innermost :func:`tuned` block.
+    """
     return TUNING
 
 
@@ -350,6 +356,18 @@ def tuned(base: Tuning | None = None, /, **changes: Any) -> Iterator[Tuning]:
 
     Blocks nest (an inner one changes the outer one's tuning). Process-global, not per thread:
     every thread sees the block's tuning, and processes ``fork``-ed inside it inherit it.
+
+    Parameters
+    ----------
+    base : Tuning or None, optional
+        The tuning to change (positional only); None: the tuning in force.
+    **changes
+        Knob name -> its value in the block (the fields of :class:`Tuning`).
+
+    Yields
+    ------
+    Tuning
+        The tuning in force inside the block.
 
     Raises
     ------
@@ -376,7 +394,18 @@ R = TypeVar("R")
 def cache_per_tuning(fn: Callable[P, R]) -> Callable[P, R]:
     """:func:`functools.cache` of ``fn`` keyed on the tuning in force too: a result computed
     under one tuning is never returned under another (``fn`` reads :func:`tuning`, which is the
-    key's while it runs). ``cache_clear`` of the wrapper empties it."""
+    key's while it runs). ``cache_clear`` of the wrapper empties it.
+
+    Parameters
+    ----------
+    fn : callable
+        A function of hashable arguments that reads :func:`tuning`.
+
+    Returns
+    -------
+    callable
+        The cached wrapper, with ``fn``'s name, docstring and signature.
+    """
 
     def call(_tuning: Tuning, *args: Any, **kwargs: Any) -> R:
         return fn(*args, **kwargs)

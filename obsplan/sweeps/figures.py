@@ -54,7 +54,19 @@ _BASELINE_ORDER = ("lawnmower", "circle", "straight", "paper-lawnmower")
 
 
 def paths_in(df: pd.DataFrame) -> list[str]:
-    """The paths a table has metrics for: planned and lawn-mower, or the baselines (no plan)."""
+    """The paths a table has metrics for: planned and lawn-mower, or the baselines (no plan).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The results table (:mod:`obsplan.sweeps.table`).
+
+    Returns
+    -------
+    list of str
+        ``"planned"`` and ``"lawnmower"`` (those present) for a plan sweep; otherwise every
+        baseline with metrics, the known ones in report order first.
+    """
     present = {c.split(".")[1] for c in df.columns if c.startswith("metrics.")}
     if "planned" in present:
         return [p for p in ("planned", "lawnmower") if p in present]
@@ -63,7 +75,22 @@ def paths_in(df: pd.DataFrame) -> list[str]:
 
 
 def metric_column(df: pd.DataFrame, path: str, metric: str) -> str | None:
-    """``metrics.<path>.<metric>`` or ``validation.<path>.<metric>``, whichever exists."""
+    """``metrics.<path>.<metric>`` or ``validation.<path>.<metric>``, whichever exists.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The results table.
+    path : str
+        A path's name (``"planned"``, ``"lawnmower"``, ...).
+    metric : str
+        A metric name inside its report, e.g. ``"min_eig"`` or ``"ekf.rmse_pos"``.
+
+    Returns
+    -------
+    str or None
+        The column's name; None when the table has neither.
+    """
     for group in ("metrics", "validation"):
         col = f"{group}.{path}.{metric}"
         if col in df.columns:
@@ -74,6 +101,19 @@ def metric_column(df: pd.DataFrame, path: str, metric: str) -> str | None:
 def table_column(df: pd.DataFrame, name: str) -> str:
     """The column of ``df`` called ``name``, or of the axis whose path is ``name``
     (``"limits.accel"`` -> ``"limits.accel [m/s^2]"``: :func:`~obsplan.sweeps.spec.axis_column`).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The results table.
+    name : str
+        A column name, or an axis path.
+
+    Returns
+    -------
+    str
+        The column's name (``name`` itself when neither is in the table: pandas then names the
+        missing column).
     """
     if name in df.columns:
         return name
@@ -127,6 +167,8 @@ def plot_metric(
         Axes (columns or paths) whose value combinations each get a line.
     paths
         Panels (default :func:`paths_in`).
+    title
+        The figure's title (default: ``"<metric> against <axis>"``).
     ax
         A sequence of Axes, one per path (default: a new figure).
 
@@ -213,6 +255,8 @@ def study_figures(
     ----------
     df
         The results table.
+    folder
+        Where the figures are written (created if missing).
     axes
         The sweep's axis columns.
     combine
@@ -253,7 +297,23 @@ def study_figures(
 
 def figures_from_manifest(df: pd.DataFrame, out: str | Path, sweep: dict[str, Any]) -> list[Path]:
     """:func:`study_figures` into ``out/figures`` with the axes, combination, name and metrics
-    of ``sweep`` (the ``"sweep"`` entry of ``DIR/sweep.json``)."""
+    of ``sweep`` (the ``"sweep"`` entry of ``DIR/sweep.json``).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The results table.
+    out : str or Path
+        The sweep's folder.
+    sweep : dict of str to Any
+        The manifest's ``"sweep"`` object: ``axes``, and optionally ``combine``, ``name`` and
+        ``figure_metrics``.
+
+    Returns
+    -------
+    list of Path
+        The figure files written.
+    """
     return study_figures(
         df,
         Path(out) / FIGURES,
@@ -266,6 +326,16 @@ def figures_from_manifest(df: pd.DataFrame, out: str | Path, sweep: dict[str, An
 
 def redraw_figures(out: str | Path) -> list[Path]:
     """Redraw ``DIR/figures/`` from ``DIR/results.parquet`` and ``DIR/sweep.json``.
+
+    Parameters
+    ----------
+    out : str or Path
+        The sweep's folder (``obsplan sweep --report``).
+
+    Returns
+    -------
+    list of Path
+        The figure files written.
 
     Raises
     ------

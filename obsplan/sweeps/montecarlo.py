@@ -14,7 +14,25 @@ from typing import Any
 
 def shard_bounds(runs: int, shards: int) -> list[tuple[int, int]]:
     """``(run_start, runs)`` of ``shards`` contiguous shards covering ``runs`` runs, sizes
-    differing by at most one (empty shards dropped)."""
+    differing by at most one (empty shards dropped).
+
+    Parameters
+    ----------
+    runs : int
+        Monte Carlo runs in all, at least 1.
+    shards : int
+        Number of shards, at least 1.
+
+    Returns
+    -------
+    list of (int, int)
+        ``(run_start, runs)`` of each non-empty shard, in run order; the larger shards first.
+
+    Raises
+    ------
+    InputError
+        If ``runs`` or ``shards`` is below 1.
+    """
     if runs < 1 or shards < 1:
         from obsplan.core.errors import InputError
 

@@ -106,7 +106,14 @@ class SweepSpec:
     source: Path | None = field(default=None, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain-data description (stored as ``DIR/sweep.json``)."""
+        """Plain-data description (stored as ``DIR/sweep.json``).
+
+        Returns
+        -------
+        dict of str to Any
+            The name, mode, combine, axes (path -> list of values), raw base mapping, base name,
+            figure metrics and source path (as text, or None).
+        """
         return {
             "name": self.name,
             "mode": self.mode,
@@ -150,6 +157,16 @@ class Task:
 def load_sweep(path: str | Path) -> SweepSpec:
     """Read and check a sweep file (the tasks are validated by :func:`expand`).
 
+    Parameters
+    ----------
+    path : str or Path
+        The sweep file (TOML); ``sweep.base`` is relative to its folder.
+
+    Returns
+    -------
+    SweepSpec
+        Named by ``sweep.name``, or else the file's stem.
+
     Raises
     ------
     SweepFileError
@@ -173,7 +190,31 @@ def sweep_from_dict(
     source: Path | None = None,
 ) -> SweepSpec:
     """Build a :class:`SweepSpec` from a parsed sweep file; ``sweep.base`` is relative to
-    ``base_dir``."""
+    ``base_dir``.
+
+    Parameters
+    ----------
+    data : Mapping of str to Any
+        The sweep file's tables (``[sweep]``, ``[base]``, ``[axes]``, ``[figures]``).
+    base_dir : str or Path, optional
+        The folder ``sweep.base`` is relative to.
+    name : str, optional
+        The sweep's name when ``sweep.name`` is not given.
+    source : Path or None, optional
+        The sweep file it was read from (recorded in the manifest).
+
+    Returns
+    -------
+    SweepSpec
+        The checked sweep (its tasks are validated by :func:`expand`).
+
+    Raises
+    ------
+    SweepFileError
+        Naming the table or key at fault: an unknown table or key, a bad mode, combine, base,
+        axis path or values, axes of unequal length for ``zip``, too many tasks, or an unknown
+        figure metric.
+    """
     unknown = sorted(set(data) - {"sweep", "base", "axes", "figures"})
     if unknown:
         raise SweepFileError(
@@ -245,7 +286,14 @@ def sweep_from_dict(
 
 def figure_metric_names() -> frozenset[str]:
     """The names ``[figures] metrics`` accepts: the scalar fields of a path's metrics
-    (``metrics.<path>.<name>``), the bound, and ``FILTER.STAT`` of every filter's statistics."""
+    (``metrics.<path>.<name>``), the bound, and ``FILTER.STAT`` of every filter's statistics.
+
+    Returns
+    -------
+    frozenset of str
+        Names such as ``"min_eig"``, ``"within_limits"``, ``"crlb_final_pos_std"`` and
+        ``"ekf.rmse_pos"``.
+    """
     scalar = ("float", "int", "float | None", "int | None")
     names = {f.name for f in fields(PathMetrics) if f.type in scalar}
     names |= {"within_limits", "crlb_final_pos_std"}
@@ -384,6 +432,17 @@ def parse_path(path: str) -> tuple[str | int, ...]:
     """``"limits.accel.2"`` / ``"limits.accel[2]"`` -> ``("limits", "accel", 2)``, checked
     against the problem file's schema.
 
+    Parameters
+    ----------
+    path : str
+        A dotted field path of the problem file, optionally with a component index (``.2`` or
+        ``[2]``) or an area side (``limits.area.x``).
+
+    Returns
+    -------
+    tuple of str or int
+        The keys: section, field, then an index or side (and index).
+
     Raises
     ------
     SweepFileError
@@ -498,7 +557,18 @@ def _generate(where: str, raw: Mapping[str, Any]) -> list[Any]:
 
 # ------------------------------------------------------------------------------ expansion
 def combinations(spec: SweepSpec) -> list[dict[str, Any]]:
-    """Axis path -> value for every task, in order (last axis varies fastest for a product)."""
+    """Axis path -> value for every task, in order (last axis varies fastest for a product).
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep: its axes and ``combine``.
+
+    Returns
+    -------
+    list of dict of str to Any
+        One mapping per task, in the sweep's order.
+    """
     paths = [a.path for a in spec.axes]
     rows: Iterable[tuple[Any, ...]]
     if spec.combine == "zip":
@@ -513,6 +583,26 @@ def apply_axes(base: Mapping[str, Any], spec: SweepSpec, values: Mapping[str, An
 
     ``vehicle.dim`` is applied first, so that a component axis (``limits.accel.2``) on a scalar
     or omitted field expands it to the task's dimension.
+
+    Parameters
+    ----------
+    base : Mapping of str to Any
+        The raw problem-file mapping (not modified).
+    spec : SweepSpec
+        The sweep whose axes are written.
+    values : Mapping of str to Any
+        Axis path -> the task's value (one row of :func:`combinations`).
+
+    Returns
+    -------
+    dict
+        A new raw problem mapping, not yet checked.
+
+    Raises
+    ------
+    SweepFileError
+        When the base has no list or area for a component axis to index, or the index is out
+        of range.
     """
     return _write(base, spec.axes, values)
 
@@ -520,7 +610,25 @@ def apply_axes(base: Mapping[str, Any], spec: SweepSpec, values: Mapping[str, An
 def set_fields(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict:
     """``base`` (a raw problem mapping) with each dotted field path of ``values``
     (:func:`parse_path`: ``"objective.mode"``, ``"limits.accel.2"``) set to its value, as a
-    sweep's axes are; check the result with ``problem_from_dict``."""
+    sweep's axes are; check the result with ``problem_from_dict``.
+
+    Parameters
+    ----------
+    base : Mapping of str to Any
+        The raw problem-file mapping (not modified).
+    values : Mapping of str to Any
+        Dotted field path -> its value.
+
+    Returns
+    -------
+    dict
+        A new raw problem mapping, not yet checked.
+
+    Raises
+    ------
+    SweepFileError
+        For a path that is not a problem-file field, or a component the base cannot index.
+    """
     axes = [Axis(path=p, keys=parse_path(p), values=(v,)) for p, v in values.items()]
     return _write(base, axes, values)
 
@@ -602,6 +710,11 @@ def code_fingerprint(root: Path = PACKAGE_DIR) -> str:
     ----------
     root
         The package folder (default: this installation's).
+
+    Returns
+    -------
+    str
+        16 lowercase hex digits.
     """
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
@@ -615,7 +728,21 @@ def code_fingerprint(root: Path = PACKAGE_DIR) -> str:
 
 def task_id(problem: Mapping[str, Any], mode: str) -> str:
     """16 hex digits identifying a resolved problem (its name excluded: a label), a mode, the
-    package version and the code that computes it (:func:`code_fingerprint`)."""
+    package version and the code that computes it (:func:`code_fingerprint`).
+
+    Parameters
+    ----------
+    problem : Mapping of str to Any
+        The resolved problem mapping
+        (:func:`~obsplan.planning.problem.parse.problem_to_dict`).
+    mode : str
+        ``"plan"`` or ``"baselines"``.
+
+    Returns
+    -------
+    str
+        16 lowercase hex digits of SHA-256.
+    """
     ident = {k: v for k, v in problem.items() if k != "problem"}
     text = json.dumps(
         {"problem": ident, "mode": mode, "obsplan": __version__, "code": code_fingerprint()},
@@ -628,7 +755,23 @@ def task_id(problem: Mapping[str, Any], mode: str) -> str:
 def axis_unit(path: str) -> str:
     """The unit of the problem-file field an axis path sets (``"m/s^2"`` for
     ``limits.accel.2``), ``"-"`` for a unitless field
-    (:data:`obsplan.planning.problem.schema.SCHEMA`)."""
+    (:data:`obsplan.planning.problem.schema.SCHEMA`).
+
+    Parameters
+    ----------
+    path : str
+        An axis path (:func:`parse_path`).
+
+    Returns
+    -------
+    str
+        The field's unit.
+
+    Raises
+    ------
+    SweepFileError
+        For a path that is not a problem-file field.
+    """
     keys = parse_path(path)
     specs = {s.name: s for s in SCHEMA[cast(str, keys[0])]}
     return specs[cast(str, keys[1])].unit
@@ -636,18 +779,51 @@ def axis_unit(path: str) -> str:
 
 def axis_column(path: str) -> str:
     """The results table's column of an axis: its path and unit, ``"limits.accel [m/s^2]"``
-    (the path alone for a unitless field: ``"objective.kind"``)."""
+    (the path alone for a unitless field: ``"objective.kind"``).
+
+    Parameters
+    ----------
+    path : str
+        An axis path.
+
+    Returns
+    -------
+    str
+        The column's name.
+    """
     unit = axis_unit(path)
     return path if unit == "-" else f"{path} [{unit}]"
 
 
 def describe(values: Mapping[str, Any]) -> str:
-    """``"limits.accel = 0.05, beacon.position = [50, 0]"`` (for messages and legends)."""
+    """``"limits.accel = 0.05, beacon.position = [50, 0]"`` (for messages and legends).
+
+    Parameters
+    ----------
+    values : Mapping of str to Any
+        Axis path -> value.
+
+    Returns
+    -------
+    str
+        ``path = value`` pairs, values as JSON, separated by commas.
+    """
     return ", ".join(f"{k} = {json.dumps(v)}" for k, v in values.items())
 
 
 def expand(spec: SweepSpec) -> list[Task]:
     """Every task of the sweep, each validated as a problem.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep.
+
+    Returns
+    -------
+    list of Task
+        In the sweep's order, each with its resolved problem and id (two tasks may share an
+        id: :func:`unique_tasks`).
 
     Raises
     ------
@@ -681,7 +857,26 @@ def expand(spec: SweepSpec) -> list[Task]:
 
 
 def as_spec(spec: SweepSpec | str | Path | Mapping[str, Any]) -> SweepSpec:
-    """A :class:`SweepSpec` from a spec, a sweep-file path or a parsed mapping."""
+    """A :class:`SweepSpec` from a spec, a sweep-file path or a parsed mapping.
+
+    Parameters
+    ----------
+    spec : SweepSpec or str or Path or Mapping of str to Any
+        The sweep: returned as is, read (:func:`load_sweep`) or built
+        (:func:`sweep_from_dict`).
+
+    Returns
+    -------
+    SweepSpec
+        The sweep.
+
+    Raises
+    ------
+    SweepFileError
+        When the file or mapping is not a valid sweep.
+    TypeError
+        For any other type of ``spec``.
+    """
     if isinstance(spec, SweepSpec):
         return spec
     if isinstance(spec, str | Path):
@@ -692,7 +887,18 @@ def as_spec(spec: SweepSpec | str | Path | Mapping[str, Any]) -> SweepSpec:
 
 
 def unique_tasks(tasks: Sequence[Task]) -> list[Task]:
-    """First task of each id (two axis combinations may resolve to the same problem)."""
+    """First task of each id (two axis combinations may resolve to the same problem).
+
+    Parameters
+    ----------
+    tasks : sequence of Task
+        The sweep's tasks.
+
+    Returns
+    -------
+    list of Task
+        In the order of their first occurrence.
+    """
     seen: dict[str, Task] = {}
     for t in tasks:
         seen.setdefault(t.id, t)

@@ -37,7 +37,20 @@ FIGURES = "figures"
 
 def atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
     """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it to ``path``
-    (:func:`obsplan.core.atomic.atomic_file`); creates the parent folder."""
+    (:func:`obsplan.core.atomic.atomic_file`); creates the parent folder.
+
+    Parameters
+    ----------
+    path : Path
+        The file to write.
+    write : callable
+        ``write(tmp)`` writes the whole content to the temporary path ``tmp``.
+
+    Returns
+    -------
+    Path
+        ``path``, now holding what ``write`` wrote.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_file(path) as tmp:
@@ -46,7 +59,20 @@ def atomic_write(path: Path, write: Callable[[Path], Any]) -> Path:
 
 
 def atomic_write_text(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` atomically (UTF-8)."""
+    """Write ``text`` to ``path`` atomically (UTF-8).
+
+    Parameters
+    ----------
+    path : Path
+        The file to write.
+    text : str
+        Its whole content.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return atomic_write(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
@@ -60,6 +86,20 @@ def check_out(out: str | Path, force: bool, name: str) -> ResumableDir:
     without the sweep marker (the user's, or another verb's output), a link, the working or
     home folder (or a parent), a folder another run is writing into
     (:class:`obsplan.core.outputs.ResumableDir`, which stays locked until its ``release``).
+
+    Parameters
+    ----------
+    out : str or Path
+        The ``--out`` folder.
+    force : bool
+        ``--force``: accept another sweep's folder, or one whose manifest names no sweep.
+    name : str
+        This sweep's name.
+
+    Returns
+    -------
+    ResumableDir
+        The folder, locked for this run (release it when done).
 
     Raises
     ------
@@ -89,7 +129,18 @@ def check_out(out: str | Path, force: bool, name: str) -> ResumableDir:
 
 
 def sweep_name(manifest: dict[str, Any]) -> str | None:
-    """The name a sweep manifest gives, or None if it names none."""
+    """The name a sweep manifest gives, or None if it names none.
+
+    Parameters
+    ----------
+    manifest : dict of str to Any
+        The contents of ``sweep.json``.
+
+    Returns
+    -------
+    str or None
+        ``manifest["sweep"]["name"]`` when it is a string.
+    """
     sweep = manifest.get("sweep")
     name = sweep.get("name") if isinstance(sweep, dict) else None
     return name if isinstance(name, str) else None
@@ -102,6 +153,15 @@ def check_code(out: Path, code: str, force: bool) -> None:
     so results of two codes never share a row; without this check a resume after an update
     would silently compute every task again beside the old ones. ``force`` accepts that (the
     old task folders stay in ``DIR/tasks/`` but leave the table).
+
+    Parameters
+    ----------
+    out : Path
+        The sweep's folder.
+    code : str
+        This installation's code fingerprint.
+    force : bool
+        ``--force``: accept the other code's tasks (they are computed again).
 
     Raises
     ------
@@ -126,16 +186,54 @@ def check_code(out: Path, code: str, force: bool) -> None:
 
 
 def finished_tasks(out: Path) -> int:
-    """Tasks whose report is in ``DIR/tasks/`` (done or failed: finished either way)."""
+    """Tasks whose report is in ``DIR/tasks/`` (done or failed: finished either way).
+
+    Parameters
+    ----------
+    out : Path
+        The sweep's folder.
+
+    Returns
+    -------
+    int
+        Their number (0 when there is no ``tasks/`` folder).
+    """
     return sum(1 for _ in (Path(out) / TASKS).glob(f"*/{REPORT}"))
 
 
 def task_dir(out: Path, task_id: str) -> Path:
+    """The folder of one task's ``report.json`` and ``plan.csv``.
+
+    Parameters
+    ----------
+    out : Path
+        The sweep's folder.
+    task_id : str
+        The task's id (:func:`obsplan.sweeps.spec.task_id`).
+
+    Returns
+    -------
+    Path
+        ``DIR/tasks/<task_id>`` (not created).
+    """
     return out / TASKS / task_id
 
 
 def read_report(out: Path, task_id: str) -> dict[str, Any] | None:
-    """The stored report of a finished task, or None (not run, or unreadable: run again)."""
+    """The stored report of a finished task, or None (not run, or unreadable: run again).
+
+    Parameters
+    ----------
+    out : Path
+        The sweep's folder.
+    task_id : str
+        The task's id.
+
+    Returns
+    -------
+    dict of str to Any or None
+        The parsed ``report.json``.
+    """
     path = task_dir(out, task_id) / REPORT
     try:
         return json.loads(path.read_text(encoding="utf-8"))
@@ -144,7 +242,24 @@ def read_report(out: Path, task_id: str) -> dict[str, Any] | None:
 
 
 def write_task(out: Path, task_id: str, report: dict[str, Any], plan_csv: str | None) -> Path:
-    """Write ``plan.csv`` (if any), then ``report.json``, atomically; returns the task folder."""
+    """Write ``plan.csv`` (if any), then ``report.json``, atomically; returns the task folder.
+
+    Parameters
+    ----------
+    out : Path
+        The sweep's folder.
+    task_id : str
+        The task's id.
+    report : dict of str to Any
+        The task's report (JSON without NaN or infinity).
+    plan_csv : str or None
+        The planned path as CSV text (plan mode); None for none.
+
+    Returns
+    -------
+    Path
+        The task's folder.
+    """
     folder = task_dir(out, task_id)
     folder.mkdir(parents=True, exist_ok=True)
     if plan_csv is not None:
@@ -156,7 +271,20 @@ def write_task(out: Path, task_id: str, report: dict[str, Any], plan_csv: str | 
 def write_manifest(out: ResumableDir | str | Path, manifest: dict[str, Any]) -> Path:
     """``DIR/sweep.json``, after :meth:`~obsplan.core.outputs.ResumableDir.claim` (which creates
     ``DIR`` with the sweep marker, or checks it is still the folder checked): from then on
-    ``DIR`` is this sweep's folder. A path is checked first (:class:`ResumableDir`)."""
+    ``DIR`` is this sweep's folder. A path is checked first (:class:`ResumableDir`).
+
+    Parameters
+    ----------
+    out : ResumableDir or str or Path
+        The checked folder (:func:`check_out`), or a path to check.
+    manifest : dict of str to Any
+        The sweep (axes, mode, base), its task ids and the code fingerprint.
+
+    Returns
+    -------
+    Path
+        ``DIR/sweep.json``.
+    """
     if isinstance(out, ResumableDir):
         path = out.claim()
     else:
@@ -174,6 +302,11 @@ def read_manifest(out: Path, *, axes: bool = False) -> dict[str, Any]:
         The sweep's folder.
     axes
         Also require the sweep's ``"axes"`` (what redrawing the figures reads).
+
+    Returns
+    -------
+    dict of str to Any
+        The parsed manifest (with a ``"sweep"`` object).
 
     Raises
     ------

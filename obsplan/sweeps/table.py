@@ -56,7 +56,20 @@ JSON_TEXT = "json"
 
 
 def flatten(data: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested mapping -> ``{"a.b.c": value}``; lists become JSON text, non-finite floats None."""
+    """Nested mapping -> ``{"a.b.c": value}``; lists become JSON text, non-finite floats None.
+
+    Parameters
+    ----------
+    data : Mapping of str to Any
+        A report (or part of one), as JSON values.
+    prefix : str, optional
+        Prepended to every key (``"solver."`` when recursing).
+
+    Returns
+    -------
+    dict of str to Any
+        Dotted key -> scalar; a list of mappings is flattened by index (``solver.starts.0.status``).
+    """
     out: dict[str, Any] = {}
     for key, value in data.items():
         name = f"{prefix}{key}"
@@ -85,14 +98,38 @@ def _tables(value: Any) -> bool:
 
 
 def cell(value: Any) -> Any:
-    """An axis value as a table cell: scalars as they are, lists and tables as JSON text."""
+    """An axis value as a table cell: scalars as they are, lists and tables as JSON text.
+
+    Parameters
+    ----------
+    value : Any
+        The value a task takes on one axis.
+
+    Returns
+    -------
+    Any
+        ``value``, or its JSON text for a list, tuple or mapping.
+    """
     if isinstance(value, list | tuple | Mapping):
         return json.dumps(value)
     return value
 
 
 def row(task: Task, stored: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The table row of ``task`` from its stored report (None: not finished yet)."""
+    """The table row of ``task`` from its stored report (None: not finished yet).
+
+    Parameters
+    ----------
+    task : Task
+        The task (its id, index and axis values).
+    stored : Mapping of str to Any or None
+        Its ``report.json``; None for a pending task.
+
+    Returns
+    -------
+    dict of str to Any
+        Column name -> cell: the bookkeeping and axis columns, then the flattened report.
+    """
     out: dict[str, Any] = {"task_id": task.id, "task": task.index + 1}
     out.update({axis_column(path): cell(v) for path, v in task.axes.items()})
     if stored is None:
@@ -115,7 +152,21 @@ def row(task: Task, stored: Mapping[str, Any] | None) -> dict[str, Any]:
 def build_table(
     tasks: Sequence[Task], stored: Mapping[str, Mapping[str, Any] | None]
 ) -> pd.DataFrame:
-    """One row per task (in sweep order); ``stored`` maps task id -> report (or None)."""
+    """One row per task (in sweep order); ``stored`` maps task id -> report (or None).
+
+    Parameters
+    ----------
+    tasks : sequence of Task
+        The sweep's tasks, in order.
+    stored : Mapping of str to Mapping or None
+        Task id -> its report (a missing id, or None: pending).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The results table: columns in first-seen order, each of one nullable type (module
+        docstring).
+    """
     rows = [row(t, stored.get(t.id)) for t in tasks]
     columns: dict[str, None] = {}
     for r in rows:
@@ -129,7 +180,18 @@ def column_type(values: Iterable[Any]) -> str:
     ``boolean``, ``Int64``, ``float64`` (ints and floats mixed too; missing is NaN, as numpy
     and string formatting expect), ``string``, or :data:`JSON_TEXT` for other mixtures (e.g. an
     axis of numbers and lists). A column with no value at all is ``float64`` (a metric that was
-    never finite)."""
+    never finite).
+
+    Parameters
+    ----------
+    values : iterable
+        The column's cells.
+
+    Returns
+    -------
+    str
+        A pandas dtype name, or :data:`JSON_TEXT`.
+    """
     kinds = {_kind(v) for v in values if not _missing(v)}
     if not kinds:
         return "float64"
@@ -142,7 +204,21 @@ def column_type(values: Iterable[Any]) -> str:
 
 def typed_column(values: Sequence[Any], dtype: str | None = None) -> pd.Series:
     """``values`` as a Series of ``dtype`` (default :func:`column_type`); missing -> ``<NA>``
-    (NaN in a float column)."""
+    (NaN in a float column).
+
+    Parameters
+    ----------
+    values : sequence
+        The column's cells.
+    dtype : str or None, optional
+        A pandas dtype name or :data:`JSON_TEXT` (values that are not text then become JSON
+        text in a ``string`` column); None: :func:`column_type` of ``values``.
+
+    Returns
+    -------
+    pandas.Series
+        The column, of that dtype.
+    """
     dtype = dtype or column_type(values)
     cells: list[Any] = [None if _missing(v) else v for v in values]
     if dtype == JSON_TEXT:
@@ -170,7 +246,22 @@ def _isnan(v: Any) -> bool:
 
 
 def write_table(df: pd.DataFrame, out: Path) -> tuple[Path, Path]:
-    """``DIR/results.parquet`` and ``DIR/results.csv``, each written atomically."""
+    """``DIR/results.parquet`` and ``DIR/results.csv``, each written atomically.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The results table (:func:`build_table`).
+    out : Path
+        The sweep's folder.
+
+    Returns
+    -------
+    parquet : Path
+        ``DIR/results.parquet``.
+    csv : Path
+        ``DIR/results.csv``.
+    """
     pq = atomic_write(out / RESULTS_PARQUET, lambda tmp: df.to_parquet(tmp, index=False))
     csv = atomic_write(out / RESULTS_CSV, lambda tmp: df.to_csv(tmp, index=False))
     return pq, csv
@@ -178,6 +269,16 @@ def write_table(df: pd.DataFrame, out: Path) -> tuple[Path, Path]:
 
 def read_table(out: str | Path) -> pd.DataFrame:
     """``DIR/results.parquet`` as a DataFrame (the column types of :func:`build_table`).
+
+    Parameters
+    ----------
+    out : str or Path
+        The sweep's folder.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The results table.
 
     Raises
     ------
@@ -199,6 +300,19 @@ def read_table(out: str | Path) -> pd.DataFrame:
 
 def comparable(df: pd.DataFrame, drop: Iterable[str] = RUN_DEPENDENT_SUFFIXES) -> pd.DataFrame:
     """``df`` without the columns that measure time or place (two runs of a sweep agree on the
-    rest exactly: every solver and Monte Carlo run is seeded)."""
+    rest exactly: every solver and Monte Carlo run is seeded).
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        A results table.
+    drop : iterable of str, optional
+        Suffixes of the columns left out (default :data:`RUN_DEPENDENT_SUFFIXES`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The other columns, in order.
+    """
     keep = [c for c in df.columns if not any(c.endswith(s) for s in drop)]
     return df[keep]

@@ -42,6 +42,11 @@ _ONE_AT_A_TIME = threading.Lock()
 def run_task(task: Task) -> dict[str, Any]:
     """Compute one task; exceptions become a ``failed`` outcome (never raised).
 
+    Parameters
+    ----------
+    task : Task
+        The task: its resolved problem mapping and mode (``plan`` or ``baselines``).
+
     Returns
     -------
     dict
@@ -128,7 +133,13 @@ def dask_setup(worker: Any) -> None:
     """Worker preload of the local cluster (``preload=["obsplan.sweeps.tasks"]``): ignore
     SIGINT in worker processes. A Ctrl-C in the terminal reaches the whole process group; the
     client alone handles it (writes what finished, then closes the cluster), instead of every
-    worker dying with a traceback."""
+    worker dying with a traceback.
+
+    Parameters
+    ----------
+    worker : distributed.Worker
+        The worker being set up (not read).
+    """
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
@@ -136,7 +147,14 @@ def dask_setup(worker: Any) -> None:
 # ------------------------------------------------------------------------------ threads
 def worker_threads() -> dict[str, Any]:
     """This process's thread settings: the pinning variables and, on Linux, the thread count of
-    every OpenBLAS library loaded (numpy's and scipy's), read from the library itself."""
+    every OpenBLAS library loaded (numpy's and scipy's), read from the library itself.
+
+    Returns
+    -------
+    dict of str to Any
+        ``env`` (each variable of :data:`THREAD_ENV` -> its value or None),
+        ``openblas_threads`` (library file name -> its thread count) and ``pid``.
+    """
     env = {k: os.environ.get(k) for k in THREAD_ENV}
     blas: dict[str, int] = {}
     try:

@@ -84,6 +84,16 @@ class BaselineUnfit(ProblemError):
 def lawnmower_baseline(pb: PlanningProblem) -> Baseline:
     """Lawn-mower at the limits over the coverage area (see module docstring).
 
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its start state, limits, horizon (the planning grid) and coverage area.
+
+    Returns
+    -------
+    Baseline
+        ``"lawnmower"``, sampled on the planning grid ``pb.times``, within every limit.
+
     Raises
     ------
     BaselineUnfit
@@ -215,7 +225,21 @@ def _fly_velocity(pb: PlanningProblem, vel) -> Trajectory:
 
 def circle_baseline(pb: PlanningProblem) -> Baseline | None:
     """Circle about the beacon through the start (see module docstring); None if impossible
-    (:func:`circle_unfit_reason` says why)."""
+    (:func:`circle_unfit_reason` says why).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its start state (the velocity must be tangent to the circle), beacon,
+        limits and horizon.
+
+    Returns
+    -------
+    Baseline or None
+        ``"circle"``, sampled on the planning grid ``pb.times``; None when the start velocity is
+        not tangent to the circle, the start is above the beacon or the circle breaks a limit
+        (:func:`unfitted_baselines` gives the reason).
+    """
     try:
         return _circle(pb)
     except BaselineUnfit:
@@ -264,7 +288,24 @@ def _circle(pb: PlanningProblem) -> Baseline:
 
 
 def straight_baseline(pb: PlanningProblem) -> Baseline:
-    """Straight line from the start (see module docstring)."""
+    """Straight line from the start (see module docstring).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its start state, beacon, limits (area and depth band bound the cruise
+        speed) and horizon.
+
+    Returns
+    -------
+    Baseline
+        ``"straight"``, sampled on the planning grid ``pb.times``.
+
+    Raises
+    ------
+    BaselineUnfit
+        If the line breaks a limit (the message names it).
+    """
     b = np.asarray(pb.beacon, float)
     v0 = pb.v0
     s0 = float(np.linalg.norm(v0))
@@ -324,6 +365,17 @@ def straight_baseline(pb: PlanningProblem) -> Baseline:
 
 def paper_lawnmower_baseline(pb: PlanningProblem) -> Baseline:
     """The paper's lawn-mower time-scaled to the limits (see module docstring).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its dimension (Fig. 3 in 2D, Fig. 6 in 3D), start state, limits and horizon.
+
+    Returns
+    -------
+    Baseline
+        ``"paper-lawnmower"``, sampled on the planning grid ``pb.times`` (continued straight
+        when the scaled pattern is shorter than the horizon).
 
     Raises
     ------
@@ -406,7 +458,19 @@ def mission_starts(pb: PlanningProblem) -> list[Baseline]:
     """The planner's starts for ``pb``'s mission: the (accelerated) lawn-mower on the planner's
     schedule (:func:`~obsplan.planning.missions.schedule.planner_schedule`), which meets its line
     windows: the baselines themselves when the survey has no lead-in. Those that do not fit are
-    left out (the baselines then, if neither fits)."""
+    left out (the baselines then, if neither fits).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        A problem with a ``[mission]`` (its :attr:`~PlanningProblem.mission_context`).
+
+    Returns
+    -------
+    list of Baseline
+        ``"lawnmower+lead-in"`` and ``"lawnmower-accel+lead-in"`` (those that fit), or else the
+        fitted :data:`MISSION_BASELINES`; possibly empty.
+    """
     out = []
     if planner_schedule(pb.mission_context).lead_in > 0:
         for accelerated in (False, True):
@@ -457,10 +521,34 @@ def baselines(pb: PlanningProblem) -> dict[str, Baseline]:
     """Every baseline that fits ``pb``, by name (lawn-mower first).
 
     See :func:`unfitted_baselines` for the others.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem; with a ``[mission]`` the baselines are the mission's lawn-mowers
+        (:data:`MISSION_BASELINES`), otherwise :data:`BASELINES`.
+
+    Returns
+    -------
+    dict of str to Baseline
+        Name -> baseline, in report order; every path on the planning grid ``pb.times``.
+        Cached per problem and tuning.
     """
     return dict(_all(pb)[0])
 
 
 def unfitted_baselines(pb: PlanningProblem) -> dict[str, str]:
-    """Baselines that cannot be built for ``pb``: name -> the reason, in words."""
+    """Baselines that cannot be built for ``pb``: name -> the reason, in words.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem (as for :func:`baselines`).
+
+    Returns
+    -------
+    dict of str to str
+        Name -> why it does not fit (e.g. the limit it breaks, or ``"does not fly the
+        mission"`` for the free-flight baselines of a mission problem).
+    """
     return dict(_all(pb)[1])

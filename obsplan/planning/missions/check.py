@@ -54,6 +54,14 @@ class LineCheck:
     altitude_range_m: tuple[float, float] | None = None
 
     def to_dict(self) -> dict:
+        """The line's entry in the ``mission.lines`` of ``report.json``.
+
+        Returns
+        -------
+        dict
+            The fields as JSON numbers, booleans and lists (``altitude_range_m`` only with an
+            altitude band).
+        """
         out = {
             "coverage": float(self.coverage),
             "max_cross_track_m": float(self.max_cross_track_m),
@@ -80,6 +88,13 @@ class PointCheck:
     complete: bool
 
     def to_dict(self) -> dict:
+        """The point's entry in ``report.json`` (a waypoint, or the mission's ``end``).
+
+        Returns
+        -------
+        dict
+            The fields as JSON numbers and booleans (``speed_mps`` None for a waypoint).
+        """
         return {
             "distance_m": float(self.distance_m),
             "time_s": float(self.time_s),
@@ -100,7 +115,14 @@ class MissionCheck:
     path_length_m: float
 
     def to_dict(self) -> dict:
-        """The ``mission`` entry of ``report.json``."""
+        """The ``mission`` entry of ``report.json``.
+
+        Returns
+        -------
+        dict
+            ``complete``, ``lines`` and ``waypoints`` (lists of their entries), ``end`` (None
+            without an end region), ``mission_time_s`` [s] and ``path_length_m`` [m].
+        """
         return {
             "complete": bool(self.complete),
             "lines": [ln.to_dict() for ln in self.lines],
@@ -111,7 +133,18 @@ class MissionCheck:
         }
 
     def line_mask(self, t: np.ndarray) -> np.ndarray:
-        """Boolean mask of the times ``t`` [s] inside a line's pass."""
+        """Boolean mask of the times ``t`` [s] inside a line's pass.
+
+        Parameters
+        ----------
+        t : ndarray, shape (J,)
+            Times [s] from the start of the path.
+
+        Returns
+        -------
+        ndarray of bool, shape (J,)
+            True where ``t`` falls inside some line's ``pass_s`` (ends included, 1e-9 s slack).
+        """
         t = np.asarray(t, float)
         mask = np.zeros(t.size, bool)
         for ln in self.lines:
@@ -214,7 +247,22 @@ def _line(
 
 
 def mission_check(traj: Trajectory, ctx: MissionContext) -> MissionCheck | None:
-    """The mission check of ``traj`` for ``ctx`` (None when ``ctx`` has no mission)."""
+    """The mission check of ``traj`` for ``ctx`` (None when ``ctx`` has no mission).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, evaluated between its samples as exact quadratics of its piecewise-constant
+        inputs.
+    ctx : MissionContext
+        The mission and the numbers it is flown under (dimension, speed limit for the default
+        speed band).
+
+    Returns
+    -------
+    MissionCheck or None
+        The check line by line and point by point; None without a mission.
+    """
     m = ctx.mission
     if m is None:
         return None
@@ -274,6 +322,19 @@ def mission_check(traj: Trajectory, ctx: MissionContext) -> MissionCheck | None:
 
 
 def completes_mission(traj: Trajectory, ctx: MissionContext) -> bool:
-    """``traj`` completes ``ctx``'s mission (True without one)."""
+    """``traj`` completes ``ctx``'s mission (True without one).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path.
+    ctx : MissionContext
+        The mission and the numbers it is flown under.
+
+    Returns
+    -------
+    bool
+        :attr:`MissionCheck.complete` of :func:`mission_check`, or True without a mission.
+    """
     chk = mission_check(traj, ctx)
     return chk is None or chk.complete

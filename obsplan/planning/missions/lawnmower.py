@@ -57,7 +57,22 @@ def _correct(u_ref: np.ndarray, h: float, x0: tuple, x1: tuple) -> np.ndarray:
 
 
 def fly_schedule(sched: MissionSchedule, ctx: MissionContext) -> Trajectory:
-    """The schedule flown on the planning grid of ``ctx`` (module docstring)."""
+    """The schedule flown on the planning grid of ``ctx`` (module docstring).
+
+    Parameters
+    ----------
+    sched : MissionSchedule
+        The schedule to fly (:func:`~obsplan.planning.missions.schedule.mission_schedule`,
+        :func:`~obsplan.planning.missions.schedule.build_schedule`).
+    ctx : MissionContext
+        The start state and the planning grid (horizon and steps).
+
+    Returns
+    -------
+    Trajectory
+        On the planning grid ``ctx.times``, from ``ctx``'s start, with piecewise-constant inputs
+        [m/s²].
+    """
     t = ctx.times
     n, h, N = ctx.dim, ctx.dt, ctx.steps
     P, V = sched.state(t, n)
@@ -84,6 +99,21 @@ def fly_schedule(sched: MissionSchedule, ctx: MissionContext) -> Trajectory:
 def mission_lawnmower(ctx: MissionContext, accelerated: bool = False) -> tuple[Trajectory, str]:
     """The (accelerated) lawn-mower of ``ctx``'s mission and its description.
 
+    Parameters
+    ----------
+    ctx : MissionContext
+        The mission and the start, limits and horizon it is flown under.
+    accelerated : bool, optional
+        The ``lawnmower-accel`` variant: each line flown with a sinusoidal speed in the same
+        window.
+
+    Returns
+    -------
+    traj : Trajectory
+        The path on the planning grid ``ctx.times``.
+    description : str
+        One line for reports (speed, turn radius, mission time).
+
     Raises
     ------
     ProblemError
@@ -96,7 +126,27 @@ def mission_lawnmower(ctx: MissionContext, accelerated: bool = False) -> tuple[T
 def planner_lawnmower(ctx: MissionContext, accelerated: bool = False) -> tuple[Trajectory, str]:
     """:func:`mission_lawnmower` on the planner's schedule (its lead-in at rest, its lines at
     its speed: :func:`~obsplan.planning.missions.schedule.planner_schedule`): the planner's
-    starts, which meet its line windows. Without a lead-in, the lawn-mower itself."""
+    starts, which meet its line windows. Without a lead-in, the lawn-mower itself.
+
+    Parameters
+    ----------
+    ctx : MissionContext
+        The mission and the start, limits and horizon it is flown under.
+    accelerated : bool, optional
+        Sinusoidally accelerated lines (as :func:`mission_lawnmower`).
+
+    Returns
+    -------
+    traj : Trajectory
+        The path on the planning grid ``ctx.times``.
+    description : str
+        One line for reports (with the lead-in at rest, if any).
+
+    Raises
+    ------
+    ProblemError
+        As :func:`mission_lawnmower`, and on ``mission.lead_in`` when the lead-in does not fit.
+    """
     return _lawnmower(ctx, planner_schedule(ctx), accelerated)
 
 

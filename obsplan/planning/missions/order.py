@@ -184,6 +184,12 @@ def _two_opt(seq: list[int], first, between, last) -> list[int]:
 def free_order(ctx: MissionContext) -> Mission:
     """``ctx``'s mission with its lines in the free order (module docstring).
 
+    Parameters
+    ----------
+    ctx : MissionContext
+        The mission (``mission.order = "free"``) and the start, limits and horizon it is flown
+        under (the transits and the schedule's end depend on them).
+
     Returns
     -------
     Mission

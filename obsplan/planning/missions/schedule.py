@@ -77,7 +77,22 @@ class Piece:
         )
 
     def state(self, t: np.ndarray, dim: int) -> tuple[np.ndarray, np.ndarray]:
-        """Positions and velocities at times ``t`` (inside the piece), each (J, dim)."""
+        """Positions and velocities at times ``t`` (inside the piece), each (J, dim).
+
+        Parameters
+        ----------
+        t : ndarray, shape (J,)
+            Times [s] from the start of the horizon, inside ``[t0, t0 + dur]``.
+        dim : int
+            Spatial dimension ``n`` (2 or 3; in 3D ``z`` follows the transit's half cosine).
+
+        Returns
+        -------
+        p : ndarray, shape (J, dim)
+            Positions [m].
+        v : ndarray, shape (J, dim)
+            Inertial velocities [m/s].
+        """
         tau = np.asarray(t, float) - self.t0
         J = tau.size
         p = np.zeros((J, dim))
@@ -143,7 +158,23 @@ class MissionSchedule:
     lead_in: float = 0.0
 
     def state(self, t: np.ndarray, dim: int) -> tuple[np.ndarray, np.ndarray]:
-        """Positions and velocities (J, dim) of the schedule at times ``t`` [s]."""
+        """Positions and velocities (J, dim) of the schedule at times ``t`` [s].
+
+        Parameters
+        ----------
+        t : ndarray, shape (J,)
+            Times [s] from the start of the horizon (outside the pieces: the first or the last
+            piece extrapolated).
+        dim : int
+            Spatial dimension ``n`` (2 or 3).
+
+        Returns
+        -------
+        p : ndarray, shape (J, dim)
+            Positions [m].
+        v : ndarray, shape (J, dim)
+            Inertial velocities [m/s].
+        """
         t = np.asarray(t, float)
         starts = np.array([pc.t0 for pc in self.pieces])
         idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.pieces) - 1)
@@ -155,7 +186,18 @@ class MissionSchedule:
         return p, v
 
     def piece_at(self, t: float) -> Piece:
-        """The piece flying at time ``t``."""
+        """The piece flying at time ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Time [s] from the start of the horizon.
+
+        Returns
+        -------
+        Piece
+            The last piece starting at or before ``t`` (the first before the schedule starts).
+        """
         starts = [pc.t0 for pc in self.pieces]
         i = max(0, int(np.searchsorted(starts, t, side="right")) - 1)
         return self.pieces[min(i, len(self.pieces) - 1)]
@@ -221,6 +263,21 @@ def dubins(
     Poses are ``(x, y, heading [rad])``; returns the segments ``[(kind, length [m]), ...]``
     (``kind`` in ``L``, ``R``, ``S``; zero lengths dropped). Every candidate word is checked by
     flying it; the shortest that ends at ``b`` is returned.
+
+    Parameters
+    ----------
+    a : tuple of float
+        Start pose ``(x [m], y [m], heading [rad])``, the heading anticlockwise from the x axis.
+    b : tuple of float
+        End pose, as ``a``.
+    r : float
+        Turn radius [m] (the schedule's ``v_c² / a_turn``).
+
+    Returns
+    -------
+    list of (str, float)
+        The segments in order: ``"L"`` (left turn), ``"R"`` (right turn) or ``"S"`` (straight),
+        each with its length along the path [m].
     """
     dx, dy = b[0] - a[0], b[1] - a[1]
     d = math.hypot(dx, dy) / r
@@ -338,7 +395,28 @@ def build_schedule(
     order) at horizontal speed ``v`` [m/s] (module docstring); ``accelerated``: sinusoidal speed
     on the lines (same windows); ``delay`` [s]: a lead-in, at rest at the start (braking first
     if moving) until then, the time the planner localises in (:func:`planner_schedule`); None:
-    none (0 still brings a moving start to rest)."""
+    none (0 still brings a moving start to rest).
+
+    Parameters
+    ----------
+    ctx : MissionContext
+        The mission and the start, acceleration and speed limits, and horizon it is flown
+        under.
+    v : float
+        The horizontal cruise speed ``v_c`` [m/s].
+    accelerated : bool, optional
+        Fly each line at ``v_c + A sin(2 π k σ)`` (the accelerated lawn-mower).
+    mission : Mission or None, optional
+        A mission to schedule instead of ``ctx.mission`` (a candidate line order of
+        :mod:`obsplan.planning.missions.order`).
+    delay : float or None, optional
+        The lead-in [s], at rest at the start; None for none.
+
+    Returns
+    -------
+    MissionSchedule
+        Its pieces cover the horizon; ``end_s`` may lie beyond it (the caller checks the fit).
+    """
     m = ctx.mission if mission is None else mission
     assert m is not None
     n = ctx.dim
@@ -471,6 +549,16 @@ def mission_schedule(ctx: MissionContext) -> MissionSchedule:
     ``Tuning.speed_grid + 1`` speeds across the band are tried; the slowest that fits is refined
     by bisection towards the next slower one.
 
+    Parameters
+    ----------
+    ctx : MissionContext
+        The mission and the start, limits and horizon it is flown under.
+
+    Returns
+    -------
+    MissionSchedule
+        The plain lawn-mower's schedule, without a lead-in (cached per context and tuning).
+
     Raises
     ------
     ProblemError
@@ -494,6 +582,17 @@ def lead_in_seconds(ctx: MissionContext) -> float:
     """The lead-in [s] of ``ctx``'s survey (``mission.lead_in``, ``"auto"`` resolved; 0 for
     waypoints and transits, when the lines leave no speed headroom, and for a vehicle that
     cannot wait at the start, ``limits.min_speed > 0``).
+
+    Parameters
+    ----------
+    ctx : MissionContext
+        A context with a mission.
+
+    Returns
+    -------
+    float
+        The lead-in [s]; ``"auto"`` takes the horizon's slack at a cruise speed
+        ``Tuning.lead_in_speed_share`` of the way up the headroom, in whole planning steps.
 
     Raises
     ------
@@ -543,6 +642,17 @@ def planner_schedule(ctx: MissionContext) -> MissionSchedule:
     A surveyor spends the speed headroom on a calibration manoeuvre first; the planner does the
     same, and chooses what to fly in it.
 
+    Parameters
+    ----------
+    ctx : MissionContext
+        The mission and the start, limits and horizon it is flown under.
+
+    Returns
+    -------
+    MissionSchedule
+        With ``lead_in`` [s] set; :func:`mission_schedule` itself when the lead-in is 0 (cached
+        per context and tuning).
+
     Raises
     ------
     ProblemError
@@ -570,6 +680,11 @@ def mission_fit_error(ctx: MissionContext) -> None:
     """Refuse a mission that cannot fit the horizon (see :func:`mission_schedule`), or whose
     schedule passes a waypoint outside its time window (the planner passes it at that time).
 
+    Parameters
+    ----------
+    ctx : MissionContext
+        A context with a mission.
+
     Raises
     ------
     ProblemError
@@ -591,7 +706,20 @@ def mission_fit_error(ctx: MissionContext) -> None:
 
 def line_sample_mask(ctx: MissionContext, t: np.ndarray) -> np.ndarray:
     """Boolean mask of the times ``t`` [s] inside the planner's line windows
-    (:func:`planner_schedule`)."""
+    (:func:`planner_schedule`).
+
+    Parameters
+    ----------
+    ctx : MissionContext
+        The mission and the numbers it is flown under.
+    t : ndarray, shape (J,)
+        Times [s] from the start of the horizon.
+
+    Returns
+    -------
+    ndarray of bool, shape (J,)
+        True inside a line window (ends included, 1e-9 s slack); all False without a mission.
+    """
     mask = np.zeros(np.asarray(t).size, bool)
     if ctx.mission is None:
         return mask
@@ -602,7 +730,21 @@ def line_sample_mask(ctx: MissionContext, t: np.ndarray) -> np.ndarray:
 
 def check_mission_geometry(m: Mission, dim: int) -> None:
     """Lines of positive length, level in 3D (the schedule's turns are horizontal) unless they
-    follow the seabed of an altitude band."""
+    follow the seabed of an altitude band.
+
+    Parameters
+    ----------
+    m : Mission
+        The mission whose ``lines`` are checked.
+    dim : int
+        Spatial dimension ``n`` (2 or 3).
+
+    Raises
+    ------
+    ProblemError
+        On ``mission.lines[i]``: a line without horizontal length, or (3D, no altitude band) not
+        level.
+    """
     for i, (a, b) in enumerate(m.segments(dim)):
         if np.linalg.norm((b - a)[:2]) < 1e-6:
             raise field_error(

@@ -68,7 +68,14 @@ class LineArea:
     polygon: tuple[tuple[float, float], ...] = ()
 
     def corners(self) -> np.ndarray:
-        """The polygon's corners, shape (k, 2) [m] (a rectangle's four)."""
+        """The polygon's corners, shape (k, 2) [m] (a rectangle's four).
+
+        Returns
+        -------
+        ndarray, shape (k, 2)
+            ``(x, y)`` of each corner [m], in order (a rectangle's anticlockwise from
+            ``(x_min, y_min)``).
+        """
         if self.polygon:
             return np.asarray(self.polygon, float)
         assert self.x is not None and self.y is not None
@@ -84,7 +91,18 @@ class Seabed:
     slope: tuple[float, float] = (0.0, 0.0)
 
     def depth_at(self, xy: np.ndarray) -> np.ndarray:
-        """The seabed's depth [m] under the points ``xy`` (..., 2) [m]."""
+        """The seabed's depth [m] under the points ``xy`` (..., 2) [m].
+
+        Parameters
+        ----------
+        xy : ndarray, shape (..., 2)
+            Horizontal positions ``(x, y)`` [m].
+
+        Returns
+        -------
+        ndarray, shape (...)
+            Depth ``z`` of the seabed [m], positive down.
+        """
         xy = np.asarray(xy, float)
         return self.depth + xy[..., 0] * self.slope[0] + xy[..., 1] * self.slope[1]
 
@@ -93,7 +111,23 @@ def lines_at_altitude(
     tracks: tuple[tuple[float, ...], ...], altitude: tuple[float, float], seabed: Seabed
 ) -> tuple[tuple[float, ...], ...]:
     """Horizontal tracks ``(x0, y0, x1, y1)`` [m] as 3D lines at the middle of the ``altitude``
-    band [m] above ``seabed``: ``(x0, y0, z0, x1, y1, z1)``."""
+    band [m] above ``seabed``: ``(x0, y0, z0, x1, y1, z1)``.
+
+    Parameters
+    ----------
+    tracks : tuple of tuple of float
+        The horizontal tracks, each ``(x0, y0, x1, y1)`` [m] (of a longer tuple, its first two
+        and last two numbers).
+    altitude : tuple of float
+        The band ``(lo, hi)`` [m] above the seabed.
+    seabed : Seabed
+        The planar seabed under the tracks.
+
+    Returns
+    -------
+    tuple of tuple of float
+        One 3D line per track, ``(x0, y0, z0, x1, y1, z1)`` [m], ``z`` positive down.
+    """
     mid = 0.5 * (altitude[0] + altitude[1])
     out = []
     for x0, y0, x1, y1 in (tr[:2] + tr[-2:] for tr in tracks):
@@ -135,7 +169,13 @@ class Mission:
     flown_as: tuple[tuple[int, bool], ...] = ()
 
     def given_lines(self) -> tuple[tuple[float, ...], ...]:
-        """The lines as given (``lines`` undone from the free order), each ``2 n`` numbers [m]."""
+        """The lines as given (``lines`` undone from the free order), each ``2 n`` numbers [m].
+
+        Returns
+        -------
+        tuple of tuple of float
+            ``lines`` in the given order and direction (``lines`` itself without ``flown_as``).
+        """
         if not self.flown_as:
             return self.lines
         out: list[tuple[float, ...]] = [()] * len(self.lines)
@@ -147,20 +187,49 @@ class Mission:
     def altitude_row(self) -> tuple[np.ndarray, float] | None:
         """``(w, half)``: a point ``p`` at ``r = p - a`` from a line's start ``a`` is inside the
         altitude band when ``|w·r| <= half`` (``w = (sx, sy, -1)``, the altitude's gradient;
-        ``half`` the band's half width [m]); None without a band."""
+        ``half`` the band's half width [m]); None without a band.
+
+        Returns
+        -------
+        tuple of (ndarray, float) or None
+            ``w``, shape (3,) (dimensionless), and ``half`` [m]; None without an altitude band
+            and seabed.
+        """
         if self.altitude is None or self.seabed is None:
             return None
         sx, sy = self.seabed.slope
         return np.array([sx, sy, -1.0]), 0.5 * (self.altitude[1] - self.altitude[0])
 
     def speed_band(self, speed_limit: float) -> tuple[float, float]:
-        """``speed`` or its default ``(0.3, 1) * limits.speed`` [m/s]."""
+        """``speed`` or its default ``(0.3, 1) * limits.speed`` [m/s].
+
+        Parameters
+        ----------
+        speed_limit : float
+            ``limits.speed`` [m/s].
+
+        Returns
+        -------
+        tuple of float
+            The band ``(lo, hi)`` [m/s].
+        """
         if self.speed is not None:
             return self.speed
         return (0.3 * speed_limit, speed_limit)
 
     def segments(self, dim: int) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The survey lines as ``(start, end)`` points, each shape (dim,) [m]."""
+        """The survey lines as ``(start, end)`` points, each shape (dim,) [m].
+
+        Parameters
+        ----------
+        dim : int
+            Spatial dimension ``n`` (2 or 3): each line holds ``2 n`` numbers.
+
+        Returns
+        -------
+        list of (ndarray, ndarray)
+            ``(start, end)`` of each line in ``lines`` (the order flown), each shape (dim,) [m].
+        """
         return [(np.asarray(ln[:dim], float), np.asarray(ln[dim:], float)) for ln in self.lines]
 
 

@@ -73,20 +73,65 @@ class CovarianceObjective:
     lines: np.ndarray | None = None
 
     def evaluate(self, grid: Grid, W):
-        """``(mission-average std, final std)`` [m] as CasADi expressions or numbers."""
+        """``(mission-average std, final std)`` [m] as CasADi expressions or numbers.
+
+        Parameters
+        ----------
+        grid : Grid
+            The planning grid of the problem.
+        W : ndarray or casadi.MX, shape (3n, N)
+            The path's decision variables (intrinsic units).
+
+        Returns
+        -------
+        average : float or casadi.MX
+            Mean over the filter samples of the predicted position std [m].
+        final : float or casadi.MX
+            The std at the last filter sample [m].
+        """
         return self.evaluate_all(grid, W)[:2]
 
     def std_series(self, grid: Grid, W: np.ndarray) -> np.ndarray:
         """The predicted position std ``sqrt(tr P_pp)`` [m] at every filter sample
         (``PlanningProblem.filter_times``) of the path ``W`` (numbers, intrinsic units), shape
-        ``(samples,)``: what the time modes average and end on."""
+        ``(samples,)``: what the time modes average and end on.
+
+        Parameters
+        ----------
+        grid : Grid
+            The planning grid of the problem.
+        W : ndarray, shape (3n, N)
+            The path's decision variables (intrinsic units).
+
+        Returns
+        -------
+        ndarray, shape (samples,)
+            The predicted position std [m] at every filter sample.
+        """
         h, rho = self.rows(grid, W)
         _, D = run_recursion(self.model, self.epochs, self.P0, h, rho, self.mask)
         return position_std(np.asarray(D), self.model.n, self.epochs) * self.scale
 
     def evaluate_all(self, grid: Grid, W):
         """``(mission-average, final, average over the lines)`` std [m] (the last None without
-        lines), as CasADi expressions or numbers."""
+        lines), as CasADi expressions or numbers.
+
+        Parameters
+        ----------
+        grid : Grid
+            The planning grid of the problem.
+        W : ndarray or casadi.MX, shape (3n, N)
+            The path's decision variables (intrinsic units).
+
+        Returns
+        -------
+        average : float or casadi.MX
+            Mean over the filter samples of the predicted position std [m].
+        final : float or casadi.MX
+            The std at the last filter sample [m].
+        lines : float or casadi.MX or None
+            Mean over the filter samples on the survey lines [m]; None without lines.
+        """
         if isinstance(W, np.ndarray):
             std = self.std_series(grid, W)
             on = None if self.lines is None else float(np.mean(std[self.lines]))
@@ -130,6 +175,26 @@ def timed_value(mode: str, average, final, reference: tuple, lines=None):
     a plain sum would ignore it). It is dimensionless: 2 on the reference. ``lines`` is the
     average over the survey lines' windows (mode ``lines``); ``lines-and-final`` is
     ``lines / l_ref + final / f_ref``.
+
+    Parameters
+    ----------
+    mode : str
+        The time mode: ``"final"``, ``"mission-average"``, ``"average-and-final"``,
+        ``"lines"`` or ``"lines-and-final"``.
+    average : float or casadi.MX
+        Mission-average std [m].
+    final : float or casadi.MX
+        Final std [m].
+    reference : tuple
+        ``(a_ref, f_ref, l_ref)``: the same on the reference path [m] (``l_ref`` None without
+        lines).
+    lines : float or casadi.MX or None, optional
+        Average std over the survey lines' windows [m].
+
+    Returns
+    -------
+    float or casadi.MX
+        [m] for ``final``, ``mission-average`` and ``lines``; dimensionless for the two sums.
     """
     if mode == "lines":
         return lines
@@ -144,7 +209,20 @@ def timed_value(mode: str, average, final, reference: tuple, lines=None):
 
 def pcrb_objective(pb: PlanningProblem) -> CovarianceObjective:
     """The posterior CRB of the validation
-    (:func:`obsplan.estimation.bounds.crlb.posterior_crlb`)."""
+    (:func:`obsplan.estimation.bounds.crlb.posterior_crlb`).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its vehicle model, ``[validation]`` (prior, process noise, sensors, filter
+        grid) and mission lines.
+
+    Returns
+    -------
+    CovarianceObjective
+        The recursion on the nonlinear model, range rows taken at the path's positions at the
+        measurement epochs; stds in metres (scale 1).
+    """
     cfg = estimation_config(pb)
     cov = cfg.covariances(pb.validation.dt)
     model = pb.model
@@ -181,6 +259,22 @@ def kf_objective(pb: PlanningProblem) -> CovarianceObjective:
     per-step noise is ``q(τ) = Γ(τ) q Γ(τ)ᵀ`` with ``Γ`` linear in ``τ`` (a quadratic ``q(τ)``,
     exact in :mod:`obsplan.estimation.bounds.riccati`). The filter takes the gains at its estimate,
     so the prediction matches its covariance up to the estimation error of ``p0`` and ``ν0``.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its vehicle model, start, beacon, ``[validation]`` and ``[scales]``.
+
+    Returns
+    -------
+    CovarianceObjective
+        The recursion on the scaled augmented state (``scale`` = ``L`` [m] back to metres), the
+        range update left out at the anchor sample.
+
+    Raises
+    ------
+    ConfigError
+        When the configured KF process noise acts on the augmented entries ``(p0·v0, |v0|²)``.
     """
     L, T = pb.scales.length_m, pb.scales.time_s
     model = pb.model
@@ -347,7 +441,22 @@ def _kf_range_rows(pb: PlanningProblem, s: np.ndarray, sigma: float, extra: floa
 def covariance_objective(pb: PlanningProblem, kind: str | None = None) -> CovarianceObjective:
     """The :class:`CovarianceObjective` of ``kind`` (default: the problem's objective), built
     once per problem (its CasADi functions are shared by the planner, the metrics and the
-    margins)."""
+    margins).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+    kind : str or None, optional
+        ``"kf-position-std"`` (the augmented KF), or any other kind for the posterior CRB; None:
+        ``pb.objective.kind``.
+
+    Returns
+    -------
+    CovarianceObjective
+        :func:`kf_objective` or :func:`pcrb_objective` of ``pb`` (cached per problem, kind and
+        tuning).
+    """
     kind = pb.objective.kind if kind is None else kind
     return kf_objective(pb) if kind == "kf-position-std" else pcrb_objective(pb)
 
@@ -357,6 +466,22 @@ def covariance_stds(traj: Trajectory, pb: PlanningProblem, kind: str) -> tuple[f
 
     ``kind`` is ``"pcrb-position"`` or ``"kf-position-std"``; ``traj`` must be on the problem's
     planning grid (N + 1 samples).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid.
+    pb : PlanningProblem
+        The problem.
+    kind : str
+        Which recursion.
+
+    Returns
+    -------
+    average : float
+        Mean over the filter samples of the predicted position std [m].
+    final : float
+        The std at the end of the horizon [m].
     """
     grid = Grid.from_problem(pb)
     return covariance_objective(pb, kind).evaluate(grid, grid.from_trajectory(traj))
@@ -392,6 +517,20 @@ def covariance_expr(pb: PlanningProblem, grid: Grid, W):
     tangential position (``suite/short-horizon.toml``: EKF RMSE 1.38× the lawn-mower's; with
     ``w = 1`` 0.46×, the KF's own 0.22× against 0.19×), or with ``mode = "final"`` left the
     path between start and end free (docs/problem-files.md has six more problems).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its objective's kind, time mode and ``pcrb_weight``.
+    grid : Grid
+        The planning grid of the problem.
+    W : ndarray or casadi.MX, shape (3n, N)
+        The path's decision variables (intrinsic units).
+
+    Returns
+    -------
+    float or casadi.MX
+        The objective (minimised): [m] or dimensionless, as above.
     """
     kind = pb.objective.kind
     value = _timed(pb, kind, grid, W)
@@ -406,7 +545,19 @@ def covariance_expr(pb: PlanningProblem, grid: Grid, W):
 
 def pcrb_problem(pb: PlanningProblem) -> PlanningProblem:
     """``pb`` with the ``pcrb-position`` objective in its default time mode (the bound term of
-    ``kf-position-std``, :func:`covariance_expr`)."""
+    ``kf-position-std``, :func:`covariance_expr`).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    PlanningProblem
+        A copy with ``objective.kind = "pcrb-position"``, ``mode = "auto"`` and no
+        ``pcrb_weight``.
+    """
     obj = replace(pb.objective, kind="pcrb-position", mode="auto", pcrb_weight=None)
     return replace(pb, objective=obj)
 
@@ -419,13 +570,38 @@ def _reference_timed(pb: PlanningProblem, kind: str) -> float:
 
 
 def covariance_value(traj: Trajectory, pb: PlanningProblem) -> float:
-    """The problem's covariance objective (:func:`covariance_expr`) on ``traj`` [m or -]."""
+    """The problem's covariance objective (:func:`covariance_expr`) on ``traj`` [m or -].
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid.
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    float
+        The objective's value (smaller is better).
+    """
     grid = Grid.from_problem(pb)
     return float(covariance_expr(pb, grid, grid.from_trajectory(traj)))
 
 
 def covariance_term(ctx: NLPContext) -> ObjectiveTerm:
-    """The problem's covariance objective on ``ctx.W``, divided by its value on the reference."""
+    """The problem's covariance objective on ``ctx.W``, divided by its value on the reference.
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built: the problem, the grid, ``W`` and the reference path.
+
+    Returns
+    -------
+    ObjectiveTerm
+        The normalised expression (1 on the reference), its map back to
+        :func:`covariance_value`'s units and the limited-memory Hessian.
+    """
     pb, grid = ctx.problem, ctx.grid
     value = covariance_expr(pb, grid, ctx.W)
     ref = max(covariance_value(ctx.reference, pb), 1e-12)

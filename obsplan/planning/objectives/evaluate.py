@@ -38,12 +38,38 @@ def _num(x: float | None) -> float | None:
 
 
 def objective_value(traj: Trajectory, pb: PlanningProblem) -> float:
-    """The problem's objective evaluated (numerically, without lifting variables) on ``traj``."""
+    """The problem's objective evaluated (numerically, without lifting variables) on ``traj``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid of ``pb``.
+    pb : PlanningProblem
+        The problem: its ``objective.kind`` and settings.
+
+    Returns
+    -------
+    float
+        The value in the objective's own sign and units (:func:`better` compares two).
+    """
     return objective_of(pb).value(traj, pb)
 
 
 def kf_final_pos_std(traj: Trajectory, pb: PlanningProblem) -> float:
-    """Predicted final position std ``sqrt(tr P_pp)`` [m] of the augmented KF along ``traj``."""
+    """Predicted final position std ``sqrt(tr P_pp)`` [m] of the augmented KF along ``traj``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid of ``pb``.
+    pb : PlanningProblem
+        The problem: its vehicle model, ``[validation]`` and ``[scales]``.
+
+    Returns
+    -------
+    float
+        The std at the end of the horizon [m].
+    """
     return covariance_stds(traj, pb, "kf-position-std")[1]
 
 
@@ -69,7 +95,14 @@ class PathMetrics:
         return self.limits.ok()
 
     def to_dict(self) -> dict:
-        """JSON-safe (``null`` for non-finite values)."""
+        """JSON-safe (``null`` for non-finite values).
+
+        Returns
+        -------
+        dict
+            Every metric by name, ``within_limits`` and ``limit_violation``
+            (:meth:`~obsplan.planning.problem.feasibility.LimitCheck.to_dict`).
+        """
         return {
             "min_eig": _num(self.min_eig),
             "log_det": _num(self.log_det),
@@ -88,7 +121,20 @@ class PathMetrics:
 
 
 def better(a: float, b: float, pb: PlanningProblem) -> bool:
-    """True when objective value ``a`` is strictly better than ``b`` for ``pb``."""
+    """True when objective value ``a`` is strictly better than ``b`` for ``pb``.
+
+    Parameters
+    ----------
+    a, b : float
+        Two values of ``pb``'s objective (:func:`objective_value`).
+    pb : PlanningProblem
+        The problem: its ``objective.kind`` says whether smaller or larger is better.
+
+    Returns
+    -------
+    bool
+        A non-finite ``a`` is never better; a finite ``a`` beats a non-finite ``b``.
+    """
     if not math.isfinite(a):
         return False
     if not math.isfinite(b):
@@ -99,7 +145,20 @@ def better(a: float, b: float, pb: PlanningProblem) -> bool:
 
 
 def path_metrics(traj: Trajectory, pb: PlanningProblem) -> PathMetrics:
-    """All metrics of ``traj`` (on the planning grid) for problem ``pb``."""
+    """All metrics of ``traj`` (on the planning grid) for problem ``pb``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path (the plan or a baseline), on the planning grid of ``pb``.
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    PathMetrics
+        The metrics of the module docstring and the limit check.
+    """
     min_eig, log_det, cond = gramian_metrics(traj, pb)
     pcrb_mean, pcrb_final = covariance_stds(traj, pb, "pcrb-position")
     kf_mean, kf_final = covariance_stds(traj, pb, "kf-position-std")

@@ -44,7 +44,18 @@ _CHOL_FLOOR = 1e-6
 
 
 def vech_indices(m: int) -> list[tuple[int, int]]:
-    """Lower-triangular index pairs ``(i, j)``, ``i >= j``, column by column."""
+    """Lower-triangular index pairs ``(i, j)``, ``i >= j``, column by column.
+
+    Parameters
+    ----------
+    m : int
+        Size of the square matrix.
+
+    Returns
+    -------
+    list of (int, int)
+        ``m (m + 1) / 2`` pairs: the order of ``vech`` (the Cholesky variable's entries).
+    """
     return [(i, j) for j in range(m) for i in range(j, m)]
 
 
@@ -64,7 +75,23 @@ def _vech_np(M: np.ndarray) -> np.ndarray:
 
 
 def gramian_expr(grid: Grid, pb: PlanningProblem, W):
-    """Exact Gramian ``G(t_N, t_0)`` (eq. 25) in the problem's metric scales, of ``W``."""
+    """Exact Gramian ``G(t_N, t_0)`` (eq. 25) in the problem's metric scales, of ``W``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid (intrinsic units of ``W``, the start state).
+    pb : PlanningProblem
+        The problem: its vehicle model and ``[scales]`` (length ``L`` [m], time ``T`` [s]).
+    W : casadi.MX or ndarray, shape (3n, N)
+        The path's decision variables.
+
+    Returns
+    -------
+    casadi expression, shape (m, m)
+        The symmetric augmented Gramian (dimensionless, in the metric scales), ``m`` the
+        augmented state's size.
+    """
     L, T = pb.scales.length_m, pb.scales.time_s
     aug = augmented_model(pb.model)
     g = interval_gramian_function(aug)
@@ -81,7 +108,24 @@ def gramian_expr(grid: Grid, pb: PlanningProblem, W):
 def gramian_metrics(traj: Trajectory, pb: PlanningProblem) -> tuple[float, float, float]:
     """``(min_eig, log_det, condition)`` of the scaled Gramian; ``(0, -inf, inf)`` when the
     unit-invariant rank test finds it rank deficient (round-off must not read as information:
-    a 3D lawn-mower at constant depth has a 1e-17 "lambda_min" at N = 1000)."""
+    a 3D lawn-mower at constant depth has a 1e-17 "lambda_min" at N = 1000).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path.
+    pb : PlanningProblem
+        The problem: its vehicle model and ``[scales]``.
+
+    Returns
+    -------
+    min_eig : float
+        Smallest eigenvalue of the scaled Gramian ``G(t_N, t_0)`` (dimensionless).
+    log_det : float
+        Its log-determinant.
+    condition : float
+        Its condition number.
+    """
     G = gramian(traj, pb.model, pb.scales)
     if numerical_rank(G) < G.shape[0]:
         return 0.0, float("-inf"), float("inf")
@@ -117,6 +161,18 @@ def paper_min_eig_term(ctx: NLPContext) -> ObjectiveTerm:
     E-optimality is not invariant to a diagonal congruence of ``G`` (it is a different objective
     in each metric), and the congruence of the log-det, ``G - tI ⪰ 0 <=> D G D - t D² ⪰ 0``, made
     IPOPT 5-10x slower in the default scales: it keeps ``G / g`` with a scalar ``g``.
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built: the problem, the grid, the path variables ``W`` and the reference
+        path (``g`` is the mean diagonal of its Gramian).
+
+    Returns
+    -------
+    ObjectiveTerm
+        ``f = -t / t_ref`` (``t_ref`` the reference path's ``λ_min(G / g)``), the lifting
+        variables ``(t, vech L)`` and the Cholesky equality.
     """
     lift = _Lifted(ctx)
     m, nl, gnorm, Gfun = lift.m, lift.nl, lift.gnorm, lift.Gfun
@@ -154,6 +210,18 @@ def paper_log_det_term(ctx: NLPContext) -> ObjectiveTerm:
     the NLP, its iterates and its conditioning are the same whatever the metric scales make of
     G's t^0..t^4 columns (measured: identical iterations for L, T from (1 m, 1 s) to
     (10 km, 10 s)).
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built: the problem, the grid, the path variables ``W`` and the reference
+        path (``D`` from the diagonal of its Gramian plus an excited path's).
+
+    Returns
+    -------
+    ObjectiveTerm
+        ``f = -log det G`` (through ``L`` and ``D``), the Cholesky variable ``vech L`` (its
+        diagonal floored) and the Cholesky equality.
     """
     pb, grid = ctx.problem, ctx.grid
     lift = _Lifted(ctx)
@@ -183,22 +251,73 @@ def paper_log_det_term(ctx: NLPContext) -> ObjectiveTerm:
 
 def min_eig_term(ctx: NLPContext) -> ObjectiveTerm:
     """``gramian-min-eig``: the paper's lifted ``λ_min`` (:func:`paper_form`) or the windowed,
-    information-weighted E-optimal surrogate (:mod:`obsplan.planning.objectives.windowed`)."""
+    information-weighted E-optimal surrogate (:mod:`obsplan.planning.objectives.windowed`).
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built.
+
+    Returns
+    -------
+    ObjectiveTerm
+        :func:`paper_min_eig_term`, or else
+        :func:`~obsplan.planning.objectives.windowed.windowed_term`.
+    """
     return paper_min_eig_term(ctx) if paper_form(ctx.problem) else windowed_term(ctx)
 
 
 def log_det_term(ctx: NLPContext) -> ObjectiveTerm:
-    """``gramian-log-det``: the paper's lifted ``log det`` or the windowed D-optimal form."""
+    """``gramian-log-det``: the paper's lifted ``log det`` or the windowed D-optimal form.
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built.
+
+    Returns
+    -------
+    ObjectiveTerm
+        :func:`paper_log_det_term`, or else
+        :func:`~obsplan.planning.objectives.windowed.windowed_term`.
+    """
     return paper_log_det_term(ctx) if paper_form(ctx.problem) else windowed_term(ctx)
 
 
 def min_eig_value(traj: Trajectory, pb: PlanningProblem) -> float:
-    """``λ_min`` of ``G(t_N, t_0)`` (paper form) or the windowed E-optimal value on a path."""
+    """``λ_min`` of ``G(t_N, t_0)`` (paper form) or the windowed E-optimal value on a path.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path.
+    pb : PlanningProblem
+        The problem: its objective's settings, vehicle model and scales.
+
+    Returns
+    -------
+    float
+        The objective's value (maximised; 0 for a rank-deficient Gramian in the paper form).
+    """
     return gramian_metrics(traj, pb)[0] if paper_form(pb) else windowed_value(traj, pb)
 
 
 def log_det_value(traj: Trajectory, pb: PlanningProblem) -> float:
-    """``log det G(t_N, t_0)`` (paper form) or the windowed D-optimal value on a path."""
+    """``log det G(t_N, t_0)`` (paper form) or the windowed D-optimal value on a path.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path.
+    pb : PlanningProblem
+        The problem: its objective's settings, vehicle model and scales.
+
+    Returns
+    -------
+    float
+        The objective's value (maximised; ``-inf`` for a rank-deficient Gramian in the paper
+        form).
+    """
     return gramian_metrics(traj, pb)[1] if paper_form(pb) else windowed_value(traj, pb)
 
 

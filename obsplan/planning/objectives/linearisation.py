@@ -70,7 +70,23 @@ def _stress_function(n: int, m: int) -> ca.Function:
 
 def stress_expr(pb: PlanningProblem, grid: Grid, W):
     """``b / σ_r`` (module docstring) at every range epoch after the first, from the path ``W``
-    (intrinsic units): an ndarray of shape (J,) for an ndarray ``W``, else a CasADi column."""
+    (intrinsic units): an ndarray of shape (J,) for an ndarray ``W``, else a CasADi column.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: the posterior CRB's recursion (its ``[validation]``) and
+        ``validation.range_std``.
+    grid : Grid
+        The planning grid of the problem.
+    W : ndarray or casadi.MX, shape (3n, N)
+        The path's decision variables.
+
+    Returns
+    -------
+    ndarray, shape (J,), or casadi.MX
+        The stress in range standard deviations (dimensionless), one per range epoch.
+    """
     cov = covariance_objective(pb, "pcrb-position")
     h, rho = cov.rows(grid, W)  # h: the positions relative to the beacon at the epochs
     P_prior, _ = run_recursion(cov.model, cov.epochs, cov.P0, h, rho, cov.mask)
@@ -86,14 +102,44 @@ def stress_expr(pb: PlanningProblem, grid: Grid, W):
 
 def linearisation_stress(traj: Trajectory, pb: PlanningProblem) -> np.ndarray:
     """The EKF's linearisation stress ``b / σ_r`` (module docstring) along ``traj`` (on the
-    problem's planning grid) at every range epoch after the first, shape (J,) [-]."""
+    problem's planning grid) at every range epoch after the first, shape (J,) [-].
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid of ``pb``.
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    ndarray, shape (J,)
+        ``b / σ_r`` at each range epoch after the first (dimensionless).
+    """
     grid = Grid.from_problem(pb)
     return np.asarray(stress_expr(pb, grid, grid.from_trajectory(traj)), float)
 
 
 def penalty_expr(pb: PlanningProblem, grid: Grid, W, bound: float):
     """``c Σ_j max(0, b_j / (bound σ_r) - 1)²`` on the path ``W`` (CasADi or float; ``c`` the
-    cost of an excess of the whole bound at one range epoch, ``Tuning.linearisation_penalty``)."""
+    cost of an excess of the whole bound at one range epoch, ``Tuning.linearisation_penalty``).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+    grid : Grid
+        The planning grid of the problem.
+    W : ndarray or casadi.MX, shape (3n, N)
+        The path's decision variables.
+    bound : float
+        ``κ``: the stress allowed, in range standard deviations.
+
+    Returns
+    -------
+    float or casadi.MX
+        The penalty, in the units of the normalised objective.
+    """
     x = stress_expr(pb, grid, W) / bound - 1.0
     penalty = tuning().linearisation_penalty
     if isinstance(W, np.ndarray):
@@ -103,7 +149,23 @@ def penalty_expr(pb: PlanningProblem, grid: Grid, W, bound: float):
 
 def linearisation_part(pb: PlanningProblem, grid: Grid, W: ca.MX) -> FormulationPart | None:
     """The penalty of ``objective.linearisation_bound`` (None when it is 0 or the vehicle has no
-    range)."""
+    range).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: ``objective.linearisation_bound`` (resolved) and its sensors.
+    grid : Grid
+        The planning grid of the problem.
+    W : casadi.MX, shape (3n, N)
+        The path's decision variables.
+
+    Returns
+    -------
+    FormulationPart or None
+        ``"linearisation"`` with the penalty of :func:`penalty_expr`; None when it does not
+        apply.
+    """
     bound = pb.objective.resolved_linearisation_bound
     if bound <= 0 or "range" not in pb.model.sensors:
         return None

@@ -78,6 +78,17 @@ def lwo_node_function(pb: PlanningProblem) -> ca.Function:
     the input held), 1 for a perfectly conditioned node and 0 for a rank-deficient one. The
     determinant comes from an unpivoted Cholesky factor (``M̃`` is positive definite), so ``g`` is
     smooth.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its vehicle model (sensors, current, range form).
+
+    Returns
+    -------
+    casadi.Function
+        ``g(x, u)``: ``x`` the state relative to the beacon and ``u`` the input, both in the
+        metric scales; ``g`` in ``[0, 1]``.
     """
     nd = _at_beacon(pb)
     O = lwo_matrix_function(nd, 0)
@@ -91,14 +102,38 @@ def lwo_node_function(pb: PlanningProblem) -> ca.Function:
 
 
 def scale_free(pb: PlanningProblem) -> bool:
-    """True for the scale-free, diagnostic form (``objective.weights = "none"``)."""
+    """True for the scale-free, diagnostic form (``objective.weights = "none"``).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its ``objective.weights``.
+
+    Returns
+    -------
+    bool
+        The scale-free form; False for the information form.
+    """
     return pb.objective.paper_form
 
 
 def lwo_information_node_function(pb: PlanningProblem) -> ca.Function:
     """``q(x, u, h, ip)``: geometric mean of the eigenvalues of the weighted LWO information at
     one node (module docstring), in the metric scales; ``x`` relative to the beacon, ``h`` the
-    node's Taylor moments and ``ip`` its prior information (:func:`node_windows`, one column)."""
+    node's Taylor moments and ``ip`` its prior information (:func:`node_windows`, one column).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its vehicle model, objective window, ``[validation]`` sensors and
+        ``[scales]``.
+
+    Returns
+    -------
+    casadi.Function
+        ``q(x, u, h, ip)``, all in the metric scales: ``x`` the state, ``u`` the held input,
+        ``h`` the ``K²`` Taylor moments, ``ip`` the ``m²`` prior information (column-major).
+    """
     nd = _at_beacon(pb, "half-squared")  # the weights are those of y = |p - b|²/2
     ws = window_settings(pb)
     L = pb.scales.length_m
@@ -122,7 +157,23 @@ def clipped_windows(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.nda
     :func:`node_windows` and :func:`window_mean_inputs` share: its length ``τ_k = min(τ, t_k)``
     [s], shape (N+1,), and the node where it starts, the one nearest ``t_k - τ_k`` and at least
     one step before ``k`` (0 at the first nodes), int, shape (N+1,). The Taylor moments take the
-    exact length; the held input needs a node to difference the velocity against."""
+    exact length; the held input needs a node to difference the velocity against.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid (node times, step ``h`` [s]).
+    pb : PlanningProblem
+        The problem: its objective's window
+        (:func:`~obsplan.planning.objectives.windowed.window_settings`).
+
+    Returns
+    -------
+    tau : ndarray, shape (N + 1,)
+        Each node's window length ``τ_k`` [s].
+    start : ndarray of int, shape (N + 1,)
+        The node where each window starts.
+    """
     tau = window_settings(pb).window_s
     w = max(1, int(round(tau / grid.h)))
     k = np.arange(grid.N + 1)
@@ -133,7 +184,23 @@ def node_windows(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.ndarra
     """Per node ``k``: the Taylor moments of its window clipped at the start,
     ``τ_k = min(τ, t_k)`` (no reading precedes the mission), flattened ``(K², N+1)``, and the
     prior's information about the state at ``t_k`` (the validation's prior propagated without
-    process noise), flattened ``(m², N+1)``; both in the metric scales."""
+    process noise), flattened ``(m², N+1)``; both in the metric scales.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid.
+    pb : PlanningProblem
+        The problem: its vehicle model, objective window, validation's prior (the EKF's
+        ``P0``) and ``[scales]``.
+
+    Returns
+    -------
+    moments : ndarray, shape (K², N + 1)
+        Each node's Taylor moments, column-major (dimensionless).
+    prior : ndarray, shape (m², N + 1)
+        Each node's prior information, column-major (dimensionless).
+    """
     nd = _at_beacon(pb, "half-squared")
     T, L = pb.scales.time_s, pb.scales.length_m
     tau_k, _ = clipped_windows(grid, pb)
@@ -155,7 +222,24 @@ def window_mean_inputs(grid: Grid, pb: PlanningProblem, u, v):
     with ``a`` the node where the window clipped at the start begins (:func:`node_windows`), the
     constant acceleration that carries the velocity across the window; ``u_0`` at the first node
     (an empty window). ``u`` (n, N) and ``v`` (n, N+1) [SI], numpy or CasADi; shape (n, N+1)
-    [m/s²]."""
+    [m/s²].
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid.
+    pb : PlanningProblem
+        The problem: its objective's window.
+    u : ndarray or casadi.MX, shape (n, N)
+        Inputs [m/s²].
+    v : ndarray or casadi.MX, shape (n, N + 1)
+        Node velocities [m/s].
+
+    Returns
+    -------
+    ndarray or casadi.MX, shape (n, N + 1)
+        The held input of each node's window [m/s²].
+    """
     _, start = clipped_windows(grid, pb)
     cols = [u[:, 0]]
     for k in range(1, grid.N + 1):
@@ -168,7 +252,22 @@ def lwo_conditions(grid: Grid, pb: PlanningProblem, W):
     """Row ``(1, N+1)`` of the node criteria of ``W``: ``q_k`` of the information form
     (:func:`lwo_information_node_function`, the input of :func:`window_mean_inputs`), or the
     conditioning ``g_k`` of the scale-free one (:func:`lwo_node_function`, the node's own input:
-    the paper's matrix)."""
+    the paper's matrix).
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid.
+    pb : PlanningProblem
+        The problem: its objective's form, model and ``[scales]``.
+    W : ndarray or casadi.MX, shape (3n, N)
+        The path's decision variables.
+
+    Returns
+    -------
+    ndarray or casadi.MX, shape (1, N + 1)
+        The node criteria ``q_k`` or ``g_k`` (numeric for a numeric ``W``).
+    """
     L, T = pb.scales.length_m, pb.scales.time_s
     uu, p, v = grid.si_nodes(W)
     numeric = isinstance(W, np.ndarray)
@@ -188,7 +287,18 @@ def lwo_conditions(grid: Grid, pb: PlanningProblem, W):
 
 def lwo_softmin(g) -> float:
     """``-log(mean exp(-β g)) / β``, the soft minimum the scale-free form maximises (``β``:
-    ``Tuning.lwo_beta``, within ``log(N + 1) / β`` of the true minimum)."""
+    ``Tuning.lwo_beta``, within ``log(N + 1) / β`` of the true minimum).
+
+    Parameters
+    ----------
+    g : array_like
+        The node conditionings ``g_k`` (any shape, flattened).
+
+    Returns
+    -------
+    float
+        The soft minimum.
+    """
     beta = tuning().lwo_beta
     g = np.asarray(g, float).ravel()
     lo = float(g.min())  # shifted for a stable log-sum-exp
@@ -196,13 +306,38 @@ def lwo_softmin(g) -> float:
 
 
 def lwo_harmonic_mean(q) -> float:
-    """``K / Σ_k 1/q_k``, what the information form maximises."""
+    """``K / Σ_k 1/q_k``, what the information form maximises.
+
+    Parameters
+    ----------
+    q : array_like
+        The node criteria ``q_k``, positive (any shape, flattened).
+
+    Returns
+    -------
+    float
+        Their harmonic mean.
+    """
     q = np.asarray(q, float).ravel()
     return float(q.size / np.sum(1.0 / q))
 
 
 def lwo_value(traj: Trajectory, pb: PlanningProblem) -> float:
-    """The ``lwo-condition`` objective on ``traj`` (on the planning grid)."""
+    """The ``lwo-condition`` objective on ``traj`` (on the planning grid).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid of ``pb``.
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    float
+        :func:`lwo_softmin` (scale-free form) or :func:`lwo_harmonic_mean` (information form)
+        of the node criteria; larger is better.
+    """
     grid = Grid.from_problem(pb)
     g = lwo_conditions(grid, pb, grid.from_trajectory(traj))
     return lwo_softmin(g) if scale_free(pb) else lwo_harmonic_mean(g)
@@ -210,7 +345,20 @@ def lwo_value(traj: Trajectory, pb: PlanningProblem) -> float:
 
 def lwo_condition(traj: Trajectory, pb: PlanningProblem) -> float:
     """``min_k λ_min(O_kᵀO_k) / (tr(O_kᵀO_k)/m)`` in the problem's scales (a hard-minimum
-    diagnostic of the LWO conditioning, independent of :func:`lwo_node_function`)."""
+    diagnostic of the LWO conditioning, independent of :func:`lwo_node_function`).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path (any sampling).
+    pb : PlanningProblem
+        The problem: its vehicle model, beacon and ``[scales]``.
+
+    Returns
+    -------
+    float
+        The worst node's ratio of the smallest to the mean eigenvalue, in ``[0, 1]``.
+    """
     L, T = pb.scales.length_m, pb.scales.time_s
     b = np.asarray(pb.beacon, float)
     tr = Trajectory(t=traj.t / T, p=(traj.p - b) / L, v=traj.v * T / L, u=traj.u * T**2 / L)
@@ -225,6 +373,16 @@ def lwo_term(ctx: NLPContext) -> ObjectiveTerm:
     1/q_k / s_ref`` (information) or ``min Σ_k exp(-β g_k) / s_ref`` (scale-free).
 
     Separable over the nodes, so the exact Hessian keeps the stage-wise sparsity (no lifting).
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built: the problem, the grid, ``W`` and the reference path ``W_ref``.
+
+    Returns
+    -------
+    ObjectiveTerm
+        The normalised node sum and the map back to :func:`lwo_value`'s units (exact Hessian).
     """
     pb, grid = ctx.problem, ctx.grid
     g_nodes = lwo_conditions(grid, pb, ctx.W)

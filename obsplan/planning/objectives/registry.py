@@ -31,5 +31,16 @@ REGISTRY: dict[str, Objective] = {
 
 def objective_of(pb: PlanningProblem) -> Objective:
     """The registered implementation of ``pb.objective.kind`` (over the family of conditions
-    of :mod:`obsplan.planning.objectives.robust` when the problem asks for robust planning)."""
+    of :mod:`obsplan.planning.objectives.robust` when the problem asks for robust planning).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: ``objective.kind`` and its robust settings.
+
+    Returns
+    -------
+    Objective
+        The entry of :data:`REGISTRY`, or :data:`~obsplan.planning.objectives.robust.ROBUST`.
+    """
     return ROBUST if is_robust(pb) else REGISTRY[pb.objective.kind]

@@ -44,12 +44,35 @@ from obsplan.trajectory.sampled import Trajectory
 
 
 def is_robust(pb: PlanningProblem) -> bool:
-    """True when the problem asks to plan for a family of conditions."""
+    """True when the problem asks to plan for a family of conditions.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: ``objective.robust_prior`` and ``objective.robust_range_noise``.
+
+    Returns
+    -------
+    bool
+        Either list is non-empty.
+    """
     return bool(pb.objective.robust_prior or pb.objective.robust_range_noise)
 
 
 def conditions(pb: PlanningProblem) -> tuple[tuple[float, float], ...]:
-    """``(prior multiple, range-noise multiple)`` of every condition, in order."""
+    """``(prior multiple, range-noise multiple)`` of every condition, in order.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    tuple of (float, float)
+        Every combination of ``robust_prior`` and ``robust_range_noise`` (an empty list counts
+        as ``(1,)``), prior multiples outermost.
+    """
     priors = pb.objective.robust_prior or (1.0,)
     noises = pb.objective.robust_range_noise or (1.0,)
     return tuple(itertools.product(priors, noises))
@@ -57,7 +80,22 @@ def conditions(pb: PlanningProblem) -> tuple[tuple[float, float], ...]:
 
 def scaled_problem(pb: PlanningProblem, prior: float, range_noise: float) -> PlanningProblem:
     """``pb`` with its validation's prior std times ``prior`` and range std times
-    ``range_noise`` (and no robust fields: the nominal objective of that condition)."""
+    ``range_noise`` (and no robust fields: the nominal objective of that condition).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+    prior : float
+        Multiple of ``validation.init_pos_error`` and ``init_vel_error``.
+    range_noise : float
+        Multiple of ``validation.range_std``.
+
+    Returns
+    -------
+    PlanningProblem
+        The condition's problem.
+    """
     val = pb.validation
     val = replace(
         val,
@@ -71,7 +109,18 @@ def scaled_problem(pb: PlanningProblem, prior: float, range_noise: float) -> Pla
 
 @cache
 def condition_problems(pb: PlanningProblem) -> tuple[PlanningProblem, ...]:
-    """The problem of every condition (:func:`conditions`)."""
+    """The problem of every condition (:func:`conditions`).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The robust problem.
+
+    Returns
+    -------
+    tuple of PlanningProblem
+        :func:`scaled_problem` of each condition, in order (cached per problem).
+    """
     return tuple(scaled_problem(pb, a, b) for a, b in conditions(pb))
 
 
@@ -82,20 +131,58 @@ def _reference_values(pb: PlanningProblem) -> tuple[float, ...]:
 
 
 def condition_values(traj: Trajectory, pb: PlanningProblem) -> np.ndarray:
-    """Each condition's objective on ``traj`` relative to its value on the reference path."""
+    """Each condition's objective on ``traj`` relative to its value on the reference path.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid of ``pb``.
+    pb : PlanningProblem
+        The robust problem.
+
+    Returns
+    -------
+    ndarray, shape (C,)
+        One ratio per condition (dimensionless, 1 on the reference path).
+    """
     refs = _reference_values(pb)
     vals = [covariance_value(traj, c) for c in condition_problems(pb)]
     return np.asarray(vals) / np.asarray(refs)
 
 
 def robust_value(traj: Trajectory, pb: PlanningProblem) -> float:
-    """The aggregate (worst or mean) of :func:`condition_values` on ``traj`` [-]."""
+    """The aggregate (worst or mean) of :func:`condition_values` on ``traj`` [-].
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid of ``pb``.
+    pb : PlanningProblem
+        The robust problem: ``objective.robust_aggregate``.
+
+    Returns
+    -------
+    float
+        The largest ratio (``"worst"``) or their mean (``"mean"``); smaller is better.
+    """
     v = condition_values(traj, pb)
     return float(np.max(v) if pb.objective.robust_aggregate == "worst" else np.mean(v))
 
 
 def robust_term(ctx: NLPContext) -> ObjectiveTerm:
-    """The conditions' recursions on ``ctx.W``, combined as the module docstring says."""
+    """The conditions' recursions on ``ctx.W``, combined as the module docstring says.
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built: the robust problem, the grid and ``W``.
+
+    Returns
+    -------
+    ObjectiveTerm
+        The mean of the ratios, or the epigraph variable ``s`` with one constraint per
+        condition; limited-memory Hessian.
+    """
     pb, grid = ctx.problem, ctx.grid
     refs = _reference_values(pb)
     terms = []

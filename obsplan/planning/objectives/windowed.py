@@ -122,13 +122,35 @@ OPENING_CRITERIA: frozenset[tuple[str, str]] = frozenset(
 
 def paper_form(pb: PlanningProblem) -> bool:
     """True when the objective is the paper's ``G(t_N, t_0)``: one window, unit weights
-    (:attr:`~obsplan.planning.problem.sections.ObjectiveSpec.paper_form`)."""
+    (:attr:`~obsplan.planning.problem.sections.ObjectiveSpec.paper_form`).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its ``objective.window`` and ``objective.weights``.
+
+    Returns
+    -------
+    bool
+        ``window = "mission"`` with ``weights = "none"``.
+    """
     return pb.objective.paper_form
 
 
 def velocity_noise_density(pb: PlanningProblem) -> float:
     """``q_v`` [m²/s³]: the validation's velocity process-noise density (mean over the axes);
-    in the per-step setting its covariance per filter step divided by the step."""
+    in the per-step setting its covariance per filter step divided by the step.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its ``[validation]`` process noise and filter step ``dt`` [s].
+
+    Returns
+    -------
+    float
+        ``q_v`` [m²/s³].
+    """
     n, dt = pb.dim, pb.validation.dt
     noise = estimation_config(pb).process_noise_model(dt)
     q = float(np.mean(np.diag(noise.q_ekf)[n : 2 * n]))
@@ -144,7 +166,19 @@ def auto_window_s(pb: PlanningProblem) -> float:
     (``bench_planning_suite.py``, 50 runs, batches to 400): a verdict lost on 6 of them, 5
     against the lawn-mower (``suite/gramian-depth3d.toml`` EKF RMSE 2.09x its,
     ``suite/gramian-slow-range.toml`` 1.38x), against 2 of the 12 with ``2 τ_f`` (one against
-    the lawn-mower, one against the circle)."""
+    the lawn-mower, one against the circle).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: ``validation.range_std`` [m], ``validation.range_rate`` [Hz], the process
+        noise and the horizon.
+
+    Returns
+    -------
+    float
+        The window length [s].
+    """
     val = pb.validation
     q = velocity_noise_density(pb)
     tau_f = (3.0 * val.range_std**2 / q) ** (1.0 / 3.0) if q > 0 else np.inf
@@ -183,7 +217,19 @@ class WindowSettings:
 
 
 def window_settings(pb: PlanningProblem) -> WindowSettings:
-    """The windows of ``pb`` (``objective.window``, ``stride``, ``anchor``) on its grid."""
+    """The windows of ``pb`` (``objective.window``, ``stride``, ``anchor``) on its grid.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its objective's window settings and planning grid.
+
+    Returns
+    -------
+    WindowSettings
+        Window length and stride rounded to whole planning steps, with the opening windows
+        first when the criterion scores them (:data:`OPENING_CRITERIA`).
+    """
     obj, N, h = pb.objective, pb.horizon.steps, pb.horizon.dt
     if obj.window == "mission":
         w = pb.horizon.duration
@@ -215,7 +261,19 @@ def window_settings(pb: PlanningProblem) -> WindowSettings:
 
 
 def gramian_model(pb: PlanningProblem) -> AugmentedModel | LinearisedModel:
-    """The model whose Gramian the objective scores (``objective.system``, resolved)."""
+    """The model whose Gramian the objective scores (``objective.system``, resolved).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its vehicle model and ``objective.system``.
+
+    Returns
+    -------
+    AugmentedModel or LinearisedModel
+        The augmented model (the augmented KF's), or the model linearised about the path (the
+        EKF's).
+    """
     if pb.objective.resolved_system == "linearised":
         return linearised_model(pb.model)
     return augmented_model(pb.model)
@@ -223,7 +281,19 @@ def gramian_model(pb: PlanningProblem) -> AugmentedModel | LinearisedModel:
 
 def sensor_information(pb: PlanningProblem) -> SensorInformation:
     """The validation's rates and noises (``[validation]``) and, for the criteria of
-    :data:`START_RANGE_CRITERIA`, the start's range."""
+    :data:`START_RANGE_CRITERIA`, the start's range.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its ``[validation]`` sensor rates [Hz] and noises, objective and start.
+
+    Returns
+    -------
+    SensorInformation
+        The rates and standard deviations, and the start's range to the beacon [m] (None
+        unless the criterion carries it on the augmented model).
+    """
     v = pb.validation
     r0 = None
     start_range = CRITERIA.get(pb.objective.kind) in START_RANGE_CRITERIA
@@ -238,7 +308,18 @@ def start_information(pb: PlanningProblem) -> np.ndarray:
     """What is known about the scored model's state at the start: the validation's prior as
     information, ``(S P_0 Sᵀ)⁻¹`` with ``S`` the metric scaling of the state (``p/L``, ``v T/L``,
     ``v_f T/L``, and for the augmented ``z`` ``p_0ᵀν_0 T/L²``, ``|ν_0|² T²/L²``): the augmented
-    KF's prior, or the EKF's for the linearised model; shape ``(m, m)``."""
+    KF's prior, or the EKF's for the linearised model; shape ``(m, m)``.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its ``[validation]`` prior, vehicle model and ``[scales]``.
+
+    Returns
+    -------
+    ndarray, shape (m, m)
+        The prior's information matrix in the metric scales (dimensionless).
+    """
     cfg = estimation_config(pb)
     linearised = pb.objective.resolved_system == "linearised"
     P0 = np.asarray(cfg.p0_ekf if linearised else cfg.p0_kf, float)
@@ -251,7 +332,20 @@ def start_information(pb: PlanningProblem) -> np.ndarray:
 
 def local_weights(pb: PlanningProblem, ws: WindowSettings) -> np.ndarray:
     """Row weights ``(n_outputs,)`` of the linearised model: information rates
-    (:func:`~obsplan.observability.windowed.local_row_weights`) or, unweighted, ones."""
+    (:func:`~obsplan.observability.windowed.local_row_weights`) or, unweighted, ones.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its vehicle model, ``[validation]`` sensors and ``[scales]``.
+    ws : WindowSettings
+        The resolved windows (``ws.weighted``).
+
+    Returns
+    -------
+    ndarray, shape (n_outputs,)
+        One weight per output row of the linearised model (in the metric scales).
+    """
     lm = linearised_model(pb.model)
     if ws.weighted:
         return local_row_weights(lm, sensor_information(pb), pb.scales)
@@ -260,7 +354,20 @@ def local_weights(pb: PlanningProblem, ws: WindowSettings) -> np.ndarray:
 
 def window_floor(pb: PlanningProblem, ws: WindowSettings) -> float:
     """``ε`` of every window Gramian, in the metric scales: ``Tuning.window_floor_rel`` of the
-    information of one window of unit excitation (a range at the length scale over the window)."""
+    information of one window of unit excitation (a range at the length scale over the window).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its vehicle model, ``[validation]`` sensors and ``[scales]``.
+    ws : WindowSettings
+        The resolved windows (length, weights, system).
+
+    Returns
+    -------
+    float
+        ``ε`` (dimensionless, in the metric scales).
+    """
     L, T = pb.scales.length_m, pb.scales.time_s
     unit = 1.0
     if ws.weighted and ws.system == "linearised":
@@ -279,7 +386,21 @@ def _aggregate(values, anchor: str, mean):
 
 
 def windowed_aggregate(traj: Trajectory, pb: PlanningProblem) -> float:
-    """The aggregated window criterion of ``traj`` (module docstring), computed numerically."""
+    """The aggregated window criterion of ``traj`` (module docstring), computed numerically.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid.
+    pb : PlanningProblem
+        The problem: its objective's kind and window settings, model, sensors and scales.
+
+    Returns
+    -------
+    float
+        ``agg``: the mean over the windows of ``tr (G_w + εI)⁻¹`` (E-optimal, smaller is
+        better) or ``log det(G_w + εI)`` (D-optimal, larger is better).
+    """
     ws = window_settings(pb)
     model = gramian_model(pb)
     beacon = np.asarray(pb.beacon)
@@ -298,7 +419,20 @@ def windowed_aggregate(traj: Trajectory, pb: PlanningProblem) -> float:
 
 
 def windowed_value(traj: Trajectory, pb: PlanningProblem) -> float:
-    """The objective's value on a path: ``m / agg`` (E-optimal) or ``agg`` (D-optimal)."""
+    """The objective's value on a path: ``m / agg`` (E-optimal) or ``agg`` (D-optimal).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, on the planning grid.
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    float
+        The value, larger is better (E-optimal: 0 when ``agg`` is not finite).
+    """
     agg = windowed_aggregate(traj, pb)
     if CRITERIA[pb.objective.kind] == "trace-inverse":
         return float(gramian_model(pb).state_dim / agg) if np.isfinite(agg) else 0.0
@@ -336,7 +470,18 @@ def _window_matrix(N: int, ws: WindowSettings) -> sp.csc_matrix:
 
 def window_gramians_expr(ctx: NLPContext):
     """The anchored window Gramians of the symbolic path ``ctx.W``: MX ``(m², n_windows)``, column
-    ``j`` the column-major ``Φ(-τ_s)ᵀ G_j Φ(-τ_s)`` of window ``j`` (metric scales, no floor)."""
+    ``j`` the column-major ``Φ(-τ_s)ᵀ G_j Φ(-τ_s)`` of window ``j`` (metric scales, no floor).
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built: the problem, the grid and the path variables ``W``.
+
+    Returns
+    -------
+    casadi.MX, shape (m², n_windows)
+        The window Gramians, ``m`` the scored model's state size.
+    """
     pb, grid, W = ctx.problem, ctx.grid, ctx.W
     ws = window_settings(pb)
     model = gramian_model(pb)
@@ -372,7 +517,18 @@ def window_gramians_expr(ctx: NLPContext):
 
 
 def windowed_expr(ctx: NLPContext):
-    """The aggregated criterion of the symbolic path ``ctx.W`` (MX scalar), unlifted."""
+    """The aggregated criterion of the symbolic path ``ctx.W`` (MX scalar), unlifted.
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built.
+
+    Returns
+    -------
+    casadi.MX
+        ``agg`` of ``ctx.W`` (as :func:`windowed_aggregate` computes it numerically).
+    """
     pb = ctx.problem
     ws = window_settings(pb)
     m = gramian_model(pb).state_dim
@@ -407,6 +563,17 @@ def windowed_term(ctx: NLPContext) -> ObjectiveTerm:
     quasi-Newton Hessian of its criterion (:data:`HESSIAN`).
 
     E-optimal: ``min log(agg / agg_ref)``; D-optimal: ``min -(agg - agg_ref) / m``.
+
+    Parameters
+    ----------
+    ctx : NLPContext
+        The NLP being built: the problem, the grid, ``W`` and the reference path ``W_ref``.
+
+    Returns
+    -------
+    ObjectiveTerm
+        The normalised expression (no lifting variables), the map back to
+        :func:`windowed_value`'s units and the Hessian mode.
     """
     pb = ctx.problem
     agg = windowed_expr(ctx)

@@ -59,6 +59,12 @@ def check_values(pb: ProblemData) -> None:
     ``mission.order = "free"`` is resolved by the loader (:func:`order_lines`), and
     :func:`check_structure` refuses a problem whose free order was never resolved.
 
+    Parameters
+    ----------
+    pb : ProblemData
+        The problem's sections (a :class:`~obsplan.planning.problem.definition.PlanningProblem`
+        being constructed).
+
     Raises
     ------
     ProblemError
@@ -83,14 +89,44 @@ def check_values(pb: ProblemData) -> None:
 
 
 def unordered(pb: ProblemData) -> bool:
-    """``mission.order = "free"`` and the lines not yet put in the order flown."""
+    """``mission.order = "free"`` and the lines not yet put in the order flown.
+
+    Parameters
+    ----------
+    pb : ProblemData
+        The problem.
+
+    Returns
+    -------
+    bool
+        True when the mission's free order is still to be resolved (:func:`order_lines`).
+    """
     m = pb.mission
     return m is not None and m.order == "free" and bool(m.lines) and not m.flown_as
 
 
 def order_lines(pb: P) -> P:
     """``pb`` with a free line order resolved (:func:`~obsplan.planning.missions.order.free_order`,
-    then the mission's fit checked); any other problem unchanged. The loader runs it."""
+    then the mission's fit checked); any other problem unchanged. The loader runs it.
+
+    Parameters
+    ----------
+    pb : ProblemData
+        The problem (a :class:`~obsplan.planning.problem.definition.PlanningProblem`: the copy is
+        checked again on construction).
+
+    Returns
+    -------
+    ProblemData
+        Of the type of ``pb``: its mission's ``lines`` in the order and direction flown, and
+        ``flown_as`` set.
+
+    Raises
+    ------
+    ProblemError
+        On ``horizon.duration`` or ``mission.lead_in`` when the ordered mission does not fit the
+        horizon.
+    """
     if not unordered(pb):
         return pb
     return replace(pb, mission=free_order(pb.mission_context))
@@ -585,6 +621,11 @@ def check_start_clear(
     fix
         What to do about it, for the message.
 
+    Returns
+    -------
+    float
+        The distance from ``start`` to ``beacon`` [m].
+
     Raises
     ------
     ProblemError
@@ -659,11 +700,17 @@ def _check_range_and_speed_limits(pb: ProblemData) -> None:
 def check_structure(pb: ProblemData) -> None:
     """Refuse an objective that the sensors make impossible for every input (before solving).
 
+    Parameters
+    ----------
+    pb : ProblemData
+        The problem: its ``objective.kind`` against its vehicle's sensors and current.
+
     Raises
     ------
     ProblemError
         On ``objective.kind`` when the structural rank its kind needs
-        (:attr:`~obsplan.planning.problem.schema.ObjectiveKind.structure`) is out of reach.
+        (:attr:`~obsplan.planning.problem.schema.ObjectiveKind.structure`) is out of reach; on
+        ``mission.order`` when a free line order was never resolved (:func:`order_lines`).
     """
     if unordered(pb):
         raise field_error(

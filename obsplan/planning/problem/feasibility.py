@@ -54,7 +54,22 @@ class LimitCheck:
     def ok(self, rtol: float | None = None, box_tol_m: float | None = None) -> bool:
         """True when every limit holds to ``rtol`` (default ``Tuning.limit_rtol``; the
         box and ranges to ``box_tol_m``, default ``100 rtol`` [m]) and the samples are
-        consistent (``Tuning.consistency_tol``)."""
+        consistent (``Tuning.consistency_tol``).
+
+        Parameters
+        ----------
+        rtol : float or None, optional
+            Relative tolerance of the acceleration, speed and water-speed limits; None:
+            ``Tuning.limit_rtol``.
+        box_tol_m : float or None, optional
+            Tolerance [m] of the area, depth band and range limits; None: ``100 rtol``.
+
+        Returns
+        -------
+        bool
+            True when every violation is within its tolerance, the first sample within 1e-6 of
+            the start and the samples consistent.
+        """
         tun = tuning()
         if rtol is None:
             rtol = tun.limit_rtol
@@ -71,6 +86,13 @@ class LimitCheck:
         )
 
     def to_dict(self) -> dict:
+        """The violations for ``report.json``.
+
+        Returns
+        -------
+        dict of str to float
+            Every field by name (relative, [m] or [m/s] as in the class docstring).
+        """
         return {k: float(getattr(self, k)) for k in self.__dataclass_fields__}
 
 
@@ -125,7 +147,22 @@ def _interval_extremes(c: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def range_extremes(traj: Trajectory, beacon) -> tuple[float, float]:
-    """Exact ``(min, max)`` of ``|p(t) - b|`` [m] over the continuous path."""
+    """Exact ``(min, max)`` of ``|p(t) - b|`` [m] over the continuous path.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path (exact quadratics between its samples).
+    beacon : array_like, shape (n,)
+        Beacon position ``b`` [m].
+
+    Returns
+    -------
+    near : float
+        Least distance to the beacon [m].
+    far : float
+        Greatest distance to the beacon [m].
+    """
     rel = traj.p - np.asarray(beacon, float)
     c = np.stack([rel[:-1], traj.v[:-1], 0.5 * traj.u[:-1]])
     lo, hi = _interval_extremes(c, traj.dt)
@@ -133,7 +170,20 @@ def range_extremes(traj: Trajectory, beacon) -> tuple[float, float]:
 
 
 def min_water_speed(traj: Trajectory, current: np.ndarray) -> float:
-    """Exact ``min_t |p'(t) - v_f|`` [m/s] over the continuous path."""
+    """Exact ``min_t |p'(t) - v_f|`` [m/s] over the continuous path.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path (velocity linear between its samples).
+    current : ndarray, shape (n,)
+        Ocean current ``v_f`` [m/s].
+
+    Returns
+    -------
+    float
+        The least speed through the water [m/s].
+    """
     w = traj.v[:-1] - np.asarray(current, float)
     u = traj.u[:-1]
     uu = np.einsum("ki,ki->k", u, u)
@@ -146,7 +196,20 @@ def min_water_speed(traj: Trajectory, current: np.ndarray) -> float:
 
 
 def check_limits(traj: Trajectory, pb: PlanningProblem) -> LimitCheck:
-    """Check ``traj`` against the limits, start and dynamics of ``pb`` (see :class:`LimitCheck`)."""
+    """Check ``traj`` against the limits, start and dynamics of ``pb`` (see :class:`LimitCheck`).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path (a plan or a baseline), checked on the continuous path between its samples.
+    pb : PlanningProblem
+        The problem: its ``limits``, acceleration bounds, start state and current.
+
+    Returns
+    -------
+    LimitCheck
+        The largest violation of each limit (0 when satisfied); :meth:`LimitCheck.ok` judges it.
+    """
     a = pb.accel
     acc = float(np.max((np.abs(traj.u[:-1]) - a) / a))
     speed = float(np.max(np.linalg.norm(traj.v, axis=1)) - pb.limits.speed) / pb.limits.speed

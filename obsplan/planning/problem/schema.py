@@ -727,7 +727,14 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
 
 
 def schema_markdown() -> str:
-    """The field tables of ``docs/problem-files.md`` (one per section), from :data:`SCHEMA`."""
+    """The field tables of ``docs/problem-files.md`` (one per section), from :data:`SCHEMA`.
+
+    Returns
+    -------
+    str
+        Markdown: per section a level-3 heading naming it and a table of its fields (name,
+        unit, default, meaning).
+    """
     out: list[str] = []
     for section, fields in SCHEMA.items():
         out.append(f"### `[{section}]`\n")
@@ -762,6 +769,17 @@ def update_field_tables(text: str) -> str:
         from obsplan.planning.problem.schema import update_field_tables
         for doc in (Path("docs/problem-files.md"), Path("README.md")):
             doc.write_text(update_field_tables(doc.read_text()))
+
+    Parameters
+    ----------
+    text : str
+        The Markdown document.
+
+    Returns
+    -------
+    str
+        The document with the tables replaced by :func:`schema_markdown`'s, at the heading level
+        found.
 
     Raises
     ------

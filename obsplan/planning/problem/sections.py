@@ -276,7 +276,14 @@ class ProblemData:
         return np.linspace(0.0, self.horizon.duration, steps + 1)
 
     def coverage_area(self) -> Area:
-        """The area the lawn-mower baseline covers: ``limits.area`` or the documented default."""
+        """The area the lawn-mower baseline covers: ``limits.area`` or the documented default.
+
+        Returns
+        -------
+        Area
+            ``limits.area``, or else a square of side ``limits.speed * horizon.duration / 4``
+            [m] centred on the start.
+        """
         if self.limits.area is not None:
             return self.limits.area
         side = self.limits.speed * self.horizon.duration / 4.0

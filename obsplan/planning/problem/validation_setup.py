@@ -33,6 +33,16 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``; the EKF's
     range update ``validation.ekf_update``. Used by the validation and by the planning
     objectives.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its vehicle model and ``[validation]`` section.
+
+    Returns
+    -------
+    EstimationConfig
+        The EKF's and KF's priors, sensor rates [Hz] and noises, process noise and true current.
     """
     model, val, n = pb.model, pb.validation, pb.dim
     cov: dict[str, Any] = paper_covariances(model, val.dt)
@@ -67,7 +77,18 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
 
 
 def confidence_quantile(confidence: float) -> float:
-    """``k = Φ⁻¹(confidence)`` (one-sided normal quantile); 0 when ``confidence`` is 0."""
+    """``k = Φ⁻¹(confidence)`` (one-sided normal quantile); 0 when ``confidence`` is 0.
+
+    Parameters
+    ----------
+    confidence : float
+        A probability in ``[0, 1)`` (e.g. ``limits.keepout_confidence``).
+
+    Returns
+    -------
+    float
+        The quantile ``k`` (in standard deviations); 0 for ``confidence <= 0``.
+    """
     c = float(confidence)
     return 0.0 if c <= 0 else float(norm.ppf(c))
 
@@ -83,6 +104,19 @@ def validation_guidance(pb: PlanningProblem, *, at_sea: bool = False) -> Guidanc
 
     ``at_sea``: the law the vehicle at sea flies whatever the validation's mode (the keep-out
     margins are for that vehicle, which steers its estimate), never ``None``.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its limits, ``validation.mode``, ``validation.init_pos_error`` and
+        ``validation.navigation``.
+    at_sea : bool, optional
+        Return the law even for an open-loop validation.
+
+    Returns
+    -------
+    Guidance or None
+        The guidance law; None for an open-loop validation (unless ``at_sea``).
     """
     if pb.validation.mode == "open-loop" and not at_sea:
         return None
@@ -96,7 +130,18 @@ def validation_guidance(pb: PlanningProblem, *, at_sea: bool = False) -> Guidanc
 
 def truth_limits(pb: PlanningProblem) -> TruthLimits:
     """The problem's limits that every run's *true* path is checked against: acceleration,
-    speed, area, depth band, ``min_range`` (0: none) and ``max_range``, strictly."""
+    speed, area, depth band, ``min_range`` (0: none) and ``max_range``, strictly.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its ``limits``.
+
+    Returns
+    -------
+    TruthLimits
+        The limits in the estimation layer's form ([m/s²], [m/s], [m]).
+    """
     lim = pb.limits
     area = None if lim.area is None else (lim.area.x, lim.area.y)
     return TruthLimits(
@@ -110,7 +155,19 @@ def truth_limits(pb: PlanningProblem) -> TruthLimits:
 
 
 def filter_epochs(pb: PlanningProblem) -> Epochs:
-    """Measurement epochs of the validation on the horizon (same schedule as the Monte Carlo)."""
+    """Measurement epochs of the validation on the horizon (same schedule as the Monte Carlo).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its filter times (``validation.dt`` over the horizon), sensors and rates.
+
+    Returns
+    -------
+    Epochs
+        The epochs on the filter grid: every sample where a sensor reports (and the ends), with
+        which sensors report there.
+    """
     t = pb.filter_times
     z = np.zeros((t.size, pb.dim))
     rates = dict(estimation_config(pb).rates_hz)

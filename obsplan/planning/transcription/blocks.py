@@ -35,7 +35,18 @@ Hessian = Literal["exact", "exact-without-penalty", "limited-memory", "limited-m
 
 
 def no_variables(W: np.ndarray) -> np.ndarray:
-    """The initial values of an empty variable block."""
+    """The initial values of an empty variable block.
+
+    Parameters
+    ----------
+    W : ndarray, shape (3n, N)
+        A path in intrinsic units (not read).
+
+    Returns
+    -------
+    ndarray, shape (0,)
+        No values.
+    """
     return np.zeros(0)
 
 

@@ -47,6 +47,19 @@ class Grid:
 
     @classmethod
     def from_problem(cls, pb: PlanningProblem) -> Grid:
+        """The grid of a problem: its horizon, start, limits and beacon, and the intrinsic units.
+
+        Parameters
+        ----------
+        pb : PlanningProblem
+            The problem: ``horizon`` (``N`` steps of ``h`` [s]), start state, beacon,
+            ``limits.accel`` and ``limits.speed``.
+
+        Returns
+        -------
+        Grid
+            With ``Lp = max(|p0 - b|, v_max T / 4, 1e-3)`` [m].
+        """
         b = np.asarray(pb.beacon, float)
         p0 = pb.p0 - b
         T = pb.horizon.duration
@@ -69,7 +82,21 @@ class Grid:
         return np.arange(self.N + 1) * self.h
 
     def to_trajectory(self, W: np.ndarray) -> Trajectory:
-        """Scaled ``W`` ``(3n, N)`` to an SI :class:`Trajectory` on the planning grid."""
+        """Scaled ``W`` ``(3n, N)`` to an SI :class:`Trajectory` on the planning grid.
+
+        Parameters
+        ----------
+        W : ndarray, shape (3n, N)
+            The path's decision variables in intrinsic units (column ``k``: ``U_k, P_{k+1},
+            V_{k+1}``).
+
+        Returns
+        -------
+        Trajectory
+            On the node times ``t_k`` [s], from the start state; positions [m] in the problem's
+            frame (beacon added back), velocities [m/s], inputs [m/s²] (the last one repeated
+            at ``t_N``).
+        """
         n = self.n
         U, P, V = W[:n], W[n : 2 * n], W[2 * n :]
         p = np.vstack([self.p0, (P * self.Lp).T]) + self.beacon
@@ -79,7 +106,24 @@ class Grid:
         return Trajectory(t=self.times, p=p, v=v, u=u)
 
     def from_trajectory(self, traj: Trajectory) -> np.ndarray:
-        """SI trajectory on this grid to scaled ``W`` ``(3n, N)``."""
+        """SI trajectory on this grid to scaled ``W`` ``(3n, N)``.
+
+        Parameters
+        ----------
+        traj : Trajectory
+            A path with ``N + 1`` samples on this grid (its first sample is not read: the start
+            is fixed).
+
+        Returns
+        -------
+        ndarray, shape (3n, N)
+            The decision variables in intrinsic units.
+
+        Raises
+        ------
+        ValueError
+            If ``traj`` does not have ``N + 1`` samples.
+        """
         if traj.n_samples != self.N + 1:
             raise ValueError(f"trajectory has {traj.n_samples} samples, grid has {self.N + 1}")
         U = (traj.u[:-1] / self.a).T
@@ -88,7 +132,22 @@ class Grid:
         return np.vstack([U, P, V])
 
     def si_nodes(self, W):
-        """SI ``(u (n, N), p - b (n, N+1), v (n, N+1))`` of symbolic or numeric ``W``."""
+        """SI ``(u (n, N), p - b (n, N+1), v (n, N+1))`` of symbolic or numeric ``W``.
+
+        Parameters
+        ----------
+        W : ndarray or casadi.MX or casadi.SX, shape (3n, N)
+            The path's decision variables in intrinsic units.
+
+        Returns
+        -------
+        u : ndarray or casadi expression, shape (n, N)
+            Inputs [m/s²].
+        p : ndarray or casadi expression, shape (n, N + 1)
+            Positions relative to the beacon [m], the fixed start first.
+        v : ndarray or casadi expression, shape (n, N + 1)
+            Velocities [m/s], the fixed start first.
+        """
         n = self.n
         U, P, V = W[:n, :], W[n : 2 * n, :], W[2 * n :, :]
         if isinstance(W, np.ndarray):
@@ -108,6 +167,22 @@ class Grid:
 
         Returns ``(Mp, cp, Mv, cv)`` with ``p(s) - b = reshape(Mp w + cp, (n, J))`` [m] and
         ``v(s) = reshape(Mv w + cv, (n, J))`` [m/s] (the exact quadratic between nodes).
+
+        Parameters
+        ----------
+        s : ndarray, shape (J,)
+            Times [s] from the start, in ``[0, N h]``.
+
+        Returns
+        -------
+        Mp : scipy.sparse.csc_matrix, shape (n J, 3 n N)
+            Positions' linear part [m per intrinsic unit].
+        cp : ndarray, shape (n, J)
+            Positions' constant part (the fixed start's contribution) [m].
+        Mv : scipy.sparse.csc_matrix, shape (n J, 3 n N)
+            Velocities' linear part [m/s per intrinsic unit].
+        cv : ndarray, shape (n, J)
+            Velocities' constant part [m/s].
         """
         n, N, h = self.n, self.N, self.h
         s = np.asarray(s, float)
@@ -152,7 +227,24 @@ class Grid:
 
 
 def apply_operator(M: sp.csc_matrix, c: np.ndarray, w, n: int):
-    """``reshape(M w + c, (n, J))`` for CasADi ``w`` (vec of W) or a numpy vector."""
+    """``reshape(M w + c, (n, J))`` for CasADi ``w`` (vec of W) or a numpy vector.
+
+    Parameters
+    ----------
+    M : scipy.sparse.csc_matrix, shape (n J, 3 n N)
+        A linear part of :meth:`Grid.sample_operator`.
+    c : ndarray, shape (n, J)
+        Its constant part.
+    w : ndarray or casadi.MX, shape (3 n N,)
+        ``vec(W)``, column-major.
+    n : int
+        Spatial dimension.
+
+    Returns
+    -------
+    ndarray or casadi.MX, shape (n, J)
+        The sampled positions or velocities (SI, as ``M`` and ``c``).
+    """
     J = c.shape[1]
     if isinstance(w, np.ndarray):
         return (M @ w).reshape(J, n).T + c
@@ -160,7 +252,21 @@ def apply_operator(M: sp.csc_matrix, c: np.ndarray, w, n: int):
 
 
 def dynamics_residual(grid: Grid, W):
-    """Exact ZOH double integrator residuals in intrinsic units, shape ``(2n, N)``."""
+    """Exact ZOH double integrator residuals in intrinsic units, shape ``(2n, N)``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid.
+    W : casadi.MX, shape (3n, N)
+        The path's decision variables.
+
+    Returns
+    -------
+    casadi.MX, shape (2n, N)
+        Position residuals (divided by ``Lp``) over velocity residuals (divided by ``v_max``):
+        zero on a path that integrates its inputs exactly.
+    """
     u, p, v = grid.si_nodes(W)
     h = grid.h
     rp = (p[:, 1:] - p[:, :-1] - v[:, :-1] * h - 0.5 * h**2 * u) / grid.Lp
@@ -169,7 +275,22 @@ def dynamics_residual(grid: Grid, W):
 
 
 def midpoints(grid: Grid, W):
-    """SI ``(p - b, v)`` at the interval midpoints, each ``(n, N)``."""
+    """SI ``(p - b, v)`` at the interval midpoints, each ``(n, N)``.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid.
+    W : ndarray or casadi.MX, shape (3n, N)
+        The path's decision variables.
+
+    Returns
+    -------
+    p : ndarray or casadi expression, shape (n, N)
+        Positions relative to the beacon [m] at ``t_k + h / 2``.
+    v : ndarray or casadi expression, shape (n, N)
+        Velocities [m/s] there.
+    """
     u, p, v = grid.si_nodes(W)
     t = 0.5 * grid.h
     return p[:, :-1] + v[:, :-1] * t + 0.5 * u * t**2, v[:, :-1] + u * t

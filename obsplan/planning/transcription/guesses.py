@@ -34,6 +34,18 @@ def random_guess(pb: PlanningProblem, seed: int | Sequence[int]) -> Trajectory:
 
     Per axis, a sum of three sinusoids with random periods (1/8 to 1/2 of the horizon) and
     phases, scaled to 80 % of the bound. Limits other than the inputs are left to the solver.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its planning grid, start state and acceleration bounds.
+    seed : int or sequence of int
+        Seed of :func:`numpy.random.default_rng` (the planner passes ``(objective.seed, i)``).
+
+    Returns
+    -------
+    Trajectory
+        On the planning grid ``pb.times``, from the start state.
     """
     rng = np.random.default_rng(seed)
     t = pb.times
@@ -52,7 +64,19 @@ def initial_guesses(pb: PlanningProblem) -> list[tuple[str, Trajectory]]:
     """``objective.starts`` guesses: lawn-mower and circle (if they fit), then seeded random;
     with a mission, the lawn-mowers that fly it in the planner's line windows
     (:func:`~obsplan.planning.baselines.vehicle.mission_starts`; random paths are far from every
-    line)."""
+    line).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: ``objective.starts`` and ``objective.seed``, its baselines or mission.
+
+    Returns
+    -------
+    list of (str, Trajectory)
+        At most ``objective.starts`` named guesses (``"lawnmower"``, ``"circle"``,
+        ``"random-0"``, ...), each on the planning grid ``pb.times``.
+    """
     if pb.mission is not None:
         out = [(b.name, b.trajectory) for b in mission_starts(pb)]
         if out:
@@ -69,12 +93,34 @@ def initial_guesses(pb: PlanningProblem) -> list[tuple[str, Trajectory]]:
 
 def reference_path(pb: PlanningProblem) -> Trajectory:
     """The path objectives are normalised by: the lawn-mower (with a mission, on the planner's
-    schedule), or the first guess if it is unfit."""
+    schedule), or the first guess if it is unfit.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    Trajectory
+        The first of :func:`initial_guesses`, on the planning grid ``pb.times``.
+    """
     return initial_guesses(pb)[0][1]
 
 
 def excited_path(pb: PlanningProblem) -> Trajectory:
-    """A seeded random path that excites every axis (the equilibration's second reference)."""
+    """A seeded random path that excites every axis (the equilibration's second reference).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its planning grid, start state, acceleration bounds and ``objective.seed``.
+
+    Returns
+    -------
+    Trajectory
+        :func:`random_guess` with the seed ``(objective.seed, 7919)``.
+    """
     return random_guess(pb, (pb.objective.seed, 7919))
 
 
@@ -82,7 +128,19 @@ def coarse_problem(pb: PlanningProblem) -> PlanningProblem | None:
     """The problem on the coarse grid ``N / k <= coarse_steps`` (``k`` the smallest divisor of
     ``N`` that gets there, ``Tuning.coarse_steps``), each start's coarse plan, a path of
     the fine grid too, then that start's fine guess (:func:`refine`); None if N is small or prime,
-    or for a mission."""
+    or for a mission.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The fine problem (``horizon.steps = N``).
+
+    Returns
+    -------
+    PlanningProblem or None
+        ``pb`` with ``horizon.steps = N / k`` (same duration); None when there is no coarse pass
+        (also when the coarse step fails a construction check).
+    """
     N = pb.horizon.steps
     coarse_steps = tuning().coarse_steps
     if N <= coarse_steps or pb.mission is not None:
@@ -101,7 +159,21 @@ def coarse_problem(pb: PlanningProblem) -> PlanningProblem | None:
 
 
 def refine(traj: Trajectory, pb: PlanningProblem) -> Trajectory:
-    """A coarse path on the planning grid of ``pb`` (the same path when the grids nest)."""
+    """A coarse path on the planning grid of ``pb`` (the same path when the grids nest).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A path on a coarser grid of the same horizon (the coarse plan).
+    pb : PlanningProblem
+        The fine problem.
+
+    Returns
+    -------
+    Trajectory
+        On ``pb.times``, from the start state, each fine interval holding the input of the
+        coarse interval it lies in [m/s²].
+    """
     t = pb.times
     mid = 0.5 * (t[:-1] + t[1:])
     k = np.clip(np.searchsorted(traj.t, mid, side="right") - 1, 0, traj.n_samples - 2)

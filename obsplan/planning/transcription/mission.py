@@ -51,7 +51,22 @@ from obsplan.planning.tuning import cache_per_tuning, tuning
 
 def line_nodes(pb: PlanningProblem, window: tuple[float, float]) -> tuple[int, int]:
     """The nodes ``(k0, k1)`` of a line's window ``(t0, t1)`` [s]: the last node at or before
-    the start and the first at or after the end (node 0, the fixed start, excluded)."""
+    the start and the first at or after the end (node 0, the fixed start, excluded).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its planning step ``h`` [s] and number of steps ``N``.
+    window : tuple of float
+        The line's window ``(t0, t1)`` [s].
+
+    Returns
+    -------
+    k0 : int
+        ``floor(t0 / h)``, at least 1.
+    k1 : int
+        ``ceil(t1 / h)``, at most ``N``.
+    """
     h, N = pb.horizon.dt, pb.horizon.steps
     k0 = max(1, int(math.floor(window[0] / h + 1e-9)))
     k1 = min(N, int(math.ceil(window[1] / h - 1e-9)))
@@ -252,6 +267,17 @@ def line_zones(pb: PlanningProblem) -> tuple[LineZone, ...]:
     time between them (a path beside one line is not held to the other's rows), and a zone
     only reaches nodes where both lawn-mowers on the planner's schedule meet its rows (they are
     its starts).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        A problem with a survey ``[mission]``: its planning grid, ``mission.shift`` and planner's
+        schedule.
+
+    Returns
+    -------
+    tuple of LineZone
+        One per survey line, in the order flown (cached per problem and tuning).
     """
     m = pb.mission
     assert m is not None
@@ -349,7 +375,23 @@ def _point_blocks(pb, grid: Grid, W, p, v) -> list[ConstraintBlock]:
 
 
 def mission_part(pb: PlanningProblem, grid: Grid, W: ca.MX) -> FormulationPart | None:
-    """The mission's constraints on the path ``W`` (None without a ``[mission]``)."""
+    """The mission's constraints on the path ``W`` (None without a ``[mission]``).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem and its ``[mission]``.
+    grid : Grid
+        The planning grid (intrinsic units of ``W``).
+    W : casadi.MX, shape (3n, N)
+        The path's decision variables.
+
+    Returns
+    -------
+    FormulationPart or None
+        ``"mission"``: every line's, waypoint's and end region's constraint blocks, rows of
+        order 1; None without a mission.
+    """
     m = pb.mission
     if m is None:
         return None

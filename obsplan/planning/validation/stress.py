@@ -22,7 +22,18 @@ from obsplan.trajectory.sampled import Trajectory
 
 
 def stress_active(pb: PlanningProblem) -> bool:
-    """True when ``[validation]`` states a multiple other than 1."""
+    """True when ``[validation]`` states a multiple other than 1.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: ``validation.stress_prior`` and ``validation.stress_range_noise``.
+
+    Returns
+    -------
+    bool
+        Either multiple differs from 1 (the robustness row is then run).
+    """
     val = pb.validation
     return val.stress_prior != 1.0 or val.stress_range_noise != 1.0
 
@@ -49,6 +60,15 @@ class Robustness:
         return verdict(self.validation, {})
 
     def to_dict(self) -> dict:
+        """The ``robustness`` entry of report.json.
+
+        Returns
+        -------
+        dict
+            The two multiples, every path's validation
+            (:meth:`~obsplan.planning.validation.validate.PathValidation.to_dict`) and the
+            verdict under the condition.
+        """
         return {
             "prior": self.prior,
             "range_noise": self.range_noise,
@@ -64,7 +84,24 @@ def stress_validate(
     runs: int | None = None,
     progress: bool = False,
 ) -> Robustness:
-    """Validate ``paths`` under ``pb``'s stress multiples (module docstring)."""
+    """Validate ``paths`` under ``pb``'s stress multiples (module docstring).
+
+    Parameters
+    ----------
+    paths : Mapping of str to Trajectory
+        Name -> path (``"planned"`` and the baselines), on the planning grid.
+    pb : PlanningProblem
+        The problem: its ``[validation]`` and stress multiples.
+    runs : int or None, optional
+        Override ``validation.runs``.
+    progress : bool, optional
+        A progress bar over runs.
+
+    Returns
+    -------
+    Robustness
+        Every path's validation under the condition (same runs and seed as the nominal one).
+    """
     val = pb.validation
     spb = scaled_problem(pb, val.stress_prior, val.stress_range_noise)
     res = validate_paths(paths, spb, runs=runs, progress=progress)

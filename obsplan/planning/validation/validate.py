@@ -57,6 +57,12 @@ class PathValidation:
         ``truth`` holds the true paths' ``closest_range_m`` (over all runs), the
         ``runs_inside_min_range``, the ``tracking_rmse_m`` (RMS of ``|p - p_ref|``), the final
         drift, and the fraction of runs breaking each limit and any limit.
+
+        Returns
+        -------
+        dict
+            Also ``mode``, ``runs``, ``seed`` and ``samples``; None for a filter (or truth) that
+            was not run, and for a non-finite bound.
         """
         r = self.result
         crlb = float(r.crlb_final_pos_std)
@@ -108,6 +114,11 @@ def validate_paths(
     lines
         Name -> boolean mask of the filter samples (``pb.filter_times``) flown on survey lines:
         the samples of that path's ``rmse_pos_lines``; default none.
+
+    Returns
+    -------
+    dict of str to PathValidation
+        Name -> its Monte Carlo result, in the order of ``paths`` (empty without paths).
     """
     val = pb.validation
     config = estimation_config(pb)
@@ -135,7 +146,19 @@ def merge_validations(
     parts: Sequence[Mapping[str, PathValidation]],
 ) -> dict[str, PathValidation]:
     """Validations of the same paths over consecutive runs (in run order) merged into one, exactly
-    (:func:`~obsplan.estimation.montecarlo.simulate.merge_monte_carlo`)."""
+    (:func:`~obsplan.estimation.montecarlo.simulate.merge_monte_carlo`).
+
+    Parameters
+    ----------
+    parts : sequence of Mapping of str to PathValidation
+        Validations of the same paths, each over the runs following the previous one's (the
+        names of the first part are merged).
+
+    Returns
+    -------
+    dict of str to PathValidation
+        Name -> the validation over all the runs.
+    """
     names = list(parts[0])
     return {
         name: PathValidation(name, merge_monte_carlo([p[name].result for p in parts]))

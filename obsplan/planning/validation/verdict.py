@@ -76,7 +76,21 @@ LINES_RUN_METRICS: dict[str, str] = {
 
 
 def metric_value(v: PathValidation, key: str) -> float | None:
-    """A compared metric of one path's validation [m] (None if not available)."""
+    """A compared metric of one path's validation [m] (None if not available).
+
+    Parameters
+    ----------
+    v : PathValidation
+        The path's Monte Carlo result.
+    key : str
+        ``"group.name"`` of :data:`METRICS` or :data:`LINES_METRICS` (e.g. ``"ekf.rmse_pos"``,
+        ``"crlb.final_pos_std"``).
+
+    Returns
+    -------
+    float or None
+        The value [m]; None when the filter was not run, or the value is missing or not finite.
+    """
     r = v.result
     group, name = key.split(".")
     if group == "crlb":
@@ -143,6 +157,14 @@ class Comparison:
         return "better" if self.better else "worse"
 
     def to_dict(self) -> dict:
+        """The comparison's entry under ``verdict.baselines`` in report.json.
+
+        Returns
+        -------
+        dict
+            The two values [m], their ratio, the noise, the interval (a list, or None) and the
+            derived ``better``, ``within_noise``, ``decided`` and ``outcome``.
+        """
         return {
             "planned": self.planned,
             "baseline": self.baseline,
@@ -215,7 +237,13 @@ class Verdict:
 
     def losses(self) -> list[str]:
         """One sentence per (baseline, metric) the plan does not win, ending in what it is: a
-        loss (decided at ``Tuning.confidence``) or a tie."""
+        loss (decided at ``Tuning.confidence``) or a tie.
+
+        Returns
+        -------
+        list of str
+            In baseline then metric order; empty when the plan wins every comparison.
+        """
         out = []
         for name, comps in self.comparisons.items():
             for key, c in comps.items():
@@ -231,7 +259,13 @@ class Verdict:
         return out
 
     def ties(self) -> list[str]:
-        """One sentence per (baseline, metric) not decided at ``Tuning.confidence``."""
+        """One sentence per (baseline, metric) not decided at ``Tuning.confidence``.
+
+        Returns
+        -------
+        list of str
+            The values, their ratio and its interval, in baseline then metric order.
+        """
         return [
             self._words(name, key, c)
             for name, comps in self.comparisons.items()
@@ -240,7 +274,14 @@ class Verdict:
         ]
 
     def summary(self) -> list[str]:
-        """Plain-words lines for the terminal."""
+        """Plain-words lines for the terminal.
+
+        Returns
+        -------
+        list of str
+            The headline, the losses and ties (indented), the notes and the baselines not
+            fitted.
+        """
         lines = []
         if not self.comparisons:
             lines.append("no validation was run: nothing says the plan localises better")
@@ -278,6 +319,15 @@ class Verdict:
         return lines
 
     def to_dict(self) -> dict:
+        """The ``verdict`` entry of report.json.
+
+        Returns
+        -------
+        dict
+            The headline flags, the headline metrics, the confidence, bootstrap resamples and
+            runs, every comparison by baseline and metric, the losses, ties and notes in words,
+            and the baselines not fitted.
+        """
         return {
             "beats_all": self.beats_all,
             "beats_all_decided": self.beats_all_decided,
@@ -322,7 +372,19 @@ GRAMIAN_PAPER_NOTE = (
 
 
 def objective_notes(pb: PlanningProblem) -> tuple[str, ...]:
-    """What the verdict says about the objective itself, whatever the numbers."""
+    """What the verdict says about the objective itself, whatever the numbers.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its objective's kind and form.
+
+    Returns
+    -------
+    tuple of str
+        :data:`LWO_NOTE` or :data:`GRAMIAN_PAPER_NOTE` for the paper's (scale-free) forms,
+        else empty.
+    """
     obj = pb.objective
     if not obj.paper_form:
         return ()
@@ -337,7 +399,20 @@ def stress_notes(metrics: Mapping[str, PathMetrics], runs: int) -> tuple[str, ..
     """A sentence when the plan's peak EKF linearisation stress is above
     ``Tuning.stress_note_level`` and some baseline's (the verdict
     against that one may not see the plan's rare losses), and the validation ran fewer than
-    ``Tuning.stress_note_runs`` runs; empty otherwise."""
+    ``Tuning.stress_note_runs`` runs; empty otherwise.
+
+    Parameters
+    ----------
+    metrics : Mapping of str to PathMetrics
+        Every path's metrics by name (``"planned"`` and the baselines).
+    runs : int
+        Monte Carlo runs of the validation.
+
+    Returns
+    -------
+    tuple of str
+        The sentence, or nothing.
+    """
     plan = metrics.get("planned")
     level = tuning().stress_note_level
     if plan is None or runs >= tuning().stress_note_runs:
@@ -376,7 +451,23 @@ def limit_notes(
     inside the area by the plan's margin can win the same verdict (README, "Choosing the
     objective"). "More often than allowed": the one-sided binomial test of its breaking runs against
     the share ``1 - confidence`` rejects at ``Tuning.confidence`` (with 100 runs at 0.999: 2
-    breaking runs). ``confidence = 0`` (no margins): nothing to say."""
+    breaking runs). ``confidence = 0`` (no margins): nothing to say.
+
+    Parameters
+    ----------
+    validation : Mapping of str to PathValidation
+        Every path's validation (``"planned"`` and the baselines), with their true paths'
+        limit checks.
+    comparisons : Mapping of str to Mapping of str to Comparison
+        ``{baseline: {metric: Comparison}}`` of the verdict.
+    confidence : float
+        ``limits.keepout_confidence`` of the plan, in ``[0, 1)``.
+
+    Returns
+    -------
+    tuple of str
+        The sentences, possibly none.
+    """
     plan = validation.get("planned")
     if plan is None or not 0 < confidence < 1 or plan.result.truth is None:
         return ()
@@ -424,7 +515,26 @@ def verdict(
     """Compare ``validation["planned"]`` with every other validated path (intervals seeded by the
     validation's seed; ``notes``: said first, e.g. :func:`objective_notes`; ``lines``: also on
     :data:`LINES_METRICS`, for a survey; ``keepout_confidence``: the plan's
-    ``limits.keepout_confidence``, for :func:`limit_notes`)."""
+    ``limits.keepout_confidence``, for :func:`limit_notes`).
+
+    Parameters
+    ----------
+    validation : Mapping of str to PathValidation
+        Every path's validation by name; ``"planned"`` is compared with each other one.
+    not_fitted : Mapping of str to str
+        Baselines the problem cannot fit, with the reason.
+    notes : sequence of str, optional
+        Sentences said first.
+    lines : bool, optional
+        Compare the RMSE on the survey lines too.
+    keepout_confidence : float, optional
+        The plan's ``limits.keepout_confidence`` (0: no limit notes).
+
+    Returns
+    -------
+    Verdict
+        Without a ``"planned"`` path, no comparisons (only ``not_fitted`` and ``notes``).
+    """
     metrics = (*METRICS, *LINES_METRICS) if lines else METRICS
     comps: dict[str, dict[str, Comparison]] = {}
     plan = validation.get("planned")
@@ -457,7 +567,18 @@ def ekf_diverges(v: PathValidation) -> bool:
     """The EKF diverges on this path while the KF converges: the divergence monitor flags at
     least ``Tuning.diverged_fraction`` of its EKF runs (fewer of its
     KF runs), or its final error is ``Tuning.diverged_ratio`` times
-    the KF's."""
+    the KF's.
+
+    Parameters
+    ----------
+    v : PathValidation
+        A path's Monte Carlo result.
+
+    Returns
+    -------
+    bool
+        False when either filter was not run.
+    """
     r = v.result
     e, k = r.ekf, r.kf
     if e is None or k is None or r.runs < 1:
@@ -473,7 +594,19 @@ def ekf_diverges(v: PathValidation) -> bool:
 
 def filter_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
     """Sentences on an EKF that diverges on the plan while the KF converges, with the
-    Gaussian-sum filter's numbers on the plan and the baselines when it was run."""
+    Gaussian-sum filter's numbers on the plan and the baselines when it was run.
+
+    Parameters
+    ----------
+    validation : Mapping of str to PathValidation
+        Every path's validation by name (``"planned"`` is the one judged).
+
+    Returns
+    -------
+    tuple of str
+        A diverging EKF, or the few runs on which it lost track, and then the Gaussian-sum
+        filter's line; empty when neither applies.
+    """
     plan = validation.get("planned")
     if plan is None:
         return ()
@@ -625,6 +758,28 @@ def validate_until_decided(
     runs so far is added (runs ``k ..`` of the same seed, merged exactly: the total doubles),
     up to ``max(runs, max_runs)`` runs (default ``validation.max_runs``). Without a
     ``"planned"`` path, one batch.
+
+    Parameters
+    ----------
+    paths : Mapping of str to Trajectory
+        Name -> path (``"planned"`` and the baselines).
+    pb : PlanningProblem
+        The problem: its ``[validation]`` (runs, max_runs, seed, filters' settings).
+    runs : int or None, optional
+        Runs of the first batch; None: ``validation.runs``.
+    max_runs : int or None, optional
+        Cap on the total; None: ``validation.max_runs``.
+    progress : bool, optional
+        A progress bar over runs.
+    filters : sequence of str, optional
+        Estimators to run (as :func:`~obsplan.planning.validation.validate.validate_paths`).
+    lines : Mapping of str to ndarray or None, optional
+        Name -> boolean mask of the filter samples on the survey lines.
+
+    Returns
+    -------
+    dict of str to PathValidation
+        Name -> its validation over all the runs (merged).
     """
     done = pb.validation.runs if runs is None else int(runs)
     cap = max(done, pb.validation.max_runs if max_runs is None else int(max_runs))
@@ -643,7 +798,21 @@ def validate_until_decided(
 
 
 def paired_noise(a: PathValidation, b: PathValidation, key: str) -> float | None:
-    """Two standard errors [m] of the mean per-run difference of a final error (else None)."""
+    """Two standard errors [m] of the mean per-run difference of a final error (else None).
+
+    Parameters
+    ----------
+    a, b : PathValidation
+        The plan's and a baseline's validations, on the same runs.
+    key : str
+        The metric (only ``"ekf.final_pos_err"`` and ``"kf.final_pos_err"`` have one).
+
+    Returns
+    -------
+    float or None
+        The noise [m]; None for other metrics, missing or unpaired runs, fewer than 2, or a
+        non-finite difference.
+    """
     group, name = key.split(".")
     if name != "final_pos_err" or group not in ("ekf", "kf"):
         return None
