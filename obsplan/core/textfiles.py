@@ -17,6 +17,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from obsplan.core.budget import MAX_TOML_BYTES
 from obsplan.core.errors import InputError
 
 #: Largest text file read whole [bytes]; a CSV of 2,000,000 rows of a 3D trajectory is ~400 MB.
@@ -101,8 +102,9 @@ def read_text(
 def read_toml(
     path: str | Path, what: str, *, error: type[InputError] = InputError
 ) -> dict[str, Any]:
-    """A TOML file (through :func:`read_text`) as a mapping, or one error naming the line."""
-    text = read_text(path, what, error=error)
+    """A TOML file (through :func:`read_text`, at most
+    :data:`~obsplan.core.budget.MAX_TOML_BYTES`) as a mapping, or one error naming the line."""
+    text = read_text(path, what, error=error, max_bytes=MAX_TOML_BYTES)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
