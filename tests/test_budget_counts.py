@@ -28,6 +28,7 @@ import pytest
 import obsplan.sweeps.run  # noqa: F401 - the sweep verb's imports are not the refusal's time
 from obsplan.cli import main
 from obsplan.core import budget
+from obsplan.sweeps.run import default_workers
 
 ROOT = Path(__file__).resolve().parents[1]
 LOCALISE = ROOT / "problems" / "localise.toml"
@@ -203,6 +204,27 @@ def test_a_sweep_name_is_bounded(length, tmp_path, capsys):
         '[axes]\n"limits.speed" = [1.0]\n'
     )
     refused_fast(["sweep", sweep, "--out", tmp_path / "out"], "sweep.name", tmp_path, capsys)
+
+
+# ------------------------------------------------------------------------------ sweep workers
+@pytest.mark.parametrize(
+    "workers",
+    [0, budget.MAX_WORKERS_PER_CORE * default_workers() + 1, 48 * default_workers(), 100_000],
+    ids=["zero", "just-over", "48-per-core", "100000"],
+)
+def test_local_workers_are_bounded_by_the_cores(workers, tmp_path, capsys):
+    sweep = tmp_path / "s.toml"
+    sweep.write_text(
+        f'[sweep]\nname = "s"\nbase = {json.dumps(str(LOCALISE))}\n[axes]\n"limits.speed" = [1.0]\n'
+    )
+    line = refused_fast(
+        ["sweep", sweep, "--out", tmp_path / "out", "--workers", str(workers)],
+        "--workers",
+        tmp_path,
+        capsys,
+    )
+    if workers > 0:
+        assert "per core" in line and "--scheduler" in line
 
 
 def test_the_limits_are_the_documented_ones():
