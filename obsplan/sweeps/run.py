@@ -406,11 +406,15 @@ def probe_scheduler(address: str, where: str, timeout: float | None = None) -> N
     scheduler logs no aborted connection) and closes. Addresses of other transports than
     ``tcp://`` (``tls://``, ``ucx://``) are left to Dask's connect timeout.
 
+    ``where`` names the option and what the user gave (``"--scheduler tcp://h:8787"``,
+    ``"--scheduler-file FILE"``).
+
     Raises
     ------
     InputError
-        ``"<where>: cannot reach a Dask scheduler there (...)"`` (nothing listens) or
-        ``"<where>: not a Dask scheduler at ADDRESS: <what it did>; <fix>"``.
+        ``"<where>: not an address (...)"``, ``"<where>: cannot reach a Dask scheduler there
+        (...)"`` (nothing listens) or ``"<where>: not a Dask scheduler at ADDRESS: <what it
+        did>; <fix>"``.
     """
     from distributed.comm.addressing import parse_address, parse_host_port
 
@@ -420,18 +424,23 @@ def probe_scheduler(address: str, where: str, timeout: float | None = None) -> N
         if scheme != "tcp":
             return
         host, port = parse_host_port(loc)
+        port = int(port)
+        if not 0 < port < 65536:
+            raise ValueError(f"port {port} is not in 1..65535")
     except (ValueError, TypeError) as exc:
+        named = "" if where.endswith(address) else f"{address!r} is "
         raise InputError(
-            f"{where}: {address!r} is not an address ({exc}); give tcp://HOST:PORT, e.g. "
-            "tcp://10.0.0.5:8786"
+            f"{where}: {named}not an address ({exc}); give the scheduler's, tcp://HOST:8786 "
+            "(8786 is its default port)"
         ) from None
     deadline = time.monotonic() + timeout
     try:
-        sock = socket.create_connection((host, int(port)), timeout=timeout)
+        sock = socket.create_connection((host, port), timeout=timeout)
     except OSError as exc:  # refused, unreachable, unknown host, or the connect timed out
         raise InputError(
-            f"{where}: cannot reach a Dask scheduler there, at {address} "
-            f"({type(exc).__name__}: {exc}); {_SCHEDULER_FIX}"
+            f"{where}: cannot reach a Dask scheduler there"
+            + ("" if where.endswith(address) else f", at {address}")
+            + f" ({type(exc).__name__}: {exc}); {_SCHEDULER_FIX}"
         ) from None
     with sock:
         head, stop = _recv(sock, 8, deadline)
@@ -495,12 +504,13 @@ def dask_client(
     where: str | None = None
     address: str | None = None
     if scheduler is not None:
-        where, address = "--scheduler", scheduler
+        where, address = f"--scheduler {scheduler}", scheduler
     elif scheduler_file is not None:
         where = f"--scheduler-file {scheduler_file}"
         address = scheduler_file_address(scheduler_file)
     elif workers is None and (configured := configured_scheduler()) is not None:
-        where, address = "DASK_SCHEDULER_ADDRESS (Dask's scheduler-address)", configured
+        where = f"DASK_SCHEDULER_ADDRESS (Dask's scheduler-address) {configured}"
+        address = configured
     if where is not None and address is not None:
         probe_scheduler(address, where)  # a silent or foreign service: refused in seconds
         try:
