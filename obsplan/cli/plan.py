@@ -81,9 +81,14 @@ def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningP
     if args.starts is not None:
         budget.check_starts(args.starts, "--starts")
         pb = replace(pb, objective=replace(pb.objective, starts=args.starts))
+    if args.max_runs is not None:
+        budget.check_max_runs(args.max_runs, "--max-runs")
+    samples = pb.horizon.duration / pb.validation.dt + 1
     if args.runs is not None and not args.no_validate:
-        samples = pb.horizon.duration / pb.validation.dt + 1
         budget.check_monte_carlo(args.runs, samples, pb.dim, "--runs", "a longer validation.dt")
+    if args.max_runs is not None and not args.no_validate:
+        fix = "a longer validation.dt"
+        budget.check_monte_carlo(args.max_runs, samples, pb.dim, "--max-runs", fix)
     if args.replan is not None:
         if args.no_validate:
             raise InputError("--replan runs inside the validation: drop --no-validate")

@@ -4,18 +4,37 @@ Every verb asks here before it allocates or solves anything, from the problem fi
 command line alike; a request beyond a limit is refused with its figure, the limit and the fix
 (an :class:`~obsplan.core.errors.InputError`: exit 2). The limits:
 
-========================  ==========================  =========================================
-what                      limit                       why
-========================  ==========================  =========================================
-IPOPT starts              :data:`MAX_STARTS`          each start is a full solve
-IPOPT iterations          :data:`MAX_ITERATIONS`      per start; IPOPT's own counter is an int
-Monte Carlo runs          :data:`MAX_RUNS`            per path
-filter samples per run    :data:`MAX_SAMPLES`         the filters loop over samples
-sweep tasks               :data:`MAX_TASKS`           counted before the axes are expanded
-rows of an input file     :data:`MAX_ROWS`            estimated from the file size first
-memory                    ``OBSPLAN_MAX_MEMORY``      default :data:`DEFAULT_MAX_MEMORY` bytes
-time                      ``OBSPLAN_MAX_HOURS``       default :data:`DEFAULT_MAX_HOURS` hours
-========================  ==========================  =========================================
+========================  ==================================  ===================================
+what                      limit                               why
+========================  ==================================  ===================================
+IPOPT starts              :data:`MAX_STARTS`                  each start is a full solve
+IPOPT iterations          :data:`MAX_ITERATIONS`              per start; IPOPT's own counter is
+                                                              an int
+Monte Carlo runs          :data:`MAX_RUNS`                    per path: ``runs``, ``max_runs``,
+                                                              ``--runs``, ``--max-runs`` alike
+filter samples per run    :data:`MAX_SAMPLES`                 the filters loop over samples
+sweep tasks               :data:`MAX_TASKS`                   counted before the axes are
+                                                              expanded
+rows of an input file     :data:`MAX_ROWS`                    estimated from the file size first
+problem or sweep file     :data:`MAX_TOML_BYTES`              parsed at ~1.5 MB/s, in memory
+survey lines              :data:`MAX_LINES`                   given or generated (counted from
+                                                              ``mission.spacing`` first)
+waypoints                 :data:`MAX_WAYPOINTS`               and their time windows
+polygon corners           :data:`MAX_POLYGON_CORNERS`         every line crosses every edge
+names                     :data:`MAX_NAME_CHARS`              ``problem.name``, ``sweep.name``:
+                                                              reports, figure titles
+local Dask workers        :data:`MAX_WORKERS_PER_CORE` x      a worker is a process (memory,
+                          cores                               seconds to start); tasks are
+                                                              single-threaded
+memory                    ``OBSPLAN_MAX_MEMORY``              default :data:`DEFAULT_MAX_MEMORY`
+                                                              bytes
+time                      ``OBSPLAN_MAX_HOURS``               default :data:`DEFAULT_MAX_HOURS`
+                                                              hours
+========================  ==================================  ===================================
+
+Every count that drives memory or time is checked here *before* the work it drives: a count
+that would build a list (lines from a spacing, waypoints of a file) is refused from its length
+or from its arithmetic, never after building it.
 
 The two environment variables raise (or lower) the memory and time limits: a number of bytes
 with an optional ``K``/``M``/``G``/``T`` suffix (powers of 1024), and a number of hours. The
@@ -40,6 +59,32 @@ MAX_RUNS = 10_000
 MAX_SAMPLES = 2_000_000
 MAX_TASKS = 100_000
 MAX_ROWS = 2_000_000
+#: Largest problem or sweep file [bytes]. The largest real one is a sweep whose axes list
+#: :data:`MAX_TASKS` values (~1-2 MB); Python's TOML parser reads ~1.5 MB/s, so a parse takes
+#: seconds at most, where a 1 GB file (the limit of other text files) took ten minutes.
+MAX_TOML_BYTES = 8_000_000
+#: Most survey lines (given, or generated from ``mission.spacing``). A line and the turn to the
+#: next take several planning intervals (at most ``horizon.steps`` = 5000: ten per line), and
+#: checking that the mission fits the horizon takes ~2.5 ms per line: at most ~1 s. Counted
+#: from the area's width and the spacing before any line is generated (1e-7 m over 200 m was
+#: 2e9 lines: 11 GB in a minute).
+MAX_LINES = 500
+#: Most ``mission.waypoints`` (and ``mission.windows``): each is reached at a planning node and
+#: checked like a line (~2 ms each); 300,000 of them ran for minutes.
+MAX_WAYPOINTS = 500
+#: Most corners of a ``mission.area`` polygon: every generated line is intersected with every
+#: edge (lines x corners work, at most 500,000 intersections).
+MAX_POLYGON_CORNERS = 1000
+#: Longest name [characters] (``problem.name``, ``sweep.name``): a name heads every report,
+#: progress line and figure title (matplotlib lays out a title's text: a 1 MB name made a 5 s
+#: run take 88 s). 200 characters is a long sentence.
+MAX_NAME_CHARS = 200
+#: Most worker processes of a local Dask cluster per core. Tasks are single-threaded and
+#: CPU-bound: beyond one worker per core they only share the cores, while each worker is a
+#: process of its own (~0.2-0.5 GB once CasADi and numba are loaded) that takes seconds to
+#: start (48 workers on 2 cores took minutes). Two per core leaves room for a worker waiting
+#: on its output; a larger cluster is an existing scheduler's (``--scheduler``).
+MAX_WORKERS_PER_CORE = 2
 #: Default memory limit [bytes]: the Monte Carlo budget used so far (1e9 stored numbers of
 #: runs x samples x 3n, four quantities of 8 bytes each).
 DEFAULT_MAX_MEMORY = 32e9
@@ -171,6 +216,50 @@ def check_samples(samples: float, field: str, fix: str = "", error=InputError) -
 def check_tasks(n: float, field: str = "axes", error=InputError) -> None:
     """At most :data:`MAX_TASKS` tasks in a sweep (checked before the axes are expanded)."""
     check_count(n, MAX_TASKS, field, "tasks", "split the sweep or use fewer axis values", error)
+
+
+def check_max_runs(n: int, field: str = "--max-runs", error=InputError) -> None:
+    """At most :data:`MAX_RUNS` runs for the doubling validation (``validation.max_runs``): a
+    verdict that never decides doubles its runs up to this cap."""
+    fix = f"use at most {MAX_RUNS} (the runs double until every verdict is decided or this cap)"
+    check_count(n, MAX_RUNS, field, "Monte Carlo runs", fix, error)
+
+
+def check_lines(n: float, field: str = "mission.lines", fix: str = "", error=InputError) -> None:
+    """At most :data:`MAX_LINES` survey lines (``n`` may be a float count, even infinite)."""
+    fix = fix or f"plan at most {MAX_LINES} lines at a time (split the survey)"
+    check_count(n, MAX_LINES, field, "lines", fix, error)
+
+
+def check_waypoints(n: float, field: str = "mission.waypoints", error=InputError) -> None:
+    """At most :data:`MAX_WAYPOINTS` waypoints (or their time windows)."""
+    fix = f"plan at most {MAX_WAYPOINTS} waypoints at a time (split the mission)"
+    check_count(n, MAX_WAYPOINTS, field, "points", fix, error)
+
+
+def check_corners(n: float, field: str = "mission.area.polygon", error=InputError) -> None:
+    """At most :data:`MAX_POLYGON_CORNERS` corners of a polygon."""
+    fix = f"simplify the polygon to at most {MAX_POLYGON_CORNERS} corners"
+    check_count(n, MAX_POLYGON_CORNERS, field, "corners", fix, error)
+
+
+def check_name_length(text: str, field: str, error=InputError) -> None:
+    """A name of at most :data:`MAX_NAME_CHARS` characters (it heads reports and figures)."""
+    fix = "shorten it (it heads every report, progress line and figure title)"
+    check_count(len(text), MAX_NAME_CHARS, field, "characters", fix, error)
+
+
+def check_workers(n: int, cores: int, field: str = "--workers", error=InputError) -> None:
+    """At least one and at most :data:`MAX_WORKERS_PER_CORE` x ``cores`` local worker processes."""
+    if n < 1:
+        raise error(f"{field} must be at least 1, got {n}")
+    limit = MAX_WORKERS_PER_CORE * max(1, cores)
+    fix = (
+        f"{MAX_WORKERS_PER_CORE} per core on the {cores} core{'s' if cores != 1 else ''} this "
+        f"process may use; tasks are single-threaded, so more workers only share the cores: "
+        f"use at most {limit}, or an existing cluster with --scheduler ADDRESS"
+    )
+    check_count(n, limit, field, "worker processes", fix, error)
 
 
 def check_rows(n: float, field: str, error=InputError) -> None:

@@ -15,8 +15,9 @@ signal is remembered:
 * a second signal while the first unwinds is ignored, so that cleanup (removing a staging
   folder, stopping worker processes) is not cut short.
 
-Worker processes call :func:`child_init`: Ctrl-C in a terminal reaches the whole process group,
-and only the parent decides; a child dies with its parent even if the parent is killed hard.
+Worker processes call :func:`child_init`: Ctrl-C in a terminal and a batch scheduler's SIGTERM
+reach the whole process group, and only the parent decides (it stops its workers); a child
+ignores both and dies with its parent even if the parent is killed hard.
 """
 
 from __future__ import annotations
@@ -240,12 +241,20 @@ def ignored() -> Iterator[None]:
 
 
 def child_init() -> None:
-    """For a worker process: ignore SIGINT (the parent handles Ctrl-C and stops its children),
-    die on SIGTERM, and receive SIGTERM when the parent dies (Linux), even by SIGKILL."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    """For a worker process: ignore SIGINT and SIGTERM, and be killed (SIGKILL) when the parent
+    dies (Linux), even by SIGKILL.
+
+    A terminal's Ctrl-C and a batch scheduler's SIGTERM reach the whole process group: the
+    parent alone decides, and stops its workers itself. A worker that died of the signal on
+    its own could do so holding a lock its parent then waits for (``multiprocessing.Pool``'s
+    queue: the parent hung for ever). Block :data:`SIGNALS` across the fork
+    (``signal.pthread_sigmask``) and unblock them after this call, so that none is raised in the
+    child before it ignores them.
+    """
+    for s in SIGNALS:
+        signal.signal(s, signal.SIG_IGN)
     global _pending, _installed
     _pending, _installed = None, False
     with contextlib.suppress(OSError, AttributeError):
         libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)

@@ -25,6 +25,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from obsplan.core.budget import MAX_TOML_BYTES
 from obsplan.core.errors import InputError
 
 #: Largest text file read whole [bytes]; a CSV of 2,000,000 rows of a 3D trajectory is ~400 MB.
@@ -178,7 +179,8 @@ def _check_nesting(data: Any, path: str | Path, what: str, error: type[InputErro
 def read_toml(
     path: str | Path, what: str, *, error: type[InputError] = InputError
 ) -> dict[str, Any]:
-    """A TOML file (through :func:`read_text`) as a mapping, or one error naming the line.
+    """A TOML file (through :func:`read_text`, at most
+    :data:`~obsplan.core.budget.MAX_TOML_BYTES`) as a mapping, or one error naming the line.
 
     Raises
     ------
@@ -187,7 +189,7 @@ def read_toml(
         or tables nested deeper than :data:`MAX_NESTING` levels, or an integer of more digits
         than Python converts.
     """
-    text = read_text(path, what, error=error)
+    text = read_text(path, what, error=error, max_bytes=MAX_TOML_BYTES)
     try:
         data = tomllib.loads(text)
     except RecursionError:

@@ -8,23 +8,36 @@ and the table ``DIR/results.{parquet,csv}`` is rewritten every ten seconds or so
 out, whatever the way out is (end, Ctrl-C, a lost scheduler): only the tasks in flight are lost.
 
 Workers: by default a :class:`distributed.LocalCluster` of one-thread worker processes (one per
-core) with the BLAS/OpenMP pools pinned to one thread (set in the nanny before the worker
-process starts, so it holds from the worker's first import; :func:`obsplan.sweeps.tasks.
-worker_threads` reads it back). A task whose worker dies is retried ``retries`` times (default
-once), then recorded as failed with the error. On a local cluster the scheduler itself re-runs
-nothing (``allowed-failures = 0``), so "retried once" means exactly one more attempt; an
-existing scheduler applies its own ``distributed.scheduler.allowed-failures`` first.
+core; at most :data:`~obsplan.core.budget.MAX_WORKERS_PER_CORE` per core, refused before any
+work; SIGINT and SIGTERM stop their start at once) with the BLAS/OpenMP pools pinned to one
+thread (set in the nanny before the worker process starts, so it holds from the worker's first
+import; :func:`obsplan.sweeps.tasks.worker_threads` reads it back). A task whose worker dies
+is retried ``retries`` times (default once), then recorded as failed with the error. On a local
+cluster the scheduler itself re-runs nothing (``allowed-failures = 0``), so "retried once" means
+exactly one more attempt; an existing scheduler applies its own
+``distributed.scheduler.allowed-failures`` first.
+
+An existing scheduler (``--scheduler``, ``--scheduler-file``, ``DASK_SCHEDULER_ADDRESS``) is
+probed before Dask connects (:func:`probe_scheduler`: its handshake within
+:data:`CONNECT_TIMEOUT_S` in all, at most :data:`HANDSHAKE_MAX_BYTES` read), and a scheduler file
+is checked to be a JSON object with a string ``"address"`` (:func:`scheduler_file_address`): a
+silent or foreign service, or a file that is not one, is one line and exit 2.
 """
 
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import contextlib
 import dataclasses
 import functools
 import importlib.util
+import json
 import logging
 import os
+import signal
+import socket
+import struct
 import sys
 import tempfile
 import time
@@ -38,8 +51,9 @@ from typing import Any
 import pandas as pd
 
 import obsplan.sweeps.spec as specs
-from obsplan.core import interrupts
+from obsplan.core import budget, interrupts
 from obsplan.core.errors import InputError, ObsplanError
+from obsplan.core.textfiles import read_text
 from obsplan.estimation import jitcache
 from obsplan.sweeps.spec import SweepSpec, Task, as_spec, expand, unique_tasks
 from obsplan.sweeps.store import (
@@ -60,12 +74,23 @@ from obsplan.version import __version__
 #: is also written on the way out. Rewriting it often took CPU from the workers on a small
 #: machine (measured in benchmarks/bench_sweep.py: "client" CPU per task).
 FLUSH_S = 10.0
-#: Seconds to wait for a connection to an existing scheduler.
+#: Seconds to wait for a connection to an existing scheduler, its handshake included: an address
+#: where no Dask scheduler answers in this time is refused (exit 2).
 CONNECT_TIMEOUT_S = 10.0
+#: Most bytes of a scheduler's first message read by :func:`probe_scheduler` (a Dask handshake
+#: is ~60 bytes).
+HANDSHAKE_MAX_BYTES = 1 << 16
+#: Largest scheduler file read [bytes] (Dask writes a few hundred bytes of JSON).
+MAX_SCHEDULER_FILE_BYTES = 1_000_000
 #: Seconds the client waits for a lost scheduler to come back before giving up.
 LOST_SCHEDULER_S = 20.0
 #: Seconds a worker process gets to stop when the sweep is interrupted, before it is killed.
 KILL_TIMEOUT_S = 0.5
+#: Seconds the workers of a local cluster may take to start (SIGINT and SIGTERM are honoured
+#: meanwhile; a few seconds each on a loaded machine, at most two per core start).
+START_TIMEOUT_S = 300.0
+#: Seconds an interrupted start of a local cluster may take to stop (workers killed, closed).
+ABORT_S = 10.0
 
 
 class ClusterError(ObsplanError):
@@ -113,16 +138,39 @@ def default_workers() -> int:
     return max(1, int(dask.system.CPU_COUNT))
 
 
+def check_workers(workers: int | None, field: str = "--workers") -> None:
+    """Refuse a local cluster of fewer than one or more than
+    :data:`~obsplan.core.budget.MAX_WORKERS_PER_CORE` worker processes per core
+    (:func:`obsplan.core.budget.check_workers`), before anything starts."""
+    if workers is not None:
+        budget.check_workers(workers, default_workers(), field)
+
+
 def local_cluster(workers: int | None = None, **kwargs: Any):
     """A :class:`distributed.LocalCluster` of ``workers`` one-thread worker processes (default:
-    one per core), BLAS/OpenMP pinned to one thread, no scheduler-side re-runs of a task whose
-    worker died, at most one task queued per worker, and Dask's scratch space in a temporary
-    folder removed with the cluster."""
+    one per core; at most :func:`check_workers` allows), BLAS/OpenMP pinned to one thread, no
+    scheduler-side re-runs of a task whose worker died, at most one task queued per worker, and
+    Dask's scratch space in a temporary folder removed with the cluster.
+
+    The scheduler and the cluster's event-loop thread start with SIGINT blocked
+    (:func:`obsplan.core.interrupts.spawning`), and the worker processes the loop thread spawns
+    inherit it: a terminal's Ctrl-C reaches the parent alone. The workers then start while
+    SIGINT and SIGTERM are honoured: an interruption kills the workers already spawned and
+    closes the cluster at once (:func:`_abort_start`), instead of waiting for every worker to
+    start (minutes with many workers on a small machine).
+    """
+    from multiprocessing import resource_tracker
+
     import dask
+    import distributed  # noqa: F401 - its configuration first: dask.config.set below restores
+    # the configuration it found, and would drop a section distributed added meanwhile
 
     n = workers if workers is not None else default_workers()
-    if n < 1:
-        raise InputError(f"--workers must be at least 1, got {n}")
+    check_workers(n)
+    # multiprocessing's resource tracker started now, before the signals are held: started by
+    # the cluster's loop thread (the nannies' first queue), it would unblock SIGINT there, and
+    # the workers spawned from that thread would get a terminal's Ctrl-C while they import
+    resource_tracker.ensure_running()
     environ = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
     environ.update(THREAD_ENV)
     # Dask's default MALLOC_TRIM_THRESHOLD_=65536 returns memory to the OS eagerly; it also
@@ -145,13 +193,69 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
     # a worker death is reported by the sweep itself (the task's error), not by log lines
     kwargs.setdefault("silence_logs", logging.CRITICAL)
     kwargs.setdefault("preload", ["obsplan.sweeps.tasks"])  # its dask_setup: workers ignore Ctrl-C
+    # the configuration is read when the nannies are made, during _start_workers: held till then
     with dask.config.set(config), warnings.catch_warnings():
         # port 8787 taken (another cluster): Dask serves the dashboard on a free port instead,
         # and the sweep reports the address it got
         warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
-        cluster = _cluster_class()(n_workers=n, threads_per_worker=1, processes=True, **kwargs)
-    cluster.scratch = scratch
+        with interrupts.spawning():  # the scheduler and the loop thread: seconds at most
+            cluster = _cluster_class()(n_workers=0, threads_per_worker=1, processes=True, **kwargs)
+        cluster.scratch = scratch
+        _start_workers(cluster, n)
     return cluster
+
+
+def _start_workers(cluster: Any, n: int) -> None:
+    """Start ``n`` workers of ``cluster`` and wait for them, honouring SIGINT and SIGTERM: on an
+    interruption (or a failure) the cluster is stopped at once and the exception raised."""
+    cluster.scale(n)
+
+    async def grow() -> None:
+        await cluster._correct_state()
+
+    future = asyncio.run_coroutine_threadsafe(grow(), cluster.loop.asyncio_loop)
+    try:
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while True:
+            try:
+                future.result(timeout=0.1)  # short waits: a signal is raised here at once
+                break
+            except concurrent.futures.TimeoutError:
+                if time.monotonic() > deadline:
+                    raise ClusterError(
+                        f"the {n} workers of the local cluster did not start within "
+                        f"{START_TIMEOUT_S:.0f} s; use fewer --workers"
+                    ) from None
+    except BaseException:
+        _abort_start(cluster, future)
+        raise
+
+
+def _worker_pids(cluster: Any) -> list[int]:
+    """The worker processes the nannies of ``cluster`` have spawned so far."""
+    pids = []
+    for nanny in list(getattr(cluster, "_created", ())):
+        proc = getattr(getattr(nanny, "process", None), "process", None)
+        with contextlib.suppress(Exception):
+            if proc is not None and proc.pid:
+                pids.append(int(proc.pid))
+    return pids
+
+
+def _abort_start(cluster: Any, starting: concurrent.futures.Future) -> None:
+    """Stop a cluster whose workers are starting, without waiting for them: kill (SIGKILL) every
+    worker process spawned, again until the start has given up (a nanny may spawn its process
+    meanwhile), then close the cluster. Nothing of theirs is kept: no task ran."""
+    deadline = time.monotonic() + ABORT_S
+    while True:
+        for pid in _worker_pids(cluster):
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+        if starting.done() or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    with contextlib.suppress(Exception):
+        cluster.close(timeout=ABORT_S)
 
 
 @functools.cache
@@ -200,6 +304,174 @@ def _one_cluster(workers: Any, scheduler: Any, scheduler_file: Any) -> None:
         )
 
 
+#: What to do about an address where no Dask scheduler answers.
+_SCHEDULER_FIX = (
+    "check the address (a scheduler listens on tcp://HOST:8786 by default; 8787 is its "
+    "dashboard) or start one with `dask scheduler`"
+)
+
+
+def scheduler_file_address(path: str | Path) -> str:
+    """The scheduler's address in a scheduler file (``dask scheduler --scheduler-file FILE``
+    writes a JSON object with a string ``"address"``), checked before it is used.
+
+    Raises
+    ------
+    InputError
+        Naming ``--scheduler-file FILE`` and what is wrong: no such file, not a text file, not
+        JSON, or no string ``"address"``.
+    """
+    where = f"--scheduler-file {path}"
+    if not Path(path).is_file():
+        raise InputError(
+            f"{where}: no such file; start the scheduler with `dask scheduler "
+            f"--scheduler-file {path}` (on a file system the client sees) and give the same path"
+        )
+    fix = (
+        f"give the file `dask scheduler --scheduler-file {path}` writes, a JSON object "
+        'such as {"address": "tcp://HOST:8786", ...}'
+    )
+    with contextlib.suppress(OSError):  # read_text says what else is wrong
+        if (size := Path(path).stat().st_size) > MAX_SCHEDULER_FILE_BYTES:
+            raise InputError(
+                f"{where}: {size / 1e6:,.1f} MB, not a scheduler file (Dask writes a few "
+                f"hundred bytes); {fix}"
+            )
+    try:
+        text = read_text(path, "a Dask scheduler file (JSON)", max_bytes=MAX_SCHEDULER_FILE_BYTES)
+    except InputError as exc:
+        raise InputError(f"--scheduler-file {exc}") from None
+    try:
+        data = json.loads(text)
+    except ValueError as exc:  # JSONDecodeError, or a number too long to convert
+        raise InputError(f"{where}: not JSON ({str(exc)[:120]}); {fix}") from None
+    address = data.get("address") if isinstance(data, dict) else None
+    if not isinstance(address, str) or not address.strip():
+        got = (
+            f'"address" is {json.dumps(address)[:80]}'
+            if isinstance(data, dict) and "address" in data
+            else f'no "address" in {json.dumps(data)[:80]}'
+        )
+        raise InputError(f"{where}: {got}, not the scheduler's address as a string; {fix}")
+    return address.strip()
+
+
+def _recv(sock: socket.socket, n: int, deadline: float) -> tuple[bytes, str]:
+    """Up to ``n`` bytes from ``sock`` before ``deadline`` (time.monotonic()); with why it
+    stopped short: ``""`` (all read), ``"timeout"`` or ``"closed"``."""
+    data = b""
+    while len(data) < n:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return data, "timeout"
+        sock.settimeout(left)
+        try:
+            chunk = sock.recv(n - len(data))
+        except TimeoutError:
+            return data, "timeout"
+        except OSError:  # reset by the peer
+            return data, "closed"
+        if not chunk:
+            return data, "closed"
+        data += chunk
+    return data, ""
+
+
+def _is_handshake(body: bytes) -> bool:
+    """Whether ``body`` (a message's frames, after its 8-byte length) is a Dask comm handshake:
+    a msgpack mapping naming the peer's ``python`` (and ``compression``, ``pickle-protocol``)."""
+    try:
+        import msgpack
+        from distributed.protocol.utils import unpack_frames
+
+        for frame in unpack_frames(body):
+            msg = msgpack.loads(bytes(frame), raw=False)
+            if isinstance(msg, dict) and "python" in msg:
+                return True
+    except Exception:  # noqa: BLE001 - any garbage is simply not a handshake
+        return False
+    return False
+
+
+def probe_scheduler(address: str, where: str, timeout: float | None = None) -> None:
+    """Refuse, within ``timeout`` seconds in all (default :data:`CONNECT_TIMEOUT_S`), an address
+    where no Dask scheduler answers, before Dask connects to it.
+
+    A Dask scheduler speaks first: right after a TCP connection is accepted it sends its
+    handshake (an 8-byte length, then msgpack frames naming its Python). Dask's own client
+    waits for it without a limit (a silent service, e.g. the dashboard's port 8787, hung the
+    sweep for ever) and allocates whatever length a foreign service's first bytes spell (an
+    SSH banner: "Unable to allocate 2.82 EiB"). The probe reads at most
+    :data:`HANDSHAKE_MAX_BYTES`, checks the message, answers with the same handshake (so the
+    scheduler logs no aborted connection) and closes. Addresses of other transports than
+    ``tcp://`` (``tls://``, ``ucx://``) are left to Dask's connect timeout.
+
+    ``where`` names the option and what the user gave (``"--scheduler tcp://h:8787"``,
+    ``"--scheduler-file FILE"``).
+
+    Raises
+    ------
+    InputError
+        ``"<where>: not an address (...)"``, ``"<where>: cannot reach a Dask scheduler there
+        (...)"`` (nothing listens) or ``"<where>: not a Dask scheduler at ADDRESS: <what it
+        did>; <fix>"``.
+    """
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+    try:
+        scheme, loc = parse_address(address)
+        if scheme != "tcp":
+            return
+        host, port = parse_host_port(loc)
+        port = int(port)
+        if not 0 < port < 65536:
+            raise ValueError(f"port {port} is not in 1..65535")
+    except (ValueError, TypeError) as exc:
+        named = "" if where.endswith(address) else f"{address!r} is "
+        raise InputError(
+            f"{where}: {named}not an address ({exc}); give the scheduler's, tcp://HOST:8786 "
+            "(8786 is its default port)"
+        ) from None
+    deadline = time.monotonic() + timeout
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except OSError as exc:  # refused, unreachable, unknown host, or the connect timed out
+        raise InputError(
+            f"{where}: cannot reach a Dask scheduler there"
+            + ("" if where.endswith(address) else f", at {address}")
+            + f" ({type(exc).__name__}: {exc}); {_SCHEDULER_FIX}"
+        ) from None
+    with sock:
+        head, stop = _recv(sock, 8, deadline)
+        why = ""
+        if not head:
+            why = (
+                f"it accepted the connection but sent nothing in {timeout:g} s (a Dask "
+                "scheduler greets at once)"
+                if stop == "timeout"
+                else "it closed the connection without a word"
+            )
+        elif len(head) < 8 or not 16 <= struct.unpack("<Q", head)[0] <= HANDSHAKE_MAX_BYTES:
+            more, _ = _recv(sock, 56, min(deadline, time.monotonic() + 0.2))
+            why = f"it sent {(head + more)[:64]!r}, not a Dask handshake"
+        else:
+            body, stop = _recv(sock, struct.unpack("<Q", head)[0], deadline)
+            if stop or not _is_handshake(body):
+                why = (
+                    f"it sent {(head + body)[:64]!r}, not a Dask handshake"
+                    if not stop
+                    else f"it sent {len(head) + len(body)} bytes of a message, then "
+                    + ("nothing more" if stop == "timeout" else "closed the connection")
+                )
+            else:
+                with contextlib.suppress(OSError):
+                    sock.settimeout(max(0.01, deadline - time.monotonic()))
+                    sock.sendall(head + body)  # our handshake: the scheduler's own, returned
+        if why:
+            raise InputError(f"{where}: not a Dask scheduler at {address}: {why}; {_SCHEDULER_FIX}")
+
+
 @contextlib.contextmanager
 def dask_client(
     workers: int | None = None,
@@ -218,8 +490,10 @@ def dask_client(
     Raises
     ------
     InputError
-        If more than one of ``workers``, ``scheduler`` and ``scheduler_file`` are given, or the
-        scheduler cannot be reached.
+        If more than one of ``workers``, ``scheduler`` and ``scheduler_file`` are given, too
+        many ``workers`` (:func:`check_workers`), a scheduler file that is not one
+        (:func:`scheduler_file_address`), or no Dask scheduler answers at the address
+        (:func:`probe_scheduler`).
     """
     if client is not None:
         yield client
@@ -228,30 +502,23 @@ def dask_client(
 
     _one_cluster(workers, scheduler, scheduler_file)
     where: str | None = None
+    address: str | None = None
     if scheduler is not None:
-        where, kwargs = f"--scheduler {scheduler}", {"address": scheduler}
+        where, address = f"--scheduler {scheduler}", scheduler
     elif scheduler_file is not None:
-        if not Path(scheduler_file).is_file():
-            raise InputError(
-                f"--scheduler-file {scheduler_file}: no such file; start the scheduler with "
-                f"`dask scheduler --scheduler-file {scheduler_file}` (on a file system the "
-                "client sees) and give the same path"
-            )
-        where, kwargs = (
-            f"--scheduler-file {scheduler_file}",
-            {"scheduler_file": str(scheduler_file)},
-        )
-    elif workers is None and (address := configured_scheduler()) is not None:
-        where = f"DASK_SCHEDULER_ADDRESS (Dask's scheduler-address) {address}"
-        kwargs = {"address": address}
-    if where is not None:
+        where = f"--scheduler-file {scheduler_file}"
+        address = scheduler_file_address(scheduler_file)
+    elif workers is None and (configured := configured_scheduler()) is not None:
+        where = f"DASK_SCHEDULER_ADDRESS (Dask's scheduler-address) {configured}"
+        address = configured
+    if where is not None and address is not None:
+        probe_scheduler(address, where)  # a silent or foreign service: refused in seconds
         try:
-            c = Client(**kwargs, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError, KeyError) as exc:
-            # ValueError: not an address; KeyError / ValueError: a file that is no scheduler file
+            c = Client(address=address, timeout=CONNECT_TIMEOUT_S)
+        except Exception as exc:  # noqa: BLE001 - Dask's connection raises anything at all
             raise InputError(
-                f"{where}: cannot reach a Dask scheduler there ({type(exc).__name__}: "
-                f"{exc}); check the address (tcp://HOST:8786) or start one with `dask scheduler`"
+                f"{where}: not a Dask scheduler at {address}: {type(exc).__name__}: "
+                f"{str(exc).splitlines()[0][:200] if str(exc) else ''}; {_SCHEDULER_FIX}"
             ) from None
         try:
             yield c
@@ -263,11 +530,10 @@ def dask_client(
     local: Client | None = None
     interrupted = False
     try:
-        # a signal while the cluster starts is held until it has started (interrupted half-way,
-        # Dask would close it only at exit, with a traceback)
-        with interrupts.spawning(), _workers_stderr_quiet():
+        # a signal while the workers start stops them at once (local_cluster)
+        with _workers_stderr_quiet():
             cluster = local_cluster(workers)
-            local = Client(cluster)
+        local = Client(cluster)
         yield local
     except BaseException:
         interrupted = True
@@ -349,7 +615,8 @@ def sweep(
         Output folder (``DIR``): created, or resumed if it holds this sweep (or, with
         ``force``, another); locked while the sweep runs.
     workers
-        Worker processes of a new local cluster (default: one per core).
+        Worker processes of a new local cluster (default: one per core; at most
+        :data:`~obsplan.core.budget.MAX_WORKERS_PER_CORE` per core).
     scheduler
         Address of an existing Dask scheduler (``tcp://host:8786``) instead. Without
         ``scheduler``, ``scheduler_file`` or ``workers``, Dask's own ``scheduler-address``
@@ -388,7 +655,9 @@ def sweep(
     SweepFileError
         Bad sweep file or an invalid task (before anything runs).
     InputError
-        Bad options or output folder, or ``out``'s finished tasks were computed by other code
+        Bad options (more local ``workers`` than :func:`check_workers` allows) or output
+        folder, no Dask scheduler at the address or a bad scheduler file (:func:`dask_client`),
+        or ``out``'s finished tasks were computed by other code
         (:func:`obsplan.sweeps.store.check_code`; ``force`` computes them again).
     ClusterError
         The scheduler was lost (finished tasks are kept).
@@ -416,6 +685,7 @@ def sweep(
     if retries < 0:
         raise InputError(f"retries must be >= 0, got {retries}")
     _one_cluster(workers, scheduler, scheduler_file)  # before any work
+    check_workers(workers)
     # checked, nothing written before the cluster is up; locked against another run
     target = check_out(out, force, spec.name)
     out = target.path

@@ -227,6 +227,7 @@ def sweep_from_dict(
             f"sweep.{bad[0]}: unknown key (a typo?); [sweep] accepts {', '.join(SWEEP_KEYS)}"
         )
     sweep_name = _string(head, "name", name)
+    budget.check_name_length(sweep_name, "sweep.name", SweepFileError)
     mode = _string(head, "mode", "plan")
     if mode not in MODES:
         raise SweepFileError(f"sweep.mode: must be one of {', '.join(MODES)}, got {mode!r}")

@@ -40,7 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsplan.core.errors import field_error
+from obsplan.core import budget
+from obsplan.core.errors import ProblemError, field_error
 
 #: Mission kinds.
 MISSION_KINDS: tuple[str, ...] = ("survey", "waypoints")
@@ -284,7 +285,8 @@ def generate_lines(
     Raises
     ------
     ProblemError
-        When the area is narrower than ``spacing`` across the heading.
+        When the area is narrower than ``spacing`` across the heading, or so wide that it
+        would hold more than :data:`~obsplan.core.budget.MAX_LINES` lines (counted first).
     """
     h = math.radians(heading_deg)
     e = np.array([math.cos(h), math.sin(h)])
@@ -292,6 +294,15 @@ def generate_lines(
     corners = area.corners()
     off = corners @ n
     lo, hi = float(off.min()), float(off.max())
+    # counted before a line is made: a tiny spacing would build billions of them
+    budget.check_lines(
+        (hi - lo) / spacing,
+        "mission.spacing",
+        f"over the area's {hi - lo:.4g} m across the heading, use a spacing of at least "
+        f"{(hi - lo) / budget.MAX_LINES:.3g} m ({budget.MAX_LINES} lines at most)",
+        ProblemError,
+    )
+    budget.check_corners(len(corners), "mission.area.polygon", ProblemError)
     count = int(math.floor((hi - lo) / spacing + 1e-9))
     if count < 1:
         raise field_error(

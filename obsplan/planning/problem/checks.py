@@ -70,6 +70,7 @@ def check_values(pb: ProblemData) -> None:
     ProblemError
         Naming the ``section.field`` at fault and the fix.
     """
+    budget.check_name_length(pb.name, "problem.name", ProblemError)
     _check_vehicle(pb)
     _check_motion(pb)
     _check_horizon(pb)
@@ -168,6 +169,9 @@ def _check_mission(pb: ProblemData) -> None:
             )
     elif not (math.isfinite(m.lead_in) and m.lead_in >= 0):
         raise field_error("mission.lead_in", f'must be a time >= 0 s or "auto", got {m.lead_in!r}')
+    budget.check_lines(len(m.lines), "mission.lines", error=ProblemError)
+    budget.check_waypoints(len(m.waypoints), "mission.waypoints", ProblemError)
+    budget.check_waypoints(len(m.windows), "mission.windows", ProblemError)
     if m.kind == "survey" and not m.lines:
         raise field_error("mission.lines", "a survey needs lines (or mission.area + spacing)")
     if m.kind == "waypoints" and not m.waypoints:
@@ -531,7 +535,7 @@ def _check_validation(pb: ProblemData) -> None:
         )
     if val.max_runs < 1:
         raise field_error("validation.max_runs", f"must be at least 1, got {val.max_runs}")
-    budget.check_runs(val.max_runs, "validation.max_runs", ProblemError)
+    budget.check_max_runs(val.max_runs, "validation.max_runs", ProblemError)
     ratio = hor.dt / val.dt
     if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
         raise field_error(
@@ -577,6 +581,10 @@ def _check_budget(pb: ProblemData) -> None:
         "a longer validation.dt",
         ProblemError,
         samples_field="validation.dt",
+    )
+    # the doubling validation may reach max_runs: its cost is bounded now, not after hours
+    budget.check_monte_carlo(
+        val.max_runs, samples, n, "validation.max_runs", "a longer validation.dt", ProblemError
     )
     obj = pb.objective
     cost = budget.planning_cost(hor.steps, obj.starts, obj.max_iter)

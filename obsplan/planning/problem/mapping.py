@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from obsplan.core import budget
 from obsplan.core.errors import ConfigError, InputError, ProblemError, field_error
 from obsplan.core.textfiles import check_magnitude, toml_text
 from obsplan.model.frames import GeodeticOrigin, check_lat_lon, geodetic_to_local
@@ -157,6 +158,8 @@ def _parse_mission_value(where: str, spec: FieldSpec, raw: Any, dim: int) -> Any
     """The mission's kinds of :func:`_parse_value`: lines, points, windows, an area, an end."""
     k = spec.kind
     if k in ("lines", "tracks", "points", "windows"):
+        if isinstance(raw, list):  # counted before a single row is converted
+            _check_rows(where, k, len(raw))
         width = {"lines": 2 * dim, "tracks": 4, "points": dim, "windows": 2}[k]
         form = {
             "lines": "[[x0, y0, x1, y1], ...]" if dim == 2 else "[[x0, y0, z0, x1, y1, z1], ...]",
@@ -184,6 +187,17 @@ def _parse_mission_value(where: str, spec: FieldSpec, raw: Any, dim: int) -> Any
     if k == "seabed":
         return _seabed(where, raw)
     return _end_region(where, raw, dim)
+
+
+def _check_rows(where: str, kind: str, n: int) -> None:
+    """The count of a mission's list (lines, waypoints and their windows, polygon corners)
+    within :mod:`obsplan.core.budget`'s limits."""
+    if kind in ("lines", "tracks"):
+        budget.check_lines(n, where, error=ProblemError)
+    elif where.endswith(".polygon"):
+        budget.check_corners(n, where, ProblemError)
+    else:
+        budget.check_waypoints(n, where, ProblemError)
 
 
 def _seabed(where: str, raw: Any) -> Seabed:

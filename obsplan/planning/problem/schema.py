@@ -21,6 +21,7 @@ import re
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from obsplan.core import budget
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 
 #: Largest ``horizon.steps`` the planner accepts: the NLP grows linearly in N and IPOPT's time
@@ -162,7 +163,14 @@ class FieldSpec:
 _NONE = None
 SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
     "problem": (
-        FieldSpec("name", "str", "", "-", "Free-text name shown in reports (default: file stem)."),
+        FieldSpec(
+            "name",
+            "str",
+            "",
+            "-",
+            "Free-text name shown in reports and figure titles (default: file stem); at most "
+            f"{budget.MAX_NAME_CHARS} characters.",
+        ),
     ),
     "vehicle": (
         FieldSpec("dim", "int", 2, "-", "Spatial dimension n: 2 or 3."),
@@ -501,7 +509,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             _NONE,
             "m",
             "Survey lines [[x0, y0, x1, y1], ...] (2D) or [[x0, y0, z0, x1, y1, z1], ...] (3D, "
-            "level: z0 = z1), each flown from its first point to its second, in this order.",
+            "level: z0 = z1), each flown from its first point to its second, in this order; at "
+            f"most {budget.MAX_LINES} lines.",
         ),
         FieldSpec(
             "area",
@@ -509,9 +518,18 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             _NONE,
             "m",
             "Instead of lines: generate them over {x = [min, max], y = [min, max]} or "
-            "{polygon = [[x, y], ...]} with spacing and heading (rule in docs/problem-files.md).",
+            "{polygon = [[x, y], ...]} with spacing and heading (rule in docs/problem-files.md); "
+            f"a polygon of at most {budget.MAX_POLYGON_CORNERS} corners.",
         ),
-        FieldSpec("spacing", "float", _NONE, "m", "Distance between generated lines."),
+        FieldSpec(
+            "spacing",
+            "float",
+            _NONE,
+            "m",
+            "Distance between generated lines; at most "
+            f"{budget.MAX_LINES} lines (the area's width across the heading / spacing, counted "
+            "before any line is generated).",
+        ),
         FieldSpec(
             "heading",
             "float",
@@ -599,7 +617,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "points",
             _NONE,
             "m",
-            'kind = "waypoints": points [[x, y(, z)], ...] passed in order.',
+            'kind = "waypoints": points [[x, y(, z)], ...] passed in order; at most '
+            f"{budget.MAX_WAYPOINTS}.",
         ),
         FieldSpec("radius", "float", 5.0, "m", "Each waypoint is passed within this distance."),
         FieldSpec(
@@ -619,7 +638,14 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
         ),
     ),
     "validation": (
-        FieldSpec("runs", "int", 50, "-", "Monte Carlo runs per trajectory (EKF and KF)."),
+        FieldSpec(
+            "runs",
+            "int",
+            50,
+            "-",
+            f"Monte Carlo runs per trajectory (EKF and KF); at most {budget.MAX_RUNS:,}, within "
+            "OBSPLAN_MAX_MEMORY and OBSPLAN_MAX_HOURS.",
+        ),
         FieldSpec("seed", "int", 0, "-", "Seed of the Monte Carlo runs (same for every path)."),
         FieldSpec(
             "dt", "float", 0.1, "s", "Filter prediction step; must divide the planning step."
@@ -703,7 +729,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "runs are added until every verdict of the plan against a baseline (EKF and KF RMSE "
             "and final error) is decided at 95 % confidence (paired bootstrap interval of the "
             "ratio excluding 1) or the cap is reached (the undecided ones are ties). At most "
-            "`runs`: one batch.",
+            f"`runs`: one batch. At most {budget.MAX_RUNS:,}, within OBSPLAN_MAX_MEMORY and "
+            "OBSPLAN_MAX_HOURS (checked before any run).",
         ),
         FieldSpec(
             "stress_prior",

@@ -10,12 +10,17 @@ path violates a limit is first projected onto the limits (:func:`~obsplan.planni
 
 from __future__ import annotations
 
+import contextlib
 import math
 import multiprocessing as mp
+import multiprocessing.connection as mp_connection
 import os
+import signal
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
 from typing import Any
 
 import casadi as ca
@@ -23,6 +28,7 @@ import numpy as np
 from tqdm import tqdm
 
 from obsplan.core import interrupts
+from obsplan.core.errors import SolverError
 from obsplan.planning.missions.check import completes_mission
 from obsplan.planning.objectives.evaluate import objective_value
 from obsplan.planning.problem.feasibility import LimitCheck, check_limits
@@ -194,21 +200,87 @@ def run_start(
 
 
 # ----------------------------------------------------------------------------- processes
-#: ``(fn, state)`` of :func:`run_forked`: set in the parent before fork, read by the children
-#: (inherited, never pickled: a built solver does not pickle).
-_WORKER: tuple[Callable[[Any, Any], Any], Any] | None = None
+#: Seconds a worker gets to leave after its last item before it is killed (it only returns).
+JOIN_TIMEOUT_S = 5.0
+#: Seconds between two looks at the workers while the parent waits for a result.
+POLL_S = 0.2
 
 
-def _worker_init() -> None:
-    interrupts.child_init()  # the parent stops everyone on Ctrl-C; a child dies with its parent
+class WorkerDied(SolverError):
+    """A worker process of :func:`run_forked` ended without returning its item's result (killed
+    from outside, out of memory, or crashed in native code)."""
+
+
+def _worker_main(conn: Connection, fn: Callable[[Any, Any], Any], state: Any) -> None:
+    """A forked worker: ``fn(state, item)`` for each ``(index, item)`` received, until ``None``.
+
+    SIGINT and SIGTERM are ignored (:func:`~obsplan.core.interrupts.child_init`; they were
+    blocked across the fork, so none sent meanwhile can reach Python's handler here): the
+    parent alone decides, and stops its workers with SIGKILL. The worker dies with its parent.
+    """
+    interrupts.child_init()
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, interrupts.SIGNALS)
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, "1")
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):  # the parent closed the pipe: nothing more to do
+            return
+        if msg is None:
+            return
+        i, item = msg
+        try:
+            reply: tuple[int, bool, Any] = (i, True, fn(state, item))
+        except BaseException as exc:  # noqa: BLE001 - re-raised in the parent
+            reply = (i, False, exc)
+        try:
+            conn.send(reply)  # pickled whole before a byte is written
+        except Exception as exc:  # noqa: BLE001 - an unpicklable result or exception
+            what = "result" if reply[1] else f"exception {reply[2]!r}"
+            conn.send((i, False, SolverError(f"item {i}: cannot send its {what} back: {exc}")))
 
 
-def _worker_call(item: Any) -> Any:
-    assert _WORKER is not None
-    fn, state = _WORKER
-    return fn(state, item)
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Block SIGINT and SIGTERM in this thread for the block (the forks): a child inherits the
+    mask, so a signal sent to the process group while it starts is never raised in it; the
+    parent gets its own when the block ends."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, interrupts.SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _stop_workers(workers: list[tuple[BaseProcess, Connection]], kill: bool) -> None:
+    """End every worker: ask them to leave (``kill=False``, after the last result) or SIGKILL them
+    (an interruption or an error), then reap them and close the pipes.
+
+    Nothing here waits on a lock or a queue a worker could hold, and no worker outlives the
+    call, whatever interrupts it (the workers ignore SIGTERM: ``multiprocessing``'s exit handler
+    would wait for ever on a worker left running).
+    """
+    try:
+        if not kill:
+            for _, conn in workers:
+                with contextlib.suppress(OSError, ValueError):
+                    conn.send(None)
+            deadline = time.monotonic() + JOIN_TIMEOUT_S
+            for proc, _ in workers:
+                proc.join(max(0.0, deadline - time.monotonic()))  # they leave at once
+    finally:
+        # what is left (an interruption, an error, a signal meanwhile, a worker that did not
+        # leave in time): SIGKILL, reaped in milliseconds
+        for proc, _ in workers:
+            if proc.exitcode is None:
+                with contextlib.suppress(OSError, ValueError, AttributeError):
+                    proc.kill()
+        for proc, conn in workers:
+            proc.join(JOIN_TIMEOUT_S)
+            conn.close()
+            with contextlib.suppress(ValueError):
+                proc.close()
 
 
 def default_processes(n_starts: int) -> int:
@@ -229,12 +301,24 @@ def run_forked(
 ) -> list:
     """``[fn(state, item) for item in items]``, in up to ``processes`` ``fork``-ed workers.
 
+    The one process pool of the package (the multi-start and the replanned Monte Carlo).
     ``state`` (e.g. a built solver) reaches the workers by the fork, not by pickling; the items
-    and the results are pickled. Serial when ``processes <= 1``, with one item, or where
-    ``fork`` is not available. ``on_result(i, result)`` is called in item order as the results
-    arrive. Ctrl-C in the parent terminates the workers.
+    and the results are pickled, through one pipe per worker (no queue or lock shared between
+    workers, so a worker killed at any moment cannot block the others or the parent). Serial
+    when ``processes <= 1``, with one item, or where ``fork`` is not available.
+    ``on_result(i, result)`` is called in item order as the results arrive. An exception of
+    ``fn`` is raised here.
+
+    The workers ignore SIGINT and SIGTERM (a terminal's Ctrl-C and a batch scheduler's SIGTERM
+    reach the whole process group): the parent raises
+    :class:`~obsplan.core.interrupts.Interrupted` (or ``KeyboardInterrupt``) and kills its
+    workers at once, without waiting for their solves. A worker dies with its parent.
+
+    Raises
+    ------
+    WorkerDied
+        When a worker ended without returning a result (killed from outside, out of memory).
     """
-    global _WORKER
     items = list(items)
     nproc = min(int(processes), len(items))
     if nproc <= 1 or "fork" not in mp.get_all_start_methods():
@@ -244,29 +328,63 @@ def run_forked(
             if on_result is not None:
                 on_result(i, out[-1])
         return out
-    _WORKER = (fn, state)
-    pool = mp.get_context("fork").Pool(nproc, initializer=_worker_init)
+    ctx = mp.get_context("fork")
+    workers: list[tuple[BaseProcess, Connection]] = []
+    busy: dict[Connection, tuple[BaseProcess, int]] = {}
+    done: dict[int, Any] = {}
+    reported = 0
+    queue = iter(enumerate(items))
+    finished = False
     try:
-        pending = [pool.apply_async(_worker_call, (item,)) for item in items]
-        out = []
-        for i, res in enumerate(pending):
-            while True:
+        with _signals_held():
+            for _ in range(nproc):
+                parent_end, child_end = ctx.Pipe(duplex=True)
+                child = ctx.Process(target=_worker_main, args=(child_end, fn, state), daemon=True)
                 try:
-                    item = res.get(timeout=0.2)  # short waits keep Ctrl-C responsive
-                    break
-                except mp.TimeoutError:
-                    continue
-            out.append(item)
-            if on_result is not None:
-                on_result(i, item)
-        pool.close()
-        return out
-    except BaseException:
-        pool.terminate()
-        raise
+                    child.start()
+                finally:
+                    child_end.close()
+                workers.append((child, parent_end))
+        idle = list(workers)
+
+        def feed() -> None:
+            while idle:
+                nxt = next(queue, None)
+                if nxt is None:
+                    return
+                proc, conn = idle.pop()
+                conn.send(nxt)
+                busy[conn] = (proc, nxt[0])
+
+        feed()
+        while reported < len(items):
+            ready = mp_connection.wait(list(busy), timeout=POLL_S)
+            interrupts.check()  # a signal whose exception a library swallowed
+            for conn in ready:
+                assert isinstance(conn, Connection)
+                proc, i = busy.pop(conn)
+                try:
+                    j, ok, value = conn.recv()
+                except (EOFError, OSError):
+                    proc.join(JOIN_TIMEOUT_S)
+                    raise WorkerDied(
+                        f"a worker process ended (exit code {proc.exitcode}) while computing "
+                        f"item {i + 1} of {len(items)} (killed from outside, or out of "
+                        "memory?); run again, or with one process"
+                    ) from None
+                if not ok:
+                    raise value
+                done[j] = value
+                idle.append((proc, conn))
+            feed()
+            while reported in done:
+                if on_result is not None:
+                    on_result(reported, done[reported])
+                reported += 1
+        finished = True
+        return [done[i] for i in range(len(items))]
     finally:
-        pool.join()
-        _WORKER = None
+        _stop_workers(workers, kill=not finished)
 
 
 def _start(ctx: StartContext, guess: tuple[str, Trajectory]):
