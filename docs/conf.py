@@ -24,7 +24,8 @@ extensions = [
     "sphinx.ext.mathjax",
     "numpydoc",
 ]
-source_suffix = {".md": "myst-nb", ".rst": "restructuredtext", ".ipynb": "myst-nb"}
+# .rst first: autosummary writes its generated pages with the first suffix (they are reST)
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 root_doc = "index"
 exclude_patterns = ["_build", "img/*.md", "**.ipynb_checkpoints"]
 

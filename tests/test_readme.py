@@ -1,4 +1,5 @@
-"""The README is executable: every command and code block runs, in order, from a fresh folder.
+"""The README and the docs are executable: every command and code block runs, in order, from a
+fresh folder (one per document).
 
 The README is parsed, not copied: every fenced block (``bash``, ``sh``, a block without a
 language: shell commands; ``python``: a script; ``toml``: a file that must load) and every
@@ -14,6 +15,10 @@ Conventions, as HTML comments on the lines right before a block (or before a tab
 * ``<!-- readme-test: creates PATH [PATH ...] -->`` — these paths exist after the block;
 * ``<!-- readme-test: prints TEXT -->`` — the block's output contains TEXT;
 * ``<!-- readme-test: writes PATH -->`` — (a TOML block) saved at PATH, loaded, removed.
+
+The pages of ``docs/`` follow the same conventions, each from its own fresh folder; MyST directive
+blocks (```` ```{toctree} ````) are the site's structure and ``text`` blocks are printed output,
+not commands.
 
 Installing is the one thing the test does not redo: ``python3 -m venv``, ``. .venv/bin/activate``
 and ``pip install`` steps are dropped from a command (the test runs in the environment that is
@@ -48,6 +53,9 @@ _INSTALL = re.compile(
 )
 
 _SHELL = {"", "bash", "sh", "shell", "console"}
+#: Blocks that are not run: printed output.
+_OUTPUT = {"text"}
+DOCS = ROOT / "docs"
 
 
 @dataclass
@@ -83,7 +91,9 @@ def parse_readme(text: str) -> list[Block]:
             j = i + 1
             while not lines[j].startswith("```"):
                 j += 1
-            out.append(Block(ln[3:].strip(), "\n".join(lines[i + 1 : j]), i + 1, pending))
+            lang = ln[3:].strip()
+            if not lang.startswith("{") and lang not in _OUTPUT:  # a directive; printed output
+                out.append(Block(lang, "\n".join(lines[i + 1 : j]), i + 1, pending))
             pending, i = [], j + 1
             continue
         if ln.startswith("|") and i + 1 < len(lines) and re.match(r"^\|[-:| ]+\|$", lines[i + 1]):
@@ -177,8 +187,8 @@ def _run(cmd: list[str] | str, cwd: Path, what: str) -> str:
     return output
 
 
-def _run_block(block: Block, clone: Path, scripts: Path) -> str:
-    where = f"README.md line {block.line}"
+def _run_block(block: Block, clone: Path, scripts: Path, doc: str = "README.md") -> str:
+    where = f"{doc} line {block.line}"
     if block.lang in _SHELL:
         skipped = {int(d.split(":")[0]) for d in block.directive("skip-line")}
         out = ""
@@ -189,7 +199,7 @@ def _run_block(block: Block, clone: Path, scripts: Path) -> str:
             out += _run(cmd, clone, f"{where}: {cmd!r}")
         return out
     if block.lang == "python":
-        script = scripts / f"readme_line_{block.line}.py"
+        script = scripts / f"{Path(doc).stem}_line_{block.line}.py"
         script.write_text(block.body + "\n", encoding="utf-8")
         return _run([sys.executable, str(script)], clone, f"{where} (python script)")
     if block.lang == "toml":
@@ -208,28 +218,49 @@ def _run_block(block: Block, clone: Path, scripts: Path) -> str:
     pytest.fail(f"{where}: a ```{block.lang} block; give it a readme-test directive or a language")
 
 
-def test_every_readme_block_runs_in_order_from_a_fresh_folder(tmp_path):
+def run_document(path: Path, tmp_path: Path) -> tuple[Path, int]:
+    """Run every block of the document at ``path`` in order from a fresh folder; returns the
+    folder and how many blocks ran."""
+    doc = path.relative_to(ROOT).as_posix()
     clone = tmp_path / "clone"
     clone.mkdir()
     for name in COPIED:
         shutil.copytree(ROOT / name, clone / name)
     scripts = tmp_path / "scripts"
     scripts.mkdir()
-    blocks = parse_readme(README.read_text(encoding="utf-8"))
-    assert len(blocks) >= 5
     ran = 0
-    for block in blocks:
+    for block in parse_readme(path.read_text(encoding="utf-8")):
         if block.directive("skip"):
-            assert block.directive("skip")[0], f"line {block.line}: skip needs a reason"
+            assert block.directive("skip")[0], f"{doc} line {block.line}: skip needs a reason"
             continue
-        output = _run_block(block, clone, scripts)
+        output = _run_block(block, clone, scripts, doc)
         ran += 1
         for paths in block.directive("creates"):
             for p in paths.split():
-                assert (clone / p).exists(), f"README.md line {block.line}: {p} was not created"
+                assert (clone / p).exists(), f"{doc} line {block.line}: {p} was not created"
         for text in block.directive("prints"):
-            assert text in output, f"README.md line {block.line}: {text!r} not in the output"
-    assert ran >= 5
+            assert text in output, f"{doc} line {block.line}: {text!r} not in the output"
+    return clone, ran
+
+
+def _pages() -> list[Path]:
+    """Every page of the documentation site with a block to run (in ``docs/``, not a build)."""
+    return [
+        p
+        for p in sorted(DOCS.rglob("*.md"))
+        if "_build" not in p.parts and parse_readme(p.read_text(encoding="utf-8"))
+    ]
+
+
+@pytest.mark.parametrize("page", _pages(), ids=lambda p: p.relative_to(DOCS).as_posix())
+def test_every_block_of_a_docs_page_runs_in_order_from_a_fresh_folder(page, tmp_path):
+    _, ran = run_document(page, tmp_path)
+    assert ran >= 1
+
+
+def test_every_readme_block_runs_in_order_from_a_fresh_folder(tmp_path):
+    clone, ran = run_document(README, tmp_path)
+    assert ran >= 3
     # everything the README wrote is ignored by the repository's .gitignore
     made = sorted(p.name for p in clone.iterdir() if p.name not in COPIED)
     made += [p.relative_to(clone).as_posix() for n in COPIED for p in (clone / n).rglob("*")]

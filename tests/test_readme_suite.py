@@ -1,4 +1,5 @@
-"""The README's suite table covers every shipped problem, once, with the objective it names."""
+"""The suite page's table (docs/results/suite.md) covers every shipped problem, once, with the
+objective it names."""
 
 from __future__ import annotations
 
@@ -8,8 +9,8 @@ from pathlib import Path
 from obsplan.planning import load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
-README = (ROOT / "README.md").read_text(encoding="utf-8")
-SECTION = "## The planner's verdict on the problem suite"
+PAGE = (ROOT / "docs" / "results" / "suite.md").read_text(encoding="utf-8")
+SECTION = "# The planner's verdict on the problem suite"
 NUMBERS = (
     "zero one two three four five six seven eight nine ten eleven twelve thirteen "
     "fourteen fifteen sixteen seventeen eighteen nineteen twenty twenty-one twenty-two "
@@ -18,9 +19,8 @@ NUMBERS = (
 
 
 def _section() -> str:
-    start = README.index(SECTION)
-    end = README.find("\n## ", start + len(SECTION))
-    return README[start : end if end > 0 else None]
+    assert PAGE.startswith(SECTION)
+    return PAGE
 
 
 def _rows() -> dict[str, list[str]]:
@@ -28,7 +28,7 @@ def _rows() -> dict[str, list[str]]:
     for line in _section().splitlines():
         m = re.match(r"\| `([\w/.-]+\.toml)` \|", line)
         if m:
-            assert m.group(1) not in rows, f"two README rows for {m.group(1)}"
+            assert m.group(1) not in rows, f"two suite rows for {m.group(1)}"
             rows[m.group(1)] = [c.strip() for c in line.strip().strip("|").split("|")]
     return rows
 

@@ -10,7 +10,7 @@ Lagrangian Hessian keeps the stage-wise sparsity):
 * ``gramian-log-det``: ``max 2 Σ log L_ii`` s.t. ``D G(W) D = L Lᵀ`` with a fixed diagonal ``D``.
 
 This is the paper's formulation (``objective.window = "mission"``, ``weights = "none"``); it
-measures the initial state only and does not serve the filters (README, "Choosing the
+measures the initial state only and does not serve the filters (docs/results/suite.md, "Choosing the
 objective"). Every other setting is the windowed, information-weighted form of
 :mod:`obsplan.planning.objectives.windowed`.
 

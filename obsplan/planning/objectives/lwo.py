@@ -29,8 +29,9 @@ exact Hessian, so they scale to N = 1000; an epigraph with a Cholesky factor per
 * ``"none"``: the scale-free form, ``max`` the soft minimum ``-log(mean_k exp(-β g_k))/β`` of the
   conditioning ``g_k`` (:func:`lwo_node_function`: geometric over arithmetic mean of the
   eigenvalues of ``OᵀO``, in [0, 1]). It ignores the range's distance, the rates and the
-  process noise, keeps away from the beacon and does not serve the filters (README, "Choosing
-  the objective"): a diagnostic, kept for research and comparison.
+  process noise, keeps away from the beacon and does not serve the filters
+  (docs/results/suite.md, "Choosing the objective"): a diagnostic, kept for research and
+  comparison.
 """
 
 from __future__ import annotations

@@ -3,16 +3,16 @@ objective kind with its properties.
 
 :data:`SCHEMA` is the one table of the problem file's fields: the loader
 (:mod:`obsplan.planning.problem.parse`), its error messages and the field tables of
-``docs/problem-files.md`` and ``README.md`` (:func:`schema_markdown`, :func:`update_field_tables`)
-all come from it, so they cannot drift apart (``tests/test_problem.py`` checks the documents).
+``docs/problem-files.md`` (:func:`schema_markdown`, :func:`update_field_tables`) all come from
+it, so they cannot drift apart (``tests/test_problem.py`` checks the document).
 :data:`OBJECTIVE_KINDS` declares each ``objective.kind``: whether it is maximised or minimised,
 whether it has a time mode, its default solver tolerance and the structural rank it needs; the
 implementations are registered by kind in :mod:`obsplan.planning.objectives.registry`.
 
-A new section or field is one more entry here (then regenerate the documents with
+A new section or field is one more entry here (then regenerate the document with
 :func:`update_field_tables`), a frozen dataclass field in
-:mod:`obsplan.planning.problem.definition`, and its conversion in
-:mod:`obsplan.planning.problem.parse`.
+:mod:`obsplan.planning.problem.sections`, and its conversion in
+:mod:`obsplan.planning.problem.mapping`.
 """
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ from obsplan.core import budget
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 
 #: Largest ``horizon.steps`` the planner accepts: the NLP grows linearly in N and IPOPT's time
-#: faster; N = 1000 solves in seconds to a minute (README benchmarks), 5000 is already hours.
+#: faster; N = 1000 solves in seconds to a minute (docs/results/benchmarks.md), 5000 is already
+#: hours.
 MAX_STEPS = 5000
 #: Longest horizon [s] and largest speed [m/s], acceleration [m/s²] and coordinate [m] accepted:
 #: far beyond any vehicle (a bound keeps absurd inputs from overflowing the checks' arithmetic).
@@ -789,13 +790,13 @@ def update_field_tables(text: str) -> str:
     """``text`` (a Markdown document) with its field tables regenerated from :data:`SCHEMA`.
 
     The tables run from the heading of ``[problem]`` (any level: ``###`` in
-    ``docs/problem-files.md``, ``####`` in ``README.md``) to the end of the last section's table;
-    everything else is kept. Regenerate the documents after editing :data:`SCHEMA`::
+    ``docs/problem-files.md``) to the end of the last section's table; everything else is kept.
+    Regenerate the document after editing :data:`SCHEMA`::
 
         from pathlib import Path
         from obsplan.planning.problem.schema import update_field_tables
-        for doc in (Path("docs/problem-files.md"), Path("README.md")):
-            doc.write_text(update_field_tables(doc.read_text()))
+        doc = Path("docs/problem-files.md")
+        doc.write_text(update_field_tables(doc.read_text()))
 
     Parameters
     ----------

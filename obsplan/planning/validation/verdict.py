@@ -448,9 +448,9 @@ def limit_notes(
     The plan keeps its limits at ``confidence`` (``limits.keepout_confidence``) with margins and
     reserves (:mod:`obsplan.planning.solver.margins`); a baseline is flown on its nominal path
     without them. The sentence states that difference, not a cause of the loss: a lawn-mower laid
-    inside the area by the plan's margin can win the same verdict (README, "Choosing the
-    objective"). "More often than allowed": the one-sided binomial test of its breaking runs against
-    the share ``1 - confidence`` rejects at ``Tuning.confidence`` (with 100 runs at 0.999: 2
+    inside the area by the plan's margin can win the same verdict (docs/results/suite.md, "Choosing
+    the objective"). "More often than allowed": the one-sided binomial test of its breaking runs
+    against the share ``1 - confidence`` rejects at ``Tuning.confidence`` (with 100 runs at 0.999: 2
     breaking runs). ``confidence = 0`` (no margins): nothing to say.
 
     Parameters
