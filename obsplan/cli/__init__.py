@@ -42,6 +42,17 @@ _MODULES = {"import": "import_track"}
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``obsplan`` argument parser: ``--version`` and one sub-parser per verb of ``VERBS``.
+
+    Each verb's module (``obsplan.cli.<verb>``; ``import_track`` for ``import``) adds its
+    sub-parser with ``add_parser`` and sets its ``run`` as the ``_run`` of the parsed
+    arguments; a verb whose module is not there is left out.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan``; a verb is required.
+    """
     parser = argparse.ArgumentParser(
         prog="obsplan",
         description=(
@@ -71,6 +82,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     input (one line naming the field and the fix), 130 / 143 interrupted by SIGINT / SIGTERM at
     any moment (outputs are swapped in atomically and undone if the signal came after the swap,
     so nothing is left written).
+
+    Parameters
+    ----------
+    argv : sequence of str or None, default None
+        The arguments after ``obsplan`` (``["plan", "--out", "DIR"]``); None: ``sys.argv[1:]``,
+        as the console script calls it; then an interrupted run ends the process at once
+        (outputs undone, exit handlers run) instead of returning, and signals are ignored while
+        the interpreter shuts down. With ``argv`` given, the signal handlers in place before
+        the call are restored.
+
+    Returns
+    -------
+    int
+        The exit code: 0 success, 1 failure, 2 bad input, 130 / 143 interrupted by SIGINT /
+        SIGTERM, 141 the reader of the output went away (the module's docstring).
     """
     previous = interrupts.install()
     interrupts.reset()

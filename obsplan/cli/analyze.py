@@ -14,7 +14,20 @@ from obsplan.observability.scaling import DEFAULT_SCALES, ScaleError, Scales, ch
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register the ``analyze`` verb."""
+    """Register the ``analyze`` verb.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-parsers of the ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan analyze``: ``TRAJ.csv``, the vehicle options
+        (:func:`~obsplan.cli.common.add_vehicle_arguments`), ``--length-scale``, ``--time-scale``
+        and ``--json``.
+    """
     p = subparsers.add_parser(
         "analyze",
         help="local (LWO) and global (Gramian) observability of a trajectory CSV",
@@ -46,7 +59,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 
 def format_report(rep: ObservabilityReport, path: str) -> str:
-    """Human-readable summary of a report."""
+    """Human-readable summary of a report.
+
+    Parameters
+    ----------
+    rep : ObservabilityReport
+        The report of :func:`obsplan.observability.analyze.analyze`.
+    path : str
+        The trajectory file, named on the first line.
+
+    Returns
+    -------
+    str
+        Four lines: the dimension and sensors, the LWO verdict along the trajectory, the
+        augmented Gramian's rank, and the scaled Gramian's ``min_eig``, ``log_det`` and
+        ``condition``.
+    """
     lwo, g = rep.lwo, rep.gramian
     verdict = "YES" if lwo.along_trajectory else "NO"
     lines = [
@@ -65,7 +93,28 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``obsplan analyze``; exit code 0 (errors raise, mapped by the dispatcher)."""
+    """Run ``obsplan analyze``; exit code 0 (errors raise, mapped by the dispatcher).
+
+    Prints the report (:func:`format_report`, or JSON with ``--json``, with the origin and the
+    beacon for a geodetic beacon). A trajectory that is not observable is a result, not a
+    failure.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The arguments parsed by the parser of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        0.
+
+    Raises
+    ------
+    InputError
+        A bad scale, trajectory or beacon, or scales under which the full-rank Gramian's
+        metrics fall below round-off (exit 2).
+    """
     check_scale(args.length_scale, "--length-scale", "m")
     check_scale(args.time_scale, "--time-scale", "s")
     scales = Scales(length_m=args.length_scale, time_s=args.time_scale)

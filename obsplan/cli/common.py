@@ -51,6 +51,11 @@ def option_limits() -> dict[str, tuple[float, str]]:
     scales' (:data:`~obsplan.observability.scaling.MAX_SCALE`) and the geodetic frame's
     (:data:`~obsplan.model.frames.MAX_DEPTH_M`); a function, so that the command line loads
     the model only once its signal handlers are installed.
+
+    Returns
+    -------
+    dict of str to (float, str)
+        Option (``"--dt"``) -> its largest size and its unit (``(1e10, "s")``).
     """
     from obsplan.model.frames import MAX_DEPTH_M
     from obsplan.observability.scaling import MAX_SCALE
@@ -77,7 +82,25 @@ def option_limits() -> dict[str, tuple[float, str]]:
 
 
 def verb_parser(parser: argparse.ArgumentParser, verb: str) -> argparse.ArgumentParser:
-    """The sub-parser of ``verb`` in the ``obsplan`` parser."""
+    """The sub-parser of ``verb`` in the ``obsplan`` parser.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+    verb : str
+        One of its verbs, ``"plan"``.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan <verb>``.
+
+    Raises
+    ------
+    KeyError
+        ``verb`` is not a verb of ``parser`` (or ``parser`` has no verbs).
+    """
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             return action.choices[verb]
@@ -86,7 +109,22 @@ def verb_parser(parser: argparse.ArgumentParser, verb: str) -> argparse.Argument
 
 def check_option_numbers(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """Refuse a number option of ``args.verb`` beyond its limit in :func:`option_limits`, or
-    non-zero below its inverse, or not finite: one line naming the option and its unit."""
+    non-zero below its inverse, or not finite: one line naming the option and its unit.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+    args : argparse.Namespace
+        The parsed arguments; ``args.verb`` names the verb whose number options are judged
+        (those not given, None, are not).
+
+    Raises
+    ------
+    InputError
+        ``"<option>: <value> <unit> is beyond ±<limit> <unit>, ..."`` (or below the inverse, or
+        not a finite number).
+    """
     for action in verb_parser(parser, args.verb)._actions:
         value = getattr(args, action.dest, None)
         if action.type is float and value is not None:
@@ -117,7 +155,20 @@ class Applies:
 
 
 def option_given(args: argparse.Namespace, option: str) -> bool:
-    """Whether ``option`` was given (options that a rule judges default to None or False)."""
+    """Whether ``option`` was given (options that a rule judges default to None or False).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments.
+    option : str
+        The option as typed, ``"--beacon-geodetic"`` (read from ``args.beacon_geodetic``).
+
+    Returns
+    -------
+    bool
+        True when its value is neither None nor False.
+    """
     value = getattr(args, option.lstrip("-").replace("-", "_"), None)
     return value is not None and value is not False
 
@@ -129,11 +180,11 @@ def check_applies(
 
     Parameters
     ----------
-    args
+    args : argparse.Namespace
         The parsed arguments.
-    rules
+    rules : iterable of Applies
         The verb's rules.
-    facts
+    facts : Mapping of str to str or None
         Fact name -> None when it holds, else what holds instead, in words (``"LOG is a
         CSV"``). Rules whose fact is not in ``facts`` are not judged (yet: an input's content
         is known once it is read).
@@ -150,13 +201,34 @@ def check_applies(
 
 
 def given_fact(holds: bool, instead: str) -> str | None:
-    """A fact for :func:`check_applies`: None when it ``holds``, else ``instead``."""
+    """A fact for :func:`check_applies`: None when it ``holds``, else ``instead``.
+
+    Parameters
+    ----------
+    holds : bool
+        Whether the fact holds (the option applies).
+    instead : str
+        What holds instead, in words (``"no --out is given"``), for the refusal's message.
+
+    Returns
+    -------
+    str or None
+        None when ``holds``, else ``instead``.
+    """
     return None if holds else instead
 
 
 # ------------------------------------------------------------------------------ arguments
 def add_vehicle_arguments(p: argparse.ArgumentParser) -> None:
-    """``--sensors``, ``--current``, ``--beacon``, ``--beacon-geodetic``, ``--origin``."""
+    """``--sensors``, ``--current``, ``--beacon``, ``--beacon-geodetic``, ``--origin``.
+
+    Each defaults to None (read by :func:`resolve_beacon` and the verb).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The verb's parser, to which the options are added.
+    """
     p.add_argument(
         "--sensors",
         default=None,
@@ -185,7 +257,18 @@ def add_vehicle_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def add_output_arguments(p: argparse.ArgumentParser, what: str, default: str | None) -> None:
-    """``--out DIR`` and ``--force`` (plan, simulate, paper)."""
+    """``--out DIR`` and ``--force`` (plan, simulate, paper).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The verb's parser, to which the options are added.
+    what : str
+        What the verb writes to DIR, in words, for the help (``"figures"``).
+    default : str or None
+        The default folder, shown in the help; None: no default (nothing is written without
+        ``--out``).
+    """
     shown = f" (default: {default})" if default else ""
     p.add_argument("--out", metavar="DIR", default=default, help=f"write {what} to DIR{shown}")
     p.add_argument(
@@ -203,6 +286,20 @@ def join_negative_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -
 
     argparse reads a value starting with ``-`` as an option unless it is a plain negative
     number, so negative coordinates, seeds and latitudes would otherwise need ``--opt=-1``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The ``obsplan`` parser; the options of it and of every verb's sub-parser that take one
+        value are joined.
+    argv : sequence of str
+        The arguments after ``obsplan``; those after ``--`` are left as they are.
+
+    Returns
+    -------
+    list of str
+        ``argv`` with every such option and its negative value (``-50,10``, ``-.5``, ``-inf``,
+        ``-nan``) joined by ``=``.
     """
     takes_value: set[str] = set()
     parsers = [parser]
@@ -231,14 +328,51 @@ def join_negative_values(parser: argparse.ArgumentParser, argv: Sequence[str]) -
 
 
 def check_seed(seed: int | None, option: str = "--seed") -> int | None:
-    """A seed must be a non-negative integer (numpy's generators refuse negative ones)."""
+    """A seed must be a non-negative integer (numpy's generators refuse negative ones).
+
+    Parameters
+    ----------
+    seed : int or None
+        The seed given; None: none given.
+    option : str, default "--seed"
+        The option, for the message.
+
+    Returns
+    -------
+    int or None
+        ``seed``, unchanged.
+
+    Raises
+    ------
+    InputError
+        A negative seed.
+    """
     if seed is not None and seed < 0:
         raise InputError(f"{option} {seed}: a seed must be a non-negative integer, e.g. 0")
     return seed
 
 
 def parse_beacon(text: str | None, dim: int) -> tuple[float, ...] | None:
-    """``"x,y[,z]"`` -> floats, checked against the trajectory dimension."""
+    """``"x,y[,z]"`` -> floats, checked against the trajectory dimension.
+
+    Parameters
+    ----------
+    text : str or None
+        The ``--beacon`` value, coordinates [m] separated by commas; None: not given.
+    dim : int
+        The trajectory's dimension, 2 or 3: the number of coordinates expected.
+
+    Returns
+    -------
+    tuple of float or None
+        The beacon position [m], shape ``(dim,)``; None when ``text`` is None.
+
+    Raises
+    ------
+    InputError
+        Not ``dim`` finite numbers, or a coordinate beyond the limit of a trajectory CSV's
+        positions.
+    """
     if text is None:
         return None
     parts = [s.strip() for s in text.split(",")]
@@ -270,6 +404,30 @@ def resolve_beacon(args: argparse.Namespace, dim: int):
     """Beacon position (metric, or geodetic about ``--origin``) and the origin, from ``args``.
 
     Returns ``(beacon or None, GeodeticOrigin or None)``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed arguments of a verb with :func:`add_vehicle_arguments` (``--beacon``,
+        ``--beacon-geodetic``, ``--origin``).
+    dim : int
+        The trajectory's dimension, 2 or 3.
+
+    Returns
+    -------
+    beacon : tuple of float or None
+        The beacon position [m] in the trajectory's frame, shape ``(dim,)`` (a geodetic beacon
+        converted to north-east-down about the origin); None when neither option is given (the
+        beacon is at the origin).
+    origin : GeodeticOrigin or None
+        The ``--origin``; None when not given.
+
+    Raises
+    ------
+    InputError
+        Both ``--beacon`` and ``--beacon-geodetic``, ``--origin`` without
+        ``--beacon-geodetic``, ``--beacon-geodetic`` without ``--origin``, or a malformed
+        value.
     """
     from obsplan.io.geodetic import parse_geodetic_point, parse_origin
 
@@ -288,6 +446,25 @@ def read_trajectory(path: str, verb: str) -> Trajectory:
     """Read a trajectory CSV, or fit a position-only track on the fly (said on stderr).
 
     A consistency warning is printed as one line, not a traceback.
+
+    Parameters
+    ----------
+    path : str
+        The CSV: a trajectory (``t,px,py[,pz],vx,vy[,vz],ux,uy[,uz]``) or a position-only
+        track (``t,px,py[,pz]``).
+    verb : str
+        The verb reading it, for the messages on stderr (``"analyze"``).
+
+    Returns
+    -------
+    Trajectory
+        The trajectory, read or fitted (:func:`obsplan.io.tracks.load_trajectory`).
+
+    Raises
+    ------
+    InputError
+        A file that is missing, too large (:func:`obsplan.core.budget.check_file_rows`) or
+        malformed.
     """
     # imported here: `obsplan` installs its signal handlers before numpy and the rest load
     from obsplan.io.tracks import load_trajectory

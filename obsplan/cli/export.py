@@ -25,7 +25,20 @@ APPLIES = (
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register the ``export`` verb."""
+    """Register the ``export`` verb.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-parsers of the ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan export``: ``PLAN.csv``, ``--waypoints``, ``--qgc``, ``--every`` or
+        ``--spacing``, ``--geodetic``, ``--origin``, ``--depth``, ``--acceptance-radius``,
+        ``--force`` and ``--json``.
+    """
     p = subparsers.add_parser(
         "export",
         help="waypoints (metric or geodetic) and a QGroundControl mission from a plan",
@@ -102,7 +115,30 @@ def _origin(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``obsplan export``; 0 on success."""
+    """Run ``obsplan export``; 0 on success.
+
+    Writes the waypoint CSV and/or the QGroundControl mission and prints a summary (JSON with
+    ``--json``).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The arguments parsed by the parser of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        0 (the files written).
+
+    Raises
+    ------
+    InputError
+        Nothing to write, ``--waypoints`` and ``--qgc`` naming the same file, an output that
+        exists without ``--force``, geodetic output without an origin, a ``--depth`` below 0 or
+        with a 3D plan, an ``--acceptance-radius`` that is not positive, an option that does not
+        apply (:data:`APPLIES`), a bad plan or a plan beyond the frame's reach about its origin
+        (exit 2).
+    """
     from obsplan.io.waypoints import waypoints_from_trajectory, write_qgc_plan, write_waypoints_csv
 
     if args.waypoints is None and args.qgc is None:

@@ -22,7 +22,20 @@ from obsplan.trajectory.sampled import write_csv
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register the ``import`` verb."""
+    """Register the ``import`` verb.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-parsers of the ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan import``: ``LOG``, ``--out``, ``--force``, ``--format``,
+        ``--topic``, ``--ros-frame``, ``--message``, ``--origin``, ``--grid``, ``--position-std``,
+        ``--velocity-std``, ``--max-gap`` and ``--json``.
+    """
     p = subparsers.add_parser(
         "import",
         help="a logged track (CSV, ROS bag, MAVLink log) to a trajectory CSV with fitted inputs",
@@ -117,7 +130,28 @@ APPLIES = (
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``obsplan import``; 0 on success."""
+    """Run ``obsplan import``; 0 on success.
+
+    Reads the log, fits the accelerations, writes ``--out`` and prints the fit's summary (JSON
+    with ``--json``); the log's notes are warnings on stderr.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The arguments parsed by the parser of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        0 (the trajectory CSV written).
+
+    Raises
+    ------
+    InputError
+        An option that does not apply to the log (:data:`APPLIES`, judged by its format before
+        it is read and by its content after), an output that exists without ``--force``, or a
+        log that cannot be read or fitted (exit 2).
+    """
     # checked before reading the log
     fmt = track_format(args.log, args.format)
     where = f"{args.log} is {FORMAT_NAMES.get(fmt, fmt)}"

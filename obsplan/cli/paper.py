@@ -17,7 +17,19 @@ from obsplan.paper.tables import all_rows, claims, paper_report, render_tables, 
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register the ``paper`` verb."""
+    """Register the ``paper`` verb.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-parsers of the ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan paper``: ``--out``, ``--json``, ``--quick``, ``--force``,
+        ``--no-figures`` and ``--quiet``.
+    """
     p = subparsers.add_parser(
         "paper",
         help="regenerate the paper's Tables 1-3 (and figure scenarios) beside our verdicts",
@@ -51,7 +63,24 @@ APPLIES = (
 
 
 def run(args: argparse.Namespace) -> int:
-    """Compute, print and optionally write the tables; returns the exit code."""
+    """Compute, print and optionally write the tables; returns the exit code.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The arguments parsed by the parser of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        0, whatever the verdicts (a disagreement with the paper is a result).
+
+    Raises
+    ------
+    InputError
+        ``--force`` or ``--no-figures`` without ``--out``, or an ``--out`` folder that cannot
+        be written or replaced (exit 2).
+    """
     check_applies(args, APPLIES, {"out": given_fact(args.out is not None, "no --out is given")})
     out = OutputDir(args.out, args.force, verb="paper") if args.out is not None else None
     if not args.quiet:

@@ -19,7 +19,20 @@ DEFAULT_OUT = "obsplan-plan"
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register the ``plan`` verb."""
+    """Register the ``plan`` verb.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-parsers of the ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan plan``: ``PROBLEM.toml`` (optional), ``--out``, ``--force``,
+        ``--runs``, ``--max-runs``, ``--steps``, ``--starts``, ``--no-validate``, ``--replan``,
+        ``--quiet`` and ``--verbose``.
+    """
     p = subparsers.add_parser(
         "plan",
         help="plan an observability-optimal path and validate it against baselines",
@@ -97,7 +110,29 @@ def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningP
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the verb; 0 on success, 1 if no start converged (outputs are still written)."""
+    """Run the verb; 0 on success, 1 if no start converged (outputs are still written).
+
+    Plans (:func:`obsplan.planning.plan.plan`), writes ``plan.csv``, ``report.json`` and the
+    figures into ``--out`` (replaced whole) and prints the summary.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The arguments parsed by the parser of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        0 when a start converged; 1 when none did (the best feasible iterate, if any, is
+        written).
+
+    Raises
+    ------
+    InputError
+        A problem that does not load, an override out of its limits (``--runs``,
+        ``--max-runs``, ``--starts``, ``--replan``), ``--replan`` with ``--no-validate``, or an
+        ``--out`` folder that cannot be written or replaced (exit 2).
+    """
     # validate the problem and the output folder before any work
     pb = _apply_overrides(load_problem(args.problem), args)
     out = OutputDir(args.out, args.force, inputs=[args.problem or DEFAULT_PROBLEM], verb="plan")

@@ -24,7 +24,19 @@ _BASE = re.compile(r'^(base\s*=\s*)"([^"]+)"', re.M)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register the ``problems`` verb."""
+    """Register the ``problems`` verb.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-parsers of the ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan problems``: ``NAME | copy NAME FILE`` (optional words) and
+        ``--force``.
+    """
     p = subparsers.add_parser(
         "problems",
         help="list the shipped problems, suite and sweeps; copy one out to edit",
@@ -46,7 +58,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 def describe(path: Path) -> tuple[str, str]:
     """``(kind, title)`` of a shipped file: ``"problem"`` and its ``[problem] name``, or
-    ``"sweep"`` and its ``[sweep] name``."""
+    ``"sweep"`` and its ``[sweep] name``.
+
+    Parameters
+    ----------
+    path : Path
+        A shipped problem or sweep file (:func:`~obsplan.planning.problem.parse.shipped_files`).
+
+    Returns
+    -------
+    kind : str
+        ``"sweep"`` when the file has a ``[sweep]`` table, else ``"problem"``.
+    title : str
+        That table's ``name`` (``""`` when it has none).
+    """
     data = read_toml(path, "a shipped problem file")
     kind = "sweep" if "sweep" in data else "problem"
     return kind, str(data.get(kind, {}).get("name", ""))
@@ -54,7 +79,19 @@ def describe(path: Path) -> tuple[str, str]:
 
 def copied_text(path: Path) -> str:
     """The text of shipped ``path`` as a copy elsewhere needs it: a sweep's relative ``base``
-    made absolute (the shipped problem it names)."""
+    made absolute (the shipped problem it names).
+
+    Parameters
+    ----------
+    path : Path
+        A shipped problem or sweep file.
+
+    Returns
+    -------
+    str
+        Its text, every relative ``base = "..."`` line replaced by the absolute path of the file
+        it names; the rest unchanged.
+    """
     text = read_text(path, "a shipped problem file")
 
     def absolute(m: re.Match[str]) -> str:
@@ -74,7 +111,24 @@ def _shipped(name: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the verb: the list, one file's text, or one copy; 0 on success."""
+    """Run the verb: the list, one file's text, or one copy; 0 on success.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The arguments parsed by the parser of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        0 (the list or the text printed, or the copy written).
+
+    Raises
+    ------
+    InputError
+        An unknown name, words that are neither ``NAME`` nor ``copy NAME FILE``, or a ``FILE``
+        that exists without ``--force`` (exit 2).
+    """
     words = list(args.words)
     if not words:
         files = shipped_files()

@@ -68,7 +68,23 @@ PROBLEM_REPLACES = {
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register the ``simulate`` verb."""
+    """Register the ``simulate`` verb.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-parsers of the ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan simulate``: ``TRAJ.csv``, the vehicle options
+        (:func:`~obsplan.cli.common.add_vehicle_arguments`), ``--rates``, ``--noise``, ``--dt``,
+        ``--problem``, ``--runs``, ``--seed``, ``--filters``, ``--init-error``,
+        ``--no-process-noise``, ``--open-loop``, ``--navigation``, ``--accel-noise``,
+        ``--paper-noise``, ``--accel``, ``--speed``, ``--json``, ``--out``, ``--force`` and
+        ``--quiet``.
+    """
     p = subparsers.add_parser(
         "simulate",
         help="Monte Carlo of the EKF and the augmented KF along a trajectory CSV",
@@ -192,7 +208,25 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
 
 
 def parse_pairs(text: str, option: str) -> dict[str, float]:
-    """``"range=0.1,dvl=100"`` -> ``{"range": 0.1, "dvl": 100.0}``."""
+    """``"range=0.1,dvl=100"`` -> ``{"range": 0.1, "dvl": 100.0}``.
+
+    Parameters
+    ----------
+    text : str
+        ``SENSOR=NUMBER`` pairs separated by commas (empty items are skipped; ``""``: none).
+    option : str
+        The option, for the message (``"--rates"``).
+
+    Returns
+    -------
+    dict of str to float
+        Sensor -> number, in the option's unit (a rate [Hz], a noise std [m] or [m/s]).
+
+    Raises
+    ------
+    InputError
+        An item without ``=`` or whose value is not a number.
+    """
     out: dict[str, float] = {}
     for item in filter(None, (s.strip() for s in text.split(","))):
         name, sep, val = item.partition("=")
@@ -221,7 +255,25 @@ def _init_error(text: str) -> str | np.ndarray:
 
 def check_filter_grid(traj, dt: float | None, runs: int) -> None:
     """Refuse, before allocating anything, a filter grid or Monte Carlo beyond the limits of
-    :mod:`obsplan.core.budget` (samples per run, runs, memory and time)."""
+    :mod:`obsplan.core.budget` (samples per run, runs, memory and time).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The trajectory to simulate along.
+    dt : float or None
+        The filter step [s] (``--dt`` or ``validation.dt``); None: the trajectory's own
+        samples.
+    runs : int
+        The Monte Carlo runs.
+
+    Raises
+    ------
+    InputError
+        A ``dt`` that is not a positive number, more samples per run than
+        :data:`obsplan.core.budget.MAX_SAMPLES`, or a Monte Carlo beyond the memory or time
+        budget.
+    """
     if dt is not None and not (np.isfinite(dt) and dt > 0):
         raise InputError(f"--dt {dt:g}: the filter step must be a positive number of seconds")
     samples = traj.n_samples if dt is None else traj.duration / dt + 1
@@ -321,7 +373,29 @@ _CLEAR = (
 
 
 def run(args: argparse.Namespace) -> int:
-    """Execute ``obsplan simulate``; 0, or 1 if a filter diverged."""
+    """Execute ``obsplan simulate``; 0, or 1 if a filter diverged.
+
+    Prints the Monte Carlo's summary (JSON with ``--json``) and, with ``--out``, writes the
+    figures.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The arguments parsed by the parser of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        0; 1 when a filter diverged (non-finite estimates) in any run.
+
+    Raises
+    ------
+    InputError
+        A bad seed, ``--runs``, trajectory, beacon (or one at the trajectory's start), filter
+        grid or option value, an option that does not apply (:data:`APPLIES`) or that
+        ``--problem`` replaces (:data:`PROBLEM_REPLACES`), a problem of another dimension, or
+        an ``--out`` folder that cannot be written or replaced (exit 2).
+    """
     check_seed(args.seed)
     if args.runs is not None and args.runs < 1:
         raise InputError(f"--runs {args.runs}: needs at least 1 run")

@@ -38,7 +38,20 @@ APPLIES = tuple(
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
-    """Register the ``sweep`` verb."""
+    """Register the ``sweep`` verb.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The sub-parsers of the ``obsplan`` parser (:func:`obsplan.cli.build_parser`).
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of ``obsplan sweep``: ``SWEEP.toml`` (optional), ``--out``, ``--workers`` or
+        ``--scheduler`` or ``--scheduler-file``, ``--report``, ``--retry-failed``, ``--no-figures``,
+        ``--force`` and ``--quiet``.
+    """
     p = subparsers.add_parser(
         "sweep",
         help="run a parameter study (many problems) on Dask, resumable",
@@ -112,7 +125,19 @@ def _announce(info: SweepStart, quiet: bool) -> None:
 
 
 def kept(out: Path) -> str:
-    """What an interrupted or broken-off sweep leaves in ``out``, in words (one true clause)."""
+    """What an interrupted or broken-off sweep leaves in ``out``, in words (one true clause).
+
+    Parameters
+    ----------
+    out : Path
+        The sweep's ``--out`` folder.
+
+    Returns
+    -------
+    str
+        ``"nothing was written"`` when the folder does not exist, else how many finished tasks
+        it keeps and that running the same command again resumes.
+    """
     from obsplan.sweeps.store import finished_tasks
 
     if not out.is_dir():
@@ -140,7 +165,34 @@ def _quiet_dask_logs() -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the verb; 0 when every task finished, 1 if any failed or the scheduler was lost,
-    130 on Ctrl-C."""
+    130 on Ctrl-C.
+
+    With ``--report DIR`` only redraws the figures of a finished sweep.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The arguments parsed by the parser of :func:`add_parser`.
+
+    Returns
+    -------
+    int
+        0 when every task is done (or the figures were redrawn); 1 when any task failed (the
+        first :data:`SHOW_FAILED` are named on stderr).
+
+    Raises
+    ------
+    InputError
+        ``--report`` with ``SWEEP.toml``, ``--out`` or an option of running a sweep
+        (:data:`APPLIES`), no ``SWEEP.toml`` or no ``--out``, or a bad sweep file or folder
+        (exit 2).
+    ClusterError
+        The Dask scheduler was lost (:class:`obsplan.sweeps.run.ClusterError`; finished tasks
+        are kept; exit 1).
+    KeyboardInterrupt
+        Ctrl-C (or SIGTERM), with ``kept`` (:func:`kept`) saying what the folder keeps; exit
+        130 / 143 by :func:`obsplan.cli.main`.
+    """
     from obsplan.sweeps.figures import redraw_figures
     from obsplan.sweeps.run import sweep
     from obsplan.sweeps.store import FIGURES, RESULTS_CSV, RESULTS_PARQUET

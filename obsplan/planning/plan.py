@@ -45,27 +45,27 @@ def plan(
 
     Parameters
     ----------
-    problem
+    problem : PlanningProblem or str or Path or None, default None
         A :class:`PlanningProblem`, a problem file or a shipped problem's name
         (:func:`~obsplan.planning.problem.parse.load_problem`), or None for the default problem.
-    validate
+    validate : bool, default True
         Run the EKF/KF Monte Carlo on the plan and every baseline (in closed loop unless
         ``validation.mode = "open-loop"``), adding batches of runs until every verdict is
         decided or ``validation.max_runs`` is reached
         (:func:`~obsplan.planning.validation.verdict.validate_until_decided`); :func:`validate`
         repeats it on any path.
-    runs
+    runs : int or None, default None
         Override ``validation.runs`` (the first batch).
-    max_runs
+    max_runs : int or None, default None
         Override ``validation.max_runs`` (the cap on the runs).
-    progress
+    progress : bool, default False
         Progress bars (tqdm, on stderr) for the starts and the validation.
-    verbose
+    verbose : bool, default False
         IPOPT output.
-    processes
+    processes : int or None, default None
         Worker processes for the multi-start and the replanned Monte Carlo (None: one per core,
         at most one per start; 1: all in this process, e.g. inside a Dask worker).
-    replan
+    replan : float or None, default None
         Also validate with receding-horizon replanning every ``replan`` seconds (a multiple of
         the planning step; :func:`~obsplan.planning.replan.replan_monte_carlo`, ``obsplan plan
         --replan``); needs ``validate``. Default: no replanning.
@@ -152,18 +152,18 @@ def validate(
 
     Parameters
     ----------
-    trajectory
+    trajectory : Trajectory
         The path, on the problem's planning grid (``plan.csv``; any grid whose steps
         ``validation.dt`` divides runs, but the metrics and the baselines are the planning
         grid's).
-    problem
+    problem : PlanningProblem or str or Path or None, default None
         A :class:`PlanningProblem`, a problem file or a shipped problem's name, or None for the
         default problem.
-    runs
+    runs : int or None, default None
         Override ``validation.runs`` (the first batch), as :func:`plan`'s ``runs``.
-    max_runs
+    max_runs : int or None, default None
         Override ``validation.max_runs``, as :func:`plan`'s ``max_runs``.
-    progress
+    progress : bool, default False
         A progress bar (tqdm, on stderr) over the runs.
 
     Returns

@@ -150,7 +150,13 @@ class ValidationResult:
         )
 
     def paths(self) -> dict[str, Trajectory]:
-        """``planned`` (when there is a path) then every baseline."""
+        """``planned`` (when there is a path) then every baseline.
+
+        Returns
+        -------
+        dict of str to Trajectory
+            Name -> path, in that order: the paths the figures draw.
+        """
         out: dict[str, Trajectory] = {}
         if self.trajectory is not None:
             out["planned"] = self.trajectory
@@ -159,7 +165,13 @@ class ValidationResult:
 
     def validation_dict(self) -> dict:
         """``report.json``'s ``validation``: ``mode`` (``"closed-loop"`` or ``"open-loop"``)
-        and one entry per validated path (empty when no validation was run)."""
+        and one entry per validated path (empty when no validation was run).
+
+        Returns
+        -------
+        dict
+            ``{"mode": ..., <path>: <its Monte Carlo's dict>, ...}``, or ``{}``; JSON-serialisable.
+        """
         if not self.validation:
             return {}
         return {
@@ -348,13 +360,13 @@ class ValidationResult:
 
         Parameters
         ----------
-        kind
+        kind : str, default "path"
             ``"path"`` (the paths with the beacon, the limits and the mission; in 3D a depth
             panel beside it unless ``ax`` is given), ``"gramian"`` (the smallest eigenvalue of
             the scaled Gramian over time), ``"filters"`` (the filters' position RMSE and the
             bound over time; needs a validation), ``"speed"`` (speed over time; needs a
             ``[mission]``), or ``"all"``: each of those the command line writes.
-        ax
+        ax : matplotlib.axes.Axes or None, default None
             A matplotlib Axes to draw into (one kind only); None: a new figure.
 
         Returns
@@ -390,7 +402,7 @@ class ValidationResult:
 
         Parameters
         ----------
-        folder
+        folder : str or Path
             Created if missing; files of the same names are replaced.
 
         Returns
@@ -424,9 +436,9 @@ class ValidationResult:
 
         Parameters
         ----------
-        folder
+        folder : str or Path
             The output folder.
-        force
+        force : bool, default False
             Replace an earlier obsplan output folder (its old files removed).
 
         Returns
@@ -491,7 +503,14 @@ class PlanResult(ValidationResult):
 
     def header(self) -> str:
         """The first lines ``obsplan plan`` prints: the solve's status, starts and times, its
-        note, and the keep-out margins."""
+        note, and the keep-out margins.
+
+        Returns
+        -------
+        str
+            Lines for the terminal: the status line, a ``note:`` line when the solve has one, a
+            ``keep-out`` line when margins were applied.
+        """
         s, pb = self.solve, self.problem
         converged = sum(st.success for st in s.starts)
         lines = [

@@ -345,9 +345,9 @@ def sections_from_dict(data: Mapping[str, Any], name: str = "") -> dict[str, Any
 
     Parameters
     ----------
-    data
+    data : Mapping of str to Any
         A parsed problem file (``tomllib``), or a mapping of the same form built in Python.
-    name
+    name : str, default ""
         The problem's name when ``[problem] name`` is not given (a file's stem).
 
     Returns
@@ -421,7 +421,7 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
 
     Parameters
     ----------
-    pb
+    pb : ProblemData
         The problem (its sections).
 
     Returns
@@ -525,7 +525,7 @@ def problem_to_toml(pb: ProblemData) -> str:
 
     Parameters
     ----------
-    pb
+    pb : ProblemData
         The problem (its sections).
 
     Returns
@@ -540,7 +540,25 @@ def problem_to_toml(pb: ProblemData) -> str:
 
 # ---------------------------------------------------------------------- geodetic problem fields
 def origin_of(data: Mapping[str, Any]) -> GeodeticOrigin | None:
-    """The ``[origin]`` section of a problem mapping as a :class:`GeodeticOrigin` (or None)."""
+    """The ``[origin]`` section of a problem mapping as a :class:`GeodeticOrigin` (or None).
+
+    Parameters
+    ----------
+    data : Mapping of str to Any
+        The problem file's sections as parsed from TOML.
+
+    Returns
+    -------
+    GeodeticOrigin or None
+        The origin of the local north-east-down frame (latitude and longitude [deg], altitude
+        [m], 0 by default); None without ``[origin]``.
+
+    Raises
+    ------
+    ProblemError
+        On ``origin`` or ``origin.<key>``: not a table, an unknown or missing key, a value that
+        is not a finite number or out of range.
+    """
     raw = data.get("origin")
     if raw is None:
         return None
@@ -573,6 +591,19 @@ def resolve_problem_geodetic(
     section removed, and the origin (None without one). A mapping with neither is returned
     unchanged (no pymap3d needed). Malformed sections that are not about geodetic fields are left
     for the problem parser to report.
+
+    Parameters
+    ----------
+    data : Mapping of str to Any
+        The problem file's sections as parsed from TOML.
+
+    Returns
+    -------
+    data : Mapping of str to Any
+        The sections with ``<section>.geodetic`` replaced by ``<section>.position`` [m] (local
+        north-east-down about the origin) and without ``[origin]``.
+    origin : GeodeticOrigin or None
+        The ``[origin]`` section (None without one).
 
     Raises
     ------

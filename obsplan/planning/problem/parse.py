@@ -53,13 +53,30 @@ LOCALISE_PROBLEM = PROBLEMS_DIR / "localise.toml"
 def shipped_files() -> dict[str, Path]:
     """Every shipped problem and sweep file by its name: its path under :data:`PROBLEMS_DIR`
     without ``.toml`` (``"default"``, ``"suite/far-start"``, ``"sweeps/beacon-placement"``),
-    in that order: the problems at the top, then the suite, then the sweeps."""
+    in that order: the problems at the top, then the suite, then the sweeps.
+
+    Returns
+    -------
+    dict of str to Path
+        Name -> the TOML file under :data:`PROBLEMS_DIR`.
+    """
     files = sorted(PROBLEMS_DIR.rglob("*.toml"), key=lambda f: (len(f.parts), str(f)))
     return {f.relative_to(PROBLEMS_DIR).with_suffix("").as_posix(): f for f in files}
 
 
 def shipped_file(name: str) -> Path | None:
-    """The shipped file called ``name`` (:func:`shipped_files`; ``.toml`` optional), or None."""
+    """The shipped file called ``name`` (:func:`shipped_files`; ``.toml`` optional), or None.
+
+    Parameters
+    ----------
+    name : str
+        A shipped name such as ``"default"`` or ``"suite/far-start"`` (``.toml`` optional).
+
+    Returns
+    -------
+    Path or None
+        The file, or None when no shipped file has that name.
+    """
     return shipped_files().get(name.removesuffix(".toml"))
 
 
@@ -71,9 +88,9 @@ def problem_from_dict(data: Mapping[str, Any], name: str = "") -> PlanningProble
 
     Parameters
     ----------
-    data
+    data : Mapping of str to Any
         ``{section: {field: value}}`` as ``tomllib`` reads a problem file.
-    name
+    name : str, default ""
         The name when ``[problem] name`` is not given.
 
     Returns
@@ -93,7 +110,7 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
 
     Parameters
     ----------
-    path
+    path : str or Path or None, default None
         A problem file, or the name of a shipped one (``"suite/far-start"``: ``obsplan
         problems`` lists them, :func:`shipped_files`) when no such file exists; None: the
         default problem (``problems/default.toml``, a 2D survey of three lines).
