@@ -31,7 +31,9 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     html = tmp_path / "html"
     for page in ("index", "getting-started", "guides/plan-a-survey", "results/suite"):
         assert (html / f"{page}.html").is_file(), page
-    api = (html / "reference" / "generated" / "obsplan.load_problem.html").read_text(encoding="utf-8")
+    api = (html / "reference" / "generated" / "obsplan.load_problem.html").read_text(
+        encoding="utf-8"
+    )
     assert "Parameters" in api and "Returns" in api  # numpydoc rendered the sections
     # every page of docs/ is part of the site (Sphinx warns about one in no toctree)
     pages = {p.relative_to(DOCS).with_suffix("").as_posix() for p in DOCS.rglob("*.md")}
