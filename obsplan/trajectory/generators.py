@@ -423,15 +423,17 @@ def circle_z(
     ----------
     radius, speed, duration, center, phase, ccw
         The horizontal circle, as in :func:`circle` (``center`` has 2 coordinates).
-    z0
+    z0 : float
         Height at ``t = 0`` (sine: the mid height) [m].
-    z_amp, z_period
+    z_motion : {"sine", "straight"}, optional
+        The motion along z: a sine about ``z0`` or a constant vertical speed.
+    z_amp, z_period : float, optional
         Amplitude [m] (non-zero) and period [s] of the sine. A period equal to the lap time
         ``2π radius / speed`` puts the path in a tilted plane: planar, hence never globally
         observable with range only.
-    z_speed
+    z_speed : float, optional
         Vertical speed [m/s] (non-zero) of the straight motion. Note ``u_z = 0`` then.
-    z_phase
+    z_phase : float, optional
         Phase of the sine [rad].
 
     Returns
@@ -781,6 +783,13 @@ class LawnmowerLayout:
     turn_accel: float
 
     def to_dict(self) -> dict:
+        """The layout as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each attribute by name: lengths [m], ``n_legs``, ``turn_accel`` [m/s²].
+        """
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
