@@ -376,5 +376,18 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
 
 
 def empty_reference(n: int, B: int) -> np.ndarray:
-    """Placeholder for ``ref`` when the runs follow the plan."""
+    """Placeholder for ``ref`` when the runs follow the plan.
+
+    Parameters
+    ----------
+    n : int
+        Spatial dimension.
+    B : int
+        Number of runs in the batch.
+
+    Returns
+    -------
+    ndarray, shape (1, 3n, B)
+        Zeros (the reference layout of :func:`navigate`: ``(p, p', u)`` per run).
+    """
     return np.zeros((1, 3 * n, B))

@@ -33,7 +33,18 @@ def _label(name: str) -> str:
 
 
 def filter_stats(result: MonteCarloResult) -> dict:
-    """Every filter's statistics, by name (``ekf``, ``kf`` and any other that was run)."""
+    """Every filter's statistics, by name (``ekf``, ``kf`` and any other that was run).
+
+    Parameters
+    ----------
+    result : MonteCarloResult
+        A Monte Carlo result.
+
+    Returns
+    -------
+    dict of str to FilterStats
+        The statistics of each filter run.
+    """
     stats = dict(getattr(result, "filters", None) or {})
     for name in ("ekf", "kf"):
         if name not in stats and getattr(result, name, None) is not None:
@@ -49,12 +60,33 @@ def _ax(ax, projection: str | None = None):
 
 
 def close(fig: Figure) -> None:
-    """Release a figure's memory."""
+    """Release a figure's memory.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure to close.
+    """
     plt.close(fig)
 
 
 def plot_trajectory_estimates(hist: RunHistory, ax=None, beacon=None) -> Figure:
-    """True path and each filter's estimated path (run 0), in the plane or in 3D (panel a)."""
+    """True path and each filter's estimated path (run 0), in the plane or in 3D (panel a).
+
+    Parameters
+    ----------
+    hist : RunHistory
+        Run 0's history (truth, each filter's estimate and std).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+    beacon : array_like, shape (n,), optional
+        Beacon position [m]; None: the origin.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     n = hist.truth.shape[1] // 2
     fig, ax = _ax(ax, "3d" if n == 3 and ax is None else None)
     is3d = getattr(ax, "name", "") == "3d"
@@ -79,7 +111,22 @@ def plot_trajectory_estimates(hist: RunHistory, ax=None, beacon=None) -> Figure:
 
 
 def plot_error_norms(hist: RunHistory, ax=None, velocity: bool = False) -> Figure:
-    """``|p̂ - p|`` (or ``|p̂' - p'|``) of each filter over time, run 0 (panel b)."""
+    """``|p̂ - p|`` (or ``|p̂' - p'|``) of each filter over time, run 0 (panel b).
+
+    Parameters
+    ----------
+    hist : RunHistory
+        Run 0's history (truth, each filter's estimate and std).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+    velocity : bool, optional
+        Plot the velocity error [m/s] instead of the position error [m].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     for name in hist.estimate:
         e = hist.vel_error(name) if velocity else hist.pos_error(name)
@@ -92,7 +139,22 @@ def plot_error_norms(hist: RunHistory, ax=None, velocity: bool = False) -> Figur
 
 
 def plot_std(hist: RunHistory, ax=None, velocity: bool = False) -> Figure:
-    """Per-axis standard deviations of each filter (run 0): position (c) or velocity (d)."""
+    """Per-axis standard deviations of each filter (run 0): position (c) or velocity (d).
+
+    Parameters
+    ----------
+    hist : RunHistory
+        Run 0's history (truth, each filter's estimate and std).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+    velocity : bool, optional
+        Plot the velocity std [m/s] instead of the position std [m].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     n = hist.truth.shape[1] // 2
     off = n if velocity else 0
@@ -114,7 +176,24 @@ def plot_std(hist: RunHistory, ax=None, velocity: bool = False) -> Figure:
 
 
 def plot_gramian_rank(t: np.ndarray, rank: np.ndarray, full: int, ax=None) -> Figure:
-    """Rank of the augmented Gramian ``G(t, t0)`` over time, with the full rank marked."""
+    """Rank of the augmented Gramian ``G(t, t0)`` over time, with the full rank marked.
+
+    Parameters
+    ----------
+    t : ndarray, shape (K,)
+        Times [s].
+    rank : ndarray of int, shape (K,)
+        Rank at those times.
+    full : int
+        Full rank (the augmented state's dimension).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     ax.step(t, rank, where="post", color="tab:green", label="rank G(t, t0)")
     ax.axhline(full, color="k", ls=":", lw=1, label=f"full rank = {full}")
@@ -126,7 +205,20 @@ def plot_gramian_rank(t: np.ndarray, rank: np.ndarray, full: int, ax=None) -> Fi
 
 
 def plot_range_measurements(hist: RunHistory, ax=None) -> Figure:
-    """The range readings of run 0 [m] (Fig. 9d)."""
+    """The range readings of run 0 [m] (Fig. 9d).
+
+    Parameters
+    ----------
+    hist : RunHistory
+        Run 0's history (truth, each filter's estimate and std).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     ax.plot(hist.range_t, hist.range_m, ".", ms=3, color="tab:purple", label="range reading")
     ax.set_xlabel("t [s]")
@@ -136,7 +228,20 @@ def plot_range_measurements(hist: RunHistory, ax=None) -> Figure:
 
 
 def plot_monte_carlo(result: MonteCarloResult, ax=None) -> Figure:
-    """RMSE of position over the runs for each filter with its mean std and the CRB."""
+    """RMSE of position over the runs for each filter with its mean std and the CRB.
+
+    Parameters
+    ----------
+    result : MonteCarloResult
+        A Monte Carlo result.
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     for name, s in filter_stats(result).items():
         ax.semilogy(result.t, s.rmse_pos_t, color=_color(name), label=f"{_label(name)} RMSE")
@@ -159,7 +264,34 @@ def scenario_figure(
     title: str = "",
 ) -> Figure:
     """Six panels like the paper's figures: (a) paths, (b) error norms, (c) position std,
-    (d) velocity std, (e) Gramian rank, (f) range readings."""
+    (d) velocity std, (e) Gramian rank, (f) range readings.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path flown.
+    result : MonteCarloResult
+        Its Monte Carlo result, with run 0's history.
+    rank_t : ndarray, shape (K,), optional
+        Times [s] of the Gramian ranks.
+    rank : ndarray of int, shape (K,), optional
+        Gramian rank at those times; without the three rank arguments panel (e) shows the
+        RMSE of :func:`plot_monte_carlo`.
+    full_rank : int, optional
+        Full rank of the Gramian.
+    title : str, optional
+        Title of the figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The new figure.
+
+    Raises
+    ------
+    ValueError
+        If the result holds no run history.
+    """
     hist = result.example
     if hist is None:
         raise ValueError("the result holds no run history (monte_carlo keeps run 0's history)")
@@ -187,7 +319,22 @@ def scenario_figure(
 
 
 def save(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
-    """Save ``fig`` to ``path`` (parent folders created) and close it."""
+    """Save ``fig`` to ``path`` (parent folders created) and close it.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or Path
+        The image file; its suffix chooses the format.
+    dpi : int, optional
+        Resolution [dots per inch].
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi)
