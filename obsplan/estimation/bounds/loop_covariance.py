@@ -149,10 +149,9 @@ def loop_covariance(
 
     Parameters
     ----------
-    model : RecursionModel
-        The recursion's structure (:mod:`obsplan.estimation.bounds.riccati`).
-    epochs : Epochs
-        The recursion's epochs; their times in seconds.
+    model, epochs : RecursionModel, Epochs
+        The recursion's structure and epochs (:mod:`obsplan.estimation.bounds.riccati`); the times
+        of ``epochs`` in seconds.
     P0 : ndarray (m, m)
         The filter's prior at the first sample; the estimate starts on the reference (``ε = 0``).
     h : ndarray (len(model.range_support), J)
