@@ -5,7 +5,7 @@ Augmented model
 Integrating ``p' = ν``, ``ν' = u`` (``ν = v``, or ``v + v_f`` with current) gives
 ``p(t) = p0 + ν0 (t - t0) + d(t, t0)`` (eqs. 14–15) and hence (eqs. 18–21)
 
-    ȳ(t) = y(t) - y0 + ½|d|² = dᵀ p(t) + (t - t0) p0ᵀν0 + ½ (t - t0)² |ν0|²
+    ``ȳ(t) = y(t) - y0 + ½|d|² = dᵀ p(t) + (t - t0) p0ᵀν0 + ½ (t - t0)² |ν0|²``
 
 with positions relative to the beacon. The augmented state is ``z = (p, v, p0ᵀν0, |ν0|²)``
 (eq. 20) or, with current, ``z = (p, v, v_f, p0ᵀν0, |ν0|²)``; ``z' = A z + B u`` (eq. 23) with

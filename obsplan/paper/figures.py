@@ -16,7 +16,7 @@ Fig. 4    Fig. 3 with the far initial estimate (-81, 50) m.
 Fig. 5    3D: the circle of Fig. 2 in (x, y) (radius 51 m centred at (0, 1) m, p0 = (51, 1, 4) m)
           with a straight descent along z from v_z = -0.01 m/s whose sink rate varies,
           ``v_z = v_z0 - 0.1 (1 - cos(2π t / 60 s))`` m/s. A constant u_z ≠ 0 leaves d_z ∝ t²
-          (parallel to the |v0|² column), u_z = 0 leaves d_z = 0, and a single dive that ends
+          (parallel to the ``|v0|²`` column), u_z = 0 leaves d_z = 0, and a single dive that ends
           leaves d_z affine afterwards (in the span of the τ and 1 columns): in each case the z
           information stops growing, and the KF's z error drifts with the process noise.
 Fig. 6    3D lawn-mower of Fig. 3 flown at 2 m/s from (-80, 60, 5) m, v0 = (2, 0, 0) m/s, with
