@@ -428,9 +428,9 @@ class AnalyticPath:
 
         Parameters
         ----------
-        dt
+        dt : float, optional
             Sampling interval [s], positive; the paper's 0.01 s (100 Hz, section 7) by default.
-        duration
+        duration : float or None, optional
             Length [s] to sample, longer than ``dt``; default: the whole path
             (:attr:`duration`). Samples are ``0, dt, 2dt, ...`` and the last one is exactly at
             ``duration`` (a shorter last step if ``dt`` does not divide it).
