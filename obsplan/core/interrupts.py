@@ -217,6 +217,11 @@ def deferred() -> Iterator[None]:
 
     For the few renames that must not be separated (an output swapped in place). Only effective
     in the main thread.
+
+    Yields
+    ------
+    None
+        Control, for the block.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -249,6 +254,11 @@ def spawning() -> Iterator[None]:
     inherit the blocked signal, even across ``exec`` (Dask's spawned workers), so a Ctrl-C sent
     to the whole process group reaches the parent alone, which stops its children. The parent
     gets the held SIGINT (and a SIGTERM, :func:`deferred`) when the block ends.
+
+    Yields
+    ------
+    None
+        Control, for the block.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -263,7 +273,13 @@ def spawning() -> Iterator[None]:
 
 @contextlib.contextmanager
 def ignored() -> Iterator[None]:
-    """Ignore SIGINT and SIGTERM in the block (the last steps of a finished or undone run)."""
+    """Ignore SIGINT and SIGTERM in the block (the last steps of a finished or undone run).
+
+    Yields
+    ------
+    None
+        Control, for the block.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return

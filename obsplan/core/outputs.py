@@ -898,6 +898,17 @@ class OutputFile:
 
         With :mod:`obsplan.core.interrupts` installed, an old file is kept aside until
         :func:`finish`, so that a signal after the rename still undoes it.
+
+        Yields
+        ------
+        Path
+            A hidden temporary path beside :attr:`path`, with the same suffix, to write to.
+
+        Raises
+        ------
+        InputError
+            If the file appeared, or was replaced or changed, since the check (nothing is
+            written then).
         """
         created = _make_parents(self.path)
         tmp = _tmp_name(self.path)

@@ -133,6 +133,9 @@ def augmented_state_scale(state_dim: int, dim: int, length, time) -> list:
 def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Symmetric diagonal equilibration of PSD matrices.
 
+    The zero-diagonal test compares columns with each other, so it is unit-invariant only for a
+    matrix in scales that change with the units (as ``gramian.rank_scales`` provides).
+
     Parameters
     ----------
     G : ndarray, shape (..., m, m)
@@ -144,9 +147,6 @@ def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ``D G D`` with unit diagonal; rows/columns of (numerically) zero diagonal are set to zero.
     informative : ndarray of bool, shape (..., m)
         False where the diagonal was zero (a state the data says nothing about).
-
-    The zero-diagonal test compares columns with each other, so it is unit-invariant only for a
-    matrix in scales that change with the units (as ``gramian.rank_scales`` provides).
     """
     G = np.asarray(G, float)
     diag = np.diagonal(G, axis1=-2, axis2=-1)
