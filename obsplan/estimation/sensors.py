@@ -90,7 +90,18 @@ def _casadi_eval(model: VehicleModel, x: np.ndarray) -> tuple[np.ndarray, np.nda
 
 @cache
 def output_model(model: VehicleModel) -> OutputModel:
-    """Build the :class:`OutputModel` of ``model`` from its CasADi ``H`` (cached per model)."""
+    """Build the :class:`OutputModel` of ``model`` from its CasADi ``H`` (cached per model).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model.
+
+    Returns
+    -------
+    OutputModel
+        Its batched ``h`` and ``H``.
+    """
     x = model.x_sym
     m, p = model.state_dim, model.output_dim
     Hx = model.H(x)

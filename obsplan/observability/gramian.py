@@ -269,6 +269,16 @@ def interval_gramian_function(aug: AugmentedModel) -> ca.Function:
     Inputs are the displacement ``d_k`` (n), velocity change ``e_k = ν_k - ν_0`` (n), input ``u_k``
     (n), elapsed time ``tau0 = t_k - t_0`` and interval length ``h``, in consistent (normally
     nondimensional) units. Output: the ``m × m`` symmetric contribution ``∫ Φᵀ Cᵀ C Φ``.
+
+    Parameters
+    ----------
+    aug : AugmentedModel
+        The augmented model (sensors and current).
+
+    Returns
+    -------
+    casadi.Function
+        The interval's Gramian, built once per model (cached).
     """
     args, G = _interval_gramian_sx(aug, weighted=False)
     return ca.Function("interval_gramian", args, [G])
@@ -282,6 +292,16 @@ def weighted_interval_gramian_function(aug: AugmentedModel) -> ca.Function:
     ``w`` has one weight per output row (``aug.n_outputs``: range, then DVL axes, then depth),
     constant on the interval (e.g. information per unit time,
     :mod:`obsplan.observability.windowed`).
+
+    Parameters
+    ----------
+    aug : AugmentedModel
+        The augmented model (sensors and current).
+
+    Returns
+    -------
+    casadi.Function
+        The weighted interval's Gramian, built once per model (cached).
     """
     args, G = _interval_gramian_sx(aug, weighted=True)
     return ca.Function("weighted_interval_gramian", args, [G])

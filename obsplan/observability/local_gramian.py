@@ -222,7 +222,18 @@ def local_interval_gramian_function(lm: LinearisedModel) -> ca.Function:
     one interval from its positions relative to the beacon at its start, midpoint and end (n
     each), its start time from ``t_0`` and its length, the row weights (n_outputs) and the line of
     sight's floor ``(LOS_FLOOR_M / L)²``, all in the metric scales. Output: column-major ``vec``
-    of the ``m × m`` contribution."""
+    of the ``m × m`` contribution.
+
+    Parameters
+    ----------
+    lm : LinearisedModel
+        The linearised model (sensors and current).
+
+    Returns
+    -------
+    casadi.Function
+        The interval's contribution, built once per model (cached).
+    """
     n = lm.dim
     ps = [ca.SX.sym(f"p{i}", n) for i in range(3)]
     tau0, h = ca.SX.sym("tau0"), ca.SX.sym("h")

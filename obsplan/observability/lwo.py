@@ -187,6 +187,18 @@ def local_information_function(model: VehicleModel, tau: float | None) -> ca.Fun
     (output_dim,), and with ``tau = None`` a fourth, ``H`` itself (``(K + 1)²``, column-major:
     a window per call); output ``I`` (state_dim × state_dim), in the units of ``x``, ``u``,
     ``τ``.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (sensors, range form, current, beacon).
+    tau : float or None
+        Length ``τ`` of the past window, in the time unit of the caller; None: ``H`` is an input.
+
+    Returns
+    -------
+    casadi.Function
+        ``I(x, u, w)`` or ``I(x, u, w, H)``, built once per model and ``tau`` (cached).
     """
     x = ca.SX.sym("x", model.state_dim)
     u = ca.SX.sym("u", model.dim)

@@ -454,7 +454,18 @@ def window_criteria(G: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
 @cache
 def window_criteria_function(m: int) -> ca.Function:
     """CasADi ``(tr, logdet) = f(G, eps)`` of one window: :func:`window_criteria` as a smooth
-    expression (``G`` m × m symmetric, ``eps`` the floor)."""
+    expression (``G`` m × m symmetric, ``eps`` the floor).
+
+    Parameters
+    ----------
+    m : int
+        Dimension of the window Gramian.
+
+    Returns
+    -------
+    casadi.Function
+        ``(tr (G + εI)⁻¹, log det(G + εI))`` of ``(G, eps)`` (cached per ``m``).
+    """
     G = ca.SX.sym("G", m, m)
     eps = ca.SX.sym("eps")
     Gs = 0.5 * (G + G.T)
