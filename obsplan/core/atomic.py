@@ -65,6 +65,16 @@ def dead_leftovers(target: str | Path) -> list[Path]:
 
     Only names of exactly our form are returned (``.<stem>.tmp-<pid>-<8 hex><suffix>`` or
     ``.old-``), never a file of the user's.
+
+    Parameters
+    ----------
+    target : str or Path
+        The output file or folder whose hidden siblings are looked at.
+
+    Returns
+    -------
+    list of Path
+        The leftovers, sorted; empty if there are none or the parent folder cannot be read.
     """
     target = Path(target)
     pattern = re.compile(
@@ -83,7 +93,18 @@ def dead_leftovers(target: str | Path) -> list[Path]:
 
 
 def remove_dead_leftovers(target: str | Path) -> list[Path]:
-    """Delete :func:`dead_leftovers` of ``target``; returns what was removed."""
+    """Delete :func:`dead_leftovers` of ``target``; returns what was removed.
+
+    Parameters
+    ----------
+    target : str or Path
+        The output file or folder whose dead temporary siblings are deleted.
+
+    Returns
+    -------
+    list of Path
+        The leftovers that are gone now (one that could not be deleted is not listed).
+    """
     removed = []
     for p in dead_leftovers(target):
         if p.is_dir() and not p.is_symlink():
@@ -102,6 +123,16 @@ def atomic_file(path: str | Path) -> Iterator[Path]:
 
     On any exception (including :class:`KeyboardInterrupt`) the temporary file is removed and
     ``path`` is untouched. The parent folder must exist.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+
+    Yields
+    ------
+    Path
+        A hidden temporary path beside ``path``, with the same suffix, to write to.
     """
     target = Path(path)
     tmp = _tmp_name(target)
@@ -115,7 +146,18 @@ def atomic_file(path: str | Path) -> Iterator[Path]:
 
 
 def staging_dir(target: str | Path) -> Path:
-    """Create and return an empty hidden folder beside ``target`` (its parent must exist)."""
+    """Create and return an empty hidden folder beside ``target`` (its parent must exist).
+
+    Parameters
+    ----------
+    target : str or Path
+        The results folder the staging folder will later replace (:func:`replace_dir`).
+
+    Returns
+    -------
+    Path
+        The new, empty staging folder (``.<name>.tmp-<pid>-<random>``).
+    """
     target = Path(target)
     while True:
         tmp = _tmp_name(target)
@@ -132,6 +174,19 @@ def swap_dir(staging: str | Path, target: str | Path) -> Path | None:
 
     Both must be in the same parent folder; SIGINT and SIGTERM are held during the renames. If
     the second rename fails the old folder is put back.
+
+    Parameters
+    ----------
+    staging : str or Path
+        The finished staging folder (:func:`staging_dir`).
+    target : str or Path
+        The results folder it becomes.
+
+    Returns
+    -------
+    Path or None
+        Where the old ``target`` was renamed to (a hidden ``.old-`` sibling), or None if there
+        was no ``target``.
     """
     staging, target = Path(staging), Path(target)
     with deferred():
@@ -154,6 +209,18 @@ def replace_dir(staging: str | Path, target: str | Path) -> Path:
     Both must be in the same parent folder. If ``target`` exists it is renamed aside, the staging
     folder takes its name, and the old folder is then deleted: at no time does ``target`` hold a
     mix of old and new files (:func:`swap_dir`).
+
+    Parameters
+    ----------
+    staging : str or Path
+        The finished staging folder (:func:`staging_dir`).
+    target : str or Path
+        The results folder it replaces.
+
+    Returns
+    -------
+    Path
+        ``target``, now holding the new results.
     """
     old = swap_dir(staging, target)
     if old is not None:
@@ -162,7 +229,13 @@ def replace_dir(staging: str | Path, target: str | Path) -> Path:
 
 
 def remove_tree(path: str | Path) -> None:
-    """Delete a staging folder (no error if it is already gone)."""
+    """Delete a staging folder (no error if it is already gone).
+
+    Parameters
+    ----------
+    path : str or Path
+        The folder to delete, with everything in it.
+    """
     shutil.rmtree(path, ignore_errors=True)
 
 
@@ -193,7 +266,19 @@ Identity = tuple[int, ...]
 
 def identity(path: str | Path) -> Identity | None:
     """What a later commit compares: device, inode and type (and for a file its size and
-    modification time); None if nothing is at ``path``. A link is not followed."""
+    modification time); None if nothing is at ``path``. A link is not followed.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file or folder to identify.
+
+    Returns
+    -------
+    tuple of int or None
+        ``(device, inode, type)`` for a folder, ``(device, inode, type, size [bytes],
+        modification time [ns])`` otherwise; None if nothing is at ``path``.
+    """
     try:
         st = os.lstat(path)
     except FileNotFoundError:
@@ -227,6 +312,18 @@ def rename_noreplace(src: str | Path, dst: str | Path) -> None:
 
     Atomic with ``renameat2``; elsewhere checked just before the rename (a folder then never
     replaces a non-empty one, a file is linked, which fails on an existing name).
+
+    Parameters
+    ----------
+    src : str or Path
+        The file or folder to rename.
+    dst : str or Path
+        Its new name, which must not exist.
+
+    Raises
+    ------
+    FileExistsError
+        If something is at ``dst``.
     """
     src, dst = Path(src), Path(dst)
     if _renameat2(src, dst, _RENAME_NOREPLACE):
@@ -241,7 +338,19 @@ def rename_noreplace(src: str | Path, dst: str | Path) -> None:
 
 
 def exchange(a: str | Path, b: str | Path) -> bool:
-    """Swap two paths in one step (``renameat2(RENAME_EXCHANGE)``); False if unsupported."""
+    """Swap two paths in one step (``renameat2(RENAME_EXCHANGE)``); False if unsupported.
+
+    Parameters
+    ----------
+    a, b : str or Path
+        The two paths to swap; both must exist.
+
+    Returns
+    -------
+    bool
+        True if they were swapped, False if the C library or the file system cannot do it (the
+        paths are then untouched).
+    """
     return _renameat2(Path(a), Path(b), _RENAME_EXCHANGE)
 
 
@@ -257,15 +366,20 @@ def put_in_place(
 
     Parameters
     ----------
-    staged
+    staged : str or Path
         The finished file or folder, beside ``target``.
-    target
+    target : str or Path
         Where it goes.
-    expected
+    expected : tuple of int or None
         :func:`identity` of ``target`` at the check (None: it did not exist).
-    verify
+    verify : callable or None, optional
         Called with the old target once it is out of the way; an exception puts it back (and is
         raised): e.g. a check that the old folder holds nothing new.
+
+    Returns
+    -------
+    Path or None
+        The hidden sibling the old ``target`` was renamed to, or None if there was no old target.
 
     Raises
     ------

@@ -131,7 +131,19 @@ class Cost:
 
 
 def max_memory() -> float:
-    """The memory limit [bytes]: ``OBSPLAN_MAX_MEMORY`` or :data:`DEFAULT_MAX_MEMORY`."""
+    """The memory limit [bytes]: ``OBSPLAN_MAX_MEMORY`` or :data:`DEFAULT_MAX_MEMORY`.
+
+    Returns
+    -------
+    float
+        The limit [bytes].
+
+    Raises
+    ------
+    InputError
+        If ``OBSPLAN_MAX_MEMORY`` is not a positive number of bytes (optional ``K``/``M``/``G``/
+        ``T`` suffix).
+    """
     text = os.environ.get("OBSPLAN_MAX_MEMORY", "").strip()
     if not text:
         return DEFAULT_MAX_MEMORY
@@ -148,7 +160,18 @@ def max_memory() -> float:
 
 
 def max_hours() -> float:
-    """The time limit [h]: ``OBSPLAN_MAX_HOURS`` or :data:`DEFAULT_MAX_HOURS`."""
+    """The time limit [h]: ``OBSPLAN_MAX_HOURS`` or :data:`DEFAULT_MAX_HOURS`.
+
+    Returns
+    -------
+    float
+        The limit [h].
+
+    Raises
+    ------
+    InputError
+        If ``OBSPLAN_MAX_HOURS`` is not a positive number.
+    """
     text = os.environ.get("OBSPLAN_MAX_HOURS", "").strip()
     if not text:
         return DEFAULT_MAX_HOURS
@@ -183,7 +206,28 @@ def check_count(
     error: type[InputError] = InputError,
 ) -> None:
     """Refuse ``value`` beyond ``limit``: ``"<field>: <value> <unit>, more than the limit of
-    <limit> <unit>; <fix>"`` (``error`` lets a problem check raise its own type)."""
+    <limit> <unit>; <fix>"`` (``error`` lets a problem check raise its own type).
+
+    Parameters
+    ----------
+    value : float
+        The requested count (NaN is refused too).
+    limit : float
+        The largest count allowed.
+    field : str
+        The setting or option that asked for ``value`` (starts the message).
+    unit : str
+        What is counted, e.g. ``"starts"``.
+    fix : str, optional
+        What the user can do instead (appended to the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``value`` is more than ``limit`` or NaN.
+    """
     if not value <= limit:  # also refuses NaN
         shown = f"{value:.4g}" if isinstance(value, float) else f"{value}"
         raise error(
@@ -193,28 +237,105 @@ def check_count(
 
 
 def check_starts(n: int, field: str = "objective.starts", error=InputError) -> None:
-    """At most :data:`MAX_STARTS` IPOPT starts."""
+    """At most :data:`MAX_STARTS` IPOPT starts.
+
+    Parameters
+    ----------
+    n : int
+        Number of IPOPT starts requested.
+    field : str, optional
+        The setting that asked for them (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
     check_count(n, MAX_STARTS, field, "starts", "each start is a full IPOPT solve", error)
 
 
 def check_iterations(n: float, field: str = "objective.max_iter", error=InputError) -> None:
-    """At most :data:`MAX_ITERATIONS` IPOPT iterations per start."""
+    """At most :data:`MAX_ITERATIONS` IPOPT iterations per start.
+
+    Parameters
+    ----------
+    n : float
+        IPOPT iteration limit requested per start.
+    field : str, optional
+        The setting that asked for it (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
     check_count(n, MAX_ITERATIONS, field, "iterations", "IPOPT's limit per start", error)
 
 
 def check_runs(n: int, field: str = "--runs", error=InputError) -> None:
-    """At most :data:`MAX_RUNS` Monte Carlo runs."""
+    """At most :data:`MAX_RUNS` Monte Carlo runs.
+
+    Parameters
+    ----------
+    n : int
+        Number of Monte Carlo runs requested.
+    field : str, optional
+        The option that asked for them (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
     fix = f"use at most {MAX_RUNS} (a few hundred runs give the statistics)"
     check_count(n, MAX_RUNS, field, "Monte Carlo runs", fix, error)
 
 
 def check_samples(samples: float, field: str, fix: str = "", error=InputError) -> None:
-    """At most :data:`MAX_SAMPLES` filter samples per run."""
+    """At most :data:`MAX_SAMPLES` filter samples per run.
+
+    Parameters
+    ----------
+    samples : float
+        Filter samples per run (duration over filter step).
+    field : str
+        The setting that makes the samples (named in the message), e.g. a filter step.
+    fix : str, optional
+        What the user can do instead (appended to the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``samples`` is beyond the limit.
+    """
     check_count(samples, MAX_SAMPLES, field, "samples per run", fix, error)
 
 
 def check_tasks(n: float, field: str = "axes", error=InputError) -> None:
-    """At most :data:`MAX_TASKS` tasks in a sweep (checked before the axes are expanded)."""
+    """At most :data:`MAX_TASKS` tasks in a sweep (checked before the axes are expanded).
+
+    Parameters
+    ----------
+    n : float
+        Number of tasks (the product of the axes' lengths).
+    field : str, optional
+        The setting that makes them (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
     check_count(n, MAX_TASKS, field, "tasks", "split the sweep or use fewer axis values", error)
 
 
@@ -263,12 +384,46 @@ def check_workers(n: int, cores: int, field: str = "--workers", error=InputError
 
 
 def check_rows(n: float, field: str, error=InputError) -> None:
-    """At most :data:`MAX_ROWS` rows of an input file."""
+    """At most :data:`MAX_ROWS` rows of an input file.
+
+    Parameters
+    ----------
+    n : float
+        Number of rows (counted or estimated).
+    field : str
+        The option or setting naming the file (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
     check_count(n, MAX_ROWS, field, "rows", "cut or decimate the file first", error)
 
 
 def estimate_rows(path: str | Path, probe_bytes: int = 1 << 16) -> float:
-    """Rows of a text file, estimated from its size and its first ``probe_bytes`` (no full read)."""
+    """Rows of a text file, estimated from its size and its first ``probe_bytes`` (no full read).
+
+    Parameters
+    ----------
+    path : str or Path
+        The text file.
+    probe_bytes : int, optional
+        How many bytes at its start are read to measure the mean line length [bytes].
+
+    Returns
+    -------
+    float
+        The number of lines: exact if the whole file fits in the probe, else the file size over
+        the mean line length of the probe.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be read.
+    """
     path = Path(path)
     size = path.stat().st_size
     with path.open("rb") as fh:
@@ -282,7 +437,22 @@ def estimate_rows(path: str | Path, probe_bytes: int = 1 << 16) -> float:
 def check_file_rows(path: str | Path, field: str, error=InputError) -> None:
     """Refuse a text file estimated (:func:`estimate_rows`) to hold more than :data:`MAX_ROWS`
     rows, before reading it (a folder, a device or a named pipe is left to the reader, which
-    refuses it without opening it: :func:`obsplan.core.textfiles.check_regular_file`)."""
+    refuses it without opening it: :func:`obsplan.core.textfiles.check_regular_file`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The input file.
+    field : str
+        The option or setting naming the file (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If the file is estimated to hold more than :data:`MAX_ROWS` rows.
+    """
     if not Path(path).is_file():
         return
     try:
@@ -298,14 +468,48 @@ def check_file_rows(path: str | Path, field: str, error=InputError) -> None:
 
 # ------------------------------------------------------------------------------ estimates
 def monte_carlo_cost(runs: int, samples: float, dim: int, filters: int = 2) -> Cost:
-    """Memory and time of ``runs`` Monte Carlo runs of ``samples`` filter samples in ``dim``-D."""
+    """Memory and time of ``runs`` Monte Carlo runs of ``samples`` filter samples in ``dim``-D.
+
+    Parameters
+    ----------
+    runs : int
+        Number of Monte Carlo runs.
+    samples : float
+        Filter samples per run.
+    dim : int
+        Spatial dimension (2 or 3); the state has ``2 * dim`` components or more.
+    filters : int, optional
+        Number of filters run on each sample path (the time scales with it).
+
+    Returns
+    -------
+    Cost
+        The memory of the arrays kept (:data:`MC_BYTES_PER_ELEMENT` per run, sample and 3
+        ``dim`` components) and the time (:data:`MC_SECONDS_PER_RUN_STEP` per run-step).
+    """
     elements = float(runs) * float(samples) * 3 * dim
     seconds = float(runs) * float(samples) * filters * MC_SECONDS_PER_RUN_STEP
     return Cost(elements * MC_BYTES_PER_ELEMENT, seconds, f"{runs} runs x {samples:.4g} samples")
 
 
 def planning_cost(steps: int, starts: int, max_iter: int) -> Cost:
-    """Rough time of ``starts`` IPOPT starts on a grid of ``steps`` (typical iteration counts)."""
+    """Rough time of ``starts`` IPOPT starts on a grid of ``steps`` (typical iteration counts).
+
+    Parameters
+    ----------
+    steps : int
+        Number of steps ``N`` of the transcription grid.
+    starts : int
+        Number of IPOPT starts.
+    max_iter : int
+        IPOPT iteration limit per start (the estimate uses at most
+        :data:`TYPICAL_ITERATIONS`).
+
+    Returns
+    -------
+    Cost
+        Memory of the NLP [bytes] and time [s] of all starts.
+    """
     iters = min(max_iter, TYPICAL_ITERATIONS)
     seconds = float(starts) * iters * steps * NLP_SECONDS_PER_ITERATION_STEP
     # the NLP of N steps: tens of kilobytes per step for the expanded graph and IPOPT's matrices
@@ -313,7 +517,25 @@ def planning_cost(steps: int, starts: int, max_iter: int) -> Cost:
 
 
 def check_cost(cost: Cost, field: str, fix: str = "", error=InputError) -> None:
-    """Refuse a cost beyond the memory or time limit (``OBSPLAN_MAX_MEMORY``/``_HOURS``)."""
+    """Refuse a cost beyond the memory or time limit (``OBSPLAN_MAX_MEMORY``/``_HOURS``).
+
+    Parameters
+    ----------
+    cost : Cost
+        The estimated cost of the request.
+    field : str
+        The setting or option blamed in the message.
+    fix : str, optional
+        What the user can do instead (appended to the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If the memory is beyond :func:`max_memory` or the time beyond
+        :func:`max_hours`.
+    """
     mem, hours = max_memory(), max_hours()
     tail = f"; {fix}" if fix else ""
     if not cost.memory_bytes <= mem:
@@ -342,6 +564,29 @@ def check_monte_carlo(
     ``field`` names the runs (and the whole cost); ``samples_field`` the setting that makes the
     samples per run (a filter step such as ``validation.dt``; default ``field``), so that too
     many samples are blamed on the step, not on the runs.
+
+    Parameters
+    ----------
+    runs : int
+        Number of Monte Carlo runs.
+    samples : float
+        Filter samples per run.
+    dim : int
+        Spatial dimension (2 or 3).
+    field : str
+        The option that asks for the runs (and is blamed for the whole cost).
+    fix : str, optional
+        What the user can do instead (appended to the messages).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+    samples_field : str or None, optional
+        The setting that makes the samples per run; None: ``field``.
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If the runs, the samples per run, the memory or the time are beyond their
+        limits.
     """
     check_runs(runs, field, error)
     check_samples(samples, samples_field or field, fix, error)

@@ -79,11 +79,38 @@ class CsvTable:
     delimiter: str
 
     def has(self, *names: str) -> bool:
-        """True if every name is a column."""
+        """True if every name is a column.
+
+        Parameters
+        ----------
+        *names : str
+            Column names, lower-case.
+
+        Returns
+        -------
+        bool
+            True if each of ``names`` is in :attr:`columns`.
+        """
         return all(n in self.columns for n in names)
 
     def index(self, name: str) -> int:
-        """Position of column ``name``; an error if it is missing or appears twice."""
+        """Position of column ``name``; an error if it is missing or appears twice.
+
+        Parameters
+        ----------
+        name : str
+            Column name, lower-case.
+
+        Returns
+        -------
+        int
+            Its 0-based position in the header.
+
+        Raises
+        ------
+        TrajectoryFormatError
+            If the column is missing or appears more than once.
+        """
         where = [i for i, c in enumerate(self.columns) if c == name]
         if not where:
             raise TrajectoryFormatError(f"{self.path}: missing column {name!r}")
@@ -97,6 +124,17 @@ class CsvTable:
 
     def numbers(self, names: Sequence[str]) -> np.ndarray:
         """The named columns as finite floats, shape ``(rows, len(names))``.
+
+        Parameters
+        ----------
+        names : sequence of str
+            Column names, lower-case; each is checked against its magnitude limit
+            (:data:`COLUMN_LIMITS`, :data:`OTHER_LIMIT`).
+
+        Returns
+        -------
+        ndarray, shape (rows, len(names))
+            The cells as floats, in the columns' units.
 
         Raises
         ------
@@ -139,6 +177,18 @@ class CsvTable:
 
 def read_table(path: str | Path, example_header: str) -> CsvTable:
     """Read a CSV with a header row; ``example_header`` is shown in hints (e.g. ``t,px,py``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    example_header : str
+        A header the caller expects, comma-separated, shown in the messages' hints.
+
+    Returns
+    -------
+    CsvTable
+        The header, the data rows as text cells and their line numbers.
 
     Raises
     ------
@@ -250,7 +300,22 @@ def _check_rows(path: Path) -> None:
 
 
 def write_table(path: str | Path, header: Sequence[str], rows: np.ndarray) -> Path:
-    """Write a header and numeric rows as a CSV, floats as ``repr`` (exact), atomically."""
+    """Write a header and numeric rows as a CSV, floats as ``repr`` (exact), atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write (replaced whole: :func:`obsplan.core.atomic.atomic_file`).
+    header : sequence of str
+        Column names.
+    rows : ndarray, shape (rows, len(header))
+        The numbers, one row per line.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     with atomic_file(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
@@ -261,5 +326,16 @@ def write_table(path: str | Path, header: Sequence[str], rows: np.ndarray) -> Pa
 
 
 def separator_name(delimiter: str) -> str:
-    """``","`` -> ``"comma"`` (for messages)."""
+    """``","`` -> ``"comma"`` (for messages).
+
+    Parameters
+    ----------
+    delimiter : str
+        A separator character.
+
+    Returns
+    -------
+    str
+        ``"comma"``, ``"semicolon"`` or ``"tab"``; the ``repr`` of any other character.
+    """
     return _SEP_NAMES.get(delimiter, repr(delimiter))

@@ -35,5 +35,18 @@ class SolverError(ObsplanError):
 
 def field_error(where: str, msg: str) -> ProblemError:
     """The error of one field: ``ProblemError("section.field: msg")`` (every problem error names
-    its field first, so that the user sees what to fix)."""
+    its field first, so that the user sees what to fix).
+
+    Parameters
+    ----------
+    where : str
+        The field at fault, as ``section.field`` of the problem file.
+    msg : str
+        What is wrong with it and how to fix it.
+
+    Returns
+    -------
+    ProblemError
+        The error, for the caller to raise.
+    """
     return ProblemError(f"{where}: {msg}")

@@ -118,6 +118,12 @@ def install() -> dict[Any, Any] | None:
     """Route SIGINT and SIGTERM to :class:`Interrupted` (main thread only; else no-op).
 
     Returns the previous handlers, for :func:`uninstall`.
+
+    Returns
+    -------
+    dict or None
+        The previous handler of each signal, keyed by signal; None outside the main thread
+        (nothing was installed).
     """
     global _installed, _previous_unraisablehook
     if threading.current_thread() is not threading.main_thread():
@@ -131,7 +137,13 @@ def install() -> dict[Any, Any] | None:
 
 
 def uninstall(previous: dict[Any, Any] | None) -> None:
-    """Put back the handlers :func:`install` replaced (a library caller's own, e.g. pytest's)."""
+    """Put back the handlers :func:`install` replaced (a library caller's own, e.g. pytest's).
+
+    Parameters
+    ----------
+    previous : dict or None
+        What :func:`install` returned; None: nothing to put back.
+    """
     global _installed
     if previous is None or threading.current_thread() is not threading.main_thread():
         return
@@ -150,23 +162,47 @@ def ignore_all() -> None:
 
 
 def installed() -> bool:
-    """Whether :func:`install` ran in this process."""
+    """Whether :func:`install` ran in this process.
+
+    Returns
+    -------
+    bool
+        True once :func:`install` ran (and :func:`uninstall` did not).
+    """
     return _installed
 
 
 def pending() -> int | None:
-    """The signal received since :func:`install` (or :func:`reset`), or None."""
+    """The signal received since :func:`install` (or :func:`reset`), or None.
+
+    Returns
+    -------
+    int or None
+        The signal number, or None if none arrived.
+    """
     return _pending
 
 
 def check() -> None:
-    """Raise :class:`Interrupted` if a signal arrived (even one whose exception was swallowed)."""
+    """Raise :class:`Interrupted` if a signal arrived (even one whose exception was swallowed).
+
+    Raises
+    ------
+    Interrupted
+        If a signal arrived since :func:`install` (or :func:`reset`).
+    """
     if _pending is not None:
         raise Interrupted(_pending)
 
 
 def exit_code() -> int | None:
-    """130 (SIGINT) or 143 (SIGTERM) once a signal arrived, else None."""
+    """130 (SIGINT) or 143 (SIGTERM) once a signal arrived, else None.
+
+    Returns
+    -------
+    int or None
+        128 + the signal number, or None if no signal arrived.
+    """
     return None if _pending is None else 128 + _pending
 
 
@@ -182,6 +218,11 @@ def deferred() -> Iterator[None]:
 
     For the few renames that must not be separated (an output swapped in place). Only effective
     in the main thread.
+
+    Yields
+    ------
+    None
+        Control, for the block.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -214,6 +255,11 @@ def spawning() -> Iterator[None]:
     inherit the blocked signal, even across ``exec`` (Dask's spawned workers), so a Ctrl-C sent
     to the whole process group reaches the parent alone, which stops its children. The parent
     gets the held SIGINT (and a SIGTERM, :func:`deferred`) when the block ends.
+
+    Yields
+    ------
+    None
+        Control, for the block.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -228,7 +274,13 @@ def spawning() -> Iterator[None]:
 
 @contextlib.contextmanager
 def ignored() -> Iterator[None]:
-    """Ignore SIGINT and SIGTERM in the block (the last steps of a finished or undone run)."""
+    """Ignore SIGINT and SIGTERM in the block (the last steps of a finished or undone run).
+
+    Yields
+    ------
+    None
+        Control, for the block.
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -152,6 +152,21 @@ def write_marker(folder: str | Path, verb: str, *, record: bool = True) -> Path:
     With ``record`` (a folder written whole) the marker lists every file ``folder`` holds now,
     with its size and SHA-256: the files a later ``--force`` may replace. Without it (a resumable
     folder) it records the verb only. Written atomically.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The output folder (or its staging folder).
+    verb : str
+        The verb that writes it (``"plan"``, ``"sweep"``...; ``""`` for a library call).
+    record : bool, optional
+        List every file the folder holds now (a folder written whole); False for a resumable
+        folder.
+
+    Returns
+    -------
+    Path
+        The marker file, ``folder / MARKER``.
     """
     folder = Path(folder)
     doc: dict[str, Any] = {
@@ -170,12 +185,35 @@ def write_marker(folder: str | Path, verb: str, *, record: bool = True) -> Path:
 
 
 def has_marker(folder: str | Path) -> bool:
-    """Whether ``folder`` is an obsplan output (holds :data:`MARKER`)."""
+    """Whether ``folder`` is an obsplan output (holds :data:`MARKER`).
+
+    Parameters
+    ----------
+    folder : str or Path
+        The folder to look at.
+
+    Returns
+    -------
+    bool
+        True if ``folder / MARKER`` is a file.
+    """
     return (Path(folder) / MARKER).is_file()
 
 
 def read_marker(folder: str | Path) -> Marker | None:
-    """``folder``'s :class:`Marker`, or None if it has none."""
+    """``folder``'s :class:`Marker`, or None if it has none.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The folder to look at.
+
+    Returns
+    -------
+    Marker or None
+        What the marker says (``verb`` None if obsplan did not write it or it cannot be read),
+        or None if there is no marker.
+    """
     path = Path(folder) / MARKER
     if not os.path.lexists(path):
         return None
@@ -203,7 +241,20 @@ def read_marker(folder: str | Path) -> Marker | None:
 def foreign_files(folder: str | Path, marker: Marker) -> list[str]:
     """What ``folder`` holds that its marker does not list as written by obsplan: files and
     links of the user's, their sub-folders (``name/``, not entered), and files obsplan wrote
-    that were changed since (``name (changed since obsplan wrote it)``)."""
+    that were changed since (``name (changed since obsplan wrote it)``).
+
+    Parameters
+    ----------
+    folder : str or Path
+        An obsplan output folder.
+    marker : Marker
+        Its marker (:func:`read_marker`).
+
+    Returns
+    -------
+    list of str
+        The relative paths, sorted; empty if the folder holds only what obsplan wrote.
+    """
     files = marker.files or {}
     owned = set(marker.folders)
     for rel in [*files, *marker.links]:
@@ -290,7 +341,29 @@ def replace_refusal(
 ) -> str | None:
     """Why ``obsplan verb`` may not replace the existing ``folder`` (the rules of the module
     doc), in one line naming ``option``, ``force_option`` and the fix; None if it may (an empty
-    folder, or with ``force`` an earlier output of ``verb`` holding only what it wrote)."""
+    folder, or with ``force`` an earlier output of ``verb`` holding only what it wrote).
+
+    Parameters
+    ----------
+    folder : str or Path
+        The existing output folder.
+    verb : str
+        The verb that would replace it.
+    force : bool
+        Whether ``--force`` was given.
+    option : str, optional
+        How the message names the folder (``"--out"``).
+    shown : Path or None, optional
+        The path the message shows instead of ``folder`` (the target when ``folder`` is its old
+        copy moved aside).
+    force_option : str, optional
+        How the message names ``force`` (``"--force"``; ``"force=True"`` for a Python call).
+
+    Returns
+    -------
+    str or None
+        The refusal, one line; None if the folder may be replaced.
+    """
     folder = Path(folder)
     if not any(folder.iterdir()):
         return None
@@ -328,6 +401,17 @@ def protected_reason(path: str | Path) -> str | None:
     """Why ``path`` must never be replaced or written into as a whole, or None.
 
     The root, the home folder, the working folder and every parent of the last two.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output path (resolved through links).
+
+    Returns
+    -------
+    str or None
+        What the path is (``"your home folder"``, ``"a parent of the working folder (...)"``),
+        or None if it is not protected.
     """
     here = Path(os.path.abspath(path))
     try:
@@ -348,7 +432,25 @@ def protected_reason(path: str | Path) -> str | None:
 
 
 def check_name(path: str | Path | None, option: str) -> Path:
-    """The common first checks: a non-empty name, not a symbolic link, not a protected folder."""
+    """The common first checks: a non-empty name, not a symbolic link, not a protected folder.
+
+    Parameters
+    ----------
+    path : str or Path or None
+        The output path given.
+    option : str
+        How messages name it (``"--out"``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        For an empty name, a symbolic link or a protected folder (:func:`protected_reason`).
+    """
     if path is None or str(path).strip() == "":
         raise InputError(f"{option} is empty; give a folder or file name, e.g. {option} results")
     p = Path(path)
@@ -450,18 +552,23 @@ class OutputDir:
 
     Parameters
     ----------
-    path
+    path : str or Path or None
         The folder (``--out DIR``); missing parents are created at :meth:`stage`.
-    force
+    force : bool
         Allow replacing an earlier output of ``verb`` that holds only what it wrote.
-    option
+    option : str, optional
         How messages name the folder (``"--out"``).
-    inputs
+    inputs : sequence of str or Path or None, optional
         Files the verb reads: a folder holding one of them is never replaced.
-    verb
+    verb : str, optional
         Recorded in the marker; an existing output of another verb is never replaced.
     force_option
         How messages name ``force`` (``"--force"``; ``"force=True"`` for a Python call).
+
+    Raises
+    ------
+    InputError
+        If the folder may not be written (the rules of the module doc).
     """
 
     def __init__(
@@ -500,7 +607,13 @@ class OutputDir:
         self.committed = False
 
     def stage(self) -> Path:
-        """Create (once) and return the staging folder (holding only the marker)."""
+        """Create (once) and return the staging folder (holding only the marker).
+
+        Returns
+        -------
+        Path
+            The hidden staging folder beside :attr:`path`.
+        """
         if self._staging is None:
             self._created += _make_parents(self.path)
             self._staging = staging_dir(self.path.parent / self.path.name)
@@ -508,7 +621,18 @@ class OutputDir:
         return self._staging
 
     def final(self, staged: str | Path) -> Path:
-        """Where a file written in the staging folder ends up after :meth:`commit`."""
+        """Where a file written in the staging folder ends up after :meth:`commit`.
+
+        Parameters
+        ----------
+        staged : str or Path
+            A path inside the staging folder (:meth:`stage`).
+
+        Returns
+        -------
+        Path
+            The same relative path under :attr:`path`.
+        """
         return self.path / Path(staged).relative_to(self.stage())
 
     def _verify(self, old: Path) -> None:
@@ -525,6 +649,11 @@ class OutputDir:
         """Swap the staging folder in place of ``path`` if ``path`` is still what the check saw.
 
         The marker records every file written. Refused if a signal arrived.
+
+        Returns
+        -------
+        Path
+            :attr:`path`, now holding the results.
 
         Raises
         ------
@@ -579,12 +708,17 @@ class ResumableDir:
 
     Parameters
     ----------
-    path
+    path : str or Path or None
         The folder (``--out DIR``).
-    verb
+    verb : str
         The verb whose folders are resumed; recorded in the marker.
-    option
+    option : str, optional
         How messages name the folder.
+
+    Raises
+    ------
+    InputError
+        If the folder may not be written, or another run holds its lock.
     """
 
     def __init__(self, path: str | Path | None, verb: str, option: str = "--out") -> None:
@@ -622,6 +756,11 @@ class ResumableDir:
         """Make ``path`` this verb's folder before the first write: created whole with the
         marker if it was absent, else checked to be the folder the check saw (and marked if it
         was empty). Returns ``path``.
+
+        Returns
+        -------
+        Path
+            :attr:`path`, this verb's folder.
 
         Raises
         ------
@@ -716,6 +855,11 @@ def finish(undo: bool) -> None:
     """End this command's swaps: delete the old folders and files, or (``undo``) put them back.
 
     Called by the command line last, with signals ignored; ``undo`` when a signal arrived.
+
+    Parameters
+    ----------
+    undo : bool
+        Put the old folders and files back (a signal arrived) instead of deleting them.
     """
     with interrupts.ignored():
         while _SWAPPED:
@@ -767,6 +911,17 @@ class OutputFile:
 
         With :mod:`obsplan.core.interrupts` installed, an old file is kept aside until
         :func:`finish`, so that a signal after the rename still undoes it.
+
+        Yields
+        ------
+        Path
+            A hidden temporary path beside :attr:`path`, with the same suffix, to write to.
+
+        Raises
+        ------
+        InputError
+            If the file appeared, or was replaced or changed, since the check (nothing is
+            written then).
         """
         created = _make_parents(self.path)
         tmp = _tmp_name(self.path)

@@ -57,12 +57,17 @@ def check_regular_file(
 
     Parameters
     ----------
-    path
+    path : str or Path
         The file.
-    what
+    what : str
         What the file should be, for messages (``"a problem file (TOML)"``).
-    error
+    error : type of InputError, optional
         The :class:`~obsplan.core.errors.InputError` subclass to raise.
+
+    Returns
+    -------
+    Path
+        ``path``, a regular file.
 
     Raises
     ------
@@ -95,14 +100,19 @@ def read_text(
 
     Parameters
     ----------
-    path
+    path : str or Path
         The file.
-    what
+    what : str
         What the file should be, for messages (``"a problem file (TOML)"``).
-    error
+    error : type of InputError, optional
         The :class:`~obsplan.core.errors.InputError` subclass to raise.
-    max_bytes
+    max_bytes : int, optional
         Largest size read [bytes].
+
+    Returns
+    -------
+    str
+        The text, decoded from UTF-8.
 
     Raises
     ------
@@ -182,6 +192,20 @@ def read_toml(
     """A TOML file (through :func:`read_text`, at most
     :data:`~obsplan.core.budget.MAX_TOML_BYTES`) as a mapping, or one error naming the line.
 
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file.
+    what : str
+        What the file should be, for messages (``"a problem file (TOML)"``).
+    error : type of InputError, optional
+        The :class:`~obsplan.core.errors.InputError` subclass to raise.
+
+    Returns
+    -------
+    dict
+        The parsed tables and values.
+
     Raises
     ------
     InputError
@@ -202,6 +226,20 @@ def read_toml(
 
 def read_json(path: str | Path, what: str, *, error: type[InputError] = InputError) -> Any:
     """A JSON file (through :func:`read_text`) as plain data, or one error naming the file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The JSON file.
+    what : str
+        What the file should be, for messages.
+    error : type of InputError, optional
+        The :class:`~obsplan.core.errors.InputError` subclass to raise.
+
+    Returns
+    -------
+    object
+        The parsed data (dicts, lists, strings, numbers, booleans, None).
 
     Raises
     ------
@@ -318,19 +356,24 @@ def check_magnitude(
 
     Parameters
     ----------
-    values
+    values : float or iterable of float
         One number or several (each is judged; the first bad one is named).
-    name
+    name : str
         How the message calls the value: an option, a field, a row and column.
-    limit
+    limit : float
         Largest size accepted.
-    unit
+    unit : str
         Unit of the values and limits, for the message (``""`` or ``"-"``: none).
-    smallest
+    smallest : float, optional
         Smallest non-zero size accepted (a scale or a step of ``1e-300`` underflows what it
         divides); 0: no lower bound.
-    error
+    error : type of InputError, optional
         The :class:`~obsplan.core.errors.InputError` subclass to raise.
+
+    Raises
+    ------
+    InputError
+        (as ``error``) For the first value that is not finite or out of bounds.
     """
     vals = [values] if isinstance(values, int | float) else list(values)
     u = "" if unit in ("", "-") else f" {unit}"

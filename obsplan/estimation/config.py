@@ -135,6 +135,24 @@ def paper_covariances(model: VehicleModel, dt: float) -> dict[str, np.ndarray]:
 
     Returns a dict with keys ``q_ekf``, ``p0_ekf`` (``state_dim`` × ``state_dim``) and ``q_kf``,
     ``p0_kf`` (augmented ``state_dim`` squared), SI units.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (dimension and current).
+    dt : float
+        Filter step [s].
+
+    Returns
+    -------
+    dict of str to ndarray
+        The four diagonal covariances: per-step process noise ``(1e-3 dt)²`` on position [m²]
+        and velocity [m²/s²], initial variances 1 m² and 0.1 m²/s² (and the current's prior).
+
+    Raises
+    ------
+    ConfigError
+        If ``dt`` is not a positive number.
     """
     if not (np.isfinite(dt) and dt > 0):
         raise ConfigError(f"dt must be a positive step in seconds, got {dt!r}")
@@ -179,13 +197,35 @@ class ProcessNoise:
     current: bool
 
     def step_covariance(self, h: float) -> np.ndarray:
-        """Covariance added on ``(p, v[, v_f])`` over one filter step of ``h`` [s]."""
+        """Covariance added on ``(p, v[, v_f])`` over one filter step of ``h`` [s].
+
+        Parameters
+        ----------
+        h : float
+            Step [s] (ignored in the per-step setting).
+
+        Returns
+        -------
+        ndarray, shape (state_dim, state_dim)
+            ``Q(h)`` [SI units of the state, squared].
+        """
         if not self.continuous:
             return np.array(self.q_ekf, dtype=float)
         return integrated_noise(self.q_ekf, self.dim, self.current, float(h))
 
     def step_covariance_kf(self, h: float) -> np.ndarray:
-        """Covariance added on ``(p - b, v[, v_f], α, β)`` over one filter step of ``h`` [s]."""
+        """Covariance added on ``(p - b, v[, v_f], α, β)`` over one filter step of ``h`` [s].
+
+        Parameters
+        ----------
+        h : float
+            Step [s] (ignored in the per-step setting).
+
+        Returns
+        -------
+        ndarray, shape (state_dim + 2, state_dim + 2)
+            ``Q(h)`` of the augmented state (zero on ``α``, ``β``).
+        """
         if not self.continuous:
             return np.array(self.q_kf, dtype=float)
         return integrated_noise(self.q_kf, self.dim, self.current, float(h))
@@ -197,58 +237,58 @@ class EstimationConfig:
 
     Parameters
     ----------
-    model
+    model : VehicleModel
         The vehicle model (dimension, sensors, current, beacon, range form of the EKF output).
-    rates_hz
+    rates_hz : mapping of str to float, optional
         Report rate of each sensor [Hz]; a sensor not listed reports at every trajectory sample.
         The filters predict at the trajectory's sample rate; a rate above it is an error.
-    noise
+    noise : mapping of str to float, optional
         Measurement standard deviation per sensor: range [m] (on the range, whatever the filter's
         output form), DVL [m/s], depth [m]. Missing sensors use :data:`DEFAULT_NOISE`.
-    accel_noise
+    accel_noise : float or None, optional
         Intensity of the white acceleration noise [m/s²/√Hz] of the truth and the filters
         (module docstring); ``None``: :data:`DEFAULT_ACCEL_NOISE` ``= sqrt(1e-7)``, which at the
         default filter step 0.1 s adds the paper's velocity variance ``(1e-3 · 0.1)²`` per step.
         Cannot be combined with ``q_ekf``/``q_kf``.
-    current_noise
+    current_noise : float, optional
         Intensity of a random walk of the current [m/s/√s] (models with a current only);
         default 0, a constant current (eq. 29).
-    q_ekf, q_kf
+    q_ekf, q_kf : ndarray or None, optional
         The paper's setting instead of the physical noise: per-step process-noise covariances
         (diagonal vector or matrix) added at every filter step, so their intensity depends on the
         step (:meth:`paper` gives the paper's values). Giving either selects this mode; the other
         one, if ``None``, is :func:`paper_covariances` at the trajectory's median step.
-    p0_ekf, p0_kf
+    p0_ekf, p0_kf : ndarray or None, optional
         Initial covariances (diagonal vector or matrix); ``None`` uses :func:`paper_covariances`.
-    init_error
+    init_error : "sample" or ndarray, shape (state_dim,), optional
         ``"sample"`` to draw the initial estimation error of ``(p, v[, v_f])`` from
         ``N(0, p0_ekf)`` in each run, or a fixed offset ``x̂0 - x0`` of length ``state_dim``.
-    true_current
+    true_current : tuple of float or None, optional
         True current ``v_f`` [m/s] of the truth when the model has a current (default
         :data:`DEFAULT_CURRENT`); must be ``None`` otherwise.
-    process_noise
+    process_noise : bool, optional
         If true the truth is driven by the process noise the filters model (``accel_noise``, or
         ``q_ekf`` per step in the paper's setting).
-    y0_mode
+    y0_mode : {"augment", "inflate"}, optional
         How the KF handles the noise of the anchor range ``y0`` in ``ȳ = y - y0 + ½|d|²``:
         ``"augment"`` (default) adds the constant ``β = y0,true - y0,meas`` to the KF state with
         prior variance ``var(y0)``, which is exact; ``"inflate"`` adds ``var(y0)`` to every
         later ``R`` and ignores the correlation (over-confident: the common error is averaged
         as if independent).
-    convergence_threshold_m
+    convergence_threshold_m : float, optional
         Position error [m] for the convergence time and converged fraction.
-    dropout
+    dropout : mapping of str to float, optional
         Probability per sensor that a scheduled report is missing (NaN; the update is skipped).
         The anchor range at the first sample is never dropped.
-    kf_coupling
+    kf_coupling : bool, optional
         Model how process noise enters the augmented KF's output (default; see
         :mod:`obsplan.estimation.filters.kf`). ``False`` is the paper's output model, over-confident
         on long runs with process noise.
-    monitor_window_s
+    monitor_window_s : float or None, optional
         The final stretch [s] over which the divergence monitor averages one run's NEES against
         the 99.9 % bound (:mod:`obsplan.estimation.montecarlo.stats`); ``None``: 10 % of the
         duration.
-    ekf_update
+    ekf_update : {"first-order", "second-order"}, optional
         The EKF's (and the Gaussian sum's components') range update: ``"first-order"``
         (default, the paper's EKF) or ``"second-order"``, the Gaussian second-order filter's,
         which adds the range's curvature over the prior to the prediction and the variance
@@ -443,6 +483,21 @@ class EstimationConfig:
 
         ``dt`` [s] is needed only in the per-step setting when one of ``q_ekf``/``q_kf`` is
         ``None`` (it is then the paper's at step ``dt``).
+
+        Parameters
+        ----------
+        dt : float or None, optional
+            Filter step [s].
+
+        Returns
+        -------
+        ProcessNoise
+            Continuous intensities, or the per-step covariances.
+
+        Raises
+        ------
+        ConfigError
+            In the per-step setting with a missing ``q_ekf``/``q_kf`` and no ``dt``.
         """
         model = self.model
         n = model.dim
@@ -464,6 +519,20 @@ class EstimationConfig:
 
         The paper's per-step process noise (module docstring), kept for its figures and tables;
         ``overrides`` are any other fields (e.g. ``init_error``, ``rates_hz``).
+
+        Parameters
+        ----------
+        model : VehicleModel
+            The vehicle model.
+        dt : float
+            Model step [s].
+        **overrides
+            Other fields of the configuration.
+
+        Returns
+        -------
+        EstimationConfig
+            The configuration with the paper's ``Q`` and ``P0`` (:func:`paper_covariances`).
         """
         cov = paper_covariances(model, dt)
         kwargs: dict[str, object] = {**cov, **overrides}
@@ -475,6 +544,16 @@ class EstimationConfig:
 
         ``q_*`` are the covariances added per step of ``dt`` (with the physical noise its exact
         ``Q(dt)``, a full matrix); ``None`` entries are the paper's for step ``dt``.
+
+        Parameters
+        ----------
+        dt : float
+            Filter step [s].
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``q_ekf``, ``p0_ekf`` (``state_dim`` square) and ``q_kf``, ``p0_kf`` (augmented).
         """
         cov = paper_covariances(self.model, dt)
         out = {k: (cov[k] if getattr(self, k) is None else getattr(self, k)) for k in cov}
@@ -492,7 +571,14 @@ class EstimationConfig:
         return np.asarray(self.true_current, float)
 
     def to_dict(self) -> dict:
-        """JSON-friendly summary (rates, noises, flags)."""
+        """JSON-friendly summary (rates, noises, flags).
+
+        Returns
+        -------
+        dict
+            Sensors, rates [Hz], noises, the flags, the initial error, the true current [m/s]
+            and the process noise model and intensities.
+        """
         return {
             "sensors": list(self.model.sensors),
             "current": bool(self.model.current),

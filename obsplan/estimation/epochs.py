@@ -45,6 +45,23 @@ def record_samples(n_samples: int, record_every: int | None) -> np.ndarray:
     """Samples where statistics are recorded: every ``record_every``-th and the last.
 
     ``None`` records every ``max(1, N // MAX_RECORDS)``-th sample (about ``MAX_RECORDS`` points).
+
+    Parameters
+    ----------
+    n_samples : int
+        Number of samples ``N`` of the trajectory.
+    record_every : int or None
+        Stride between recorded samples; None: chosen from :data:`MAX_RECORDS`.
+
+    Returns
+    -------
+    ndarray of int, shape (Nr,)
+        Indices of the recorded samples, increasing, the last one ``N - 1``.
+
+    Raises
+    ------
+    ConfigError
+        If ``record_every`` is below 1.
     """
     stride = max(1, n_samples // MAX_RECORDS) if record_every is None else int(record_every)
     if stride < 1:
@@ -108,13 +125,25 @@ class SegmentTable:
     weights: np.ndarray
 
     def packed(self) -> np.ndarray:
-        """Rows ``T, S0, S1, S2, τ_a, dp, dv`` (the kernels' table layout), shape (S, 5 + 2n)."""
+        """Rows ``T, S0, S1, S2, τ_a, dp, dv`` (the kernels' table layout), shape (S, 5 + 2n).
+
+        Returns
+        -------
+        ndarray, shape (S, 5 + 2n)
+            The table, C-contiguous (layout: :mod:`obsplan.estimation.kernels`).
+        """
         return np.ascontiguousarray(
             np.column_stack([self.T, self.sums, self.tau_a, self.dp, self.dv])
         )
 
     def rule(self) -> np.ndarray:
-        """Gauss nodes and weights, shape (S, 2, GAUSS_NODES)."""
+        """Gauss nodes and weights, shape (S, 2, GAUSS_NODES).
+
+        Returns
+        -------
+        ndarray, shape (S, 2, GAUSS_NODES)
+            ``[:, 0]`` the nodes ``σ`` [s], ``[:, 1]`` the weights; C-contiguous.
+        """
         return np.ascontiguousarray(np.stack([self.nodes, self.weights], axis=1))
 
 
@@ -126,6 +155,22 @@ def segment_table(
     Empty segments (``a = b``) are the identity. ``rules`` computes the Gauss rules (only the
     augmented KF needs them); ``continuous`` the noise sums and rules of an intensity (module
     docstring) instead of per-step noise.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path (times [s] and held inputs [m/s²]).
+    a, b : ndarray of int, shape (S,)
+        First and last sample of each segment.
+    rules : bool
+        Compute the Gauss rules.
+    continuous : bool, optional
+        Noise sums of an intensity instead of per-step noise.
+
+    Returns
+    -------
+    SegmentTable
+        The composed predictions of the segments.
     """
     a = np.asarray(a, dtype=np.int64)
     b = np.asarray(b, dtype=np.int64)
@@ -237,7 +282,26 @@ def epoch_plan(
     continuous: bool = False,
 ) -> EpochPlan:
     """The :class:`EpochPlan` of ``schedule`` on ``traj`` with recorded samples ``records``
-    (``continuous``: noise sums of an intensity, :func:`segment_table`)."""
+    (``continuous``: noise sums of an intensity, :func:`segment_table`).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    schedule : Schedule
+        Which sensor reports at which sample.
+    records : ndarray of int, shape (Nr,)
+        Recorded samples (:func:`record_samples`).
+    rules : bool, optional
+        Compute the Gauss rules of the segments (the augmented KF needs them).
+    continuous : bool, optional
+        Noise sums of an intensity (physical process noise) instead of per-step noise.
+
+    Returns
+    -------
+    EpochPlan
+        The epochs, records and their composed segments.
+    """
     any_report = np.array(schedule.mask.any(axis=1), dtype=bool)
     any_report[0] = True
     epochs = np.flatnonzero(any_report).astype(np.int64)
@@ -265,7 +329,20 @@ def epoch_plan(
 
 
 def input_displacement(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
-    """``d(t_k, t_0)`` of eq. 15 and its rate ``ḋ`` from the inputs alone (exact ZOH), (N, n)."""
+    """``d(t_k, t_0)`` of eq. 15 and its rate ``ḋ`` from the inputs alone (exact ZOH), (N, n).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path; only its times and inputs are used.
+
+    Returns
+    -------
+    d : ndarray, shape (N, n)
+        Displacement due to the inputs [m].
+    d_dot : ndarray, shape (N, n)
+        Its rate [m/s].
+    """
     z = np.zeros(traj.dim)
     tr = Trajectory.from_inputs(traj.t, z, z, traj.u)
     return tr.p, tr.v
@@ -306,7 +383,22 @@ class RunContext:
             object.__setattr__(self, "rec_w", np.zeros(self.t_rec.size))
 
     def corrections(self, ce: np.ndarray | None, cr: np.ndarray | None):
-        """The kernels' input-correction arrays (empty: open loop)."""
+        """The kernels' input-correction arrays (empty: open loop).
+
+        Parameters
+        ----------
+        ce : ndarray, shape (E, 2n, R), or None
+            Response ``(p, v)`` of each run to its input corrections at the epochs [m, m/s];
+            None: open loop.
+        cr : ndarray, shape (Nr, 2n, R), or None
+            The same at the records.
+
+        Returns
+        -------
+        ce, cr : ndarray
+            C-contiguous arrays, or empty ``(0, 2n, 1)`` arrays in open loop (layout:
+            :mod:`obsplan.estimation.kernels`).
+        """
         if ce is None:
             z = np.zeros((0, self.d_epochs.shape[1], 1))
             return z, z
@@ -321,13 +413,38 @@ class RunContext:
         """The record table with each run's true ``(p, p')`` appended (the kernels' ``rec``).
 
         ``truth_rec`` (R, Nr, 2n) -> (R, Nr, 5 + 4n).
+
+        Parameters
+        ----------
+        truth_rec : ndarray, shape (R, Nr, 2n)
+            True position [m] and inertial velocity [m/s] of each run at the records.
+
+        Returns
+        -------
+        ndarray, shape (R, Nr, 5 + 4n)
+            The record table of each run, C-contiguous.
         """
         tab = np.broadcast_to(self.plan.rec_tab, (truth_rec.shape[0], *self.plan.rec_tab.shape))
         return np.ascontiguousarray(np.concatenate([tab, truth_rec], axis=2))
 
 
 def nominal_states(traj: Trajectory, model: VehicleModel, current: np.ndarray) -> np.ndarray:
-    """Noise-free true states ``(p, v[, v_f])`` along ``traj``, shape (N, state_dim)."""
+    """Noise-free true states ``(p, v[, v_f])`` along ``traj``, shape (N, state_dim).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path (inertial velocities ``v + v_f``).
+    model : VehicleModel
+        The vehicle model (with or without current).
+    current : ndarray, shape (n,)
+        The true current ``v_f`` [m/s] (ignored without current).
+
+    Returns
+    -------
+    ndarray, shape (N, state_dim)
+        Position [m], velocity through the water [m/s] and, with current, ``v_f`` [m/s].
+    """
     parts = [traj.p, traj.v - current] if model.current else [traj.p, traj.v]
     if model.current:
         parts.append(np.broadcast_to(current, traj.p.shape))

@@ -28,7 +28,13 @@ COMPILE_NOTE = f"compiling the filters once (about {COMPILE_S} s; cached for lat
 
 def user_cache_dir() -> Path:
     """The per-user folder for obsplan's numba cache (``~/.cache/obsplan/numba`` on Linux, or
-    under ``XDG_CACHE_HOME``; ``~/Library/Caches`` on macOS, ``%LOCALAPPDATA%`` on Windows)."""
+    under ``XDG_CACHE_HOME``; ``~/Library/Caches`` on macOS, ``%LOCALAPPDATA%`` on Windows).
+
+    Returns
+    -------
+    Path
+        The folder (not created here).
+    """
     if sys.platform == "win32":
         base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
     elif sys.platform == "darwin":
@@ -41,7 +47,14 @@ def user_cache_dir() -> Path:
 def configure() -> Path | None:
     """Set ``NUMBA_CACHE_DIR`` to :func:`user_cache_dir` unless it is set already; returns the
     cache folder in use, or None when no user folder can be written (numba then keeps its own
-    choice: beside the sources, or its user-wide fallback)."""
+    choice: beside the sources, or its user-wide fallback).
+
+    Returns
+    -------
+    Path or None
+        ``NUMBA_CACHE_DIR`` if it was set, else the user folder now set; None if it cannot be
+        written.
+    """
     chosen = os.environ.get("NUMBA_CACHE_DIR")
     if chosen:
         return Path(chosen)
@@ -61,7 +74,18 @@ def configure() -> Path | None:
 
 def compiled_in_process(name: str) -> bool:
     """Whether this process has compiled (or loaded from the cache) any kernel of the module
-    ``name`` (a module of :data:`KERNEL_SOURCES`)."""
+    ``name`` (a module of :data:`KERNEL_SOURCES`).
+
+    Parameters
+    ----------
+    name : str
+        Module name under ``obsplan.estimation``, e.g. ``"kernels"``.
+
+    Returns
+    -------
+    bool
+        True if the module is imported and one of its kernels has a compiled signature.
+    """
     module = sys.modules.get(f"obsplan.estimation.{name}")
     if module is None:
         return False
@@ -75,11 +99,16 @@ def cache_is_cold(sources: tuple[str, ...] = KERNEL_SOURCES, cache_dir: Path | N
 
     Parameters
     ----------
-    sources
+    sources : tuple of str, optional
         Modules of :data:`KERNEL_SOURCES` the run needs.
-    cache_dir
+    cache_dir : Path or None, optional
         The cache folder (default: :func:`configure`'s; None there: numba's folder beside the
         sources).
+
+    Returns
+    -------
+    bool
+        True if some module of ``sources`` must be compiled.
     """
     cache_dir = cache_dir if cache_dir is not None else configure()
     for name in sources:
@@ -102,6 +131,18 @@ def cache_is_cold(sources: tuple[str, ...] = KERNEL_SOURCES, cache_dir: Path | N
 
 def compile_note(closed_loop: bool = True) -> str | None:
     """:data:`COMPILE_NOTE` when the kernels a Monte Carlo needs (the closed loop's too if
-    ``closed_loop``) are about to be compiled (:func:`cache_is_cold`), else None."""
+    ``closed_loop``) are about to be compiled (:func:`cache_is_cold`), else None.
+
+    Parameters
+    ----------
+    closed_loop : bool, optional
+        The run also needs the closed loop's kernels
+        (:mod:`~obsplan.estimation.montecarlo.loop_kernels`).
+
+    Returns
+    -------
+    str or None
+        The progress bar's label, or None if nothing is compiled.
+    """
     sources = KERNEL_SOURCES if closed_loop else KERNEL_SOURCES[:1]
     return COMPILE_NOTE if cache_is_cold(sources) else None

@@ -102,6 +102,26 @@ def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
     refined to the chord between consecutive samples, also across spans (``tm[j, TM_PREV:]`` holds
     the last ``p - b``). ``box`` (3, 2): the area (rows x, y) and depth band (row z) bounds, checked
     when ``has_box``. Accumulators are scalars: this runs at every sample of every run.
+
+    Parameters
+    ----------
+    tm : ndarray, shape (J, N_TM)
+        The paths' metrics (``TM_*`` of :mod:`obsplan.estimation.columns`), updated in place.
+    j : int
+        The path (or run) whose row is updated.
+    xb : ndarray, shape (>= K, 3n)
+        The samples, rows as above [m, m/s].
+    K : int
+        Number of samples of ``xb`` to add.
+    n : int
+        Spatial dimension.
+    beacon : ndarray, shape (n,)
+        Beacon position [m].
+    box : ndarray, shape (3, 2)
+        Area and depth bounds [m] (:meth:`TruthLimits.box
+        <obsplan.estimation.montecarlo.guidance.TruthLimits.box>`).
+    has_box : bool
+        Whether any bound of ``box`` is finite (:func:`bounded`).
     """
     close, far = tm[j, TM_CLOSEST], tm[j, TM_FARTHEST]
     ss, vmax = tm[j, TM_TRACK_SS], tm[j, TM_SPEED_MAX]
@@ -149,7 +169,18 @@ def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
 
 @inline
 def bounded(box):
-    """Whether any bound of ``box`` (3, 2) is finite."""
+    """Whether any bound of ``box`` (3, 2) is finite.
+
+    Parameters
+    ----------
+    box : ndarray, shape (3, 2)
+        Area and depth bounds [m], ±inf where unlimited.
+
+    Returns
+    -------
+    bool
+        True if some bound is finite.
+    """
     for i in range(3):
         if box[i, 0] > -math.inf or box[i, 1] < math.inf:
             return True
@@ -165,7 +196,35 @@ def truth_deviation(z, L, h, expo, n, cur, points, out, noms, beacon, box, tm):
     """``δ_{k+1} = (I + h_k A) δ_k + diag(h_k^expo) L z_k`` over all steps; ``out[i] = δ`` at
     ``points[i]`` (``expo = 0``: a per-step ``L``). With paths ``noms`` (J, N, 2n) (their
     nominal ``(p, p')``), the true path ``nom + δ`` of each is added to the metrics ``tm[j]``
-    (:func:`span_metrics`, reference the nominal itself) at every sample, span by span."""
+    (:func:`span_metrics`, reference the nominal itself) at every sample, span by span.
+
+    Parameters
+    ----------
+    z : ndarray, shape (N - 1, r)
+        Standard normals, row ``k`` driving step ``k``.
+    L : ndarray, shape (m, r)
+        Noise factor of a step (:func:`~obsplan.estimation.montecarlo.truth.truth_factor`).
+    h : ndarray, shape (N - 1,)
+        Steps [s].
+    expo : ndarray, shape (m,)
+        Exponents of the step in the factor, ``diag(h_k^expo) L``.
+    n : int
+        Spatial dimension.
+    cur : bool
+        Whether the state has the current ``v_f``.
+    points : ndarray of int, shape (P,)
+        Samples where ``δ`` is kept, sorted.
+    out : ndarray, shape (P, m)
+        Receives ``δ`` at ``points`` (zero-initialised by the caller).
+    noms : ndarray, shape (J, N, 2n)
+        Nominal ``(p, p')`` of each path [m, m/s] (``J`` may be 0).
+    beacon : ndarray, shape (n,)
+        Beacon position [m].
+    box : ndarray, shape (3, 2)
+        Area and depth bounds [m].
+    tm : ndarray, shape (J, N_TM)
+        The paths' metrics, updated in place.
+    """
     m, r = L.shape
     J = noms.shape[0]
     N = z.shape[0] + 1
@@ -226,7 +285,19 @@ def truth_deviation(z, L, h, expo, n, cur, points, out, noms, beacon, box, tm):
 
 @inline
 def noise_terms(Q, qt, S0, S1, S2, mq):
-    """``Q = S0 q0 + S1 q1 + S2 q2`` on the first ``mq`` states, for every member."""
+    """``Q = S0 q0 + S1 q1 + S2 q2`` on the first ``mq`` states, for every member.
+
+    Parameters
+    ----------
+    Q : ndarray, shape (m, m, B)
+        Receives the composed noise (its first ``mq`` rows and columns).
+    qt : ndarray, shape (3, mq, mq)
+        The terms ``q0, q1, q2`` (:func:`~obsplan.estimation.kalman.composed_noise_terms`).
+    S0, S1, S2 : float
+        The segment's noise sums (:mod:`obsplan.estimation.epochs`).
+    mq : int
+        Number of kinematic states.
+    """
     B = Q.shape[2]
     for i in range(mq):
         for j in range(mq):
@@ -243,6 +314,23 @@ def predict(X, P, tab, e, n, tr, Q, ws):
     ``P[r] += c P[s]`` (then the same on columns) read rows not yet modified: no temporaries.
     The upper triangle is mirrored, so ``P`` stays exactly symmetric. ``g`` is the segment's
     ``dp`` on the first ``n`` states and ``dv`` on the next ``n``.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' states and covariances, updated in place.
+    tab : ndarray, shape (E, 5 + 2n)
+        Segment table (module docstring, "Packed layouts").
+    e : int
+        The segment (row of ``tab``).
+    n : int
+        Spatial dimension.
+    tr : ndarray, shape (K, 4)
+        Entries ``(row, col, mult, power)`` of ``N``, sorted by row.
+    Q : ndarray, shape (m, m, B)
+        The segment's process noise.
+    ws : ndarray
+        Workspace (module docstring); holds the transition's coefficients.
     """
     m, B = X.shape
     T = tab[e, TAB_T]
@@ -281,7 +369,23 @@ def predict(X, P, tab, e, n, tr, Q, ws):
 @inline
 def correct_inputs(X, ce, e, T, n, G):
     """Add run ``b // G``'s response to its input corrections over segment ``e``:
-    ``c_e - F(T) c_{e-1}`` on ``(p, v)`` (the prediction used the plan's inputs)."""
+    ``c_e - F(T) c_{e-1}`` on ``(p, v)`` (the prediction used the plan's inputs).
+
+    Parameters
+    ----------
+    X : ndarray, shape (m, B)
+        The members' states, updated in place.
+    ce : ndarray, shape (E, 2n, R)
+        The runs' responses to their input corrections at the epochs [m, m/s].
+    e : int
+        The segment (``e > 0``).
+    T : float
+        Its length [s].
+    n : int
+        Spatial dimension.
+    G : int
+        Members per run.
+    """
     B = X.shape[1]
     for i in range(n):
         for b in range(B):
@@ -297,6 +401,17 @@ def update_rows(X, P, iw, ws, nnz):
     Per member: innovation, variance and validity (0/1) in ``ws[WS_SC, SC_NU/SC_R/SC_OK]``; an
     invalid member gets a zero gain (exactly unchanged). Adds the NIS, count and
     log-likelihood of the innovation to ``ws[WS_SC, SC_NIS/SC_CNT/SC_LL]``.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' states and covariances, updated in place.
+    iw : ndarray of int, shape (m,)
+        State indices of the row's non-zero entries (the first ``nnz``).
+    ws : ndarray
+        Workspace (module docstring): the row's values, innovations, variances, validity.
+    nnz : int
+        Number of non-zero entries of the row.
     """
     m, B = X.shape
     for i in range(m):
@@ -334,7 +449,25 @@ def update_rows(X, P, iw, ws, nnz):
 
 @inline
 def linear_updates(X, P, Y, e, lin, iw, ws, G):
-    """Updates with the linear output rows ``1..`` (DVL, depth); member b reads run ``b // G``."""
+    """Updates with the linear output rows ``1..`` (DVL, depth); member b reads run ``b // G``.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' states and covariances, updated in place.
+    Y : ndarray, shape (E, outputs, R)
+        The readings (NaN: no report).
+    e : int
+        The epoch.
+    lin : ndarray, shape (outputs, 5)
+        The linear output rows (module docstring).
+    iw : ndarray of int, shape (m,)
+        Scratch for the rows' state indices.
+    ws : ndarray
+        Workspace (module docstring).
+    G : int
+        Members per run.
+    """
     B = X.shape[1]
     for o in range(1, Y.shape[1]):
         nnz = int(lin[o, 0])
@@ -359,7 +492,21 @@ def linear_updates(X, P, Y, e, lin, iw, ws, G):
 # ----------------------------------------------------------------------------- statistics
 @inline
 def nees(nw, n2):
-    """``eᵀ C⁻¹ e`` by Cholesky (NaN if ``C`` is not positive definite); ``e``, ``C`` in ``nw``."""
+    """``eᵀ C⁻¹ e`` by Cholesky (NaN if ``C`` is not positive definite); ``e``, ``C`` in ``nw``.
+
+    Parameters
+    ----------
+    nw : ndarray, shape (5 + 6n, 2n)
+        Navigation work array (module docstring): ``e`` in row ``NW_E``, ``C`` from ``NW_C``;
+        the factor and the whitened error are written into it.
+    n2 : int
+        ``2n``, the dimension of ``(p, p')``.
+
+    Returns
+    -------
+    float
+        The NEES.
+    """
     C, L = NW_C, NW_C + n2
     for j in range(n2):
         s = nw[C + j, j]
@@ -393,6 +540,29 @@ def record_epoch(x, P, ri, n, cur, rec, buf, ex, nw, keep_ex):
     A) C (I + T A)ᵀ + Q(S)`` with ``A = [[0, I], [0, 0]]``, the composed noise of ``q_nav`` and
     the run's input correction ``nw[NW_CORR]``; then errors against the truth (``rec`` after the
     table columns), variances and NEES go to ``buf[ri]``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (m,)
+        The posterior mean at the epoch.
+    P : ndarray, shape (m, m)
+        Its covariance.
+    ri : int
+        The record.
+    n : int
+        Spatial dimension.
+    cur : bool
+        Whether the state has the current ``v_f``.
+    rec : ndarray, shape (Nr, 5 + 4n)
+        The run's record table with its truth (module docstring).
+    buf : ndarray, shape (Nr, COL_AXES + 2n)
+        The run's record buffer (``COL_*`` of :mod:`obsplan.estimation.columns`).
+    ex : ndarray, shape (2, Nr, 2n)
+        Receives the estimate and std when ``keep_ex``.
+    nw : ndarray, shape (5 + 6n, 2n)
+        Navigation work array (module docstring), ``NW_OFF`` and ``NW_CORR`` set by the caller.
+    keep_ex : bool
+        Keep this run's history in ``ex``.
     """
     n2 = 2 * n
     C, Qz = NW_C, NW_C + 2 * n2
@@ -464,6 +634,27 @@ def finish_run(buf, t_rec, thr, bound, window, nis_sum, nis_cnt, sums, info, rec
     ``window`` seconds is above ``bound`` (it ends inconsistent: a transient it recovers from is
     not a divergence), or when its error is non-finite; the flag time is the last time its NEES
     rose above ``bound`` (NaN if never). ``sums[1]`` collects flagged runs, ``sums[0]`` the others.
+
+    Parameters
+    ----------
+    buf : ndarray, shape (Nr, COL_AXES + 2n)
+        The run's record buffer.
+    t_rec : ndarray, shape (Nr,)
+        Recorded times [s].
+    thr : float
+        Convergence threshold on the position error [m].
+    bound : float
+        The monitor's bound on one run's NEES.
+    window : float
+        The monitor's final window [s].
+    nis_sum, nis_cnt : float
+        The run's sum of normalised innovations squared and their number.
+    sums : ndarray, shape (2, Nr, COL_AXES + 2n)
+        The group sums, added to.
+    info : ndarray, shape (N_INFO,)
+        Receives the run's verdicts (``INFO_*`` of :mod:`obsplan.estimation.columns`).
+    rec_w : ndarray, shape (Nr,)
+        Weights of the records of the subset RMSE.
     """
     Nr, ncol = buf.shape
     n = (ncol - COL_AXES) // 2
@@ -535,7 +726,30 @@ def finish_run(buf, t_rec, thr, bound, window, nis_sum, nis_cnt, sums, info, rec
 
 @jit
 def workspaces(m, B, n, nw_off, qz):
-    """``ws`` (batched), ``iw``, ``nw`` (per run, for the records) of a filter of ``m`` states."""
+    """``ws`` (batched), ``iw``, ``nw`` (per run, for the records) of a filter of ``m`` states.
+
+    Parameters
+    ----------
+    m : int
+        Number of states.
+    B : int
+        Number of members.
+    n : int
+        Spatial dimension.
+    nw_off : ndarray, shape (n,)
+        Offset added to the estimated position (the beacon for the KF's relative positions).
+    qz : ndarray, shape (2n, 2n)
+        Per-step process noise of ``(p, p')``.
+
+    Returns
+    -------
+    ws : ndarray, shape (5, max(m, SC_COEF + 2m), B)
+        Update workspace (module docstring).
+    iw : ndarray of int, shape (m,)
+        Row indices.
+    nw : ndarray, shape (5 + 6n, 2n)
+        Navigation work array.
+    """
     ws = np.zeros((WS_SC + 1, max(m, SC_COEF + 2 * m), B))
     iw = np.zeros(m, dtype=np.int64)
     nw = np.zeros((NW_C + 6 * n, 2 * n))
@@ -550,7 +764,24 @@ def workspaces(m, B, n, nw_off, qz):
 @inline
 def mixture_weights(lw, w, g, G):
     """``w`` of run ``g``'s ``G`` members (``g G .. g G + G - 1``): ``exp(lw)`` normalised;
-    returns the largest log weight (subtracted before the exponential)."""
+    returns the largest log weight (subtracted before the exponential).
+
+    Parameters
+    ----------
+    lw : ndarray, shape (B,)
+        The members' log weights.
+    w : ndarray, shape (B,)
+        Receives the weights of run ``g``'s members.
+    g : int
+        The run.
+    G : int
+        Members per run.
+
+    Returns
+    -------
+    float
+        The largest log weight of the run's members.
+    """
     b0 = g * G
     top = lw[b0]
     for c in range(1, G):
@@ -569,7 +800,35 @@ def record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm
     """Record sample ``ri`` (based at epoch ``e``) for every run of the batch (its members'
     mixture: weights ``exp(lw)`` over its ``G`` members, ``w`` (B,) scratch; one member: the
     member itself), with each run's input correction ``cr[ri] - F ce[e]`` (none when ``ce`` is
-    empty)."""
+    empty).
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' posteriors at epoch ``e``.
+    lw, w : ndarray, shape (B,)
+        The members' log weights; scratch for their weights.
+    G : int
+        Members per run.
+    e, ri : int
+        The epoch the record is based at, and the record.
+    n : int
+        Spatial dimension.
+    cur : bool
+        Whether the state has the current ``v_f``.
+    rec : ndarray, shape (R, Nr, 5 + 4n)
+        Each run's record table with its truth.
+    buf : ndarray, shape (R, Nr, COL_AXES + 2n)
+        Each run's record buffer.
+    ex : ndarray, shape (2, Nr, 2n)
+        Receives run ``ex_run``'s estimate and std.
+    ex_run : int
+        The run whose history is kept (-1: none).
+    nw, xm, Pm : ndarray
+        Navigation work array (module docstring) and scratch mean (m,) and covariance (m, m).
+    ce, cr : ndarray, shapes (E, 2n, R), (Nr, 2n, R)
+        Input corrections at the epochs and records (module docstring; empty: open loop).
+    """
     m, B = X.shape
     corr = ce.shape[0] > 0
     for g in range(B // G):
@@ -609,7 +868,38 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
     ``½ δᵀ M δ`` (``M = I`` for the half-squared form, ``(I - u uᵀ)/ρ`` for the range) adds its
     mean ``½ tr(M P_pp)`` to the prediction and its variance ``½ tr((M P_pp)²)`` to the
     reading's. Where the position is uncertain on the scale of ``sqrt(2 ρ σ_r)`` the first-order
-    update takes the curvature of the range for information it does not have."""
+    update takes the curvature of the range for information it does not have.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' priors.
+    Y : ndarray, shape (E, outputs, R)
+        The readings; column 0 the range [m] (NaN: no report).
+    e : int
+        The epoch.
+    iw : ndarray of int, shape (m,)
+        Receives the row's state indices (the position).
+    ws : ndarray
+        Workspace: receives the row, innovation, variance and validity of every member.
+    n : int
+        Spatial dimension.
+    G : int
+        Members per run.
+    beacon : ndarray, shape (n,)
+        Beacon position [m].
+    half_sq : bool
+        The half-squared range form (else the range).
+    second : bool
+        The Gaussian second-order update.
+    var_r : float
+        Variance of the range noise [m²].
+
+    Returns
+    -------
+    bool
+        True if some member has a range reading to update with.
+    """
     B = X.shape[1]
     any_ok = False
     for i in range(n):
@@ -671,7 +961,31 @@ def ekf_measure(
 ):
     """The EKF's updates at epoch ``e`` (range row, then the linear rows) of every member, and
     their NIS: per run, or for a Gaussian sum (``G > 1``) the mixture's with the prior weights,
-    whose log weights ``lw`` then grow by the innovations' log-likelihoods."""
+    whose log weights ``lw`` then grow by the innovations' log-likelihoods.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' states and covariances, updated in place.
+    Y : ndarray, shape (E, outputs, R)
+        The readings (NaN: no report).
+    e : int
+        The epoch.
+    lw, w : ndarray, shape (B,)
+        The members' log weights (updated); scratch for their weights.
+    G : int
+        Members per run.
+    iw, ws : ndarray
+        Row indices and workspace (module docstring).
+    n : int
+        Spatial dimension.
+    beacon, half_sq, second, var_r
+        As for :func:`ekf_range_row`.
+    lin : ndarray, shape (outputs, 5)
+        The linear output rows.
+    run_nis, run_cnt : ndarray, shape (R,)
+        Each run's sum of normalised innovations squared and their number, added to.
+    """
     B = X.shape[1]
     R = B // G
     for b in range(B):
@@ -700,7 +1014,25 @@ def ekf_measure(
 def ekf_predict(X, P, Q, ws, mdl, e, cor, G):
     """The EKF's prediction of every member to epoch ``e`` (``e > 0``) over segment ``e``, with
     each run's input correction (``cor``,
-    :data:`~obsplan.estimation.filters.bundles.Corrections`)."""
+    :data:`~obsplan.estimation.filters.bundles.Corrections`).
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' states and covariances, updated in place.
+    Q : ndarray, shape (m, m, B)
+        Scratch for the segment's process noise.
+    ws : ndarray
+        Workspace (module docstring).
+    mdl : EkfModel
+        The model bundle (:mod:`obsplan.estimation.filters.bundles`).
+    e : int
+        The epoch.
+    cor : Corrections
+        The runs' input corrections (empty: open loop).
+    G : int
+        Members per run.
+    """
     m = X.shape[0]
     tab = mdl.tab
     noise_terms(Q, mdl.qt, tab[e, TAB_S0], tab[e, TAB_S1], tab[e, TAB_S2], m)
@@ -720,6 +1052,17 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
     bundles (:mod:`obsplan.estimation.filters.bundles`): ``mdl`` an ``EkfModel``, ``rcd`` the
     ``Records``, ``out`` the ``Outputs`` (``ex`` receives run ``ex_run``'s history), ``cor``
     the runs' input ``Corrections`` (closed loop; empty: none).
+
+    Parameters
+    ----------
+    X0, P0, lw0 : ndarray, shapes (m, B), (m, m, B), (B,)
+        The members' initial states, covariances and log weights.
+    G : int
+        Members per run.
+    Y : ndarray, shape (E, outputs, R)
+        The readings.
+    mdl, rcd, out, cor : EkfModel, Records, Outputs, Corrections
+        The bundles.
     """
     tab, qt, tr, lin, n, cur = mdl.tab, mdl.qt, mdl.tr, mdl.lin, mdl.n, mdl.cur
     beacon, half_sq, second, sig_r = mdl.beacon, mdl.half_sq, mdl.second, mdl.sig_r
@@ -775,6 +1118,10 @@ def kf_chain_noise(Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple):
     :mod:`obsplan.estimation.filters.kf` (``E`` only when ``couple``; its gains ``c0 + σ c1`` and
     ``c1`` per member in rows 0, 1 of ``kw``). ``Γ_c`` and ``q Γ_cᵀ`` live in rows 2–4 and 5–7 of
     ``kw``. Without noise on ``(p0·ν0, |ν0|²)`` (the default) their columns are skipped.
+
+    Parameters
+    ----------
+    Q, kw, qk, rule, tab, e, mx, n, cur, qdiag, couple : as :func:`kf_predict` and ``KfModel``
     """
     mw = qk.shape[0]
     has_ab = False
@@ -870,7 +1217,27 @@ def kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp):
     """The augmented KF's prediction of every run to epoch ``e`` (``e > 0``) over segment ``e``:
     the coupling's gains at the segment's start, the composed noise (kinematic terms, then the
     chain's, :func:`kf_chain_noise`), the transition and each run's input correction. ``Sp``
-    (3,): the noise sums of the last segment (its kinematic terms are kept when they repeat)."""
+    (3,): the noise sums of the last segment (its kinematic terms are kept when they repeat).
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (mx + 3, R), (mx + 3, mx + 3, R)
+        The runs' states and covariances in chain coordinates, updated in place.
+    Q : ndarray, shape (mx + 3, mx + 3, R)
+        Scratch for the segment's process noise.
+    kw : ndarray, shape (8, len(qk), R)
+        Work rows of :func:`kf_chain_noise` (coupling gains, ``Γ_c``, ``q Γ_cᵀ``).
+    ws : ndarray
+        Workspace (module docstring).
+    mdl : KfModel
+        The model bundle (:mod:`obsplan.estimation.filters.bundles`).
+    e : int
+        The epoch.
+    cor : Corrections
+        The runs' input corrections (empty: open loop).
+    Sp : ndarray, shape (3,)
+        The last segment's noise sums, updated.
+    """
     n, cur, ep_d, ce = mdl.n, mdl.cur, mdl.ep_d, cor.ce
     mx = X.shape[0] - 3
     B = X.shape[1]
@@ -898,7 +1265,27 @@ def kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp):
 @inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
 def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
     """The augmented KF's updates at epoch ``e`` (the linear range row ``ȳ``, then the linear
-    rows) of every run, and their NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``)."""
+    rows) of every run, and their NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``).
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (mx + 3, R), (mx + 3, mx + 3, R)
+        The runs' states and covariances in chain coordinates, updated in place.
+    Y : ndarray, shape (E, outputs, R)
+        The readings (NaN: no report).
+    e : int
+        The epoch.
+    iw, ws : ndarray
+        Row indices and workspace (module docstring).
+    mdl : KfModel
+        The model bundle.
+    anc : Anchors
+        The runs' anchors ``y0`` and their variances.
+    cor : Corrections
+        The runs' input corrections (empty: open loop).
+    run_nis, run_cnt : ndarray, shape (R,)
+        Each run's sum of normalised innovations squared and their number, added to.
+    """
     n, ep_d, ce, y0, var0 = mdl.n, mdl.ep_d, cor.ce, anc.y0, anc.var0
     var_r = mdl.sig_r * mdl.sig_r
     kc = X.shape[0] - 3
@@ -948,6 +1335,15 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     ``ep_d`` (E, 2n) holds the input displacement ``d`` and its rate ``ḋ`` of the plan's inputs
     at the epochs (a run's own is ``ep_d + ce``: the displacement of its input corrections is
     ``c``); other arguments as :func:`ekf_batch`.
+
+    Parameters
+    ----------
+    Z0, P0 : ndarray, shapes (m, R), (m, m, R)
+        The runs' initial states and covariances in chain coordinates.
+    Y : ndarray, shape (E, outputs, R)
+        The readings.
+    mdl, anc, rcd, out, cor : KfModel, Anchors, Records, Outputs, Corrections
+        The bundles.
     """
     n, cur = mdl.n, mdl.cur
     rec_base, rec, t_rec = rcd.rec_base, rcd.rec, rcd.t_rec

@@ -22,7 +22,18 @@ _RATE_SLACK = 1e-6
 
 
 def sample_rate(traj: Trajectory) -> float:
-    """The trajectory's sample rate ``1 / median(dt)`` [Hz]."""
+    """The trajectory's sample rate ``1 / median(dt)`` [Hz].
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+
+    Returns
+    -------
+    float
+        The model rate [Hz].
+    """
     return float(1.0 / np.median(traj.dt))
 
 
@@ -45,7 +56,23 @@ class Schedule:
     rates_hz: tuple[float, ...]
 
     def reports(self, sensor: str) -> np.ndarray:
-        """Boolean mask of shape ``(N,)`` of the samples where ``sensor`` reports."""
+        """Boolean mask of shape ``(N,)`` of the samples where ``sensor`` reports.
+
+        Parameters
+        ----------
+        sensor : str
+            A canonical sensor name of :attr:`sensors`.
+
+        Returns
+        -------
+        ndarray of bool, shape (N,)
+            The sensor's column of :attr:`mask`.
+
+        Raises
+        ------
+        ValueError
+            If ``sensor`` is not scheduled.
+        """
         return self.mask[:, self.sensors.index(sensor)]
 
 
@@ -56,12 +83,17 @@ def make_schedule(
 
     Parameters
     ----------
-    traj
+    traj : Trajectory
         The trajectory whose samples are the model steps.
-    sensors
+    sensors : tuple of str
         Canonical sensor names.
-    rates_hz
+    rates_hz : mapping of str to float
         Rate per sensor [Hz]; missing sensors report at every sample.
+
+    Returns
+    -------
+    Schedule
+        The report mask of every sensor at every sample (every sensor reports at sample 0).
 
     Raises
     ------

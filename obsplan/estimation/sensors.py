@@ -56,10 +56,17 @@ class OutputModel:
     def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``h`` and ``H`` at states ``x`` of shape ``(R, m)``.
 
+        Parameters
+        ----------
+        x : ndarray, shape (R, m)
+            States of ``R`` runs (position [m], velocity [m/s][, current [m/s]]).
+
         Returns
         -------
         h : ndarray, shape (R, p)
+            Outputs, in the model's form (range term [m² or m], DVL [m/s], depth [m]).
         H : ndarray, shape (R, p, m)
+            Their Jacobians with respect to the state.
         """
         x = np.asarray(x, float)
         xM = np.einsum("rj,ijk->rik", x, self.M)  # (R, p, m)
@@ -83,7 +90,18 @@ def _casadi_eval(model: VehicleModel, x: np.ndarray) -> tuple[np.ndarray, np.nda
 
 @cache
 def output_model(model: VehicleModel) -> OutputModel:
-    """Build the :class:`OutputModel` of ``model`` from its CasADi ``H`` (cached per model)."""
+    """Build the :class:`OutputModel` of ``model`` from its CasADi ``H`` (cached per model).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model.
+
+    Returns
+    -------
+    OutputModel
+        Its batched ``h`` and ``H``.
+    """
     x = model.x_sym
     m, p = model.state_dim, model.output_dim
     Hx = model.H(x)
@@ -110,10 +128,12 @@ def to_outputs(
 
     Parameters
     ----------
-    readings
+    model : VehicleModel
+        The vehicle model (its sensors, output order and range form).
+    readings : dict of str to ndarray, shape (R, k)
         Per sensor, shape ``(R, k)``; NaN where a reading is missing. Sensors absent from the
         dict are missing for every run.
-    noise
+    noise : dict of str to float
         Standard deviation per sensor (range in metres on ``r``).
 
     Returns

@@ -12,7 +12,26 @@ from obsplan.model.frames import GeodeticOrigin, check_lat_lon, geodetic_to_loca
 
 
 def parse_origin(text: str, option: str = "--origin") -> GeodeticOrigin:
-    """``"lat,lon[,alt]"`` -> :class:`GeodeticOrigin`."""
+    """``"lat,lon[,alt]"`` -> :class:`GeodeticOrigin`.
+
+    Parameters
+    ----------
+    text : str
+        Latitude and longitude [deg, WGS84] and optionally the altitude of the reference
+        surface [m], separated by commas.
+    option : str, optional
+        The option that gave ``text``, named in messages.
+
+    Returns
+    -------
+    GeodeticOrigin
+        The origin of the local north-east-down frame.
+
+    Raises
+    ------
+    InputError
+        If ``text`` is not 2 or 3 finite numbers, or the latitude or longitude is out of range.
+    """
     vals = _numbers(text, option, "LAT,LON[,ALT]", (2, 3))
     try:
         return GeodeticOrigin(*vals)
@@ -23,7 +42,31 @@ def parse_origin(text: str, option: str = "--origin") -> GeodeticOrigin:
 def parse_geodetic_point(
     text: str, dim: int, origin: GeodeticOrigin | None, option: str
 ) -> tuple[float, ...]:
-    """``"lat,lon[,depth]"`` -> local position (``dim`` values, depth only in 3D)."""
+    """``"lat,lon[,depth]"`` -> local position (``dim`` values, depth only in 3D).
+
+    Parameters
+    ----------
+    text : str
+        Latitude and longitude [deg, WGS84] and, in 3D, optionally the depth [m, positive
+        down], separated by commas.
+    dim : int
+        Spatial dimension of the trajectory (2 or 3).
+    origin : GeodeticOrigin or None
+        Origin of the local frame (``--origin``); None is an error.
+    option : str
+        The option that gave ``text``, named in messages.
+
+    Returns
+    -------
+    tuple of float
+        The local NED position [m], ``dim`` values.
+
+    Raises
+    ------
+    InputError
+        Without an origin, for a malformed point, a latitude or longitude out of range, or a
+        point too far from the origin (:func:`obsplan.model.frames.geodetic_to_local`).
+    """
     if origin is None:
         raise InputError(
             f"{option} needs --origin LAT,LON[,ALT]: the origin of the trajectory's local "

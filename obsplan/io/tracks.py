@@ -178,7 +178,14 @@ class TrackFit:
     origin: Any = field(default=None)
 
     def to_dict(self) -> dict:
-        """JSON-friendly summary (SI units)."""
+        """JSON-friendly summary (SI units).
+
+        Returns
+        -------
+        dict
+            Counts, per-axis residuals [m], noise σ_p [m], intensities q [m²/s⁵], acceleration
+            standard deviations [m/s²], search-edge flags and, if any, the geodetic origin.
+        """
         out = {
             "source": self.source,
             "samples": self.samples,
@@ -198,7 +205,14 @@ class TrackFit:
         return out
 
     def summary(self) -> str:
-        """One paragraph for a terminal."""
+        """One paragraph for a terminal.
+
+        Returns
+        -------
+        str
+            Several lines: samples and nodes, residuals, noise, accelerations' uncertainty, and a
+            warning if an estimate is at the edge of its search range.
+        """
         f = ", ".join
         lines = [
             f"{self.source}: {self.samples} samples, {self.trajectory.dim}D, fitted on "
@@ -274,7 +288,26 @@ def _waypoint_track(table: CsvTable, origin: Any) -> Track | None:
 def track_from_table(table: CsvTable, origin: Any = None) -> Track:
     """A :class:`Track` from a :class:`~obsplan.core.csvtable.CsvTable` with ``t,px,py[,pz]`` (or a
     waypoint CSV of ``obsplan export``: ``t,x,y[,z]`` or ``t,latitude,longitude[,depth]``, the
-    latter about ``origin``, default the first waypoint)."""
+    latter about ``origin``, default the first waypoint).
+
+    Parameters
+    ----------
+    table : CsvTable
+        The CSV read as text cells.
+    origin : GeodeticOrigin or None, optional
+        Origin of the local frame for geodetic waypoints; None: the first waypoint.
+
+    Returns
+    -------
+    Track
+        Times [s] and local NED positions [m] (and velocities [m/s] if the table has them).
+
+    Raises
+    ------
+    TrajectoryFormatError
+        For missing columns, a partial set of velocity columns, a bad cell or times that do not
+        increase (naming the row).
+    """
     path = table.path
     wp = _waypoint_track(table, origin)
     if wp is not None:
@@ -307,6 +340,23 @@ def read_track_csv(path: str | Path, origin: Any = None) -> Track:
     ``ux..``) is also a track (its inputs are ignored), and so is a waypoint CSV written by
     ``obsplan export`` (``t,x,y[,z],...``, or ``t,latitude,longitude[,depth],...`` converted about
     ``origin``, a :class:`~obsplan.model.frames.GeodeticOrigin`; default: the first waypoint).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    origin : GeodeticOrigin or None, optional
+        Origin of the local frame for a geodetic waypoint CSV; None: the first waypoint.
+
+    Returns
+    -------
+    Track
+        The logged track in the local NED frame.
+
+    Raises
+    ------
+    TrajectoryFormatError
+        For a file that is not such a CSV (:func:`track_from_table`).
     """
     return track_from_table(read_table(path, "t,px,py[,pz]"), origin)
 
@@ -336,17 +386,29 @@ ROS_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
 def read_track_rosbag(path: str | Path, topic: str | None = None, frame: str = "enu") -> Track:
     """Positions of a ``nav_msgs/Odometry`` or ``geometry_msgs/PoseStamped`` topic of a bag.
 
-    Parameters
-    ----------
-    path
-        ROS 1 ``.bag`` file or ROS 2 bag folder (sqlite3 or mcap), read with ``rosbags``.
-    topic
-        Topic name; default: the only topic of a supported type.
-    frame
-        ``"enu"`` (ROS convention, REP-103: converted to north-east-down) or ``"ned"`` (kept).
-
     Times are the messages' header stamps (the log time when a stamp is zero). The twist of an
     Odometry message is in the body frame and is not used.
+
+    Parameters
+    ----------
+    path : str or Path
+        ROS 1 ``.bag`` file or ROS 2 bag folder (sqlite3 or mcap), read with ``rosbags``.
+    topic : str or None, optional
+        Topic name; default: the only topic of a supported type.
+    frame : {"enu", "ned"}, optional
+        ``"enu"`` (ROS convention, REP-103: converted to north-east-down) or ``"ned"`` (kept).
+
+    Returns
+    -------
+    Track
+        Times [s] and positions [m] in the local NED frame; no velocities.
+
+    Raises
+    ------
+    InputError
+        If ``rosbags`` is not installed or ``frame`` is unknown.
+    TrajectoryFormatError
+        For a bag that cannot be read, no (or several) position topics, or no messages.
     """
     try:
         from rosbags.highlevel import AnyReader
@@ -413,19 +475,35 @@ MAVLINK_MESSAGES = ("LOCAL_POSITION_NED", "GLOBAL_POSITION_INT")
 def read_track_mavlink(path: str | Path, message: str | None = None, origin: Any = None) -> Track:
     """Positions (and velocities) of a MAVLink telemetry log (``.tlog``), with ``pymavlink``.
 
+    Times are ``time_boot_ms`` [s]; repeated messages with the same time are dropped (a
+    telemetry link sends some twice).
+
     Parameters
     ----------
-    message
+    path : str or Path
+        The telemetry log.
+    message : {"LOCAL_POSITION_NED", "GLOBAL_POSITION_INT"} or None, optional
         ``"LOCAL_POSITION_NED"`` (x, y, z [m] and vx, vy, vz [m/s], north-east-down) or
         ``"GLOBAL_POSITION_INT"`` (lat, lon [1e-7 deg], relative_alt [mm]: depth =
         −relative_alt, as ArduSub reports it; vx, vy, vz [cm/s]); default: the first present,
         in that order.
-    origin
+    origin : GeodeticOrigin or None, optional
         :class:`~obsplan.model.frames.GeodeticOrigin` of the local frame for
         ``GLOBAL_POSITION_INT``; default: the first fix, at the surface.
 
-    Times are ``time_boot_ms`` [s]; repeated messages with the same time are dropped (a
-    telemetry link sends some twice).
+    Returns
+    -------
+    Track
+        Times [s], positions [m] and velocities [m/s] in the local NED frame; ``notes`` says
+        what a damaged log lost.
+
+    Raises
+    ------
+    InputError
+        If ``pymavlink`` is not installed or ``message`` is unknown.
+    TrajectoryFormatError
+        For a log that cannot be read, has no such messages, whose clock goes back (a reboot),
+        or of which less than :data:`MIN_READABLE_FRACTION` decodes.
     """
     try:
         from pymavlink import mavutil
@@ -527,7 +605,20 @@ FORMAT_NAMES = {"csv": "a CSV", "rosbag": "a ROS bag", "mavlink": "a MAVLink log
 def track_format(path: str | Path, fmt: str = "auto") -> str:
     """``fmt``, or with ``"auto"`` the format of ``path`` by its extension: ``.bag``/``.mcap``/
     ``.db3`` or a folder -> ``"rosbag"``, ``.tlog``/``.mavlink`` -> ``"mavlink"``, else
-    ``"csv"``."""
+    ``"csv"``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log file or folder.
+    fmt : {"auto", "csv", "rosbag", "mavlink"}, optional
+        The format, or ``"auto"`` to guess it.
+
+    Returns
+    -------
+    str
+        ``fmt`` unless it is ``"auto"``; else ``"csv"``, ``"rosbag"`` or ``"mavlink"``.
+    """
     if fmt != "auto":
         return fmt
     path = Path(path)
@@ -548,7 +639,33 @@ def read_track(
     origin: Any = None,
     ros_frame: str = "enu",
 ) -> Track:
-    """Read a track from a CSV, a ROS bag or a MAVLink log (``fmt``: :func:`track_format`)."""
+    """Read a track from a CSV, a ROS bag or a MAVLink log (``fmt``: :func:`track_format`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The log file (or ROS 2 bag folder).
+    fmt : {"auto", "csv", "rosbag", "mavlink"}, optional
+        Its format; ``"auto"``: by its extension.
+    topic : str or None, optional
+        ROS topic to read (:func:`read_track_rosbag`).
+    message : str or None, optional
+        MAVLink message to read (:func:`read_track_mavlink`).
+    origin : GeodeticOrigin or None, optional
+        Origin of the local frame for geodetic positions; None: the first point.
+    ros_frame : {"enu", "ned"}, optional
+        Frame of a ROS bag's positions.
+
+    Returns
+    -------
+    Track
+        The logged track in the local NED frame.
+
+    Raises
+    ------
+    InputError
+        For an unknown format, or what the reader of the format raises.
+    """
     path = Path(path)
     fmt = track_format(path, fmt)
     if fmt == "csv":
@@ -725,18 +842,23 @@ def fit_track(
 
     Parameters
     ----------
-    track
+    track : Track
         Times, positions and optional velocities.
-    position_std
+    position_std : float or None, optional
         Known position noise σ_p [m] (all axes); default: estimated per axis.
-    velocity_std
+    velocity_std : float, optional
         Noise of the logged velocities [m/s] (used only when the track has velocities).
-    grid
+    grid : float or None, optional
         Hold the inputs on a uniform grid of this step [s] from the first sample (the output
         rows are the grid nodes; the last is at or after the last sample). Default: the input
         may change at every sample (and at nodes inserted in long gaps).
-    max_gap
+    max_gap : float or None, optional
         Longest gap between samples the fit bridges [s]; default 30 median intervals.
+
+    Returns
+    -------
+    TrackFit
+        The exact double-integrator trajectory of the fitted inputs and the fit's statistics.
 
     Raises
     ------
@@ -875,6 +997,30 @@ def load_trajectory(
     (:func:`obsplan.trajectory.sampled.read_csv`); one with ``t,px,py[,pz]`` and no ``u`` is a
     track, fitted by :func:`fit_track` with ``fit_options``. Returns the trajectory and the fit
     (None for a trajectory CSV).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    check : bool, optional
+        Warn if a trajectory CSV's inputs do not reproduce its samples
+        (:meth:`~obsplan.trajectory.sampled.Trajectory.check_consistency`).
+    **fit_options
+        Keyword arguments of :func:`fit_track` (``position_std``, ``grid``...), for a track.
+
+    Returns
+    -------
+    trajectory : Trajectory
+        The trajectory read or fitted.
+    fit : TrackFit or None
+        The fit of a track; None for a trajectory CSV.
+
+    Raises
+    ------
+    TrajectoryFormatError
+        For a file that is neither a trajectory CSV nor a track CSV.
+    TrackFitError
+        For a track that cannot be fitted.
     """
     table = read_table(path, "t,px,py,vx,vy,ux,uy (or a track: t,px,py)")
     if any(c in table.columns for c in ("ux", "uy", "uz")):

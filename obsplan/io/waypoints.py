@@ -143,7 +143,22 @@ def _pieces(traj: Trajectory, ta: float, tb: float):
 
 
 def leg_errors(traj: Trajectory, ta: float, tb: float) -> tuple[float, float]:
-    """``(cross_track, schedule_error)`` [m] of the straight leg from ``p(ta)`` to ``p(tb)``."""
+    """``(cross_track, schedule_error)`` [m] of the straight leg from ``p(ta)`` to ``p(tb)``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The planned path (piecewise quadratic between samples).
+    ta, tb : float
+        Times of the leg's start and end waypoints [s], ``ta < tb``.
+
+    Returns
+    -------
+    cross_track : float
+        Largest distance from the planned path to the segment ``[p(ta), p(tb)]`` [m].
+    schedule_error : float
+        Largest distance between the planned position and the on-schedule point of the leg [m].
+    """
     a, b = position_at(traj, np.array([ta, tb]))
     d = b - a
     L = float(np.linalg.norm(d))
@@ -176,7 +191,20 @@ def leg_errors(traj: Trajectory, ta: float, tb: float) -> tuple[float, float]:
 
 
 def position_at(traj: Trajectory, times: np.ndarray) -> np.ndarray:
-    """Exact positions of the piecewise-quadratic path at ``times`` [s], shape (len, n)."""
+    """Exact positions of the piecewise-quadratic path at ``times`` [s], shape (len, n).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path; ``u[k]`` is held on ``[t_k, t_{k+1})`` and the last hold extends beyond the end.
+    times : ndarray, shape (M,)
+        Times [s].
+
+    Returns
+    -------
+    ndarray, shape (M, n)
+        Positions [m].
+    """
     times = np.asarray(times, float)
     k = np.clip(np.searchsorted(traj.t, times, side="right") - 1, 0, traj.t.size - 1)
     tau = (times - traj.t[k])[:, None]
@@ -211,6 +239,22 @@ def waypoints_from_trajectory(
 
     The first and last samples of the plan are always waypoints. Exactly one of ``every`` and
     ``spacing`` must be given.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The planned path.
+    every : float or None, optional
+        Time between waypoints [s].
+    spacing : float or None, optional
+        Path length between waypoints [m].
+    origin : GeodeticOrigin or None, optional
+        Origin of the local frame, kept for geodetic output.
+
+    Returns
+    -------
+    Waypoints
+        Times, positions and speeds of the waypoints, with each leg's exact tracking errors.
 
     Raises
     ------
@@ -266,13 +310,46 @@ _LEG = ("speed", "leg_cross_track", "leg_schedule_error")
 
 def waypoint_columns(dim: int, geodetic: bool) -> list[str]:
     """Header of the waypoint CSV: ``t,x,y[,z]`` or ``t,latitude,longitude[,depth]``, then
-    ``speed,leg_cross_track,leg_schedule_error``."""
+    ``speed,leg_cross_track,leg_schedule_error``.
+
+    Parameters
+    ----------
+    dim : int
+        Spatial dimension (2 or 3).
+    geodetic : bool
+        Latitude, longitude and depth instead of local positions.
+
+    Returns
+    -------
+    list of str
+        The column names.
+    """
     base = (_GEODETIC if geodetic else _METRIC)[: 1 + dim]
     return [*base, *_LEG]
 
 
 def waypoint_rows(wp: Waypoints, geodetic: bool) -> tuple[list[str], np.ndarray]:
-    """Header and numeric rows of the waypoint CSV (geodetic rows need ``wp.origin``)."""
+    """Header and numeric rows of the waypoint CSV (geodetic rows need ``wp.origin``).
+
+    Parameters
+    ----------
+    wp : Waypoints
+        The waypoints.
+    geodetic : bool
+        Write latitude [deg], longitude [deg] and depth [m] instead of local positions [m].
+
+    Returns
+    -------
+    header : list of str
+        :func:`waypoint_columns`.
+    rows : ndarray, shape (K, len(header))
+        One row per waypoint; the leg columns of the last are 0.
+
+    Raises
+    ------
+    InputError
+        If ``geodetic`` and the waypoints have no origin.
+    """
     if geodetic:
         if wp.origin is None:
             raise InputError(
@@ -291,13 +368,44 @@ def waypoint_rows(wp: Waypoints, geodetic: bool) -> tuple[list[str], np.ndarray]
 
 def write_waypoints_csv(wp: Waypoints, path: str | Path, geodetic: bool = False) -> Path:
     """Write the waypoint CSV (exact ``repr`` floats; atomic). Columns: :func:`waypoint_columns`;
-    ``leg_*`` of a waypoint are the tracking errors [m] of its outgoing leg (0 for the last)."""
+    ``leg_*`` of a waypoint are the tracking errors [m] of its outgoing leg (0 for the last).
+
+    Parameters
+    ----------
+    wp : Waypoints
+        The waypoints.
+    path : str or Path
+        The CSV file.
+    geodetic : bool, optional
+        Latitude, longitude and depth instead of local positions (needs ``wp.origin``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     header, rows = waypoint_rows(wp, geodetic)
     return write_table(path, header, rows)
 
 
 def read_waypoints_csv(path: str | Path) -> dict[str, np.ndarray]:
-    """Read a waypoint CSV back: ``{column: values}`` for every column of the header."""
+    """Read a waypoint CSV back: ``{column: values}`` for every column of the header.
+
+    Parameters
+    ----------
+    path : str or Path
+        A CSV written by :func:`write_waypoints_csv`.
+
+    Returns
+    -------
+    dict of str to ndarray, shape (K,)
+        Each column of :func:`waypoint_columns` (local or geodetic, 2D or 3D, by the header).
+
+    Raises
+    ------
+    TrajectoryFormatError
+        For a missing column or a bad cell.
+    """
     table = read_table(path, ",".join(waypoint_columns(2, False)))
     geodetic = "latitude" in table.columns
     dim = 3 if ("depth" if geodetic else "z") in table.columns else 2
@@ -321,6 +429,27 @@ def qgc_plan(
     alt]``; a command 178 (DO_CHANGE_SPEED, ground speed [m/s]) item precedes a leg whose speed
     differs by more than ``speed_change`` from the previous one. ``depth_2d`` [m] is the depth
     of a 2D plan. The planned home is the origin.
+
+    Parameters
+    ----------
+    wp : Waypoints
+        The waypoints, with their geodetic origin.
+    depth_2d : float, optional
+        Depth of a 2D plan's waypoints [m], >= 0.
+    acceptance_radius : float, optional
+        Distance at which the autopilot counts a waypoint reached [m].
+    speed_change : float, optional
+        Smallest change of leg speed that gets a DO_CHANGE_SPEED item [m/s].
+
+    Returns
+    -------
+    dict
+        The plan document, ready for :func:`json.dumps`.
+
+    Raises
+    ------
+    InputError
+        Without an origin, or for a non-positive acceptance radius or a negative depth.
     """
     if wp.origin is None:
         raise InputError(
@@ -385,7 +514,22 @@ def qgc_plan(
 
 
 def write_qgc_plan(wp: Waypoints, path: str | Path, **options: Any) -> Path:
-    """Write :func:`qgc_plan` as JSON (atomic)."""
+    """Write :func:`qgc_plan` as JSON (atomic).
+
+    Parameters
+    ----------
+    wp : Waypoints
+        The waypoints, with their geodetic origin.
+    path : str or Path
+        The ``.plan`` file.
+    **options
+        Keyword arguments of :func:`qgc_plan`.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     doc = qgc_plan(wp, **options)
     path = Path(path)
     with atomic_file(path) as tmp:
@@ -401,7 +545,24 @@ def _finite(x: Any) -> float:
 
 def read_qgc_plan(path: str | Path) -> dict[str, np.ndarray]:
     """The waypoints of a ``.plan`` file: ``latitude``, ``longitude``, ``altitude`` and the
-    ground ``speed`` in force on the leg to each waypoint (NaN before any DO_CHANGE_SPEED)."""
+    ground ``speed`` in force on the leg to each waypoint (NaN before any DO_CHANGE_SPEED).
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.plan`` file.
+
+    Returns
+    -------
+    dict of str to ndarray, shape (K,)
+        ``latitude`` and ``longitude`` [deg], ``altitude`` [m] (``-depth`` for ArduSub) and
+        ``speed`` [m/s].
+
+    Raises
+    ------
+    TrajectoryFormatError
+        For a file that is not a QGroundControl plan or an item that is not a valid waypoint.
+    """
     path = Path(path)
     doc = read_json(path, "a QGroundControl plan (.plan)", error=TrajectoryFormatError)
     try:

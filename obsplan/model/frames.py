@@ -55,7 +55,14 @@ class GeodeticOrigin:
             )
 
     def to_dict(self) -> dict[str, float | str]:
-        """``{"latitude": ..., "longitude": ..., "altitude": ..., "frame": "NED"}``."""
+        """``{"latitude": ..., "longitude": ..., "altitude": ..., "frame": "NED"}``.
+
+        Returns
+        -------
+        dict
+            The origin's latitude and longitude [deg], altitude [m] and the frame's name, as
+            written in JSON outputs.
+        """
         return {
             "latitude": self.latitude,
             "longitude": self.longitude,
@@ -65,7 +72,22 @@ class GeodeticOrigin:
 
 
 def check_lat_lon(lat: Any, lon: Any, where: str) -> None:
-    """Refuse a latitude outside [-90, 90] or a longitude outside [-180, 360) degrees."""
+    """Refuse a latitude outside [-90, 90] or a longitude outside [-180, 360) degrees.
+
+    Parameters
+    ----------
+    lat : float
+        Latitude [deg], WGS84.
+    lon : float
+        Longitude [deg], WGS84.
+    where : str
+        What the point is, for the message (e.g. ``"origin"``).
+
+    Raises
+    ------
+    InputError
+        If either is not a finite number in its range (a bool is not a number here).
+    """
     for name, val, lo, hi in (("latitude", lat, -90.0, 90.0), ("longitude", lon, -180.0, 360.0)):
         ok = isinstance(val, int | float) and not isinstance(val, bool) and math.isfinite(val)
         if not ok or not lo <= val <= hi or (name == "longitude" and val == hi):
@@ -78,7 +100,22 @@ def check_lat_lon(lat: Any, lon: Any, where: str) -> None:
 def check_lat_lons(lat: Any, lon: Any, where: str) -> None:
     """Refuse the first of an array of points (or one point) whose latitude is not in [-90, 90]
     degrees or whose longitude is not finite, naming it ``where (sample k)`` (``where`` for a
-    scalar point). Longitudes of points wrap (370 is 10); an origin's must be in [-180, 360)."""
+    scalar point). Longitudes of points wrap (370 is 10); an origin's must be in [-180, 360).
+
+    Parameters
+    ----------
+    lat : float or array_like, shape (N,)
+        Latitudes [deg], WGS84.
+    lon : float or array_like, shape (N,)
+        Longitudes [deg], WGS84.
+    where : str
+        What the points are, for the message (e.g. a file name).
+
+    Raises
+    ------
+    InputError
+        For the first point out of range.
+    """
     la, lo = np.atleast_1d(np.asarray(lat, float)), np.atleast_1d(np.asarray(lon, float))
     bad = np.flatnonzero(~((np.abs(la) <= 90.0) & np.isfinite(lo)))  # False for NaN
     if bad.size:
@@ -99,7 +136,27 @@ def first_point_origin(lat: Any, lon: Any, where: str) -> GeodeticOrigin:
     """The origin at the first of the points ``lat``, ``lon`` [deg], at the surface: the default
     frame of a geodetic log or waypoint CSV. Every point is checked first, so a bad latitude is
     named as the file's own (``where (sample k)``), not as an origin the user never gave; the
-    first longitude is wrapped into [-180, 180) if it is outside an origin's range."""
+    first longitude is wrapped into [-180, 180) if it is outside an origin's range.
+
+    Parameters
+    ----------
+    lat : float or array_like, shape (N,)
+        Latitudes [deg], WGS84.
+    lon : float or array_like, shape (N,)
+        Longitudes [deg], WGS84.
+    where : str
+        What the points are, for the message (e.g. a file name).
+
+    Returns
+    -------
+    GeodeticOrigin
+        The first point, at altitude 0 (the surface).
+
+    Raises
+    ------
+    InputError
+        For the first point out of range (:func:`check_lat_lons`).
+    """
     check_lat_lons(lat, lon, where)
     lat0, lon0 = float(np.atleast_1d(lat)[0]), float(np.atleast_1d(lon)[0])
     if not -180.0 <= lon0 < 360.0:
@@ -137,11 +194,32 @@ def geodetic_to_local(
     Returns shape ``(N, dim)`` for array inputs and ``(dim,)`` for scalars; in 2D the depth is
     ignored (pass 0) and the result is ``(north, east)``.
 
+    Parameters
+    ----------
+    lat : float or array_like, shape (N,)
+        Latitudes [deg], WGS84.
+    lon : float or array_like, shape (N,)
+        Longitudes [deg], WGS84.
+    depth : float or array_like, shape (N,)
+        Depths below the reference surface [m], positive down.
+    origin : GeodeticOrigin
+        Origin of the local frame.
+    dim : int, optional
+        Spatial dimension of the result (2 or 3).
+    where : str, optional
+        What the points are, for messages.
+
+    Returns
+    -------
+    ndarray, shape (N, dim) or (dim,)
+        Local NED positions [m] relative to ``origin``.
+
     Raises
     ------
     InputError
         Naming ``where``, for a point farther than :data:`MAX_LOCAL_DISTANCE_M` from the origin
-        or deeper than :data:`MAX_DEPTH_M` (a local frame does not serve it).
+        or deeper than :data:`MAX_DEPTH_M` (a local frame does not serve it). Also when
+        ``pymap3d`` is not installed, or for a latitude out of range.
     """
     pm = _pymap3d()
     scalar = np.ndim(lat) == 0
@@ -161,7 +239,26 @@ def check_local_range(
 ) -> None:
     """Refuse NED points ``(N, 3)`` [m] farther than :data:`MAX_LOCAL_DISTANCE_M` from the
     origin (distance of the surface point: the depth ``(N,)`` [m] taken out) or deeper than
-    :data:`MAX_DEPTH_M`."""
+    :data:`MAX_DEPTH_M`.
+
+    Parameters
+    ----------
+    ned : ndarray, shape (N, 3)
+        Local NED positions [m].
+    depth : ndarray, shape (N,)
+        Depth of each point [m], positive down.
+    origin : GeodeticOrigin
+        Origin of the frame (named in the message).
+    where : str
+        What the points are, for the message.
+    scalar : bool, optional
+        The points are one point given as scalars (the message then names no sample).
+
+    Raises
+    ------
+    InputError
+        For the first point too far or too deep.
+    """
     surface = ned.copy()
     surface[:, 2] -= depth
     dist = np.linalg.norm(surface, axis=1)
@@ -186,7 +283,22 @@ def check_local_range(
 
 def check_local_points(p: Any, origin: GeodeticOrigin, where: str) -> None:
     """:func:`check_local_range` of local NED positions ``(N, 2)`` or ``(N, 3)`` [m] (2D: at
-    depth 0), naming the first bad one ``where (sample k)``."""
+    depth 0), naming the first bad one ``where (sample k)``.
+
+    Parameters
+    ----------
+    p : array_like, shape (N, 2) or (N, 3)
+        Local NED positions [m].
+    origin : GeodeticOrigin
+        Origin of the frame.
+    where : str
+        What the points are, for the message.
+
+    Raises
+    ------
+    InputError
+        For the first point too far or too deep.
+    """
     p = np.atleast_2d(np.asarray(p, float))
     z = p[:, 2] if p.shape[1] == 3 else np.zeros(p.shape[0])
     check_local_range(np.column_stack([p[:, :2], z]), z, origin, where)
@@ -198,6 +310,22 @@ def local_to_geodetic(
     """Local NED positions ``(N, n)`` [m] -> ``(latitude, longitude, depth)`` arrays.
 
     In 2D the points are taken at ``z = 0`` and the depth returned is that of the tangent plane.
+
+    Parameters
+    ----------
+    p : array_like, shape (N, n) or (n,)
+        Local NED positions [m] relative to ``origin``, ``n`` = 2 or 3.
+    origin : GeodeticOrigin
+        Origin of the local frame.
+    where : str, optional
+        What the points are, for messages.
+
+    Returns
+    -------
+    latitude, longitude : ndarray, shape (N,)
+        WGS84 degrees.
+    depth : ndarray, shape (N,)
+        Depth below the reference surface [m], positive down.
 
     Raises
     ------

@@ -32,6 +32,17 @@ _AXES = "xyz"
 def parse_sensors(sensors: str | Iterable[str]) -> tuple[str, ...]:
     """Normalise a sensor list (``"range,dvl-water"`` or an iterable) to canonical names.
 
+    Parameters
+    ----------
+    sensors : str or iterable of str
+        Sensor names, comma-separated in a string; case and spaces are ignored and ``"dvl"``
+        means ``"dvl-bottom"``.
+
+    Returns
+    -------
+    tuple of str
+        The canonical names, in the order of :data:`SENSORS`.
+
     Raises
     ------
     ConfigError
@@ -67,16 +78,22 @@ class VehicleModel:
 
     Parameters
     ----------
-    dim
+    dim : int
         Spatial dimension ``n`` (2 or 3).
-    sensors
+    sensors : tuple of str
         Sensor names (see :data:`SENSORS`); must include ``"range"``.
-    current
+    current : bool
         If true, an unknown constant ocean current ``v_f`` is appended to the state (eqs. 28–31).
-    beacon
+    beacon : tuple of float or None
         Beacon position, shape ``(n,)`` [m]; the origin by default.
-    range_form
+    range_form : {"half-squared", "range"}
         ``"half-squared"`` for ``½|p-b|²`` [m²] (the paper), ``"range"`` for ``|p-b|`` [m].
+
+    Raises
+    ------
+    ConfigError
+        For a dimension other than 2 or 3, sensors without ``"range"``, ``"depth"`` in 2D, an
+        unknown range form or a beacon that is not ``n`` finite coordinates.
     """
 
     dim: int = 2
@@ -171,13 +188,37 @@ class VehicleModel:
         return ca.SX.sym("u", self.dim)
 
     def split_state(self, x: ca.SX | np.ndarray) -> tuple:
-        """Return ``(p, v)`` or ``(p, v, v_f)`` views of a state vector."""
+        """Return ``(p, v)`` or ``(p, v, v_f)`` views of a state vector.
+
+        Parameters
+        ----------
+        x : casadi.SX or ndarray, shape (state_dim,)
+            State: position [m], velocity [m/s] and, with current, the current [m/s].
+
+        Returns
+        -------
+        tuple
+            ``(p, v)`` or ``(p, v, v_f)``, each of ``n`` components (slices of ``x``).
+        """
         n = self.dim
         parts = (x[:n], x[n : 2 * n])
         return parts + (x[2 * n : 3 * n],) if self.current else parts
 
     def f_expr(self, x: ca.SX, u: ca.SX) -> ca.SX:
-        """Continuous-time dynamics ``x' = f(x, u)`` (eqs. 4, 47)."""
+        """Continuous-time dynamics ``x' = f(x, u)`` (eqs. 4, 47).
+
+        Parameters
+        ----------
+        x : casadi.SX, shape (state_dim, 1)
+            State symbol or expression.
+        u : casadi.SX, shape (n, 1)
+            Input: the acceleration [m/s²].
+
+        Returns
+        -------
+        casadi.SX, shape (state_dim, 1)
+            ``x'``: velocity (plus current), acceleration and, with current, zeros.
+        """
         parts = self.split_state(x)
         pdot = parts[1] + parts[2] if self.current else parts[1]
         xdot = [pdot, u]
@@ -186,7 +227,19 @@ class VehicleModel:
         return ca.vertcat(*xdot)
 
     def h_expr(self, x: ca.SX) -> ca.SX:
-        """Stacked outputs ``y = h(x)`` in the order of :attr:`sensors` (eqs. 3, 39, 48, 49)."""
+        """Stacked outputs ``y = h(x)`` in the order of :attr:`sensors` (eqs. 3, 39, 48, 49).
+
+        Parameters
+        ----------
+        x : casadi.SX, shape (state_dim, 1)
+            State symbol or expression.
+
+        Returns
+        -------
+        casadi.SX, shape (output_dim, 1)
+            The outputs: range term [m² or m], DVL velocity [m/s], depth [m]
+            (:attr:`output_slices`).
+        """
         parts = self.split_state(x)
         p, v = parts[0], parts[1]
         rel = p - ca.DM(self._beacon)
@@ -223,10 +276,17 @@ class VehicleModel:
     def transition(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Exact ZOH discretisation ``x_{k+1} = F x_k + G u_k`` for a step of ``dt`` [s].
 
+        Parameters
+        ----------
+        dt : float
+            Step [s].
+
         Returns
         -------
         F : ndarray, shape (state_dim, state_dim)
+            State transition matrix.
         G : ndarray, shape (state_dim, n)
+            Input matrix of a zero-order-held acceleration [m/s²].
         """
         n = self.dim
         eye = np.eye(n)
@@ -240,7 +300,18 @@ class VehicleModel:
         return F, G
 
     def range_to_beacon(self, p: np.ndarray) -> np.ndarray:
-        """Euclidean range ``|p - b|`` [m] for positions of shape ``(..., n)``."""
+        """Euclidean range ``|p - b|`` [m] for positions of shape ``(..., n)``.
+
+        Parameters
+        ----------
+        p : ndarray, shape (..., n)
+            Positions [m], in the frame of the beacon.
+
+        Returns
+        -------
+        ndarray, shape (...)
+            Distance of each position to the beacon [m].
+        """
         return np.linalg.norm(np.asarray(p, float) - self._beacon, axis=-1)
 
 
@@ -252,6 +323,29 @@ def make_model(
     range_form: RangeForm = "half-squared",
 ) -> VehicleModel:
     """Convenience constructor accepting ``"range,dvl-water"`` strings for ``sensors``.
+
+    Parameters
+    ----------
+    dim : int, optional
+        Spatial dimension ``n`` (2 or 3).
+    sensors : str or sequence of str, optional
+        Sensor names (:func:`parse_sensors`); must include ``"range"``.
+    current : bool, optional
+        Append an unknown constant ocean current ``v_f`` [m/s] to the state.
+    beacon : sequence of float or None, optional
+        Beacon position, shape ``(n,)`` [m]; None: the origin.
+    range_form : {"half-squared", "range"}, optional
+        Range output ``½|p-b|²`` [m²] (the paper) or ``|p-b|`` [m].
+
+    Returns
+    -------
+    VehicleModel
+        The model.
+
+    Raises
+    ------
+    ConfigError
+        For an invalid configuration (:class:`VehicleModel`).
 
     Examples
     --------

@@ -76,6 +76,12 @@ class ObservabilityReport:
 
         The ``gramian`` dict carries the stable keys plus ``rank_tol``, ``rank_exact``,
         ``full_rank_interval_exact`` and ``full_rank_from_t_exact`` (module docstring).
+
+        Returns
+        -------
+        dict
+            ``dim``, ``sensors``, ``current``, ``lwo`` (:meth:`LWOReport.to_dict`) and
+            ``gramian``; non-finite metrics are None.
         """
         g = self.gramian.to_dict()
         g["rank_tol"] = float(self.rank_tol)
@@ -105,21 +111,27 @@ def analyze(
 
     Parameters
     ----------
-    trajectory
+    trajectory : Trajectory
         The sampled path (positions [m], inertial velocities [m/s], piecewise-constant inputs
         [m/s²]).
-    sensors
+    sensors : str or iterable of str, optional
         Sensor names or a comma-separated string, e.g. ``"range,dvl-water"``.
-    current
+    current : bool, optional
         Include an unknown constant ocean current in the state.
-    beacon
+    beacon : sequence of float or None, optional
         Beacon position, shape ``(n,)`` [m]; the origin by default.
-    scales
+    scales : Scales, optional
         Fixed length/time scales of ``min_eig``, ``log_det``, ``condition``.
-    range_form
+    range_form : {"half-squared", "range"}, optional
         ``"half-squared"`` (the paper's ``½|p-b|²``) or ``"range"``.
-    exact
+    exact : bool, optional
         Also compute the exact rank profile of the held-input Gramian (``report.exact``).
+
+    Returns
+    -------
+    ObservabilityReport
+        The LWO rank condition at every sample, the augmented Gramian's verdict and metrics, and
+        (with ``exact``) its exact rank profile.
 
     Raises
     ------

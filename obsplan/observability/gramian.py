@@ -5,7 +5,7 @@ Augmented model
 Integrating ``p' = ν``, ``ν' = u`` (``ν = v``, or ``v + v_f`` with current) gives
 ``p(t) = p0 + ν0 (t - t0) + d(t, t0)`` (eqs. 14–15) and hence (eqs. 18–21)
 
-    ȳ(t) = y(t) - y0 + ½|d|² = dᵀ p(t) + (t - t0) p0ᵀν0 + ½ (t - t0)² |ν0|²
+    ``ȳ(t) = y(t) - y0 + ½|d|² = dᵀ p(t) + (t - t0) p0ᵀν0 + ½ (t - t0)² |ν0|²``
 
 with positions relative to the beacon. The augmented state is ``z = (p, v, p0ᵀν0, |ν0|²)``
 (eq. 20) or, with current, ``z = (p, v, v_f, p0ᵀν0, |ν0|²)``; ``z' = A z + B u`` (eq. 23) with
@@ -121,6 +121,18 @@ class AugmentedModel:
 
         The rows are the range (``ȳ``), then DVL (n rows) and depth rows where present. Used by the
         augmented Kalman filter; shape ``(n_outputs, state_dim)``.
+
+        Parameters
+        ----------
+        d : ndarray, shape (n,)
+            Displacement ``d(t, t0)`` due to the inputs (eq. 15) [m, or nondimensional].
+        tau : float
+            Elapsed time ``t - t0`` [s, or nondimensional].
+
+        Returns
+        -------
+        ndarray, shape (n_outputs, state_dim)
+            The output matrix of the augmented state ``z(t)``.
         """
         n, m = self.dim, self.state_dim
         rows = [np.concatenate([d, np.zeros(m - n - 2), [tau, 0.5 * tau**2]])]
@@ -218,7 +230,18 @@ def _numpy_backend(K: int) -> _Backend:
 
 
 def augmented_model(model: VehicleModel) -> AugmentedModel:
-    """The augmented LTV model of a vehicle model (beacon and range form do not matter)."""
+    """The augmented LTV model of a vehicle model (beacon and range form do not matter).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model: dimension, sensors and current.
+
+    Returns
+    -------
+    AugmentedModel
+        Its augmented model (eqs. 20–23).
+    """
     return AugmentedModel(dim=model.dim, sensors=model.sensors, current=model.current)
 
 
@@ -246,6 +269,16 @@ def interval_gramian_function(aug: AugmentedModel) -> ca.Function:
     Inputs are the displacement ``d_k`` (n), velocity change ``e_k = ν_k - ν_0`` (n), input ``u_k``
     (n), elapsed time ``tau0 = t_k - t_0`` and interval length ``h``, in consistent (normally
     nondimensional) units. Output: the ``m × m`` symmetric contribution ``∫ Φᵀ Cᵀ C Φ``.
+
+    Parameters
+    ----------
+    aug : AugmentedModel
+        The augmented model (sensors and current).
+
+    Returns
+    -------
+    casadi.Function
+        The interval's Gramian, built once per model (cached).
     """
     args, G = _interval_gramian_sx(aug, weighted=False)
     return ca.Function("interval_gramian", args, [G])
@@ -259,6 +292,16 @@ def weighted_interval_gramian_function(aug: AugmentedModel) -> ca.Function:
     ``w`` has one weight per output row (``aug.n_outputs``: range, then DVL axes, then depth),
     constant on the interval (e.g. information per unit time,
     :mod:`obsplan.observability.windowed`).
+
+    Parameters
+    ----------
+    aug : AugmentedModel
+        The augmented model (sensors and current).
+
+    Returns
+    -------
+    casadi.Function
+        The weighted interval's Gramian, built once per model (cached).
     """
     args, G = _interval_gramian_sx(aug, weighted=True)
     return ca.Function("weighted_interval_gramian", args, [G])
@@ -300,6 +343,28 @@ def interval_gramians(
     the intervals. ``scales=None`` computes in the trajectory's own units (used by tests of
     unit invariance). ``row_weights`` (shape ``(N-1, n_outputs)``, optional) weights each output
     row on each interval, as :func:`weighted_interval_gramian_function`.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path; only its inputs and velocities (through ``d`` and ``e``) matter.
+    model : VehicleModel or AugmentedModel
+        The sensor configuration.
+    scales : Scales or None, optional
+        Nondimensionalisation of the trajectory; None: its own (SI) units.
+    row_weights : ndarray, shape (N-1, n_outputs), optional
+        Weight of each output row on each interval (information per unit time); None: 1.
+
+    Returns
+    -------
+    ndarray, shape (N-1, m, m)
+        ``G_k`` of every interval, symmetric positive semi-definite, ``m`` the augmented state
+        dimension.
+
+    Raises
+    ------
+    ValueError
+        If the model and the trajectory differ in dimension.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     V = _interval_factors(traj, aug, scales)
@@ -313,7 +378,22 @@ def interval_gramians(
 def cumulative_gramians(
     traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
 ) -> np.ndarray:
-    """``G(t_k, t_0)`` at every sample, shape ``(N, m, m)`` (the first is zero)."""
+    """``G(t_k, t_0)`` at every sample, shape ``(N, m, m)`` (the first is zero).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    model : VehicleModel or AugmentedModel
+        The sensor configuration.
+    scales : Scales or None, optional
+        Nondimensionalisation of the trajectory; None: its own (SI) units.
+
+    Returns
+    -------
+    ndarray, shape (N, m, m)
+        The running sums of :func:`interval_gramians`.
+    """
     Gk = interval_gramians(traj, model, scales)
     out = np.zeros((Gk.shape[0] + 1, *Gk.shape[1:]))
     np.cumsum(Gk, axis=0, out=out[1:])
@@ -326,6 +406,20 @@ def gramian(
     """The exact observability Gramian ``G(t_N, t_0)`` (eq. 25), shape ``(m, m)``, in ``scales``.
 
     ``Σ_k V_kᵀ V_k`` as one matrix product of the stacked interval factors.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    model : VehicleModel or AugmentedModel
+        The sensor configuration.
+    scales : Scales or None, optional
+        Nondimensionalisation of the trajectory; None: its own (SI) units.
+
+    Returns
+    -------
+    ndarray, shape (m, m)
+        The Gramian over the whole trajectory, symmetrised.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     V = _interval_factors(traj, aug, scales).reshape(-1, aug.state_dim)
@@ -371,6 +465,15 @@ class GramianReport:
             raise ScaleError(f"{where}: {reason}", reason)
 
     def to_dict(self) -> dict:
+        """The stable keys of the ``gramian`` dict of ``obsplan analyze --json``.
+
+        Returns
+        -------
+        dict
+            ``full_rank``, ``rank``, ``dim``, ``full_rank_from_t`` [s] and the metrics
+            ``min_eig``, ``log_det``, ``condition`` (None where not finite).
+        """
+
         def num(x: float) -> float | None:
             return float(x) if np.isfinite(x) else None
 
@@ -396,6 +499,16 @@ def rank_scales(traj: Trajectory) -> Scales:
     DVL's round-off). In these covariant scales the weights, hence the verdicts, are the same in
     any units; the exact rank never depends on them. The spread matters when ``d`` is round-off
     only (constant velocity): a length taken from ``d`` alone would blow that noise up to O(1).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+
+    Returns
+    -------
+    Scales
+        Length [m] and time [s] (the duration) of the rank test.
     """
     d = traj.displacement()
     rms_d = float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
@@ -414,6 +527,21 @@ def rank_over_time(
     """Unit-invariant rank of ``G(t_k, t_0)`` at every sample, shape ``(N,)``.
 
     Computed in :func:`rank_scales`, then equilibrated (see ``scaling.py``).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    model : VehicleModel or AugmentedModel
+        The sensor configuration.
+    tol : float, optional
+        Tolerance on the equilibrated eigenvalues
+        (:func:`~obsplan.observability.scaling.numerical_rank`).
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+        Rank of the Gramian from ``t_0`` to each sample (0 at the first).
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     G = cumulative_gramians(traj, aug, rank_scales(traj))
@@ -436,6 +564,23 @@ def gramian_report(
     A full-rank Gramian whose metrics come out singular in ``scales`` (``min_eig`` 0,
     ``log_det`` -inf: the scales, not the trajectory) keeps its verdicts;
     :meth:`GramianReport.check_metrics` refuses such metrics before they are shown.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    model : VehicleModel or AugmentedModel
+        The sensor configuration.
+    scales : Scales, optional
+        Fixed nondimensionalisation of the metrics ``min_eig``, ``log_det``, ``condition``.
+    tol : float, optional
+        Tolerance of the rank test on the equilibrated eigenvalues.
+
+    Returns
+    -------
+    GramianReport
+        The verdicts and metrics; a rank-deficient Gramian gets ``min_eig`` 0, ``log_det``
+        ``-inf`` and ``condition`` ``inf``.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     Gcum = cumulative_gramians(traj, aug, rank_scales(traj))

@@ -89,7 +89,13 @@ class LinearisedModel:
 
     def velocity_rows(self) -> np.ndarray:
         """The DVL rows ``(n, m)`` (none without a DVL): constant along any path, the augmented
-        model's."""
+        model's.
+
+        Returns
+        -------
+        ndarray, shape (n, m) or (0, m)
+            The DVL rows of ``H Φ``, ``m`` the state dimension.
+        """
         k = self.dim if any(s.startswith("dvl") for s in self.sensors) else 0
         C = self._augmented.output_matrix(np.zeros(self.dim), 0.0)
         return C[1 : 1 + k, : self.state_dim]
@@ -97,7 +103,20 @@ class LinearisedModel:
     def rows(self, los, tau):
         """``H Φ`` of every output at line of sight ``los`` and elapsed time ``tau``: numpy,
         batched (``los`` (K, n), ``tau`` (K,) -> (K, n_outputs, m)), or CasADi SX (``los``
-        (n, 1), ``tau`` scalar -> (n_outputs, m))."""
+        (n, 1), ``tau`` scalar -> (n_outputs, m)).
+
+        Parameters
+        ----------
+        los : ndarray, shape (K, n), or casadi.SX, shape (n, 1)
+            Unit line of sight from the beacon to the vehicle.
+        tau : ndarray, shape (K,), or casadi.SX scalar
+            Elapsed time ``t - t_0`` (in the scales of the caller, normally nondimensional).
+
+        Returns
+        -------
+        ndarray, shape (K, n_outputs, m), or casadi.SX, shape (n_outputs, m)
+            The rows: range, then DVL axes, then depth.
+        """
         n = self.dim
         nv = 2 if self.current else 1
         depth = "depth" in self.sensors
@@ -127,7 +146,18 @@ class LinearisedModel:
 
 
 def linearised_model(model: VehicleModel) -> LinearisedModel:
-    """The linearised model of a vehicle model (its sensors and current; not its beacon)."""
+    """The linearised model of a vehicle model (its sensors and current; not its beacon).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model.
+
+    Returns
+    -------
+    LinearisedModel
+        Its model linearised about a path (module docstring).
+    """
     return LinearisedModel(dim=model.dim, sensors=tuple(model.sensors), current=model.current)
 
 
@@ -143,6 +173,29 @@ def local_interval_gramians(
 
     ``row_weights`` (n_outputs,) are each row's information rate in ``scales``
     (:func:`~obsplan.observability.windowed.local_row_weights`); ``beacon`` [m].
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    lm : LinearisedModel
+        The linearised model (sensors and current).
+    beacon : ndarray, shape (n,)
+        Beacon position [m].
+    row_weights : ndarray, shape (n_outputs,)
+        Information rate of each output row, in ``scales``.
+    scales : Scales
+        Nondimensionalisation (length [m] and time [s]).
+
+    Returns
+    -------
+    ndarray, shape (N-1, m, m)
+        The contribution of every interval, symmetric positive semi-definite.
+
+    Raises
+    ------
+    ValueError
+        If the model and the trajectory differ in dimension.
     """
     if lm.dim != traj.dim:
         raise ValueError(f"model is {lm.dim}D but the trajectory is {traj.dim}D")
@@ -169,7 +222,18 @@ def local_interval_gramian_function(lm: LinearisedModel) -> ca.Function:
     one interval from its positions relative to the beacon at its start, midpoint and end (n
     each), its start time from ``t_0`` and its length, the row weights (n_outputs) and the line of
     sight's floor ``(LOS_FLOOR_M / L)²``, all in the metric scales. Output: column-major ``vec``
-    of the ``m × m`` contribution."""
+    of the ``m × m`` contribution.
+
+    Parameters
+    ----------
+    lm : LinearisedModel
+        The linearised model (sensors and current).
+
+    Returns
+    -------
+    casadi.Function
+        The interval's contribution, built once per model (cached).
+    """
     n = lm.dim
     ps = [ca.SX.sym(f"p{i}", n) for i in range(3)]
     tau0, h = ca.SX.sym("tau0"), ca.SX.sym("h")

@@ -95,6 +95,18 @@ def lwo_orders(model: VehicleModel, input_derivatives: int = 0) -> int:
     """Highest Lie-derivative order ``K = 3 + input_derivatives`` used for ``model``.
 
     See the module docstring for why no higher order can raise the rank.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (the bound is the same for every sensor set and range form).
+    input_derivatives : int, optional
+        ``m``: number of time derivatives of ``u`` treated as extra inputs.
+
+    Returns
+    -------
+    int
+        ``K = 3 + m``.
     """
     del model  # the bound holds for every sensor set and range form of VehicleModel
     return 3 + int(input_derivatives)
@@ -141,7 +153,20 @@ def _lwo_function(model: VehicleModel, m: int, orders: int) -> ca.Function:
 
 def taylor_moments(orders: int, tau: float) -> np.ndarray:
     """``H_ik = ∫_{-τ}^0 s^(i+k) / (i! k!) ds``, shape ``(orders + 1, orders + 1)``: the second
-    moments of the Taylor coefficients ``s^k / k!`` over the past window ``[-τ, 0]``."""
+    moments of the Taylor coefficients ``s^k / k!`` over the past window ``[-τ, 0]``.
+
+    Parameters
+    ----------
+    orders : int
+        Highest Lie-derivative order ``K``.
+    tau : float
+        Length of the past window ``τ`` (in the time unit of the caller).
+
+    Returns
+    -------
+    ndarray, shape (orders + 1, orders + 1)
+        The symmetric moment matrix ``H``.
+    """
     i = np.arange(orders + 1)
     n = i[:, None] + i[None, :]
     fact = np.array([math.factorial(int(k)) for k in i], float)
@@ -162,6 +187,18 @@ def local_information_function(model: VehicleModel, tau: float | None) -> ca.Fun
     (output_dim,), and with ``tau = None`` a fourth, ``H`` itself (``(K + 1)²``, column-major:
     a window per call); output ``I`` (state_dim × state_dim), in the units of ``x``, ``u``,
     ``τ``.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (sensors, range form, current, beacon).
+    tau : float or None
+        Length ``τ`` of the past window, in the time unit of the caller; None: ``H`` is an input.
+
+    Returns
+    -------
+    casadi.Function
+        ``I(x, u, w)`` or ``I(x, u, w, H)``, built once per model and ``tau`` (cached).
     """
     x = ca.SX.sym("x", model.state_dim)
     u = ca.SX.sym("u", model.dim)
@@ -185,12 +222,12 @@ def lwo_matrix_function(
 
     Parameters
     ----------
-    model
+    model : VehicleModel
         Vehicle model (any sensors, range form, current, beacon).
-    input_derivatives
+    input_derivatives : int, optional
         ``m``: number of time derivatives of ``u`` treated as extra inputs (extended Lie
         derivatives; ``u^(m+1) = 0``). ``0``: constant input, the paper's matrices.
-    orders
+    orders : int or None, optional
         Highest Lie-derivative order ``K``; default :func:`lwo_orders` (``3 + m``), enough for rank.
 
     Returns
@@ -220,6 +257,18 @@ def input_derivative_estimates(traj: Trajectory, order: int) -> list[np.ndarray]
     sample times, applied repeatedly. Piecewise-constant inputs have zero derivative except at
     their jumps, where this estimate is a smoothed spike: use ``input_derivatives > 0`` only for
     trajectories that sample a smooth input.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    order : int
+        Highest derivative estimated.
+
+    Returns
+    -------
+    list of ndarray, shape (N, n)
+        ``u', ..., u^(order)`` [m/s³, ...]; empty for ``order = 0``.
     """
     out: list[np.ndarray] = []
     cur = traj.u
@@ -243,6 +292,27 @@ def lwo_matrices(traj: Trajectory, model: VehicleModel, input_derivatives: int =
     The state at each sample is ``(p, ν)`` (``(p, ν, 0)`` with current; see module docstring); the
     input is ``u[k]``. With the ``"range"`` range form, O is not defined at a sample on the beacon
     (``r = 0``): those rows are NaN there (:func:`lwo_ranks` does not use them; module docstring).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path (positions [m], velocities [m/s], held inputs [m/s²]).
+    model : VehicleModel
+        The vehicle model (sensors, range form, current, beacon).
+    input_derivatives : int, optional
+        ``m``: number of time derivatives of ``u`` used (estimated by
+        :func:`input_derivative_estimates`).
+
+    Returns
+    -------
+    ndarray, shape (N, rows, state_dim)
+        O at every sample, SI units (rows of m², m²/s, ..., columns of m and m/s).
+
+    Raises
+    ------
+    InputError
+        If the model and the trajectory differ in dimension, or ``input_derivatives`` is not a
+        non-negative integer.
     """
     m = _check_m(input_derivatives)
     _check_dims(traj, model)
@@ -260,6 +330,25 @@ def characteristic_scales(traj: Trajectory, model: VehicleModel) -> tuple[float,
 
     ``ℓ`` is the RMS range to the beacon (else the RMS distance from the mean position, else 1);
     ``T = ℓ / RMS speed`` (else ``√(ℓ / RMS |u|)``, else the duration).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path (positions [m], velocities [m/s], held inputs [m/s²]).
+    model : VehicleModel
+        The vehicle model (sensors, range form, current, beacon).
+
+    Returns
+    -------
+    ell : float
+        Length scale ``ℓ`` [m].
+    T : float
+        Time scale [s].
+
+    Raises
+    ------
+    InputError
+        If the model and the trajectory differ in dimension.
     """
     _check_dims(traj, model)
     rel = traj.p - model.beacon_array
@@ -306,6 +395,18 @@ def ranks_of(O: np.ndarray, tol: float = LWO_RANK_TOL) -> np.ndarray:
     """Rank of each matrix of a stack ``(N, rows, cols)``: singular values above ``tol · σ_max``.
 
     The matrices should be dimensionless (as :func:`lwo_ranks` makes them).
+
+    Parameters
+    ----------
+    O : ndarray, shape (N, rows, cols)
+        Observability matrices.
+    tol : float, optional
+        Relative tolerance on the singular values.
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+        The rank of each matrix (0 for a zero matrix).
     """
     s = np.linalg.svd(np.asarray(O, float), compute_uv=False)
     smax = s[..., :1]
@@ -317,6 +418,20 @@ def lwo_ranks(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0)
 
     O is nondimensionalised by :func:`characteristic_scales` and its singular values compared with
     ``LWO_RANK_TOL · σ_max``; the range rows are taken in half-squared form (module docstring).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path (positions [m], velocities [m/s], held inputs [m/s²]).
+    model : VehicleModel
+        The vehicle model (sensors, range form, current, beacon).
+    input_derivatives : int, optional
+        ``m``: number of time derivatives of ``u`` used.
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+        Rank of O at each sample; full rank is ``model.state_dim``.
     """
     return ranks_of(_dimensionless(traj, model, input_derivatives))
 
@@ -347,7 +462,14 @@ class LWOReport:
     ranks: np.ndarray = field(repr=False, compare=False)
 
     def to_dict(self) -> dict:
-        """The ``lwo`` keys of ``obsplan analyze --json``."""
+        """The ``lwo`` keys of ``obsplan analyze --json``.
+
+        Returns
+        -------
+        dict
+            ``along_trajectory``, ``full_rank_fraction``, ``min_rank``, ``state_dim`` (not the
+            per-sample ranks).
+        """
         return {
             "along_trajectory": bool(self.along_trajectory),
             "full_rank_fraction": float(self.full_rank_fraction),
@@ -357,7 +479,22 @@ class LWOReport:
 
 
 def lwo_report(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0) -> LWOReport:
-    """Rank of O along ``traj`` summarised as an :class:`LWOReport`."""
+    """Rank of O along ``traj`` summarised as an :class:`LWOReport`.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path (positions [m], velocities [m/s], held inputs [m/s²]).
+    model : VehicleModel
+        The vehicle model (sensors, range form, current, beacon).
+    input_derivatives : int, optional
+        ``m``: number of time derivatives of ``u`` used.
+
+    Returns
+    -------
+    LWOReport
+        The verdict, the fraction of full-rank samples and the rank at each sample.
+    """
     ranks = lwo_ranks(traj, model, input_derivatives)
     full = ranks == model.state_dim
     ranks.setflags(write=False)
@@ -377,13 +514,13 @@ def lwo_structural_max_rank(
 
     Parameters
     ----------
-    model
+    model : VehicleModel
         Vehicle model.
-    input_derivatives
+    input_derivatives : int, optional
         As in :func:`lwo_matrix_function`.
-    samples
+    samples : int, optional
         Number of random (state, input) points, standard normal in dimensionless units.
-    seed
+    seed : int, optional
         Seed of the generator.
 
     Returns
@@ -415,7 +552,22 @@ class SmoothPath(Protocol):
 
     def evaluate(
         self, t: np.ndarray | float, piece: int | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at times ``t``.
+
+        Parameters
+        ----------
+        t : float or ndarray, shape (N,)
+            Times [s] from the start of the path.
+        piece : int or None, optional
+            Index of the piece whose formulas are used; None: the piece containing each time.
+
+        Returns
+        -------
+        pos, vel, acc : ndarray, shape (N, dim)
+            Positions [m], velocities [m/s] and accelerations [m/s²].
+        """
+        ...
 
 
 @dataclass(frozen=True)
@@ -437,6 +589,13 @@ class RankDrop:
         return self.t_start == self.t_end
 
     def to_dict(self) -> dict:
+        """The drop as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            ``t_start`` and ``t_end`` [s], ``rank`` and ``piece``.
+        """
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
@@ -470,6 +629,14 @@ class PathLWOReport:
         return tuple(d.t_start for d in self.drops if d.isolated)
 
     def to_dict(self) -> dict:
+        """The report as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            ``along_trajectory``, ``drops`` (:meth:`RankDrop.to_dict` each), ``state_dim``,
+            ``min_rank`` and ``tol``.
+        """
         return {
             "along_trajectory": bool(self.along_trajectory),
             "drops": [d.to_dict() for d in self.drops],
@@ -499,16 +666,27 @@ def lwo_path_report(
 
     Parameters
     ----------
-    path
+    path : SmoothPath
         Smooth path with ``dim``, ``breakpoints`` [s] and ``evaluate(t, piece)`` returning
         positions [m], velocities [m/s], accelerations [m/s²]; see :class:`SmoothPath`.
-    model
+    model : VehicleModel
         Vehicle model (sensors, current, beacon). Ranks use the half-squared range rows and the
         dimensionless O of :func:`lwo_ranks` (scales of the path sampled on the check grid).
-    points_per_piece
+    points_per_piece : int, optional
         Samples per piece, ``>= 3``.
-    tol
+    tol : float, optional
         Relative singular-value tolerance.
+
+    Returns
+    -------
+    PathLWOReport
+        The verdict and every isolated instant or interval where the rank drops.
+
+    Raises
+    ------
+    InputError
+        If the model and the path differ in dimension, or ``points_per_piece`` is not an
+        integer >= 3.
     """
     if path.dim != model.dim:
         raise InputError(

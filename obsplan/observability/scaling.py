@@ -66,7 +66,23 @@ class ScaleError(ConfigError):
 def check_scale(value: float, name: str, unit: str) -> None:
     """Refuse a scale that is not a positive number within ``1/MAX_SCALE`` to
     :data:`MAX_SCALE` (the one rule of :func:`obsplan.core.textfiles.check_magnitude`);
-    ``name`` is the field or option (``scales.length_m``, ``--length-scale``)."""
+    ``name`` is the field or option (``scales.length_m``, ``--length-scale``).
+
+    Parameters
+    ----------
+    value : float
+        The scale, a length [m] or a time [s].
+    name : str
+        The field or option that gave it, named in the message.
+    unit : str
+        Its unit, for the message.
+
+    Raises
+    ------
+    ScaleError
+        If ``value`` is not a positive finite number within ``1/MAX_SCALE`` to
+        :data:`MAX_SCALE`.
+    """
     if not (isinstance(value, int | float) and np.isfinite(value) and value > 0):
         raise ScaleError(f"{name} must be a positive number, got {value!r}")
     check_magnitude(value, name, MAX_SCALE, unit, smallest=1.0 / MAX_SCALE, error=ScaleError)
@@ -91,7 +107,25 @@ DEFAULT_SCALES = Scales()
 def augmented_state_scale(state_dim: int, dim: int, length, time) -> list:
     """``z_nd / z`` for every state of the augmented model in the scales ``length`` [m] and
     ``time`` [s]: ``p/L``, ``v T/L`` (and ``v_f T/L``), ``α T/L²``, ``β T²/L²``; plain
-    arithmetic, so floats give floats and ``Fraction`` s exact fractions."""
+    arithmetic, so floats give floats and ``Fraction`` s exact fractions.
+
+    Parameters
+    ----------
+    state_dim : int
+        Dimension ``m`` of the augmented state (``2n + 2``, or ``3n + 2`` with current).
+    dim : int
+        Spatial dimension ``n``.
+    length : float or Fraction
+        Length scale ``L`` [m].
+    time : float or Fraction
+        Time scale ``T`` [s].
+
+    Returns
+    -------
+    list
+        ``m`` factors, in the order of the augmented state (positions, velocities[, current],
+        ``p0ᵀν0``, ``|ν0|²``), of the type of ``length`` and ``time``.
+    """
     L, T = length, time
     return [1 / L] * dim + [T / L] * (state_dim - dim - 2) + [T / L**2, T**2 / L**2]
 
@@ -99,9 +133,13 @@ def augmented_state_scale(state_dim: int, dim: int, length, time) -> list:
 def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Symmetric diagonal equilibration of PSD matrices.
 
+    The zero-diagonal test compares columns with each other, so it is unit-invariant only for a
+    matrix in scales that change with the units (as ``gramian.rank_scales`` provides).
+
     Parameters
     ----------
     G : ndarray, shape (..., m, m)
+        Symmetric positive semi-definite matrices (Gramians).
 
     Returns
     -------
@@ -109,9 +147,6 @@ def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ``D G D`` with unit diagonal; rows/columns of (numerically) zero diagonal are set to zero.
     informative : ndarray of bool, shape (..., m)
         False where the diagonal was zero (a state the data says nothing about).
-
-    The zero-diagonal test compares columns with each other, so it is unit-invariant only for a
-    matrix in scales that change with the units (as ``gramian.rank_scales`` provides).
     """
     G = np.asarray(G, float)
     diag = np.diagonal(G, axis1=-2, axis2=-1)
@@ -124,7 +159,19 @@ def equilibrate(G: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def equilibrated_eigvals(G: np.ndarray) -> np.ndarray:
-    """Eigenvalues (ascending) of ``D G D``; shape ``(..., m)``."""
+    """Eigenvalues (ascending) of ``D G D``; shape ``(..., m)``.
+
+    Parameters
+    ----------
+    G : ndarray, shape (..., m, m)
+        Symmetric positive semi-definite matrices (Gramians).
+
+    Returns
+    -------
+    ndarray, shape (..., m)
+        Eigenvalues of the equilibrated matrices (:func:`equilibrate`), in ``[0, m]`` up to
+        round-off.
+    """
     Gn, _ = equilibrate(G)
     return np.linalg.eigvalsh(Gn)
 
@@ -133,6 +180,19 @@ def numerical_rank(G: np.ndarray, tol: float = RANK_TOL) -> np.ndarray | int:
     """Unit-invariant rank of symmetric PSD matrices (batched over leading axes).
 
     The number of eigenvalues of the equilibrated matrix above ``tol`` (see module docstring).
+
+    Parameters
+    ----------
+    G : ndarray, shape (..., m, m)
+        Symmetric positive semi-definite matrices (Gramians), in scales that change with the
+        units (``gramian.rank_scales``).
+    tol : float, optional
+        Absolute tolerance on the equilibrated eigenvalues (dimensionless).
+
+    Returns
+    -------
+    int or ndarray of int, shape (...)
+        The rank of each matrix; an int for one matrix.
     """
     ev = equilibrated_eigvals(G)
     r = np.sum(ev > tol, axis=-1)
@@ -144,6 +204,20 @@ def psd_metrics(G: np.ndarray) -> tuple[float, float, float]:
 
     ``log_det`` is ``-inf`` and ``condition`` is ``inf`` when the smallest eigenvalue is not
     positive; ``min_eig`` is clipped below at 0 (round-off can make it slightly negative).
+
+    Parameters
+    ----------
+    G : ndarray, shape (m, m)
+        Symmetric positive semi-definite matrix (a Gramian nondimensionalised by fixed scales).
+
+    Returns
+    -------
+    min_eig : float
+        Smallest eigenvalue, >= 0.
+    log_det : float
+        Natural log of the determinant (sum of the log-eigenvalues), or ``-inf``.
+    condition : float
+        Largest over smallest eigenvalue, or ``inf``.
     """
     ev = np.linalg.eigvalsh(0.5 * (G + G.T))
     lo, hi = float(ev[0]), float(ev[-1])

@@ -168,15 +168,17 @@ def structural_inputs(u: np.ndarray, rtol: float = STRUCTURE_RTOL) -> tuple[np.n
 
     Parameters
     ----------
-    u
-        Inputs, shape (K, n) [m/s²] (any unit: the classes are relative).
-    rtol
+    u : ndarray, shape (K, n)
+        Inputs [m/s²] (any unit: the classes are relative).
+    rtol : float, optional
         Relative tolerance of the classes; 0 keeps the numbers as stored.
 
     Returns
     -------
-    (U, s)
-        Integers ``U`` (object array, shape (K, n)) with ``u_structural = U / 2**s``.
+    U : ndarray of object, shape (K, n)
+        Python integers with ``u_structural = U / 2**s``.
+    s : int
+        The common binary exponent, ``>= 0``.
     """
     u = np.asarray(u, float)
     norms = np.linalg.norm(u, axis=1) if u.size else np.zeros(len(u))
@@ -310,7 +312,18 @@ def _rref(M: Sequence[Sequence[Fraction | int]]) -> tuple[list[list[Fraction]], 
 
 
 def exact_rank(M: np.ndarray | list) -> int:
-    """Rank over ℚ of a matrix of integers or :class:`~fractions.Fraction` (no tolerance)."""
+    """Rank over ℚ of a matrix of integers or :class:`~fractions.Fraction` (no tolerance).
+
+    Parameters
+    ----------
+    M : ndarray of object or list of lists, shape (rows, cols)
+        The matrix; entries are integers or fractions.
+
+    Returns
+    -------
+    int
+        Its exact rank (0 for a matrix without rows).
+    """
     rows = [list(r) for r in np.asarray(M, dtype=object)]
     return len(_rref(rows)[1]) if rows else 0
 
@@ -353,16 +366,16 @@ class ExactRankProfile:
 
     Attributes
     ----------
-    dim
+    dim : int
         State dimension ``m`` of the augmented model.
-    rank
+    rank : int
         Exact rank of the Gramian of the whole trajectory.
-    full_rank_interval
+    full_rank_interval : int or None
         First interval ``k`` (0-based, ``[t_k, t_{k+1})``) after which the Gramian is exactly
         non-singular; None if it never is.
-    full_rank_from_t
+    full_rank_from_t : float or None
         ``t_{k+1}`` [s] for that interval; None if never.
-    increases
+    increases : tuple of (int, int)
         ``(k, rank)`` at every interval where the exact rank grows: e.g. ``((0, 3), (1, 5),
         (2, 6))`` for a 2D circle, range only.
     """
@@ -374,7 +387,19 @@ class ExactRankProfile:
     increases: tuple[tuple[int, int], ...]
 
     def ranks(self, n_intervals: int) -> tuple[int, ...]:
-        """Exact rank after each of the first ``n_intervals`` intervals."""
+        """Exact rank after each of the first ``n_intervals`` intervals.
+
+        Parameters
+        ----------
+        n_intervals : int
+            Number of intervals.
+
+        Returns
+        -------
+        tuple of int
+            The rank of ``G(t_{k+1}, t_0)`` for ``k = 0 .. n_intervals - 1`` (after a full-rank
+            interval the profile stays at full rank).
+        """
         out, r, it = [], 0, iter(self.increases)
         nxt = next(it, None)
         for k in range(n_intervals):
@@ -385,7 +410,13 @@ class ExactRankProfile:
         return tuple(out)
 
     def to_dict(self) -> dict:
-        """The exact keys merged into the ``gramian`` dict of ``obsplan analyze --json``."""
+        """The exact keys merged into the ``gramian`` dict of ``obsplan analyze --json``.
+
+        Returns
+        -------
+        dict
+            ``rank_exact``, ``full_rank_interval_exact`` and ``full_rank_from_t_exact`` [s].
+        """
         return {
             "rank_exact": int(self.rank),
             "full_rank_interval_exact": self.full_rank_interval,
@@ -403,12 +434,12 @@ def exact_rank_profile(
 
     Parameters
     ----------
-    traj
+    traj : Trajectory
         Trajectory; only its times ``t`` [s] and inputs ``u`` [m/s²] (held on each interval)
         enter.
-    model
+    model : VehicleModel or AugmentedModel
         Vehicle model (sensors, current) or its augmented model.
-    structure_rtol
+    structure_rtol : float, optional
         Relative tolerance of the input classes (:func:`structural_inputs`); 0 computes the
         exact rank of the inputs as stored (round-off included).
 
@@ -417,6 +448,11 @@ def exact_rank_profile(
     ExactRankProfile
         Stops at the first exactly full-rank interval (later ones cannot lower the rank: the
         Gramian only grows); a deficient trajectory is checked to its last interval.
+
+    Raises
+    ------
+    ValueError
+        If the model and the trajectory differ in dimension.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     if aug.dim != traj.dim:
@@ -490,6 +526,26 @@ def exact_gramian(
     ``scales=None``: SI units (as ``gramian(traj, model, scales=None)``); with ``scales`` the
     nondimensionalised Gramian of :func:`~obsplan.observability.gramian.gramian`, exactly
     (times ``t/T``, states and outputs as in ``scaling.py``).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        Trajectory; only its times [s] and held inputs [m/s²] enter (as stored, no structure
+        classes).
+    model : VehicleModel or AugmentedModel
+        Vehicle model (sensors, current) or its augmented model.
+    scales : Scales or None, optional
+        Nondimensionalisation; None: SI units.
+
+    Returns
+    -------
+    list of list of Fraction
+        The ``m × m`` Gramian, symmetric positive semi-definite.
+
+    Raises
+    ------
+    ValueError
+        If the model and the trajectory differ in dimension.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
     if aug.dim != traj.dim:
@@ -546,6 +602,20 @@ def exact_min_eigenvalue(
     of the rank test, ``scaling.py``), i.e. the smallest root of ``det(G - λ diag G)``: still
     rational arithmetic. Bisection on the exact inertia of ``G - λ B``, ``hi / lo <= 1 + rtol``.
     ``(0, 0)`` if ``G`` is exactly singular.
+
+    Parameters
+    ----------
+    G : list of list of Fraction
+        Symmetric positive semi-definite matrix, ``m × m`` (e.g. :func:`exact_gramian`).
+    equilibrate : bool, optional
+        Enclose the smallest eigenvalue of ``D G D`` instead of ``G``.
+    rtol : float, optional
+        Relative width of the enclosure.
+
+    Returns
+    -------
+    lo, hi : Fraction
+        Bounds of the smallest eigenvalue, ``lo <= λ_min <= hi``.
     """
     m = len(G)
     if exact_rank(G) < m:

@@ -68,20 +68,59 @@ class SensorInformation:
 def range_information(r2, sigma: float, start_range=None):
     """Information per sample of ``ȳ = y - y_0 + |d|²/2`` with range noise ``sigma`` [m]:
     ``1/((r² + r_0²) σ² + σ⁴)`` [1/m⁴], for ``r2 = r²`` [m²] and ``start_range = r_0`` [m]
-    (numpy or CasADi); ``start_range = None``: ``y``'s alone, ``1/(r²σ² + σ⁴/2)``."""
+    (numpy or CasADi); ``start_range = None``: ``y``'s alone, ``1/(r²σ² + σ⁴/2)``.
+
+    Parameters
+    ----------
+    r2 : float, ndarray or casadi.SX
+        Squared range to the beacon ``r²`` [m²] (e.g. :func:`mean_square_range`).
+    sigma : float
+        Standard deviation of the range noise [m].
+    start_range : float or None, optional
+        Range of the first sample ``r_0`` [m]; None: ``y_0`` taken as exact.
+
+    Returns
+    -------
+    float, ndarray or casadi.SX
+        Information per sample [1/m⁴], of the type and shape of ``r2``.
+    """
     if start_range is None:
         return 1.0 / (r2 * sigma**2 + 0.5 * sigma**4)
     return 1.0 / ((r2 + start_range**2) * sigma**2 + sigma**4)
 
 
 def simpson_mean(f_start, f_mid, f_end):
-    """Simpson's rule mean of a function over an interval from its start, midpoint and end."""
+    """Simpson's rule mean of a function over an interval from its start, midpoint and end.
+
+    Parameters
+    ----------
+    f_start, f_mid, f_end : float, ndarray or casadi.SX
+        The function's values at the start, midpoint and end of the interval(s).
+
+    Returns
+    -------
+    float, ndarray or casadi.SX
+        ``(f_start + 4 f_mid + f_end) / 6``, in the unit of the values.
+    """
     return (f_start + 4.0 * f_mid + f_end) / 6.0
 
 
 def mean_square_range(traj: Trajectory, beacon: np.ndarray) -> np.ndarray:
     """Mean of ``|p - b|²`` over each interval of ``traj`` (Simpson's rule on the exact quadratic
-    between samples), shape ``(N-1,)`` [m²]."""
+    between samples), shape ``(N-1,)`` [m²].
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    beacon : ndarray, shape (n,)
+        Beacon position [m].
+
+    Returns
+    -------
+    ndarray, shape (N-1,)
+        Mean squared range over each interval [m²].
+    """
     p, v, u, h = traj.p - beacon, traj.v, traj.u[:-1], traj.dt[:, None]
     mid = p[:-1] + 0.5 * h * v[:-1] + 0.125 * h**2 * u
     sq = np.sum(p**2, axis=1)
@@ -93,7 +132,24 @@ def row_weight_factors(
 ) -> tuple[float, np.ndarray]:
     """``(c_range, w_other)``: the range row's weight is ``c_range * range_information(r²)``, the
     other rows' (DVL axes, then depth) are the constants ``w_other``; all in the metric scales
-    (information per unit of ``t/T`` about outputs ``ȳ/L²``, ``v T/L``, ``p_z/L``)."""
+    (information per unit of ``t/T`` about outputs ``ȳ/L²``, ``v T/L``, ``p_z/L``).
+
+    Parameters
+    ----------
+    aug : AugmentedModel or LinearisedModel or VehicleModel
+        The model (its sensors and dimension).
+    info : SensorInformation
+        Sensor rates [Hz] and noise standard deviations.
+    scales : Scales
+        Metric scales, length [m] and time [s].
+
+    Returns
+    -------
+    c_range : float
+        Factor of the range row's weight.
+    w_other : ndarray, shape (n_outputs - 1,)
+        Weights of the DVL rows (one per axis) and of the depth row, where the model has them.
+    """
     L, T = scales.length_m, scales.time_s
     c_range = info.range_rate * T * L**4
     other: list[float] = []
@@ -107,7 +163,22 @@ def row_weight_factors(
 def local_row_weights(lm: LinearisedModel, info: SensorInformation, scales: Scales) -> np.ndarray:
     """Row weights ``(n_outputs,)`` of the local Gramian (:mod:`obsplan.observability.
     local_gramian`) in the metric scales: ``rate T L² / σ_r²`` for the range (output ``r/L``;
-    a range carries ``1/σ_r²`` at any distance), the augmented model's for the other rows."""
+    a range carries ``1/σ_r²`` at any distance), the augmented model's for the other rows.
+
+    Parameters
+    ----------
+    lm : LinearisedModel
+        The linearised model (its sensors).
+    info : SensorInformation
+        Sensor rates [Hz] and noise standard deviations.
+    scales : Scales
+        Metric scales, length [m] and time [s].
+
+    Returns
+    -------
+    ndarray, shape (n_outputs,)
+        Information rate of the range row, then the DVL axes and depth rows.
+    """
     _, other = row_weight_factors(lm, info, scales)
     L, T = scales.length_m, scales.time_s
     return np.concatenate([[info.range_rate * T * L**2 / info.range_std**2], other])
@@ -120,7 +191,27 @@ def information_weights(
     info: SensorInformation,
     scales: Scales,
 ) -> np.ndarray:
-    """Row weights of every interval, shape ``(N-1, n_outputs)``, in the metric scales."""
+    """Row weights of every interval, shape ``(N-1, n_outputs)``, in the metric scales.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    aug : AugmentedModel
+        The augmented model (its sensors).
+    beacon : ndarray, shape (n,)
+        Beacon position [m].
+    info : SensorInformation
+        Sensor rates [Hz] and noise standard deviations.
+    scales : Scales
+        Metric scales, length [m] and time [s].
+
+    Returns
+    -------
+    ndarray, shape (N-1, n_outputs)
+        Information per unit time of every output row on every interval: the range row's from
+        the interval's mean squared range, the others constant.
+    """
     c_range, other = row_weight_factors(aug, info, scales)
     r2 = mean_square_range(traj, beacon)
     wr = c_range * range_information(r2, info.range_std, info.start_range)
@@ -132,6 +223,25 @@ def window_layout(n_intervals: int, window: int, stride: int) -> tuple[np.ndarra
 
     Returns ``(starts, ends)`` as interval indices (window ``j`` is intervals
     ``starts[j] <= k < ends[j]``); one window ``[0, n_intervals)`` when ``window >= n_intervals``.
+
+    Parameters
+    ----------
+    n_intervals : int
+        Number of intervals of the path, ``N - 1``.
+    window : int
+        Length of a window, in intervals.
+    stride : int
+        Intervals between the starts of consecutive windows.
+
+    Returns
+    -------
+    starts, ends : ndarray of int, shape (n_windows,)
+        First interval of each window and the one after its last.
+
+    Raises
+    ------
+    ValueError
+        If ``window`` or ``stride`` is below 1.
     """
     if window < 1 or stride < 1:
         raise ValueError(f"window and stride must be >= 1 interval, got {window}, {stride}")
@@ -146,7 +256,27 @@ def window_layout(n_intervals: int, window: int, stride: int) -> tuple[np.ndarra
 
 def anchor_times(tau: np.ndarray, starts: np.ndarray, ends: np.ndarray, anchor: str) -> np.ndarray:
     """The times ``τ_s`` (same units as ``tau``, the node times from ``t_0``) the windows are
-    referred to: their start or their end."""
+    referred to: their start or their end.
+
+    Parameters
+    ----------
+    tau : ndarray, shape (N,)
+        Node times from ``t_0``.
+    starts, ends : ndarray of int, shape (n_windows,)
+        :func:`window_layout`.
+    anchor : {"start", "current"}
+        Refer each window to its start or to its end.
+
+    Returns
+    -------
+    ndarray, shape (n_windows,)
+        ``τ_s`` of every window.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``anchor``.
+    """
     if anchor not in ANCHORS:
         raise ValueError(f"anchor must be one of {ANCHORS}, got {anchor!r}")
     return tau[starts] if anchor == "start" else tau[ends]
@@ -154,7 +284,20 @@ def anchor_times(tau: np.ndarray, starts: np.ndarray, ends: np.ndarray, anchor: 
 
 def reanchor_matrix(aug: AugmentedModel | LinearisedModel, tau_s):
     """``Φ(-τ_s) = I - A τ_s`` (eq. 26): ``z(t_0) = Φ(-τ_s) z(t_s)`` up to input terms (either
-    model: both have ``A² = 0``)."""
+    model: both have ``A² = 0``).
+
+    Parameters
+    ----------
+    aug : AugmentedModel or LinearisedModel
+        The model (its dynamics matrix ``A``).
+    tau_s : float
+        Time of the anchor from ``t_0``, in the units of ``A``'s model (normally scaled).
+
+    Returns
+    -------
+    ndarray, shape (m, m)
+        The transition matrix back from the anchor.
+    """
     return np.eye(aug.state_dim) - aug.A * tau_s
 
 
@@ -175,9 +318,12 @@ def windowed_gramians(
         Interval contributions referred to ``z(t_0)`` (:func:`interval_gramians`).
     tau : ndarray, shape (K + 1,)
         Node times from ``t_0``, in the units of ``Gk`` (scaled).
+    aug : AugmentedModel or LinearisedModel
+        The model whose state the Gramians are about (its ``A``).
     starts, ends : ndarray of int
         :func:`window_layout`.
     anchor : {"start", "current"}
+        Refer each window to the state at its start or at its end.
     prior : ndarray, shape (m, m), optional
         Information about ``z(t_0)`` (a prior) added to every window before it is re-anchored:
         the prior propagated to the anchor without process noise.
@@ -185,6 +331,7 @@ def windowed_gramians(
     Returns
     -------
     ndarray, shape (n_windows, m, m)
+        The Gramian of every window about its anchor state, symmetrised.
     """
     C = np.zeros((Gk.shape[0] + 1, *Gk.shape[1:]))
     np.cumsum(Gk, axis=0, out=C[1:])
@@ -210,6 +357,26 @@ def windowed_gramians_quadrature(
     An independent route (``C(t)`` of :meth:`AugmentedModel.output_matrix` at each quadrature
     node, no interval closed form, no prefix sums) to check :func:`windowed_gramians`; 5 nodes
     per interval integrate the degree-6 integrand exactly. Slow: for tests and small paths.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    aug : AugmentedModel
+        The augmented model.
+    row_weights : ndarray, shape (N-1, n_outputs)
+        Information per unit time of every output row on every interval, in ``scales``.
+    scales : Scales
+        Metric scales, length [m] and time [s].
+    starts, ends : ndarray of int, shape (n_windows,)
+        :func:`window_layout`.
+    anchor : {"start", "current"}
+        Refer each window to the state at its start or at its end.
+
+    Returns
+    -------
+    ndarray, shape (n_windows, m, m)
+        The Gramian of every window about its anchor state.
     """
     tr = traj.scaled(scales.length_m, scales.time_s)
     x, wq = np.polynomial.legendre.leggauss(5)
@@ -255,6 +422,20 @@ def window_criteria(G: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
 
     ``G`` has shape ``(n_windows, m, m)``; a window that is not positive definite even with the
     floor (round-off only) reads ``(inf, -inf)``.
+
+    Parameters
+    ----------
+    G : ndarray, shape (n_windows, m, m)
+        Window Gramians (:func:`windowed_gramians`), nondimensional.
+    eps : float
+        Floor added to the diagonal, nondimensional.
+
+    Returns
+    -------
+    trace_inv : ndarray, shape (n_windows,)
+        ``tr (G + εI)⁻¹`` (an A-optimality criterion; smaller is better).
+    log_det : ndarray, shape (n_windows,)
+        ``log det(G + εI)`` (a D-optimality criterion; larger is better).
     """
     m = G.shape[1]
     tr = np.full(G.shape[0], np.inf)
@@ -273,7 +454,18 @@ def window_criteria(G: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
 @cache
 def window_criteria_function(m: int) -> ca.Function:
     """CasADi ``(tr, logdet) = f(G, eps)`` of one window: :func:`window_criteria` as a smooth
-    expression (``G`` m × m symmetric, ``eps`` the floor)."""
+    expression (``G`` m × m symmetric, ``eps`` the floor).
+
+    Parameters
+    ----------
+    m : int
+        Dimension of the window Gramian.
+
+    Returns
+    -------
+    casadi.Function
+        ``(tr (G + εI)⁻¹, log det(G + εI))`` of ``(G, eps)`` (cached per ``m``).
+    """
     G = ca.SX.sym("G", m, m)
     eps = ca.SX.sym("eps")
     Gs = 0.5 * (G + G.T)
@@ -289,6 +481,25 @@ def weighted_interval_gramians(
     scales: Scales,
 ) -> np.ndarray:
     """Interval contributions in ``scales`` with information weights (``info = None``: the
-    paper's unit weights), shape ``(N-1, m, m)``."""
+    paper's unit weights), shape ``(N-1, m, m)``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    aug : AugmentedModel
+        The augmented model.
+    beacon : ndarray, shape (n,)
+        Beacon position [m].
+    info : SensorInformation or None
+        Sensor rates and noises; None: unit weights.
+    scales : Scales
+        Metric scales, length [m] and time [s].
+
+    Returns
+    -------
+    ndarray, shape (N-1, m, m)
+        The weighted contribution of every interval, referred to ``z(t_0)``.
+    """
     w = None if info is None else information_weights(traj, aug, beacon, info, scales)
     return interval_gramians(traj, aug, scales, row_weights=w)

@@ -16,7 +16,7 @@ Fig. 4    Fig. 3 with the far initial estimate (-81, 50) m.
 Fig. 5    3D: the circle of Fig. 2 in (x, y) (radius 51 m centred at (0, 1) m, p0 = (51, 1, 4) m)
           with a straight descent along z from v_z = -0.01 m/s whose sink rate varies,
           ``v_z = v_z0 - 0.1 (1 - cos(2π t / 60 s))`` m/s. A constant u_z ≠ 0 leaves d_z ∝ t²
-          (parallel to the |v0|² column), u_z = 0 leaves d_z = 0, and a single dive that ends
+          (parallel to the ``|v0|²`` column), u_z = 0 leaves d_z = 0, and a single dive that ends
           leaves d_z affine afterwards (in the span of the τ and 1 columns): in each case the z
           information stops growing, and the KF's z error drifts with the process noise.
 Fig. 6    3D lawn-mower of Fig. 3 flown at 2 m/s from (-80, 60, 5) m, v0 = (2, 0, 0) m/s, with
@@ -114,6 +114,17 @@ class PaperScenario:
         ``R`` and ``P0`` are the paper's; ``Q`` is the paper's at 100 Hz scaled by
         ``dt / 0.01 s`` so that a coarser step keeps the same noise per unit time (the paper's
         ``Q ∝ Ts²`` per step would make the noise intensity grow with the step).
+
+        Parameters
+        ----------
+        dt : float
+            Model (prediction) step [s].
+
+        Returns
+        -------
+        EstimationConfig
+            The model, process and initial covariances, initial estimate error and sensor rates
+            of this figure.
         """
         model = make_model(self.dim, self.sensors)
         cov = paper_covariances(model, PAPER_DT)
@@ -255,7 +266,23 @@ SCENARIOS: tuple[PaperScenario, ...] = (
 
 
 def scenario(fig: int) -> PaperScenario:
-    """The scenario of figure ``fig`` (1–9)."""
+    """The scenario of figure ``fig`` (1–9).
+
+    Parameters
+    ----------
+    fig : int
+        Figure number of section 7.
+
+    Returns
+    -------
+    PaperScenario
+        Its trajectory builder, model, initial error, rates and the paper's claim.
+
+    Raises
+    ------
+    KeyError
+        If the paper has no such figure.
+    """
     for s in SCENARIOS:
         if s.fig == fig:
             return s
@@ -286,6 +313,29 @@ def run_scenario(
     """Run the scenario of figure ``fig`` (paper's initial conditions).
 
     ``overrides`` replace fields of the :class:`EstimationConfig` (e.g. ``process_noise``).
+
+    Parameters
+    ----------
+    fig : int
+        Figure number (1–9).
+    dt : float, optional
+        Model step [s]; the paper's 0.01 s by default.
+    quick : bool, optional
+        Shorter paths (a fast preview).
+    runs : int, optional
+        Number of Monte Carlo runs.
+    seed : int, optional
+        Seed of the random generator.
+    progress : bool, optional
+        Show a progress bar over runs.
+    **overrides
+        Fields of :class:`EstimationConfig` to replace.
+
+    Returns
+    -------
+    ScenarioRun
+        The trajectory, the Monte Carlo result of both filters and the Gramian rank at the
+        recorded times (of the sampled ranges when a rate is set).
     """
     sc = scenario(fig)
     traj = sc.build(dt, quick)
@@ -312,6 +362,20 @@ def write_figures(out_dir: Path, quick: bool = False, progress: bool = True) -> 
     """Run the scenarios of Figs. 1–9 and write one PNG per figure to ``out_dir``.
 
     Returns the list of written paths. ``quick`` uses shorter paths at 10 Hz (well under a minute).
+
+    Parameters
+    ----------
+    out_dir : Path
+        Folder of the PNG files (created if missing).
+    quick : bool, optional
+        Shorter paths at 10 Hz.
+    progress : bool, optional
+        Show a progress bar over runs.
+
+    Returns
+    -------
+    list of Path
+        ``fig1.png`` to ``fig9.png`` in ``out_dir``.
     """
     from obsplan.estimation.montecarlo import plots
 

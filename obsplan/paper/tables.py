@@ -61,6 +61,13 @@ class Verdict:
         return f"{'YES' if self.lwo else 'NO'}/{'YES' if self.o else 'NO'}"
 
     def to_dict(self) -> dict[str, bool]:
+        """The verdict as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict of str to bool
+            ``{"lwo": ..., "o": ...}``.
+        """
         return {"lwo": bool(self.lwo), "o": bool(self.o)}
 
 
@@ -88,6 +95,18 @@ class Evidence:
 
     @classmethod
     def of(cls, rep: ObservabilityReport) -> Evidence:
+        """The evidence of an observability report.
+
+        Parameters
+        ----------
+        rep : ObservabilityReport
+            The report of :func:`~obsplan.observability.analyze.analyze`.
+
+        Returns
+        -------
+        Evidence
+            Its LWO and Gramian ranks and first full-rank time.
+        """
         return cls(
             lwo_min_rank=rep.lwo.min_rank,
             state_dim=rep.lwo.state_dim,
@@ -101,6 +120,13 @@ class Evidence:
         return f"O {self.lwo_min_rank}/{self.state_dim}, G {self.gramian_rank}/{self.gramian_dim}"
 
     def to_dict(self) -> dict:
+        """The evidence as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each attribute by name.
+        """
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
@@ -130,6 +156,14 @@ class Cell:
         return out + (("O",) if self.paper.o != self.ours.o else ())
 
     def to_dict(self) -> dict:
+        """The cell as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            The column, sensors, current, both verdicts, ``agrees``, ``differing``, the
+            evidence and the notes' keys.
+        """
         return {
             "column": self.column,
             "sensors": list(self.sensors),
@@ -166,6 +200,14 @@ class TableRow:
         return tuple(dict.fromkeys(n for c in self.cells for n in c.notes))
 
     def to_dict(self) -> dict:
+        """The row as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Its key, table, dimension, motion, variant, trajectory, ``agrees`` and cells
+            (:meth:`Cell.to_dict` each).
+        """
         return {
             "key": self.key,
             "table": self.table,
@@ -192,6 +234,13 @@ class Claim:
     notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
+        """The claim as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each attribute by name (tuples as lists).
+        """
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
 
 
@@ -462,7 +511,20 @@ SCENARIOS: dict[str, _Call] = {
 
 @cache
 def scenario(name: str, quick: bool = False) -> Trajectory:
-    """The trajectory :data:`SCENARIOS` ``[name]``, sampled at 0.01 s (0.1 s if ``quick``)."""
+    """The trajectory :data:`SCENARIOS` ``[name]``, sampled at 0.01 s (0.1 s if ``quick``).
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`SCENARIOS`, e.g. ``"2d-circle"``.
+    quick : bool, optional
+        Sample every 0.1 s instead of 0.01 s.
+
+    Returns
+    -------
+    Trajectory
+        The sampled trajectory (cached).
+    """
     return SCENARIOS[name](QUICK_DT if quick else DT)
 
 
@@ -610,22 +672,66 @@ def _table(table: int, quick: bool) -> tuple[TableRow, ...]:
 
 
 def table1(quick: bool = False) -> tuple[TableRow, ...]:
-    """Table 1 (range only; the last rows with ocean current), paper beside ours."""
+    """Table 1 (range only; the last rows with ocean current), paper beside ours.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    tuple of TableRow
+        One row per motion class and variant.
+    """
     return _table(1, bool(quick))
 
 
 def table2(quick: bool = False) -> tuple[TableRow, ...]:
-    """Table 2 (range, and range + DVL), paper beside ours."""
+    """Table 2 (range, and range + DVL), paper beside ours.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    tuple of TableRow
+        One row per motion class and variant.
+    """
     return _table(2, bool(quick))
 
 
 def table3(quick: bool = False) -> tuple[TableRow, ...]:
-    """Table 3 (range + DVL with ocean current, bottom lock and water profiling)."""
+    """Table 3 (range + DVL with ocean current, bottom lock and water profiling).
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    tuple of TableRow
+        One row per motion class and variant.
+    """
     return _table(3, bool(quick))
 
 
 def all_rows(quick: bool = False) -> tuple[TableRow, ...]:
-    """Rows of Tables 1, 2 and 3 in order."""
+    """Rows of Tables 1, 2 and 3 in order.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    tuple of TableRow
+        :func:`table1`, :func:`table2` and :func:`table3` concatenated.
+    """
     return table1(quick) + table2(quick) + table3(quick)
 
 
@@ -649,6 +755,13 @@ class SmoothTurns:
     held_turns_full: bool
 
     def to_dict(self) -> dict:
+        """The record as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each attribute by name (tuples as lists).
+        """
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
 
 
@@ -659,7 +772,18 @@ def _turn_centre(p: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
 
 @cache
 def smooth_turns(quick: bool = False) -> SmoothTurns:
-    """Point 1 of the record: the smooth turns of Fig. 3 have isolated LWO rank drops."""
+    """Point 1 of the record: the smooth turns of Fig. 3 have isolated LWO rank drops.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    SmoothTurns
+        The zeros of ``det O`` in the turns, the legs' ranks and the held-input check.
+    """
     path = gen.paper_lawnmower(2)
     rep = lwo_path_report(path, make_model(2, RANGE))
     bp = path.breakpoints
@@ -712,12 +836,32 @@ class WindowEig:
     rank: int
 
     def to_dict(self) -> dict:
+        """The record as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each attribute by name (tuples as lists).
+        """
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
 
 
 @cache
 def windows(quick: bool = False, lengths: tuple[float, ...] = (10.0, 20.0, 40.0)) -> tuple:
-    """Point 5 of the record: short windows of eq. 27 are nearly singular (exact arithmetic)."""
+    """Point 5 of the record: short windows of eq. 27 are nearly singular (exact arithmetic).
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+    lengths : tuple of float, optional
+        Window lengths [s] from the start of the Fig. 2 circle.
+
+    Returns
+    -------
+    tuple of WindowEig
+        One per window length.
+    """
     circ = scenario("2d-circle", quick)
     dt = QUICK_DT if quick else DT
     model = make_model(2, RANGE)
@@ -739,6 +883,16 @@ def expansion_matrix(dim: int) -> np.ndarray:
 
     ``p0·ν0 = p0·v0 + p0·v_f`` and ``|ν0|² = |v0|² + 2 v0·v_f + |v_f|²``; the expanded
     Gramian is ``Eᵀ G E``, of rank ``rank G <= 3n + 2`` out of ``3n + 5``.
+
+    Parameters
+    ----------
+    dim : int
+        Spatial dimension ``n`` (2 or 3).
+
+    Returns
+    -------
+    ndarray of int, shape (3n + 2, 3n + 5)
+        The expansion matrix.
     """
     m = 3 * dim
     E = np.zeros((m + 2, m + 5), dtype=int)
@@ -758,12 +912,30 @@ class ExpandedAugmentation:
     dim_expanded: int
 
     def to_dict(self) -> dict:
+        """The record as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Both ranks and dimensions.
+        """
         return dict(self.__dict__)
 
 
 @cache
 def expanded_water_circle(quick: bool = False) -> ExpandedAugmentation:
-    """Point 4 of the record: the paper's NO is the expanded augmentation's rank 8 of 11."""
+    """Point 4 of the record: the paper's NO is the expanded augmentation's rank 8 of 11.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    ExpandedAugmentation
+        Exact ranks of the compact and expanded Gramians of the 2D water-profiling circle.
+    """
     circ = scenario("2d-circle", quick)
     model = make_model(2, DVL_WATER, current=True)
     prof = exact_rank_profile(circ, model)
@@ -800,6 +972,14 @@ class StructuralRow:
     conditioning: tuple[tuple[float, float | None], ...]
 
     def to_dict(self) -> dict:
+        """The row as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each attribute by name; ``conditioning`` as a list of ``{"tol",
+            "full_rank_from_t"}``.
+        """
         d = {k: getattr(self, k) for k in self.__dataclass_fields__}
         d["sensors"] = list(self.sensors)
         d["ranks"] = list(self.ranks)
@@ -839,7 +1019,18 @@ def _conditioning_times(
 
 @cache
 def structural(quick: bool = False) -> tuple[StructuralRow, ...]:
-    """Point 6 of the record: exact structural interval vs conditioning time, per configuration."""
+    """Point 6 of the record: exact structural interval vs conditioning time, per configuration.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    tuple of StructuralRow
+        One per configuration of :data:`STRUCTURAL_CONFIGS`.
+    """
     out = []
     for key, label, name, sensors, current in STRUCTURAL_CONFIGS:
         tr = scenario(name, quick)
@@ -869,7 +1060,18 @@ def _ranks(name: str, sensors: tuple[str, ...], quick: bool) -> Evidence:
 
 @cache
 def claims(quick: bool = False) -> tuple[Claim, ...]:
-    """Rank statements of sections 6.1–6.2 and figure claims of section 7, recomputed."""
+    """Rank statements of sections 6.1–6.2 and figure claims of section 7, recomputed.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    tuple of Claim
+        Each claim with the paper's and our result.
+    """
     out: list[Claim] = []
 
     g2 = [
@@ -1097,6 +1299,20 @@ def render_tables(
     the LWO matrix over the samples, ``G`` the rank of the augmented Gramian. Numbered notes
     explaining every disagreement (and conditions behind some agreements) follow the tables;
     then, if given, the exact structural ranks of :func:`structural`.
+
+    Parameters
+    ----------
+    rows : sequence of TableRow
+        Rows of one or more tables (:func:`all_rows`).
+    claim_list : sequence of Claim, optional
+        Checked claims of sections 4–7 (:func:`claims`), shown after the tables.
+    structural_rows : sequence of StructuralRow, optional
+        Exact structural ranks (:func:`structural`), shown last.
+
+    Returns
+    -------
+    str
+        The text, lines of at most 100 characters in the notes.
     """
     numbers = _note_numbers(rows, claim_list)
     out: list[str] = []
@@ -1154,7 +1370,19 @@ def render_tables(
 
 
 def paper_report(quick: bool = False) -> dict:
-    """Tables 1–3 and the checked claims as a JSON-serialisable dict."""
+    """Tables 1–3 and the checked claims as a JSON-serialisable dict.
+
+    Parameters
+    ----------
+    quick : bool, optional
+        Sample the trajectories every 0.1 s instead of the paper's 0.01 s.
+
+    Returns
+    -------
+    dict
+        ``dt`` [s], ``tables``, ``claims``, ``notes``, ``structural``, ``record`` (the exact
+        record's points) and ``summary`` (counts of rows, cells and disagreements).
+    """
     rows = all_rows(quick)
     cl = claims(quick)
     numbers = _note_numbers(rows, cl)

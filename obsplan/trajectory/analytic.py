@@ -99,7 +99,20 @@ class SineProfile:
         )
 
     def integral(self, t: np.ndarray, order: int) -> np.ndarray:
-        """``∫_0^t a`` (order 1, [m/s]) or ``∫_0^t ∫_0^s a`` (order 2, [m]) at times ``t`` [s]."""
+        """``∫_0^t a`` (order 1, [m/s]) or ``∫_0^t ∫_0^s a`` (order 2, [m]) at times ``t`` [s].
+
+        Parameters
+        ----------
+        t : ndarray
+            Times [s] from the start of the profile.
+        order : int
+            1 for the velocity gained, 2 for the distance gained (any other value: 2).
+
+        Returns
+        -------
+        ndarray, shape of ``t``
+            The integral, in closed form [m/s] or [m].
+        """
         t = np.asarray(t, float)
         w = 2.0 * np.pi / self.period
         c0, s0 = math.cos(self.phase), math.sin(self.phase)
@@ -384,6 +397,27 @@ class AnalyticPath:
 
         ``piece=None``: the piece that contains each time (right-continuous at breakpoints);
         ``piece=i``: the formulas of piece ``i`` (e.g. its limit at its end time).
+
+        Parameters
+        ----------
+        t : float or ndarray, shape (N,)
+            Times [s] from the start of the path.
+        piece : int or None, optional
+            Index of the piece whose formulas are used; None: the piece containing each time.
+
+        Returns
+        -------
+        pos : ndarray, shape (N, dim)
+            Positions [m].
+        vel : ndarray, shape (N, dim)
+            Velocities [m/s].
+        acc : ndarray, shape (N, dim)
+            Accelerations [m/s²].
+
+        Raises
+        ------
+        ConfigError
+            If ``piece`` is not the index of a piece.
         """
         t = np.atleast_1d(np.asarray(t, float))
         pos, vel, acc = (self._column(t, w, piece) for w in ("pos", "vel", "acc"))
@@ -394,9 +428,9 @@ class AnalyticPath:
 
         Parameters
         ----------
-        dt
+        dt : float, optional
             Sampling interval [s], positive; the paper's 0.01 s (100 Hz, section 7) by default.
-        duration
+        duration : float or None, optional
             Length [s] to sample, longer than ``dt``; default: the whole path
             (:attr:`duration`). Samples are ``0, dt, 2dt, ...`` and the last one is exactly at
             ``duration`` (a shorter last step if ``dt`` does not divide it).

@@ -105,12 +105,12 @@ def sine_profile(mean: float, amplitude: float, period: float, phase: float = 0.
 
     Parameters
     ----------
-    mean, amplitude
+    mean, amplitude : float
         [m/s²]. With ``|amplitude| < |mean|`` the acceleration varies and is never zero, which
         the range-only LWO test needs at every sample (eq. 36: ``det O = -3 u_x² q²``).
-    period
+    period : float
         [s], positive.
-    phase
+    phase : float, optional
         [rad].
 
     Returns
@@ -174,15 +174,15 @@ def straight(
         ``direction`` is parallel to ``p0``.
     direction : shape (n,)
         Direction of motion (normalised here; must be non-zero).
-    speed0
+    speed0 : float
         Initial speed along ``direction`` [m/s], ``>= 0``.
-    accel
+    accel : float, callable or array_like, optional
         Acceleration along ``direction`` [m/s²]: a number (0 = constant speed), a callable of
         time ``a(t)`` (see :func:`sine_profile`; checked at 257 times here, and at every sample
         when sampled) or an array, a piecewise-constant profile whose values are held on
         consecutive equal intervals of ``duration / len(accel)`` (e.g. one per step of a
         planning grid: sampling at that step gives exactly these inputs).
-    duration
+    duration : float
         Length [s], positive.
 
     Returns
@@ -227,7 +227,7 @@ def parabola(p0: Vec, v0: Vec, accel: Vec, *, duration: float) -> AnalyticPath:
     p0, v0, accel : shape (n,)
         Start position [m], start velocity [m/s] and the constant acceleration [m/s²]; with
         ``accel`` parallel to ``v0`` the path is a straight line (use :func:`straight`).
-    duration
+    duration : float
         Length [s], positive.
 
     Returns
@@ -261,14 +261,14 @@ def then_straight(
 
     Parameters
     ----------
-    traj
+    traj : Trajectory
         Trajectory to extend; its final speed must be non-zero.
-    duration, accel
+    duration, accel : float; float, callable or array_like, optional
         As in :func:`straight`: the leg's length [s] and acceleration along it [m/s²].
     direction : shape (n,), optional
         Direction of the leg; it must be parallel to the final velocity (relative mismatch
         ``<= JOIN_TOL``). Use it to make a leg *exactly* radial, e.g. ``traj.p[-1]``.
-    dt
+    dt : float, optional
         Sampling interval of the leg [s].
 
     Returns
@@ -373,18 +373,18 @@ def circle(
 
     Parameters
     ----------
-    radius, speed
+    radius, speed : float
         Radius ρ [m] and speed ρω [m/s], both positive.
-    duration
+    duration : float
         Length [s]; one lap lasts ``2π radius / speed``.
     center : shape (2,) or (3,)
         Centre [m]; the beacon's position (origin) by default, as in eq. 37.
-    phase
+    phase : float, optional
         Angle of the start point from the x axis [rad].
-    z
+    z : float or None, optional
         Height of the plane [m] for a 3D circle (``z = 0``: in the beacon's plane; ``z ≠ 0``: out
         of it, eq. 46 with ``q_z = z``). A 3-element ``center`` also gives a 3D circle.
-    ccw
+    ccw : bool, optional
         Counter-clockwise (seen from +z) if true.
 
     Returns
@@ -421,17 +421,19 @@ def circle_z(
 
     Parameters
     ----------
-    radius, speed, duration, center, phase, ccw
+    radius, speed, duration, center, phase, ccw : as for circle
         The horizontal circle, as in :func:`circle` (``center`` has 2 coordinates).
-    z0
+    z0 : float
         Height at ``t = 0`` (sine: the mid height) [m].
-    z_amp, z_period
+    z_motion : {"sine", "straight"}, optional
+        The motion along z: a sine about ``z0`` or a constant vertical speed.
+    z_amp, z_period : float, optional
         Amplitude [m] (non-zero) and period [s] of the sine. A period equal to the lap time
         ``2π radius / speed`` puts the path in a tilted plane: planar, hence never globally
         observable with range only.
-    z_speed
+    z_speed : float, optional
         Vertical speed [m/s] (non-zero) of the straight motion. Note ``u_z = 0`` then.
-    z_phase
+    z_phase : float, optional
         Phase of the sine [rad].
 
     Returns
@@ -495,17 +497,17 @@ def circle_then_straight(
 
     Parameters
     ----------
-    radius, speed
+    radius, speed : float
         Circle radius [m] and speed [m/s].
-    circle_duration, straight_duration
+    circle_duration, straight_duration : float
         Durations [s] of the two parts; the circle ends at the exit point.
-    radial
+    radial : bool, optional
         Make the leg radial (see above).
-    straight_accel
+    straight_accel : float, callable or array_like, optional
         Acceleration along the leg [m/s²], as ``accel`` of :func:`straight`.
-    exit_distance
+    exit_distance : float or None, optional
         Distance of the exit point from the beacon [m] (``radial=True`` only).
-    dt
+    dt : float, optional
         Sampling interval [s] of both parts.
 
     Returns
@@ -584,9 +586,9 @@ def turn_onto_end(start: Vec, velocity: Vec, heading: float, accel: float) -> np
         Position [m] (x and y are used).
     velocity : shape (2,) or (3,)
         Velocity [m/s] (x and y are used).
-    heading
+    heading : float
         Direction to turn onto, from the x axis [rad].
-    accel
+    accel : float
         Centripetal acceleration of the turn [m/s²], positive (radius ``|v|² / accel``).
 
     Returns
@@ -692,24 +694,24 @@ def lawnmower(
     ----------
     start : shape (2,)
         Start of the first leg [m] (x, y).
-    leg_length, spacing
+    leg_length, spacing : float
         Leg length [m] and distance between legs [m].
-    n_legs
+    n_legs : int
         Number of legs, ``>= 1``.
-    speed
+    speed : float
         Cruise speed [m/s].
-    heading
+    heading : float, optional
         Direction of the first leg from the x axis [rad].
-    turn
+    turn : {"semicircle"}, optional
         Only ``"semicircle"``.
-    first_turn
+    first_turn : {"left", "right"}, optional
         Side (``"left"`` or ``"right"`` of the first leg) the next legs are stacked on.
-    z, z_speed
+    z, z_speed : float or None; float, optional
         For a 3D lawn-mower: start height [m] and constant vertical speed [m/s] (Fig. 6's
         "straight motion along z"; ``u_z = 0``).
-    start_with_circle
+    start_with_circle : bool, optional
         Fly one full circle of radius ``spacing / 2`` (outside the area) before the first leg.
-    initial_speed, initial_accel
+    initial_speed, initial_accel : float or None, optional
         Start the first leg at ``initial_speed`` [m/s] (e.g. 0, from rest as in Fig. 3) and
         accelerate at ``initial_accel`` [m/s²] (default: the constant value reaching ``speed`` at
         the end of the first leg), then cruise.
@@ -781,6 +783,13 @@ class LawnmowerLayout:
     turn_accel: float
 
     def to_dict(self) -> dict:
+        """The layout as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each attribute by name: lengths [m], ``n_legs``, ``turn_accel`` [m/s²].
+        """
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
@@ -791,9 +800,9 @@ def lawnmower_layout(
 
     Parameters
     ----------
-    area_width, area_height
+    area_width, area_height : float
         Area along / across the legs [m].
-    speed, accel_max
+    speed, accel_max : float
         Cruise speed [m/s] and acceleration limit [m/s²], positive.
 
     Returns
@@ -856,19 +865,19 @@ def lawnmower_within_limits(
     ----------
     start : shape (2,)
         Start of the first leg [m].
-    area_width, area_height
+    area_width, area_height : float
         Area along / across ``heading`` [m].
-    speed, accel_max
+    speed, accel_max : float
         Cruise speed [m/s] and acceleration limit [m/s²].
-    duration
+    duration : float
         Exact length [s].
-    heading
+    heading : float, optional
         Direction of the first leg from the x axis [rad].
-    first_turn
+    first_turn : {"left", "right"}, optional
         Side (``"left"`` or ``"right"`` of the first leg) the next legs are stacked on.
-    z, z_speed
+    z, z_speed : float or None; float, optional
         Optional height [m] and constant vertical speed [m/s] (3D).
-    initial_speed
+    initial_speed : float or None, optional
         Start the first leg at this speed [m/s] and accelerate at ``accel_max`` to ``speed``.
     initial_velocity : shape (2,), optional
         A moving start [m/s]: from ``start`` the vehicle first turns onto ``heading`` at
@@ -942,15 +951,15 @@ def paper_lawnmower(
 
     Parameters
     ----------
-    dim
+    dim : {2, 3}, optional
         2 (Fig. 3) or 3 (Fig. 6).
-    speed
+    speed : float, optional
         Cruise speed [m/s].
-    leg_length, spacing
+    leg_length, spacing : float, optional
         Leg length [m] and distance between legs [m].
-    n_legs
+    n_legs : int, optional
         Number of legs.
-    z_speed
+    z_speed : float, optional
         Vertical speed [m/s] (3D only).
 
     Returns

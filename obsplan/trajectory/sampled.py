@@ -28,6 +28,21 @@ def check_samples(t: np.ndarray, arrays: dict[str, np.ndarray], what: str) -> No
     """Refuse non-finite values and times that do not strictly increase (trajectories, tracks).
 
     ``t`` has shape (N,), each array (N, ...); ``what`` starts the messages (``"trajectory"``).
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Sample times [s].
+    arrays : dict of str to ndarray, shape (N, ...)
+        The other fields by name (positions, velocities...), one row per sample.
+    what : str
+        What is checked, first word of the messages.
+
+    Raises
+    ------
+    TrajectoryFormatError
+        For the first non-finite value (field and sample named) or a time that does not
+        increase.
     """
     for name, a in (("t", t), *arrays.items()):
         bad = np.argwhere(~np.isfinite(a.reshape(a.shape[0], -1) if a.size else a[:, None]))
@@ -48,7 +63,18 @@ class InconsistentTrajectoryWarning(UserWarning):
 
 
 def csv_columns(dim: int) -> list[str]:
-    """Column names of the trajectory CSV for dimension ``dim``."""
+    """Column names of the trajectory CSV for dimension ``dim``.
+
+    Parameters
+    ----------
+    dim : int
+        Spatial dimension (2 or 3).
+
+    Returns
+    -------
+    list of str
+        ``t``, then ``px, py[, pz]``, ``vx, vy[, vz]``, ``ux, uy[, uz]``.
+    """
     axes = _AXES[:dim]
     return ["t"] + [f"p{a}" for a in axes] + [f"v{a}" for a in axes] + [f"u{a}" for a in axes]
 
@@ -121,7 +147,13 @@ class Trajectory:
         return np.diff(self.t)
 
     def displacement(self) -> np.ndarray:
-        """Displacement ``d(t_k, t_0) = p_k - p_0 - v_0 (t_k - t_0)`` (eq. 15), shape (N, n) [m]."""
+        """Displacement ``d(t_k, t_0) = p_k - p_0 - v_0 (t_k - t_0)`` (eq. 15), shape (N, n) [m].
+
+        Returns
+        -------
+        ndarray, shape (N, n)
+            The displacement due to the inputs alone at each sample [m].
+        """
         return self.p - self.p[0] - np.outer(self.t - self.t[0], self.v[0])
 
     # ---------------------------------------------------------------- construction
@@ -133,13 +165,23 @@ class Trajectory:
 
         Parameters
         ----------
-        t : shape (N,)
+        t : ndarray, shape (N,)
             Sample times [s].
-        p0, v0 : shape (n,)
+        p0, v0 : ndarray, shape (n,)
             Initial position [m] and velocity [m/s].
-        u : shape (N, n) or (N-1, n)
+        u : ndarray, shape (N, n) or (N-1, n)
             Accelerations [m/s²], ``u[k]`` held on ``[t_k, t_{k+1})``. With ``N-1`` rows the last
             input is repeated so that the CSV has one per sample.
+
+        Returns
+        -------
+        Trajectory
+            The samples of the integrated path.
+
+        Raises
+        ------
+        TrajectoryFormatError
+            If ``u`` has neither ``N`` nor ``N-1`` rows, or the samples are invalid.
         """
         t = np.asarray(t, float).reshape(-1)
         u = np.atleast_2d(np.asarray(u, float))
@@ -183,6 +225,25 @@ class Trajectory:
         The augmented Gramian is, in exact terms, a function of the inputs only, while it is
         computed from the sampled ``p`` and ``v``; the LWO test uses ``p``, ``v`` and ``u``. Both
         assume that the samples and the inputs agree. Returns True when consistent.
+
+        Parameters
+        ----------
+        tol_pos : float, optional
+            Largest one-step position mismatch accepted [m] (:meth:`consistency_error`).
+        tol_vel : float, optional
+            Largest one-step velocity mismatch accepted [m/s].
+        source : str, optional
+            What the trajectory is (a file name), first word of the warning.
+
+        Returns
+        -------
+        bool
+            True if both mismatches are within their tolerances; False after the warning.
+
+        Warns
+        -----
+        InconsistentTrajectoryWarning
+            If a mismatch is beyond its tolerance.
         """
         pe, ve = self.consistency_error()
         if pe > tol_pos or ve > tol_vel:
@@ -198,22 +259,73 @@ class Trajectory:
 
     # ---------------------------------------------------------------- transformations
     def scaled(self, length_m: float, time_s: float) -> Trajectory:
-        """The same trajectory in units of ``length_m`` and ``time_s`` (nondimensionalised)."""
+        """The same trajectory in units of ``length_m`` and ``time_s`` (nondimensionalised).
+
+        Parameters
+        ----------
+        length_m : float
+            Unit of length [m].
+        time_s : float
+            Unit of time [s].
+
+        Returns
+        -------
+        Trajectory
+            Times, positions, velocities and inputs divided by ``T``, ``L``, ``L/T`` and
+            ``L/T²``.
+        """
         L, T = float(length_m), float(time_s)
         return Trajectory(t=self.t / T, p=self.p / L, v=self.v * T / L, u=self.u * T**2 / L)
 
     def translated(self, offset: np.ndarray) -> Trajectory:
-        """Positions shifted by ``offset`` [m] (velocities and inputs unchanged)."""
+        """Positions shifted by ``offset`` [m] (velocities and inputs unchanged).
+
+        Parameters
+        ----------
+        offset : ndarray, shape (n,)
+            Shift added to every position [m].
+
+        Returns
+        -------
+        Trajectory
+            The shifted trajectory.
+        """
         return Trajectory(t=self.t, p=self.p + np.asarray(offset, float), v=self.v, u=self.u)
 
     def rotated(self, R: np.ndarray, about: np.ndarray | None = None) -> Trajectory:
-        """Rotate positions about ``about`` (default origin), velocities and inputs by ``R``."""
+        """Rotate positions about ``about`` (default origin), velocities and inputs by ``R``.
+
+        Parameters
+        ----------
+        R : ndarray, shape (n, n)
+            Rotation matrix.
+        about : ndarray, shape (n,), optional
+            Centre of the rotation [m]; None: the origin.
+
+        Returns
+        -------
+        Trajectory
+            The rotated trajectory (same times).
+        """
         R = np.asarray(R, float)
         c = np.zeros(self.dim) if about is None else np.asarray(about, float)
         return Trajectory(t=self.t, p=(self.p - c) @ R.T + c, v=self.v @ R.T, u=self.u @ R.T)
 
     def window(self, start: int, stop: int | None = None) -> Trajectory:
-        """Samples ``start:stop`` as a new trajectory (times keep their values)."""
+        """Samples ``start:stop`` as a new trajectory (times keep their values).
+
+        Parameters
+        ----------
+        start : int
+            First sample index.
+        stop : int or None, optional
+            Index after the last sample; None: to the end.
+
+        Returns
+        -------
+        Trajectory
+            The window (at least 2 samples, else :class:`TrajectoryFormatError`).
+        """
         s = slice(start, stop)
         return Trajectory(t=self.t[s], p=self.p[s], v=self.v[s], u=self.u[s])
 
@@ -222,6 +334,21 @@ class Trajectory:
 
         ``other`` is shifted in time (and must start where this one ends, within 1e-6 m) so that
         the result is one continuous trajectory.
+
+        Parameters
+        ----------
+        other : Trajectory
+            The trajectory that follows, of the same dimension.
+
+        Returns
+        -------
+        Trajectory
+            The two joined, with this one's times.
+
+        Raises
+        ------
+        TrajectoryFormatError
+            If the dimensions differ or ``other`` does not start where this one ends.
         """
         if other.dim != self.dim:
             raise TrajectoryFormatError("cannot concatenate a 2D and a 3D trajectory")
@@ -238,7 +365,13 @@ class Trajectory:
         )
 
     def to_array(self) -> np.ndarray:
-        """Rows ``t, p, v, u`` as one array, shape (N, 1 + 3n)."""
+        """Rows ``t, p, v, u`` as one array, shape (N, 1 + 3n).
+
+        Returns
+        -------
+        ndarray, shape (N, 1 + 3n)
+            Columns in the order of :func:`csv_columns`, SI units.
+        """
         return np.column_stack([self.t, self.p, self.v, self.u])
 
 
@@ -257,6 +390,16 @@ def grid_times(t: np.ndarray) -> np.ndarray:
     interval to 10 significant digits, ``t0`` the first time to 12), the times are that grid,
     computed in exact decimal arithmetic: ``56.99999999999999`` becomes ``57.0``, and a grid
     with longer holds (multiples of ``h``) is kept. Times on no such grid are returned unchanged.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Sample times [s].
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The times on their decimal grid, or ``t`` itself [s].
     """
     from decimal import Decimal
 
@@ -281,6 +424,25 @@ def write_csv(traj: Trajectory, path: str | Path, overwrite: bool = True) -> Pat
     written on their grid (:func:`grid_times`: ``57.0``, not ``56.99999999999999``), other
     times exactly. The file is
     written to a temporary name and renamed, so an interruption never leaves half a file.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The trajectory to write.
+    path : str or Path
+        The CSV file.
+    overwrite : bool, optional
+        Replace an existing file; if False an existing file is an error.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    FileExistsError
+        If ``path`` exists and ``overwrite`` is False.
 
     Examples
     --------
@@ -333,6 +495,19 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
 
     The separator may be a comma, a semicolon or a tab (found from the header line).
 
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file: columns ``t, px, py[, pz], vx, vy[, vz], ux, uy[, uz]`` in SI units.
+    check : bool, optional
+        Warn (:class:`InconsistentTrajectoryWarning`) if the inputs do not reproduce the samples
+        (:meth:`Trajectory.check_consistency`).
+
+    Returns
+    -------
+    Trajectory
+        The trajectory.
+
     Raises
     ------
     TrajectoryFormatError
@@ -356,7 +531,25 @@ def read_csv(path: str | Path, check: bool = True) -> Trajectory:
 
 
 def trajectory_dim(columns: tuple[str, ...], path: object) -> int:
-    """2 or 3 from the header (``pz`` present); mixed 2D/3D columns are an error."""
+    """2 or 3 from the header (``pz`` present); mixed 2D/3D columns are an error.
+
+    Parameters
+    ----------
+    columns : tuple of str
+        Header names, lower-case.
+    path : object
+        The file, named in the message.
+
+    Returns
+    -------
+    int
+        3 if ``pz``, ``vz`` and ``uz`` are all there, else 2.
+
+    Raises
+    ------
+    TrajectoryFormatError
+        If some but not all of ``pz``, ``vz``, ``uz`` are there.
+    """
     has_z = [c in columns for c in ("pz", "vz", "uz")]
     if any(has_z) and not all(has_z):
         missing = [c for c, h in zip(("pz", "vz", "uz"), has_z, strict=True) if not h]
@@ -368,7 +561,27 @@ def trajectory_dim(columns: tuple[str, ...], path: object) -> int:
 
 
 def trajectory_from_table(table: CsvTable, check: bool = True) -> Trajectory:
-    """A :class:`Trajectory` from a :class:`~obsplan.core.csvtable.CsvTable` (like read_csv)."""
+    """A :class:`Trajectory` from a :class:`~obsplan.core.csvtable.CsvTable` (like read_csv).
+
+    Parameters
+    ----------
+    table : CsvTable
+        The CSV read as text cells.
+    check : bool, optional
+        Warn if the inputs do not reproduce the samples
+        (:meth:`Trajectory.check_consistency`).
+
+    Returns
+    -------
+    Trajectory
+        The trajectory.
+
+    Raises
+    ------
+    TrajectoryFormatError
+        For missing columns, fewer than 2 rows, a bad cell or times that do not increase
+        (naming the row).
+    """
     path = table.path
     dim = trajectory_dim(table.columns, path)
     cols = csv_columns(dim)
@@ -404,6 +617,20 @@ def resample(traj: Trajectory, dt: float, name: str = "validation.dt") -> Trajec
 
     Each interval of ``traj`` must be an integer multiple of ``dt``; ``name`` is how the error
     message calls ``dt`` (the problem field or the command-line option).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path, with piecewise-constant inputs.
+    dt : float
+        New sampling interval [s].
+    name : str, optional
+        How the message calls ``dt``.
+
+    Returns
+    -------
+    Trajectory
+        The path integrated exactly from the first sample on the finer grid.
 
     Raises
     ------

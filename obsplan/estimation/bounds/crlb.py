@@ -65,7 +65,18 @@ class CRLBResult:
 
 
 def nav_rows(model: VehicleModel) -> np.ndarray:
-    """Rows of ``(p, p')`` in the state ``(p, v[, v_f])``, shape (2n, state_dim)."""
+    """Rows of ``(p, p')`` in the state ``(p, v[, v_f])``, shape (2n, state_dim).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (dimension and current).
+
+    Returns
+    -------
+    ndarray, shape (2n, state_dim)
+        The map to position [m] and inertial velocity ``v (+ v_f)`` [m/s].
+    """
     n, m = model.dim, model.state_dim
     T = np.zeros((2 * n, m))
     T[:n, :n] = np.eye(n)
@@ -84,6 +95,22 @@ def pcrb_model(
     intensity of the physical noise when ``continuous``), the model's constant DVL and depth rows
     with the noise of ``noise`` (std per sensor); the range row is per epoch
     (:func:`range_information`).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (sensors and current).
+    q : ndarray, shape (state_dim, state_dim)
+        Process noise: per-step covariance, or intensity [m²/s³ on ``v``] when ``continuous``.
+    noise : dict of str to float
+        Standard deviation per sensor (range [m], DVL [m/s], depth [m]).
+    continuous : bool, optional
+        ``q`` is an intensity of the physical noise.
+
+    Returns
+    -------
+    RecursionModel
+        The model of the covariance recursion.
     """
     n, m = model.dim, model.state_dim
     A = np.zeros((m, m))
@@ -109,7 +136,20 @@ def pcrb_model(
 def pcrb_model_of(config: EstimationConfig, dt: float) -> RecursionModel:
     """:func:`pcrb_model` of a configuration on a filter grid of step ``dt`` [s]: its process noise
     (:meth:`~obsplan.estimation.config.EstimationConfig.process_noise_model`; none when
-    ``process_noise`` is off) and noises. The posterior CRB and the planner's objective use it."""
+    ``process_noise`` is off) and noises. The posterior CRB and the planner's objective use it.
+
+    Parameters
+    ----------
+    config : EstimationConfig
+        The configuration (model, noises, process noise).
+    dt : float
+        Step of the filter grid [s].
+
+    Returns
+    -------
+    RecursionModel
+        The model of the covariance recursion.
+    """
     pn = config.process_noise_model(dt)
     q = pn.q_ekf if config.process_noise else np.zeros_like(pn.q_ekf)
     return pcrb_model(config.model, q, dict(config.noise), continuous=pn.continuous)
@@ -121,6 +161,20 @@ def range_information(rel, sigma: float):
 
     ``h hᵀ / ρ`` is the regularised Fisher information of the module docstring. Works on numpy
     arrays and on CasADi expressions (the planner's objective).
+
+    Parameters
+    ----------
+    rel : ndarray or casadi.MX, shape (n, J)
+        Positions relative to the beacon [m], one column per epoch.
+    sigma : float
+        Standard deviation of the range noise [m].
+
+    Returns
+    -------
+    h : ndarray or casadi.MX, shape (n, J)
+        The range row's position entries (``rel`` itself).
+    rho : ndarray or casadi.MX, shape (1, J)
+        Its variance ``σ² (|rel|² + r_ε²)`` [m⁴].
     """
     import casadi as ca
 
@@ -136,6 +190,20 @@ def posterior_crlb(
 
     The prior is ``config.p0_ekf`` (paper default if None); the configuration's process noise
     when ``config.process_noise`` (:func:`pcrb_model_of`).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path (the noise-free truth).
+    config : EstimationConfig
+        Sensors, rates, noises, prior and process noise.
+    schedule : Schedule or None, optional
+        Which sensor reports at which sample; None: from ``config.rates_hz``.
+
+    Returns
+    -------
+    CRLBResult
+        The bound's standard deviations at every sample.
     """
     model = config.model
     dt = 1.0 / sample_rate(traj)
@@ -173,6 +241,20 @@ def sampled_rank_over_time(
     rank test) unless ``scales`` is given; rank by the unit-invariant test of
     :mod:`obsplan.observability.scaling`. With every sensor at the sample rate it tracks the
     continuous Gramian's rank.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The sampled path.
+    config : EstimationConfig
+        The model and the sensors' rates.
+    scales : Scales or None, optional
+        Nondimensionalisation; None: :func:`~obsplan.observability.gramian.rank_scales`.
+
+    Returns
+    -------
+    ndarray of int, shape (N,)
+        Rank of the sampled Gramian up to each sample (0 before any reading).
     """
     model = config.model
     aug = augmented_model(model)

@@ -65,7 +65,20 @@ class LoopCovariance:
 
     def command_std(self, kp: float, kd: float) -> np.ndarray:
         """Std of the feedback command ``-(Kp ε_p + Kd ε_v)`` per epoch and axis [m/s²],
-        shape (J, n)."""
+        shape (J, n).
+
+        Parameters
+        ----------
+        kp : float
+            The guidance's position gain [1/s²].
+        kd : float
+            Its velocity gain [1/s].
+
+        Returns
+        -------
+        ndarray, shape (J, n)
+            The standard deviation of the command [m/s²].
+        """
         n, C = self.n, self.estimated
         i = np.arange(n)
         var = kp**2 * C[:, i, i] + 2 * kp * kd * C[:, i, n + i] + kd**2 * C[:, n + i, n + i]
@@ -73,7 +86,20 @@ class LoopCovariance:
 
     def std(self, which: str, block: str) -> np.ndarray:
         """Per-axis std of ``which`` (``"estimated"``, ``"true"``, ``"filter"``) of ``block``
-        (``"pos"`` [m] or ``"vel"`` [m/s]), shape (J, n)."""
+        (``"pos"`` [m] or ``"vel"`` [m/s]), shape (J, n).
+
+        Parameters
+        ----------
+        which : {"estimated", "true", "filter"}
+            The covariance: of the estimated deviation, of the true deviation, or the filter's.
+        block : {"pos", "vel"}
+            Position or velocity.
+
+        Returns
+        -------
+        ndarray, shape (J, n)
+            The standard deviations, per epoch and axis.
+        """
         n = self.n
         C = getattr(self, which)
         i = np.arange(n) + (0 if block == "pos" else n)
@@ -82,7 +108,24 @@ class LoopCovariance:
 
 def loop_gain_matrix(kp: float, kd: float, dt: float, n: int) -> np.ndarray:
     """``Φ`` of the module docstring: one filter step ``dt`` [s] of the estimated deviation under
-    the guidance's feedback (zero-order hold), shape (2n, 2n)."""
+    the guidance's feedback (zero-order hold), shape (2n, 2n).
+
+    Parameters
+    ----------
+    kp : float
+        Position gain [1/s²].
+    kd : float
+        Velocity gain [1/s].
+    dt : float
+        Filter step [s].
+    n : int
+        Spatial dimension.
+
+    Returns
+    -------
+    ndarray, shape (2n, 2n)
+        The transition ``Φ`` of ``(ε_p, ε_v)``.
+    """
     a = np.array(
         [
             [1.0 - 0.5 * dt**2 * kp, dt - 0.5 * dt**2 * kd],
@@ -106,18 +149,25 @@ def loop_covariance(
 
     Parameters
     ----------
-    model, epochs
+    model, epochs : RecursionModel, Epochs
         The recursion's structure and epochs (:mod:`obsplan.estimation.bounds.riccati`); the times
         of ``epochs`` in seconds.
     P0 : ndarray (m, m)
         The filter's prior at the first sample; the estimate starts on the reference (``ε = 0``).
-    h : ndarray (len(model.range_support), J), rho : ndarray (1, J)
-        Range row and variance at each epoch (as for
+    h : ndarray (len(model.range_support), J)
+        Range row at each epoch (as for
         :func:`~obsplan.estimation.bounds.riccati.run_recursion`).
-    kp, kd
+    rho : ndarray (1, J)
+        Range variance at each epoch.
+    kp, kd : float
         The guidance's gains [1/s²], [1/s].
     mask : ndarray (J, S), optional
         Override of ``epochs.mask``.
+
+    Returns
+    -------
+    LoopCovariance
+        The estimated, true and filter covariances after each epoch's update.
     """
     m, n = model.m, model.n
     T = np.asarray(model.nav, float)

@@ -85,13 +85,34 @@ class Epochs:
         return int(self.gap.max())
 
     def scaled(self, time_unit: float) -> Epochs:
-        """The same epochs with times and steps divided by ``time_unit``."""
+        """The same epochs with times and steps divided by ``time_unit``.
+
+        Parameters
+        ----------
+        time_unit : float
+            The new unit of time, in the current one (e.g. the planner's time scale [s]).
+
+        Returns
+        -------
+        Epochs
+            The epochs with ``dt`` and ``time`` in that unit.
+        """
         return Epochs(self.index, self.gap, self.dt / time_unit, self.mask, self.time / time_unit)
 
     def sample_values(self, per_epoch: np.ndarray) -> np.ndarray:
         """Per-sample values from an ``(..., K J)`` output of the recursion, shape ``(..., N)``.
 
         Column ``j K + i`` holds sample ``index[j] + i`` for ``i < gap[j]``.
+
+        Parameters
+        ----------
+        per_epoch : ndarray, shape (..., K J)
+            Values per epoch and sample of its gap (``K`` = :attr:`max_gap`, zero padded).
+
+        Returns
+        -------
+        ndarray, shape (..., N)
+            The values at every sample.
         """
         K, J = self.max_gap, self.count
         blocks = per_epoch.reshape(*per_epoch.shape[:-1], J, K)
@@ -100,7 +121,25 @@ class Epochs:
 
 
 def make_epochs(t: np.ndarray, mask: np.ndarray) -> Epochs:
-    """Epochs of a sample grid ``t`` (N,) [s] with report mask ``mask`` (N, S) bool."""
+    """Epochs of a sample grid ``t`` (N,) [s] with report mask ``mask`` (N, S) bool.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Sample times of the filter grid [s].
+    mask : ndarray of bool, shape (N, S)
+        Which sensor reports at which sample (:attr:`~obsplan.estimation.schedule.Schedule.mask`).
+
+    Returns
+    -------
+    Epochs
+        The epochs: reports, first and last sample, and step changes.
+
+    Raises
+    ------
+    ConfigError
+        If ``mask`` does not have one row per sample.
+    """
     t = np.asarray(t, float)
     mask = np.asarray(mask, bool)
     N = t.size
@@ -184,7 +223,13 @@ class RecursionModel:
         return int(self.nav.shape[0]) // 2
 
     def key(self) -> tuple:
-        """Hashable identity (the CasADi step is cached on it)."""
+        """Hashable identity (the CasADi step is cached on it).
+
+        Returns
+        -------
+        tuple
+            The arrays' bytes and the structure's sizes and flags.
+        """
         arrays = (self.A, self.q, self.q1, self.q2, self.nav, self.rows, self.row_var)
         return tuple(np.asarray(a, float).tobytes() for a in arrays) + (
             self.row_sensor,
@@ -201,6 +246,18 @@ def faulhaber(k, top: int = 6) -> list:
     """``[S_0(k), ..., S_top(k)]`` with ``S_n(k) = Σ_{i=0}^{k-1} iⁿ`` (``top <= 6``).
 
     Closed forms (Faulhaber), valid for numbers and CasADi symbols alike.
+
+    Parameters
+    ----------
+    k : int, float or casadi.MX
+        Number of terms.
+    top : int, optional
+        Highest power, at most 6.
+
+    Returns
+    -------
+    list
+        ``top + 1`` sums, of the type of ``k``.
     """
     m = k - 1  # S_n(k) = Σ_{i=1}^{m} iⁿ
     sums = [
@@ -226,6 +283,18 @@ def recursion_step(model: RecursionModel, K: int) -> ca.Function:
     step, ``tau`` the epoch's time. Outputs ``P_next`` (m, m), the prior at the next epoch, and
     ``D`` (2n, K): the diagonal of ``nav P navᵀ`` at the samples ``0 .. k-1`` of the gap (zeros
     beyond ``k``).
+
+    Parameters
+    ----------
+    model : RecursionModel
+        The recursion's structure.
+    K : int
+        Largest gap, in samples (:attr:`Epochs.max_gap`).
+
+    Returns
+    -------
+    casadi.Function
+        The epoch step.
     """
     key = (*model.key(), int(K))
     fn = _STEPS.get(key)
@@ -397,15 +466,17 @@ def run_recursion(
 
     Parameters
     ----------
-    model, epochs
-        Structure and epochs.
-    P0 : (m, m)
+    model : RecursionModel
+        Structure.
+    epochs : Epochs
+        Epochs.
+    P0 : ndarray or casadi.MX, shape (m, m)
         Prior covariance at the first sample.
-    h : (len(model.range_support), J)
+    h : ndarray or casadi.MX, shape (len(model.range_support), J)
         Range row at each epoch, its entries on ``model.range_support`` (ndarray or CasADi).
-    rho : (1, J)
+    rho : ndarray or casadi.MX, shape (1, J)
         Range variance at each epoch.
-    mask : (J, S), optional
+    mask : ndarray, shape (J, S), optional
         Override of ``epochs.mask`` (e.g. no range update at the anchor sample of the KF).
 
     Returns
@@ -436,6 +507,21 @@ def position_std(D, n: int, epochs: Epochs):
 
     With CasADi input, returns ``(sum over samples, final value)`` of the same quantity: the
     mission-average and final objectives of the planner.
+
+    Parameters
+    ----------
+    D : ndarray or casadi.MX, shape (2n, K J)
+        Per-sample navigation variances from :func:`run_recursion`.
+    n : int
+        Spatial dimension.
+    epochs : Epochs
+        The recursion's epochs.
+
+    Returns
+    -------
+    ndarray, shape (N,), or tuple of casadi.MX
+        The position standard deviation at every sample [m]; with CasADi input, its sum over
+        the samples and its final value.
     """
     if isinstance(D, np.ndarray):
         return np.sqrt(np.maximum(epochs.sample_values(D[:n].sum(axis=0)), 0.0))
@@ -450,7 +536,29 @@ def position_std(D, n: int, epochs: Epochs):
 def constant_rows(
     sensors: Sequence[str], H: np.ndarray, noise: dict[str, float], slices: dict[str, slice]
 ) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
-    """The DVL / depth rows of an output matrix ``H`` with their variances and sensor indices."""
+    """The DVL / depth rows of an output matrix ``H`` with their variances and sensor indices.
+
+    Parameters
+    ----------
+    sensors : sequence of str
+        The model's sensors, in order.
+    H : ndarray, shape (p, m)
+        Output matrix (constant for the DVL and depth rows).
+    noise : dict of str to float
+        Standard deviation per sensor (DVL [m/s], depth [m]).
+    slices : dict of str to slice
+        Rows of each sensor in ``H`` (:attr:`VehicleModel.output_slices
+        <obsplan.model.vehicle.VehicleModel.output_slices>`).
+
+    Returns
+    -------
+    rows : ndarray, shape (c, m)
+        The constant rows.
+    var : ndarray, shape (c,)
+        Their noise variances.
+    which : tuple of int
+        The sensor index of each row.
+    """
     rows, var, which = [], [], []
     for j, s in enumerate(sensors):
         if s == "range":

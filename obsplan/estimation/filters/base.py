@@ -91,44 +91,140 @@ class Filter(ABC):
     def from_config(
         cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
     ) -> Filter:
-        """The filter of ``config`` (priors ``cov``, process noise ``pn``)."""
+        """The filter of ``config`` (priors ``cov``, process noise ``pn``).
+
+        Parameters
+        ----------
+        config : EstimationConfig
+            The model, sensor noises and filter options.
+        cov : dict of str to ndarray
+            Initial covariances ``p0_ekf``, ``p0_kf`` (:meth:`EstimationConfig.covariances
+            <obsplan.estimation.config.EstimationConfig.covariances>`).
+        pn : ProcessNoise
+            Process noise: per-step covariances or intensities, as the epoch plan it runs on.
+
+        Returns
+        -------
+        Filter
+            The filter.
+        """
 
     @abstractmethod
     def start(
         self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
     ) -> tuple:
-        """A run's initial filter state from the common start ``(x̂0, extra0, r0)``."""
+        """A run's initial filter state from the common start ``(x̂0, extra0, r0)``.
+
+        Parameters
+        ----------
+        xhat0 : ndarray, shape (state_dim of the model,)
+            Initial estimate of ``(p, v[, v_f])`` [m, m/s] (absolute positions).
+        extra0 : ndarray, shape (2,), optional
+            Initial estimates of ``(p0ᵀν0, |ν0|²)`` (the augmented KF's extra states).
+        r0 : float, optional
+            Range reading at the first sample [m] (the augmented KF's anchor ``y0``).
+
+        Returns
+        -------
+        tuple
+            The filter's own initial state of the run (its form is the filter's).
+        """
 
     @abstractmethod
     def run(self, batch: RunBatch, record: RunRecord) -> None:
         """Filter ``batch`` over all its epochs in one compiled call, adding the statistics to
         ``record`` (:meth:`ExtendedKalmanFilter.run
-        <obsplan.estimation.filters.ekf.ExtendedKalmanFilter.run>`)."""
+        <obsplan.estimation.filters.ekf.ExtendedKalmanFilter.run>`).
+
+        Parameters
+        ----------
+        batch : RunBatch
+            The runs' shared epochs, initial states (from :meth:`start`), readings and, in
+            closed loop, input corrections.
+        record : RunRecord
+            The truth at the records and the arrays the statistics are written into.
+        """
 
     @abstractmethod
     def begin(self, batch: RunBatch) -> FilterRun:
-        """The runs of ``batch`` (states from :meth:`start`) at epoch 0, before its update."""
+        """The runs of ``batch`` (states from :meth:`start`) at epoch 0, before its update.
+
+        Parameters
+        ----------
+        batch : RunBatch
+            The runs' shared epochs, initial states (from :meth:`start`) and readings.
+
+        Returns
+        -------
+        FilterRun
+            The runs at epoch 0, not yet updated.
+        """
 
     @abstractmethod
     def predict(self, run: FilterRun) -> None:
-        """Predict ``run`` to its next epoch (exact composed prediction over the segment)."""
+        """Predict ``run`` to its next epoch (exact composed prediction over the segment).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+        """
 
     @abstractmethod
     def update(self, run: FilterRun) -> None:
-        """Update ``run`` with the readings of its current epoch (once per epoch)."""
+        """Update ``run`` with the readings of its current epoch (once per epoch).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+        """
 
     def state(self, run: FilterRun) -> np.ndarray:
         """The runs' estimates in the filter's state, ``(state_dim, R)`` (a Gaussian sum: its
-        mixture's mean)."""
+        mixture's mean).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered.
+
+        Returns
+        -------
+        ndarray, shape (state_dim, R)
+            The estimates (a copy).
+        """
         return _mixture(run)[0]
 
     def covariance(self, run: FilterRun) -> np.ndarray:
         """The runs' covariances, ``(state_dim, state_dim, R)`` (a Gaussian sum: its mixture's,
-        the spread of the means included)."""
+        the spread of the means included).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered.
+
+        Returns
+        -------
+        ndarray, shape (state_dim, state_dim, R)
+            The covariances (a copy).
+        """
         return _mixture(run)[1]
 
     def filter_all(self, run: FilterRun) -> FilterRun:
-        """Update at the current epoch, then predict and update at every later one."""
+        """Update at the current epoch, then predict and update at every later one.
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+
+        Returns
+        -------
+        FilterRun
+            ``run``, at the last epoch and updated.
+        """
         if not run.updated:
             self.update(run)
         while run.epoch + 1 < run.ctx.plan.seg_tab.shape[0]:
@@ -160,7 +256,18 @@ F = TypeVar("F", bound=type[Filter])
 
 
 def register(cls: F) -> F:
-    """Class decorator: add a :class:`Filter` to :data:`REGISTRY` under its ``name``."""
+    """Class decorator: add a :class:`Filter` to :data:`REGISTRY` under its ``name``.
+
+    Returns
+    -------
+    type of Filter
+        ``cls`` itself.
+
+    Raises
+    ------
+    ValueError
+        If a filter of that name is registered already.
+    """
     if cls.name in REGISTRY:
         raise ValueError(f"a filter named {cls.name!r} is registered already")
     REGISTRY[cls.name] = cls
@@ -171,7 +278,29 @@ def make_filter(
     name: str, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
 ) -> Filter:
     """The registered filter ``name`` for ``config`` (priors in ``cov``, process noise ``pn``:
-    per-step covariances or intensities, as the epoch plan it runs on)."""
+    per-step covariances or intensities, as the epoch plan it runs on).
+
+    Parameters
+    ----------
+    name : str
+        Registry key (``"ekf"``, ``"kf"``, ``"gsf"``).
+    config : EstimationConfig
+        The model, sensor noises and filter options.
+    cov : dict of str to ndarray
+        Initial covariances ``p0_ekf``, ``p0_kf``.
+    pn : ProcessNoise
+        Process noise.
+
+    Returns
+    -------
+    Filter
+        The filter.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown name.
+    """
     cls = REGISTRY.get(name)
     if cls is None:
         raise ConfigError(f"unknown filter {name!r}; choose from {', '.join(REGISTRY)}")
@@ -179,5 +308,20 @@ def make_filter(
 
 
 def stacked(states: Sequence[tuple], axis: int, pick: Callable = lambda s: s) -> np.ndarray:
-    """Contiguous stack of one entry of every run's state."""
+    """Contiguous stack of one entry of every run's state.
+
+    Parameters
+    ----------
+    states : sequence of tuple
+        Each run's filter state (:meth:`Filter.start`).
+    axis : int
+        Axis of the result along which the runs are stacked.
+    pick : callable, optional
+        Takes a run's state and returns the entry to stack; default the state itself.
+
+    Returns
+    -------
+    ndarray
+        The stacked entries, C-contiguous.
+    """
     return np.ascontiguousarray(np.stack([pick(s) for s in states], axis=axis))

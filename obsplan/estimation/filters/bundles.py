@@ -53,7 +53,22 @@ Corrections = namedtuple("Corrections", "ce cr")
 
 
 def ekf_model(model: VehicleModel, ctx: RunContext, filt) -> EkfModel:
-    """The :data:`EkfModel` of an EKF ``filt`` on the epochs of ``ctx``."""
+    """The :data:`EkfModel` of an EKF ``filt`` on the epochs of ``ctx``.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The filter's vehicle model.
+    ctx : RunContext
+        The epochs the runs share.
+    filt : ExtendedKalmanFilter
+        The filter (its noise terms, transition and linear rows).
+
+    Returns
+    -------
+    EkfModel
+        The bundle (layouts: :mod:`obsplan.estimation.kernels`).
+    """
     return EkfModel(
         tab=ctx.plan.seg_tab,
         qt=filt.q_terms,
@@ -69,7 +84,22 @@ def ekf_model(model: VehicleModel, ctx: RunContext, filt) -> EkfModel:
 
 
 def kf_model(model: VehicleModel, ctx: RunContext, filt) -> KfModel:
-    """The :data:`KfModel` of an augmented KF ``filt`` on the epochs of ``ctx``."""
+    """The :data:`KfModel` of an augmented KF ``filt`` on the epochs of ``ctx``.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The filter's vehicle model.
+    ctx : RunContext
+        The epochs the runs share.
+    filt : AugmentedKalmanFilter
+        The filter (its noise, transition, linear rows and options).
+
+    Returns
+    -------
+    KfModel
+        The bundle (layouts: :mod:`obsplan.estimation.kernels`).
+    """
     return KfModel(
         tab=ctx.plan.seg_tab,
         rule=ctx.plan.seg_rule,
@@ -89,7 +119,23 @@ def kf_model(model: VehicleModel, ctx: RunContext, filt) -> KfModel:
 
 
 def records(ctx: RunContext, truth_rec: np.ndarray, q_nav: np.ndarray) -> Records:
-    """The :data:`Records` of ``ctx`` with the true ``(p, p')`` ``truth_rec`` (R, Nr, 2n)."""
+    """The :data:`Records` of ``ctx`` with the true ``(p, p')`` ``truth_rec`` (R, Nr, 2n).
+
+    Parameters
+    ----------
+    ctx : RunContext
+        The records and the monitor's settings.
+    truth_rec : ndarray, shape (R, Nr, 2n)
+        True position [m] and inertial velocity [m/s] of each run at the records.
+    q_nav : ndarray, shape (2n, 2n)
+        Per-step process noise of the navigation state
+        (:func:`obsplan.estimation.kalman.nav_noise`).
+
+    Returns
+    -------
+    Records
+        The bundle.
+    """
     return Records(
         rec_base=ctx.plan.rec_base,
         rec=ctx.records_with_truth(truth_rec),
@@ -109,7 +155,26 @@ def outputs(
     ex_run: int = -1,
     example: np.ndarray | None = None,
 ) -> Outputs:
-    """The :data:`Outputs`; without ``example`` no run's history is kept."""
+    """The :data:`Outputs`; without ``example`` no run's history is kept.
+
+    Parameters
+    ----------
+    ctx : RunContext
+        The run context (its placeholder example array).
+    sums : ndarray, shape (2, Nr, cols)
+        Group sums the statistics are added to.
+    info : ndarray, shape (R, N_INFO)
+        Receives the runs' verdicts.
+    ex_run : int, optional
+        The run whose history is kept (-1: none).
+    example : ndarray, shape (2, Nr, 2n), optional
+        Receives that run's estimate and std.
+
+    Returns
+    -------
+    Outputs
+        The bundle.
+    """
     return Outputs(
         sums=sums,
         info=info,
@@ -121,6 +186,19 @@ def outputs(
 def corrections(
     ctx: RunContext, corrections: tuple[np.ndarray, np.ndarray] | None = None
 ) -> Corrections:
-    """The :data:`Corrections` (``None``: open loop, the plan's inputs)."""
+    """The :data:`Corrections` (``None``: open loop, the plan's inputs).
+
+    Parameters
+    ----------
+    ctx : RunContext
+        The run context (:meth:`~obsplan.estimation.epochs.RunContext.corrections`).
+    corrections : tuple of (ndarray, ndarray) or None, optional
+        ``(ce (E, 2n, R), cr (Nr, 2n, R))`` in closed loop; None: open loop.
+
+    Returns
+    -------
+    Corrections
+        The bundle.
+    """
     ce, cr = ctx.corrections(*(corrections or (None, None)))
     return Corrections(ce=ce, cr=cr)

@@ -41,15 +41,15 @@ class ExtendedKalmanFilter(Filter):
 
     Parameters
     ----------
-    model
+    model : VehicleModel
         Vehicle model (sensors, current, beacon, range form).
-    q
+    q : ndarray, shape (state_dim, state_dim)
         Per-step process-noise covariance, shape ``(state_dim, state_dim)``.
-    p0
+    p0 : ndarray, shape (state_dim, state_dim)
         Initial covariance of ``(p, v[, v_f])``.
-    noise
+    noise : dict of str to float
         Measurement standard deviation per sensor (range [m] on ``r``, DVL [m/s], depth [m]).
-    second_order
+    second_order : bool, optional
         The Gaussian second-order range update (module docstring); default the first-order.
     """
 
@@ -81,6 +81,23 @@ class ExtendedKalmanFilter(Filter):
     def from_config(
         cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
     ) -> ExtendedKalmanFilter:
+        """The EKF of ``config`` (``p0_ekf``, ``q_ekf``, noises, ``ekf_update``).
+
+        Parameters
+        ----------
+        config : EstimationConfig
+            The model, sensor noises and filter options.
+        cov : dict of str to ndarray
+            Initial covariances ``p0_ekf``, ``p0_kf`` (:meth:`EstimationConfig.covariances
+            <obsplan.estimation.config.EstimationConfig.covariances>`).
+        pn : ProcessNoise
+            Process noise: per-step covariances or intensities, as the epoch plan it runs on.
+
+        Returns
+        -------
+        ExtendedKalmanFilter
+            The filter.
+        """
         second = config.ekf_update == "second-order"
         return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), second)
 
@@ -88,7 +105,24 @@ class ExtendedKalmanFilter(Filter):
         self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """The filter's ``(x0, P0)`` from the estimate ``xhat0`` of ``(p, v[, v_f])`` (the KF's
-        extras and anchor range are not used)."""
+        extras and anchor range are not used).
+
+        Parameters
+        ----------
+        xhat0 : ndarray, shape (state_dim of the model,)
+            Initial estimate of ``(p, v[, v_f])`` [m, m/s] (absolute positions).
+        extra0 : ndarray, shape (2,), optional
+            Initial estimates of ``(p0ᵀν0, |ν0|²)`` (the augmented KF's extra states).
+        r0 : float, optional
+            Range reading at the first sample [m] (the augmented KF's anchor ``y0``).
+
+        Returns
+        -------
+        x0 : ndarray, shape (state_dim,)
+            Initial estimate.
+        P0 : ndarray, shape (state_dim, state_dim)
+            Initial covariance (the filter's ``p0``).
+        """
         return np.array(xhat0, dtype=float), self.p0.copy()
 
     def run(self, batch: RunBatch, record: RunRecord) -> None:
@@ -100,6 +134,14 @@ class ExtendedKalmanFilter(Filter):
         ``record.info`` receives the runs' verdicts and ``record.example`` the estimate and std
         of run ``record.ex_run`` of the batch. With ``batch.corrections`` (closed loop) each
         run's inputs are the plan's plus its corrections.
+
+        Parameters
+        ----------
+        batch : RunBatch
+            The runs' shared epochs, initial states (from :meth:`start`), readings and, in
+            closed loop, input corrections.
+        record : RunRecord
+            The truth at the records and the arrays the statistics are written into.
         """
         X0, P0, lw0 = self._members(batch.states)
         self._batch(batch, record, X0, P0, lw0, 1)
@@ -137,6 +179,18 @@ class ExtendedKalmanFilter(Filter):
 
     # ------------------------------------------------------------------ epoch by epoch
     def begin(self, batch: RunBatch) -> FilterRun:
+        """The runs of ``batch`` at epoch 0, before its update (:meth:`Filter.begin`).
+
+        Parameters
+        ----------
+        batch : RunBatch
+            The runs' shared epochs, initial states (from :meth:`start`) and readings.
+
+        Returns
+        -------
+        FilterRun
+            The runs at epoch 0, not yet updated.
+        """
         X0, P0, lw0 = self._members(batch.states)
         return self._begin(batch, X0, P0, lw0, 1)
 
@@ -171,6 +225,13 @@ class ExtendedKalmanFilter(Filter):
         )
 
     def predict(self, run: FilterRun) -> None:
+        """Predict ``run`` to its next epoch (:meth:`Filter.predict`).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+        """
         from obsplan.estimation import kernels
 
         p, e = run.parts, run.epoch + 1
@@ -178,6 +239,18 @@ class ExtendedKalmanFilter(Filter):
         run.epoch, run.updated = e, False
 
     def update(self, run: FilterRun) -> None:
+        """Update ``run`` with the readings of its current epoch (:meth:`Filter.update`).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+
+        Raises
+        ------
+        ConfigError
+            If the current epoch is updated already.
+        """
         from obsplan.estimation import kernels
 
         p, mdl = run.parts, run.parts["mdl"]

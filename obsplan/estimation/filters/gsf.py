@@ -47,7 +47,27 @@ DEFAULT_SPLIT = {2: (5, 0.4), 3: (3, 0.5)}
 
 
 def split_1d(k: int, s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Weights and means of ``k`` components of std ``s`` whose mixture has mean 0, variance 1."""
+    """Weights and means of ``k`` components of std ``s`` whose mixture has mean 0, variance 1.
+
+    Parameters
+    ----------
+    k : int
+        Number of components.
+    s : float
+        Standard deviation of each component (whitened), in (0, 1).
+
+    Returns
+    -------
+    w : ndarray, shape (k,)
+        Weights, summing to 1.
+    mu : ndarray, shape (k,)
+        Means, on a symmetric grid.
+
+    Raises
+    ------
+    ConfigError
+        If ``k > 1`` and ``s`` is not in (0, 1).
+    """
     if k == 1:
         return np.ones(1), np.zeros(1)
     if not 0.0 < s < 1.0:
@@ -64,7 +84,19 @@ def split_columns(model: VehicleModel) -> slice:
     """The columns of ``chol(P0)`` the prior is split along: the part of the inertial velocity
     ``p' = v (+ v_f)`` no linear sensor reads. A water-profiling DVL reads ``v`` to the mm/s,
     which would merge a split over ``v`` at its first reading: with a current it is ``v_f``'s
-    (the lower-triangular factor's columns from ``2n`` move only ``v_f``, hence ``p'``)."""
+    (the lower-triangular factor's columns from ``2n`` move only ``v_f``, hence ``p'``).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (sensors and current).
+
+    Returns
+    -------
+    slice
+        The current's columns ``2n:3n`` (current and water-profiling DVL), else the velocity's
+        ``n:2n``.
+    """
     n = model.dim
     if model.current and "dvl-water" in model.sensors:
         return slice(2 * n, 3 * n)
@@ -79,9 +111,9 @@ class GaussianSumFilter(Filter):
     ----------
     model, q, p0, noise
         As for :class:`~obsplan.estimation.filters.ekf.ExtendedKalmanFilter`.
-    split
+    split : tuple of (int, float) or None, optional
         ``(points per velocity axis, component std)``; default :data:`DEFAULT_SPLIT`.
-    second_order
+    second_order : bool, optional
         The components' range update (as for the EKF).
     """
 
@@ -118,6 +150,23 @@ class GaussianSumFilter(Filter):
     def from_config(
         cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
     ) -> GaussianSumFilter:
+        """The Gaussian sum of ``config`` (as the EKF's, default split).
+
+        Parameters
+        ----------
+        config : EstimationConfig
+            The model, sensor noises and filter options.
+        cov : dict of str to ndarray
+            Initial covariances ``p0_ekf``, ``p0_kf`` (:meth:`EstimationConfig.covariances
+            <obsplan.estimation.config.EstimationConfig.covariances>`).
+        pn : ProcessNoise
+            Process noise: per-step covariances or intensities, as the epoch plan it runs on.
+
+        Returns
+        -------
+        GaussianSumFilter
+            The filter.
+        """
         second = config.ekf_update == "second-order"
         return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), None, second)
 
@@ -128,7 +177,26 @@ class GaussianSumFilter(Filter):
     def start(
         self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Components ``(X0, P0, log w0)`` around the estimate ``xhat0``."""
+        """Components ``(X0, P0, log w0)`` around the estimate ``xhat0``.
+
+        Parameters
+        ----------
+        xhat0 : ndarray, shape (state_dim of the model,)
+            Initial estimate of ``(p, v[, v_f])`` [m, m/s] (absolute positions).
+        extra0 : ndarray, shape (2,), optional
+            Initial estimates of ``(p0ᵀν0, |ν0|²)`` (the augmented KF's extra states).
+        r0 : float, optional
+            Range reading at the first sample [m] (the augmented KF's anchor ``y0``).
+
+        Returns
+        -------
+        X0 : ndarray, shape (C, state_dim)
+            The components' means.
+        P0 : ndarray, shape (C, state_dim, state_dim)
+            Their covariances (all equal).
+        log_w0 : ndarray, shape (C,)
+            Their log weights.
+        """
         C = self.components
         X0 = np.asarray(xhat0, float)[None, :] + self.offsets
         P0 = np.ascontiguousarray(
@@ -138,7 +206,16 @@ class GaussianSumFilter(Filter):
 
     def run(self, batch: RunBatch, record: RunRecord) -> None:
         """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`): the EKF's kernel on
-        every run's components, which it mixes by their weights."""
+        every run's components, which it mixes by their weights.
+
+        Parameters
+        ----------
+        batch : RunBatch
+            The runs' shared epochs, initial states (from :meth:`start`), readings and, in
+            closed loop, input corrections.
+        record : RunRecord
+            The truth at the records and the arrays the statistics are written into.
+        """
         X0, P0, lw0 = self._members(batch.states)
         self.ekf._batch(batch, record, X0, P0, lw0, self.components)
 
@@ -152,11 +229,37 @@ class GaussianSumFilter(Filter):
 
     # ------------------------------------------------------------------ epoch by epoch
     def begin(self, batch: RunBatch) -> FilterRun:
+        """The runs' components at epoch 0, before its update (:meth:`Filter.begin`).
+
+        Parameters
+        ----------
+        batch : RunBatch
+            The runs' shared epochs, initial states (from :meth:`start`) and readings.
+
+        Returns
+        -------
+        FilterRun
+            The runs at epoch 0, not yet updated.
+        """
         X0, P0, lw0 = self._members(batch.states)
         return self.ekf._begin(batch, X0, P0, lw0, self.components)
 
     def predict(self, run: FilterRun) -> None:
+        """Predict every component to the next epoch (:meth:`Filter.predict`).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+        """
         self.ekf.predict(run)
 
     def update(self, run: FilterRun) -> None:
+        """Update every component and its weight at the current epoch (:meth:`Filter.update`).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+        """
         self.ekf.update(run)

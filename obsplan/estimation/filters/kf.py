@@ -64,7 +64,22 @@ from obsplan.observability.gramian import augmented_model
 
 
 def anchor(r0: np.ndarray | float, sigma_r: float) -> tuple[np.ndarray, np.ndarray]:
-    """``y0 = ½ r0² - ½ σ²`` and its variance ``r0² σ² + ½ σ⁴`` from the first range reading."""
+    """``y0 = ½ r0² - ½ σ²`` and its variance ``r0² σ² + ½ σ⁴`` from the first range reading.
+
+    Parameters
+    ----------
+    r0 : float or ndarray
+        First range reading(s) [m].
+    sigma_r : float
+        Standard deviation of the range noise [m].
+
+    Returns
+    -------
+    y0 : ndarray
+        The anchor ``y0`` [m²], unbiased.
+    var0 : ndarray
+        Its variance [m⁴].
+    """
     r0 = np.asarray(r0, float)
     return 0.5 * r0**2 - 0.5 * sigma_r**2, r0**2 * sigma_r**2 + 0.5 * sigma_r**4
 
@@ -75,16 +90,16 @@ class AugmentedKalmanFilter(Filter):
 
     Parameters
     ----------
-    model
+    model : VehicleModel
         Vehicle model (sensors, current, beacon); the KF always uses ``ȳ`` built from ``½ r²``.
-    q, p0
+    q, p0 : ndarray
         Per-step process-noise and initial covariances of the paper's augmented state
         ``(p, v[, v_f], α, β)``, shape ``(2n+2, 2n+2)`` (or ``(3n+2, ...)`` with current).
-    noise
+    noise : dict of str to float
         Standard deviation per sensor (range [m] on ``r``).
-    y0_mode
+    y0_mode : {"augment", "inflate"}, optional
         ``"augment"`` or ``"inflate"`` (module docstring).
-    coupling
+    coupling : bool, optional
         Model the process-noise coupling ``e`` of the output (default); ``False`` is the paper's
         output model.
     """
@@ -127,6 +142,23 @@ class AugmentedKalmanFilter(Filter):
     def from_config(
         cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
     ) -> AugmentedKalmanFilter:
+        """The augmented KF of ``config`` (``p0_kf``, ``q_kf``, ``y0_mode``, ``kf_coupling``).
+
+        Parameters
+        ----------
+        config : EstimationConfig
+            The model, sensor noises and filter options.
+        cov : dict of str to ndarray
+            Initial covariances ``p0_ekf``, ``p0_kf`` (:meth:`EstimationConfig.covariances
+            <obsplan.estimation.config.EstimationConfig.covariances>`).
+        pn : ProcessNoise
+            Process noise: per-step covariances or intensities, as the epoch plan it runs on.
+
+        Returns
+        -------
+        AugmentedKalmanFilter
+            The filter.
+        """
         return cls(
             config.model,
             pn.q_kf,
@@ -138,7 +170,18 @@ class AugmentedKalmanFilter(Filter):
 
     def to_chain(self, mz: int) -> np.ndarray:
         """``M`` with ``z_chain(t0) = M (p - b, v[, v_f], α, β)``: ``φ = α``, ``γ = ½β``, ``κ = 0``
-        (the anchor's variance is added to ``κ`` by :meth:`start`)."""
+        (the anchor's variance is added to ``κ`` by :meth:`start`).
+
+        Parameters
+        ----------
+        mz : int
+            Size of the paper's augmented state (``2n + 2``, or ``3n + 2`` with current).
+
+        Returns
+        -------
+        ndarray, shape (state_dim, mz)
+            The map to the filter's chain coordinates.
+        """
         mx = self.model.state_dim
         M = np.zeros((self.state_dim, mz))
         M[:mx, :mx] = np.eye(mx)
@@ -154,12 +197,28 @@ class AugmentedKalmanFilter(Filter):
 
         Parameters
         ----------
-        xhat0 : (state_dim of the model,)
+        xhat0 : ndarray, shape (state_dim of the model,)
             Initial estimate of ``(p, v[, v_f])`` (absolute positions).
-        extra0 : (2,), optional
+        extra0 : ndarray, shape (2,), optional
             Initial estimates of ``(p0ᵀν0, |ν0|²)``; by default computed from ``xhat0``.
-        r0
+        r0 : float, optional
             Range reading at the first sample [m] (the anchor ``y0``).
+
+        Returns
+        -------
+        z0 : ndarray, shape (state_dim,)
+            Initial state in chain coordinates.
+        P0 : ndarray, shape (state_dim, state_dim)
+            Its covariance.
+        y0 : float
+            The anchor [m²].
+        var0 : float
+            The anchor's variance [m⁴].
+
+        Raises
+        ------
+        ConfigError
+            If ``r0`` is missing or not finite.
         """
         if r0 is None:
             r0 = np.nan
@@ -184,7 +243,16 @@ class AugmentedKalmanFilter(Filter):
 
     def run(self, batch: RunBatch, record: RunRecord) -> None:
         """Filter a batch of runs (as :meth:`ExtendedKalmanFilter.run`; ``batch.states`` from
-        :meth:`start`)."""
+        :meth:`start`).
+
+        Parameters
+        ----------
+        batch : RunBatch
+            The runs' shared epochs, initial states (from :meth:`start`), readings and, in
+            closed loop, input corrections.
+        record : RunRecord
+            The truth at the records and the arrays the statistics are written into.
+        """
         from obsplan.estimation import kernels  # numba is loaded on first use
 
         ctx = batch.ctx
@@ -210,6 +278,18 @@ class AugmentedKalmanFilter(Filter):
 
     # ------------------------------------------------------------------ epoch by epoch
     def begin(self, batch: RunBatch) -> FilterRun:
+        """The runs of ``batch`` at epoch 0, before its update (:meth:`Filter.begin`).
+
+        Parameters
+        ----------
+        batch : RunBatch
+            The runs' shared epochs, initial states (from :meth:`start`) and readings.
+
+        Returns
+        -------
+        FilterRun
+            The runs at epoch 0, not yet updated.
+        """
         from obsplan.estimation import kernels
 
         ctx = batch.ctx
@@ -240,6 +320,13 @@ class AugmentedKalmanFilter(Filter):
         )
 
     def predict(self, run: FilterRun) -> None:
+        """Predict ``run`` to its next epoch (:meth:`Filter.predict`).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+        """
         from obsplan.estimation import kernels
 
         p, e = run.parts, run.epoch + 1
@@ -247,6 +334,18 @@ class AugmentedKalmanFilter(Filter):
         run.epoch, run.updated = e, False
 
     def update(self, run: FilterRun) -> None:
+        """Update ``run`` with the readings of its current epoch (:meth:`Filter.update`).
+
+        Parameters
+        ----------
+        run : FilterRun
+            The runs being filtered (mutated in place).
+
+        Raises
+        ------
+        ConfigError
+            If the current epoch is updated already.
+        """
         from obsplan.estimation import kernels
 
         if run.updated:

@@ -26,12 +26,21 @@ def predict(
 
     Parameters
     ----------
-    x : (B, m)
-    P : (B, m, m)
-    F : (m, m)
+    x : ndarray, shape (B, m)
+        Means.
+    P : ndarray, shape (B, m, m)
+        Covariances.
+    F : ndarray, shape (m, m)
         Transition shared by the batch.
-    Q : (B, m, m) or (m, m), optional
+    Q : ndarray, shape (B, m, m) or (m, m), optional
         Process noise of the step (none if omitted).
+
+    Returns
+    -------
+    x : ndarray, shape (B, m)
+        Predicted means.
+    P : ndarray, shape (B, m, m)
+        Predicted covariances.
     """
     x = x @ F.T
     P = F @ P @ F.T
@@ -45,13 +54,28 @@ def update_component(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Update a batch with a scalar reading ``y`` of state component ``c`` (variance ``r``).
 
+    Parameters
+    ----------
+    x : ndarray, shape (B, m)
+        Prior means.
+    P : ndarray, shape (B, m, m)
+        Prior covariances.
+    c : int
+        Index of the state component read.
+    y : float or ndarray, shape (B,)
+        The reading(s), in the unit of that component.
+    r : float or ndarray, shape (B,)
+        Variance of the reading.
+
     Returns
     -------
-    x : (B, m), P : (B, m, m)
-        Posterior mean and covariance (``P`` exactly symmetric).
-    S : (B,)
+    x : ndarray, shape (B, m)
+        Posterior means.
+    P : ndarray, shape (B, m, m)
+        Posterior covariances (exactly symmetric).
+    S : ndarray, shape (B,)
         Innovation variance.
-    e : (B,)
+    e : ndarray, shape (B,)
         Innovation ``y - x_c``.
     """
     S = P[:, c, c] + r
@@ -64,7 +88,20 @@ def update_component(
 
 
 def log_likelihood(S: np.ndarray, e: np.ndarray) -> np.ndarray:
-    """Gaussian log-likelihood of innovations ``e`` of variances ``S``, elementwise."""
+    """Gaussian log-likelihood of innovations ``e`` of variances ``S``, elementwise.
+
+    Parameters
+    ----------
+    S : ndarray
+        Innovation variances.
+    e : ndarray
+        Innovations, same shape.
+
+    Returns
+    -------
+    ndarray
+        ``-½ (log(2π S) + e²/S)``, same shape.
+    """
     return -0.5 * (np.log(2 * np.pi * S) + e * e / S)
 
 
@@ -75,17 +112,19 @@ def rts_smooth(
 
     Parameters
     ----------
-    xf, Pf : (M, B, m), (M, B, m, m)
+    xf, Pf : ndarray, shapes (M, B, m), (M, B, m, m)
         Filtered moments at the ``M`` nodes.
-    xp, Pp : (M, B, m), (M, B, m, m)
+    xp, Pp : ndarray, shapes (M, B, m), (M, B, m, m)
         Predicted moments at the nodes (entry 0 is not used).
-    F : (M - 1, m, m)
+    F : ndarray, shape (M - 1, m, m)
         Transition from node ``k`` to ``k + 1``.
 
     Returns
     -------
-    xs : (M, B, m), Ps : (M, B, m, m)
-        Smoothed means and covariances.
+    xs : ndarray, shape (M, B, m)
+        Smoothed means.
+    Ps : ndarray, shape (M, B, m, m)
+        Smoothed covariances.
     """
     xs = xf.copy()
     Ps = Pf.copy()

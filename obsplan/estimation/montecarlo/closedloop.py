@@ -124,22 +124,22 @@ class ClosedLoop:
 
     Parameters
     ----------
-    traj
+    traj : Trajectory
         The plan on the filter grid (its samples are the filter steps; its ``u`` the feed-forward).
-    config
+    config : EstimationConfig
         Filters, sensors, noises, priors (as for ``monte_carlo``).
-    runs, seed, run_start
+    runs, seed, run_start : int, optional
         Runs ``run_start .. run_start + runs - 1`` of the seed's streams.
-    guidance
+    guidance : Guidance
         The guidance law (gains, acceleration and speed bounds).
-    limits
+    limits : TruthLimits or None, optional
         What the true paths are checked against
         (:class:`~obsplan.estimation.montecarlo.stats.TruthStats`).
-    record_every
+    record_every : int or None, optional
         Statistics every this many samples (default ~1000 records).
-    lines
+    lines : ndarray of bool, shape (N,), optional
         Boolean mask (N,) of the samples of the per-run subset RMSE (``rmse_pos_lines_runs``).
-    filters
+    filters : sequence of str, optional
         Filters whose statistics are reported; the EKF navigates whatever this is.
     """
 
@@ -323,6 +323,19 @@ class ClosedLoop:
         ``references``: from the current sample on, a new reference for every run (one
         trajectory) or one per run, on the filter grid from the current time to at least
         ``until_t``; ``None`` keeps the references in force (at first the plan).
+
+        Parameters
+        ----------
+        until_t : float
+            Time to simulate to [s], a sample of the filter grid, not before the current time.
+        references : Trajectory or sequence of Trajectory or None, optional
+            New reference(s) from the current sample on.
+
+        Raises
+        ------
+        ConfigError
+            If the loop is finished, ``until_t`` is not a sample of the grid or is in the past,
+            or a reference does not fit the grid.
         """
         from obsplan.estimation.montecarlo.loop_kernels import empty_reference, navigate
 
@@ -387,7 +400,14 @@ class ClosedLoop:
 
     # ------------------------------------------------------------------ reading out
     def snapshot(self) -> ClosedLoopState:
-        """Every run's estimate, covariance and truth at the current sample."""
+        """Every run's estimate, covariance and truth at the current sample.
+
+        Returns
+        -------
+        ClosedLoopState
+            The navigation filter's estimate and covariance (a Gaussian sum: its mixture's),
+            the truth and the input responses of every run.
+        """
         s, st, model = self.setup, self._st, self.config.model
         n, m = model.dim, model.state_dim
         k, e_last = self.k, int(st.pos[2])
@@ -427,7 +447,18 @@ class ClosedLoop:
     def result(self, crlb: CRLBResult | None = None) -> MonteCarloResult:
         """Finish the runs (to the end of the path with the references in force), run the
         passive filters and return the statistics (``crlb``: the bound along the plan, computed
-        if not given)."""
+        if not given).
+
+        Parameters
+        ----------
+        crlb : CRLBResult or None, optional
+            The posterior CRB along the plan; None: computed here.
+
+        Returns
+        -------
+        MonteCarloResult
+            The closed loop's statistics (the same object on later calls).
+        """
         if self._result is not None:
             return self._result
         if self.k < self.traj.n_samples - 1 or self._st.pos[1] == 0:

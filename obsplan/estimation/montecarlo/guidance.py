@@ -86,22 +86,22 @@ class Guidance:
 
     Parameters
     ----------
-    accel
+    accel : float or tuple of float
         Acceleration bound per axis [m/s²] (one number applies to every axis).
-    speed
+    speed : float or None
         Bound on the estimated speed ``|p̂'|`` [m/s] (``None``: none).
-    kp
+    kp : float
         Position gain [1/s²].
-    kd
+    kd : float
         Velocity gain [1/s].
-    speed_k
+    speed_k : float, optional
         Velocity stds kept below the speed bound (module docstring, "Speed reserve"); 0: none.
-    on_truth
+    on_truth : bool, optional
         A diagnostic, not a vehicle: feed back the *true* state instead of the estimate (perfect
         navigation, the filter passive). Flying the plan's geometry faithfully without feeding
         the filter's error into the truth separates the two
         (``benchmarks/bench_closed_loop_divergence.py``).
-    navigation
+    navigation : {"ekf", "gsf"}, optional
         The filter the vehicle steers on (:data:`NAVIGATION_FILTERS`): ``"ekf"``, or ``"gsf"``
         (the Gaussian-sum EKF's mixture mean and covariance: an EKF that locks onto a wrong
         branch of the range geometry steers the true vehicle away with it).
@@ -150,17 +150,22 @@ class Guidance:
 
         Parameters
         ----------
-        accel
+        accel : float or sequence of float
             Acceleration bound per axis [m/s²].
-        speed
+        speed : float or None, optional
             Speed bound [m/s] or ``None``.
-        error_scale_m
+        error_scale_m : float, optional
             Typical position error [m] (e.g. the prior position std): the feedback on it uses
             half of the smallest acceleration bound.
-        speed_k
+        speed_k : float, optional
             Velocity stds kept below the speed bound (module docstring, "Speed reserve").
-        navigation
+        navigation : {"ekf", "gsf"}, optional
             The filter steered on (:attr:`navigation`).
+
+        Returns
+        -------
+        Guidance
+            The guidance with ``Kp = ω²``, ``Kd = 2ω``.
         """
         acc = _axes(accel)
         a_min = min(_positive(a, "guidance accel") for a in acc)
@@ -180,7 +185,23 @@ class Guidance:
         return math.sqrt(self.kp)
 
     def bounds(self, dim: int) -> np.ndarray:
-        """The acceleration bound of each of ``dim`` axes [m/s²], shape (dim,)."""
+        """The acceleration bound of each of ``dim`` axes [m/s²], shape (dim,).
+
+        Parameters
+        ----------
+        dim : int
+            Spatial dimension of the vehicle.
+
+        Returns
+        -------
+        ndarray, shape (dim,)
+            The bounds [m/s²].
+
+        Raises
+        ------
+        ConfigError
+            If there are several bounds but not ``dim``.
+        """
         a = np.asarray(self.accel, float)
         if a.size == 1:
             return np.full(dim, float(a[0]))
@@ -189,6 +210,13 @@ class Guidance:
         return a
 
     def to_dict(self) -> dict:
+        """The guidance as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each field by name (bounds as lists).
+        """
         return {
             "accel": list(self.accel),
             "speed": self.speed,
@@ -203,23 +231,23 @@ class Guidance:
 @dataclass(frozen=True)
 class TruthLimits:
     """Limits the *true* path of every run is checked against
-    (:class:`~obsplan.estimation.montecarlo.stats. TruthStats`).
+    (:class:`~obsplan.estimation.montecarlo.stats.TruthStats`).
 
     Parameters
     ----------
-    accel
+    accel : tuple of float or None
         Per-axis acceleration bound [m/s²] of the applied inputs.
-    speed
+    speed : float or None
         Bound on the true speed over ground ``|p'|`` [m/s].
-    area
+    area : tuple of (float, float) or None
         ``((x_min, x_max), (y_min, y_max))`` [m] the path must stay in.
-    depth
+    depth : tuple of float or None
         ``(z_min, z_max)`` [m] (3D; ``z`` is depth).
-    min_range, max_range
+    min_range, max_range : float or None
         Keep-out radius around the beacon and largest distance to it [m].
-    rtol
+    rtol : float
         Relative slack on the speed, acceleration and range bounds (0: strict).
-    atol_m
+    atol_m : float
         Slack [m] on the area and depth bounds (0: strict).
     """
 
@@ -251,7 +279,13 @@ class TruthLimits:
 
     def box(self) -> np.ndarray:
         """Rows x, y (the area) and z (the depth band) as ``(low, high)``, ±inf where unlimited,
-        shape (3, 2) (the kernels' layout)."""
+        shape (3, 2) (the kernels' layout).
+
+        Returns
+        -------
+        ndarray, shape (3, 2)
+            The bounds [m].
+        """
         b = np.tile([-np.inf, np.inf], (3, 1))
         if self.area is not None:
             b[0], b[1] = self.area
@@ -260,13 +294,31 @@ class TruthLimits:
         return b
 
     def accel_bounds(self, dim: int) -> np.ndarray:
-        """Per-axis acceleration bound, shape (dim,) (inf: none)."""
+        """Per-axis acceleration bound, shape (dim,) (inf: none).
+
+        Parameters
+        ----------
+        dim : int
+            Spatial dimension of the vehicle.
+
+        Returns
+        -------
+        ndarray, shape (dim,)
+            The bounds [m/s²].
+        """
         if self.accel is None:
             return np.full(dim, np.inf)
         a = np.asarray(self.accel, float)
         return np.full(dim, float(a[0])) if a.size == 1 else a
 
     def to_dict(self) -> dict:
+        """The limits as a plain mapping (for JSON outputs).
+
+        Returns
+        -------
+        dict
+            Each field by name (None where unlimited).
+        """
         return {
             "accel": None if self.accel is None else list(self.accel),
             "speed": self.speed,

@@ -65,7 +65,17 @@ SPEED_FLOOR = 1.0 - SPEED_RESERVE_CAP
 def nav_measure(pt, gn, st, io, k, e):
     """Epoch ``e`` at sample ``k``: predict the covariance over the gap, the mean ``x_plan + c +
     d``, the readings at the truth, the EKF's updates; then ``d``, ``ce[e] = c`` and every run's
-    bound on the estimated speed (:func:`speed_bounds`)."""
+    bound on the estimated speed (:func:`speed_bounds`).
+
+    Parameters
+    ----------
+    pt, gn, st, io : NavPath, NavGains, NavState, NavIO
+        The bundles (module docstring; built by :mod:`obsplan.estimation.montecarlo.closedloop`).
+    k : int
+        The sample.
+    e : int
+        The epoch at that sample.
+    """
     n = pt.n
     n2 = 2 * n
     X, P = st.X, st.P
@@ -141,7 +151,27 @@ def speed_bounds(X, P, lw, w, G, vl, kv, vmax, n, cur):
     """Per run, from its members' ``X`` (m, B), covariances ``P`` (m, m, B) and log weights
     ``lw`` after an update (``w`` (B,) scratch), the bound ``vl`` (B / G,) on the estimated
     speed: ``vmax`` less ``kv`` stds of the inertial velocity's noisiest axis (guidance.py,
-    "Speed reserve"; of a Gaussian sum, the mixture's variance), at least ``SPEED_FLOOR vmax``."""
+    "Speed reserve"; of a Gaussian sum, the mixture's variance), at least ``SPEED_FLOOR vmax``.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' posteriors.
+    lw, w : ndarray, shape (B,)
+        Their log weights; scratch for the weights.
+    G : int
+        Members per run.
+    vl : ndarray, shape (B / G,)
+        Receives each run's bound on the estimated speed [m/s].
+    kv : float
+        Velocity stds kept below the bound (``Guidance.speed_k``).
+    vmax : float
+        The speed bound [m/s] (inf: none, ``vl`` untouched).
+    n : int
+        Spatial dimension.
+    cur : bool
+        Whether the state has the current ``v_f``.
+    """
     if vmax == math.inf:
         return
     for g in range(P.shape[2] // G):
@@ -166,7 +196,19 @@ def speed_bounds(X, P, lw, w, G, vl, kv, vmax, n, cur):
 
 @jit
 def nav_record(pt, st, io, k, ri, e_last):
-    """Record ``ri`` at sample ``k``: the truth's ``(p, p')``, ``cr[ri] = c``, the statistics."""
+    """Record ``ri`` at sample ``k``: the truth's ``(p, p')``, ``cr[ri] = c``, the statistics.
+
+    Parameters
+    ----------
+    pt, st, io : NavPath, NavState, NavIO
+        The bundles (module docstring).
+    k : int
+        The sample.
+    ri : int
+        The record at that sample.
+    e_last : int
+        The last epoch at or before it.
+    """
     n = pt.n
     B = st.X.shape[1] // pt.G
     g0 = TAB_G + 2 * n
@@ -202,7 +244,33 @@ def nav_record(pt, st, io, k, ri, e_last):
 @inline
 def buffer_truth(xb, j, xplan, nuplan, c, dl, ref, kr, has_ref, k, n, cur):
     """Row ``j`` of every run's metric buffer: the true ``(p, p')`` at sample ``k`` and the
-    reference position (the plan, or ``ref[kr]``)."""
+    reference position (the plan, or ``ref[kr]``).
+
+    Parameters
+    ----------
+    xb : ndarray, shape (R, span, 3n)
+        The runs' metric buffers (rows of :func:`~obsplan.estimation.kernels.span_metrics`).
+    j : int
+        The row to write.
+    xplan, nuplan : ndarray, shapes (N, m), (N, n)
+        The plan's states and inertial velocities [m, m/s].
+    c : ndarray, shape (2n, R)
+        The runs' responses to their input corrections.
+    dl : ndarray, shape (m, R)
+        The runs' process-noise deviations ``δ``.
+    ref : ndarray, shape (K + 1, 3n, R)
+        The runs' references ``(p, p', u)`` (used when ``has_ref``).
+    kr : int
+        Row of ``ref`` at sample ``k``.
+    has_ref : bool
+        The runs follow ``ref`` (else the plan).
+    k : int
+        The sample.
+    n : int
+        Spatial dimension.
+    cur : bool
+        Whether the state has the current ``v_f``.
+    """
     B = c.shape[1]
     for i in range(n):
         xp, vp = xplan[k, i], nuplan[k, i]
@@ -215,7 +283,13 @@ def buffer_truth(xb, j, xplan, nuplan, c, dl, ref, kr, has_ref, k, n, cur):
 
 @jit
 def flush_metrics(pt, st, io):
-    """Add the buffered samples of every run to its truth metrics."""
+    """Add the buffered samples of every run to its truth metrics.
+
+    Parameters
+    ----------
+    pt, st, io : NavPath, NavState, NavIO
+        The bundles (module docstring).
+    """
     K = st.pos[3]
     for b in range(io.xb.shape[0]):
         span_metrics(io.tm, b, io.xb[b], K, pt.n, pt.beacon, pt.box, pt.has_box)
@@ -227,7 +301,33 @@ def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gain
     """The commands of every run at sample ``k`` into ``U`` (n, B) (guidance.py): ``gains`` are
     ``(Kp, Kd, v_max)``, ``vl`` (B,) the per-run bound on the estimated speed; ``sat`` (B,) is 1
     where a run's command saturated, ``V`` (n, B) receives the estimated inertial velocities
-    ``p̂'``. ``d`` is the estimate's offset (or, for ``Guidance.on_truth``, the truth's ``δ``)."""
+    ``p̂'``. ``d`` is the estimate's offset (or, for ``Guidance.on_truth``, the truth's ``δ``).
+
+    Parameters
+    ----------
+    U, V, sat : ndarray, shapes (n, B), (n, B), (B,)
+        Receive the commands [m/s²], the estimated inertial velocities [m/s], the saturation.
+    c, d : ndarray, shapes (2n, B), (m, B)
+        The runs' responses to their corrections and the estimate's offsets.
+    ref, kr, has_ref
+        As for :func:`buffer_truth`.
+    xplan, nuplan, uplan : ndarray, shapes (N, m), (N, n), (N, n)
+        The plan's states, inertial velocities and inputs.
+    k : int
+        The sample.
+    amax : ndarray, shape (n,)
+        The guidance's acceleration bounds [m/s²].
+    gains : tuple of float
+        ``(Kp, Kd, v_max)``.
+    vl : ndarray, shape (B,)
+        The runs' bounds on the estimated speed [m/s].
+    hk : float
+        The step [s].
+    n : int
+        Spatial dimension.
+    cur : bool
+        Whether the state has the current ``v_f``.
+    """
     B = c.shape[1]
     kp, kd, vmax = gains
     for b in range(B):
@@ -267,7 +367,35 @@ def guide(U, V, sat, c, d, ref, kr, has_ref, xplan, nuplan, uplan, k, amax, gain
 @inline
 def propagate(c, d, dl, U, sat, tm, uplan, alim, k, hk, n, cur, L, sc, z, kz):
     """``c``, ``d``, ``δ`` of every run from sample ``k`` to ``k + 1`` with the commands ``U``;
-    the saturation count and the largest ``|u_i| / accel_i`` go to the metrics ``tm``."""
+    the saturation count and the largest ``|u_i| / accel_i`` go to the metrics ``tm``.
+
+    Parameters
+    ----------
+    c, d, dl : ndarray, shapes (2n, B), (m, B), (m, B)
+        The runs' ``c``, ``d`` and ``δ``, updated in place.
+    U, sat : ndarray, shapes (n, B), (B,)
+        The commands [m/s²] and whether they saturated (:func:`guide`).
+    tm : ndarray, shape (B, N_TM)
+        The runs' truth metrics, updated.
+    uplan : ndarray, shape (N, n)
+        The plan's inputs [m/s²].
+    alim : ndarray, shape (n,)
+        The truth's acceleration limits [m/s²] (inf: none).
+    k : int
+        The sample.
+    hk : float
+        The step [s].
+    n : int
+        Spatial dimension.
+    cur : bool
+        Whether the state has the current ``v_f``.
+    L, sc : ndarray, shapes (m, r), (m,)
+        The process-noise factor and its step scaling ``h_k^expo``.
+    z : ndarray, shape (K, r, B)
+        Process-noise normals.
+    kz : int
+        Row of ``z`` of this step.
+    """
     B = c.shape[1]
     m, r = L.shape
     h2 = 0.5 * hk * hk
@@ -299,7 +427,23 @@ def propagate(c, d, dl, U, sat, tm, uplan, alim, k, hk, n, cur, L, sc, z, kz):
 def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
     """Steps ``k_from → k_to`` (no epoch or record strictly between them): guidance, then ``c``,
     ``d``, ``δ`` step, then the new sample's truth is buffered. One call per gap between events,
-    the bundles unpacked once: per step only arrays are passed to the inlined parts."""
+    the bundles unpacked once: per step only arrays are passed to the inlined parts.
+
+    Parameters
+    ----------
+    pt, gn, st, io : NavPath, NavGains, NavState, NavIO
+        The bundles (module docstring; built by :mod:`obsplan.estimation.montecarlo.closedloop`).
+    z : ndarray, shape (K, r, B)
+        Process-noise normals of the steps from ``ka``.
+    ref : ndarray, shape (K + 1, 3n, B)
+        The runs' references from sample ``ka`` (used when ``has_ref``).
+    ka : int
+        The sample the rows of ``z`` and ``ref`` start at.
+    has_ref : bool
+        The runs follow ``ref`` (else the plan).
+    k_from, k_to : int
+        The samples the steps go from and to.
+    """
     n, cur, h, expo = pt.n, pt.cur, pt.h, pt.expo
     xplan, nuplan, uplan, amax, alim, L = pt.xplan, pt.nuplan, pt.uplan, gn.amax, pt.alim, pt.L
     c, d, dl, U, V, sat, sc, pos = st.c, st.d, st.dl, st.u, st.nu, st.sat, st.sc, st.pos
@@ -348,7 +492,17 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
     command not). ``z`` (K, r, B) are the process-noise normals of steps ``ka ..``, ``ref``
     (K + 1, 3n, B) the runs' references ``(p, p', u)`` from sample ``ka`` (``has_ref``; else the
     plan). The truth of a sample is buffered for the metrics when the step to it is taken
-    (sample 0 here); the measurement does not change the truth, so the order is free."""
+    (sample 0 here); the measurement does not change the truth, so the order is free.
+
+    Parameters
+    ----------
+    pt, gn, st, io : NavPath, NavGains, NavState, NavIO
+        The bundles (module docstring; built by :mod:`obsplan.estimation.montecarlo.closedloop`).
+    z, ref, ka, has_ref
+        As for :func:`nav_run`.
+    k_end : int
+        The sample to advance to.
+    """
     k, phase, e_last = st.pos[0], st.pos[1], st.pos[2]
     while True:
         if phase == 0:
@@ -376,5 +530,18 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
 
 
 def empty_reference(n: int, B: int) -> np.ndarray:
-    """Placeholder for ``ref`` when the runs follow the plan."""
+    """Placeholder for ``ref`` when the runs follow the plan.
+
+    Parameters
+    ----------
+    n : int
+        Spatial dimension.
+    B : int
+        Number of runs in the batch.
+
+    Returns
+    -------
+    ndarray, shape (1, 3n, B)
+        Zeros (the reference layout of :func:`navigate`: ``(p, p', u)`` per run).
+    """
     return np.zeros((1, 3 * n, B))

@@ -80,12 +80,33 @@ def _ax(ax, projection: str | None = None):
 
 
 def close(fig: Figure) -> None:
-    """Release a figure's memory."""
+    """Release a figure's memory.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure to close.
+    """
     plt.close(fig)
 
 
 def plot_trajectory_estimates(hist: RunHistory, ax=None, beacon=None) -> Figure:
-    """True path and each filter's estimated path (run 0), in the plane or in 3D (panel a)."""
+    """True path and each filter's estimated path (run 0), in the plane or in 3D (panel a).
+
+    Parameters
+    ----------
+    hist : RunHistory
+        Run 0's history (truth, each filter's estimate and std).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+    beacon : array_like, shape (n,), optional
+        Beacon position [m]; None: the origin.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     n = hist.truth.shape[1] // 2
     fig, ax = _ax(ax, "3d" if n == 3 and ax is None else None)
     is3d = getattr(ax, "name", "") == "3d"
@@ -110,7 +131,22 @@ def plot_trajectory_estimates(hist: RunHistory, ax=None, beacon=None) -> Figure:
 
 
 def plot_error_norms(hist: RunHistory, ax=None, velocity: bool = False) -> Figure:
-    """``|p̂ - p|`` (or ``|p̂' - p'|``) of each filter over time, run 0 (panel b)."""
+    """``|p̂ - p|`` (or ``|p̂' - p'|``) of each filter over time, run 0 (panel b).
+
+    Parameters
+    ----------
+    hist : RunHistory
+        Run 0's history (truth, each filter's estimate and std).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+    velocity : bool, optional
+        Plot the velocity error [m/s] instead of the position error [m].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     for name in hist.estimate:
         e = hist.vel_error(name) if velocity else hist.pos_error(name)
@@ -123,7 +159,22 @@ def plot_error_norms(hist: RunHistory, ax=None, velocity: bool = False) -> Figur
 
 
 def plot_std(hist: RunHistory, ax=None, velocity: bool = False) -> Figure:
-    """Per-axis standard deviations of each filter (run 0): position (c) or velocity (d)."""
+    """Per-axis standard deviations of each filter (run 0): position (c) or velocity (d).
+
+    Parameters
+    ----------
+    hist : RunHistory
+        Run 0's history (truth, each filter's estimate and std).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+    velocity : bool, optional
+        Plot the velocity std [m/s] instead of the position std [m].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     n = hist.truth.shape[1] // 2
     off = n if velocity else 0
@@ -145,7 +196,24 @@ def plot_std(hist: RunHistory, ax=None, velocity: bool = False) -> Figure:
 
 
 def plot_gramian_rank(t: np.ndarray, rank: np.ndarray, full: int, ax=None) -> Figure:
-    """Rank of the augmented Gramian ``G(t, t0)`` over time, with the full rank marked."""
+    """Rank of the augmented Gramian ``G(t, t0)`` over time, with the full rank marked.
+
+    Parameters
+    ----------
+    t : ndarray, shape (K,)
+        Times [s].
+    rank : ndarray of int, shape (K,)
+        Rank at those times.
+    full : int
+        Full rank (the augmented state's dimension).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     ax.step(t, rank, where="post", color="tab:green", label="rank G(t, t0)")
     ax.axhline(full, color="k", ls=":", lw=1, label=f"full rank = {full}")
@@ -157,7 +225,20 @@ def plot_gramian_rank(t: np.ndarray, rank: np.ndarray, full: int, ax=None) -> Fi
 
 
 def plot_range_measurements(hist: RunHistory, ax=None) -> Figure:
-    """The range readings of run 0 [m] (Fig. 9d)."""
+    """The range readings of run 0 [m] (Fig. 9d).
+
+    Parameters
+    ----------
+    hist : RunHistory
+        Run 0's history (truth, each filter's estimate and std).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     ax.plot(hist.range_t, hist.range_m, ".", ms=3, color="tab:purple", label="range reading")
     ax.set_xlabel("t [s]")
@@ -167,7 +248,20 @@ def plot_range_measurements(hist: RunHistory, ax=None) -> Figure:
 
 
 def plot_monte_carlo(result: MonteCarloData, ax=None) -> Figure:
-    """RMSE of position over the runs for each filter with its mean std and the CRB."""
+    """RMSE of position over the runs for each filter with its mean std and the CRB.
+
+    Parameters
+    ----------
+    result : MonteCarloData
+        A Monte Carlo result (:class:`~obsplan.estimation.montecarlo.results.MonteCarloResult`).
+    ax : matplotlib.axes.Axes or None, optional
+        Axes to draw on; None: a new figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
     fig, ax = _ax(ax)
     for name, s in filter_stats(result).items():
         ax.semilogy(result.t, s.rmse_pos_t, color=_color(name), label=f"{_label(name)} RMSE")
@@ -192,7 +286,32 @@ def scenario_figure(
     """Six panels like the paper's figures: (a) paths, (b) error norms, (c) position std,
     (d) velocity std, (e) Gramian rank (without ``rank``: the runs' RMSE), (f) range readings.
 
-    ``traj`` (the path flown, or None) is not drawn: run 0's history holds the true path."""
+    Parameters
+    ----------
+    traj : Trajectory or None
+        The path flown; not drawn: run 0's history holds the true path.
+    result : MonteCarloData
+        Its Monte Carlo result, with run 0's history.
+    rank_t : ndarray, shape (K,), optional
+        Times [s] of the Gramian ranks.
+    rank : ndarray of int, shape (K,), optional
+        Gramian rank at those times; without the three rank arguments panel (e) shows the
+        RMSE of :func:`plot_monte_carlo`.
+    full_rank : int, optional
+        Full rank of the Gramian.
+    title : str, optional
+        Title of the figure.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The new figure.
+
+    Raises
+    ------
+    ValueError
+        If the result holds no run history.
+    """
     hist = result.example
     if hist is None:
         raise ValueError("the result holds no run history (monte_carlo keeps run 0's history)")
@@ -220,7 +339,22 @@ def scenario_figure(
 
 
 def save(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
-    """Save ``fig`` to ``path`` (parent folders created) and close it."""
+    """Save ``fig`` to ``path`` (parent folders created) and close it.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or Path
+        The image file; its suffix chooses the format.
+    dpi : int, optional
+        Resolution [dots per inch].
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=dpi)

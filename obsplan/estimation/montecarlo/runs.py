@@ -45,6 +45,23 @@ BATCH = 32
 
 
 def check_filters(filters: Sequence[str]) -> tuple[str, ...]:
+    """The filters to run, checked against :data:`FILTERS`.
+
+    Parameters
+    ----------
+    filters : sequence of str
+        Filter names.
+
+    Returns
+    -------
+    tuple of str
+        The names, in the order given.
+
+    Raises
+    ------
+    ConfigError
+        For an empty list, an unknown name or a name given twice.
+    """
     out = tuple(filters)
     bad = [f for f in out if f not in FILTERS]
     if bad or not out or len(set(out)) != len(out):
@@ -56,6 +73,27 @@ def check_filters(filters: Sequence[str]) -> tuple[str, ...]:
 
 
 def check_runs(runs: int, seed: int, run_start: int) -> tuple[int, int, int]:
+    """The run count, seed and first run index of a Monte Carlo, checked.
+
+    Parameters
+    ----------
+    runs : int
+        Number of runs, >= 1.
+    seed : int
+        Seed of the random streams, >= 0.
+    run_start : int
+        Index of the first run (a shard of a larger Monte Carlo), >= 0.
+
+    Returns
+    -------
+    runs, seed, run_start : int
+        The three as Python integers.
+
+    Raises
+    ------
+    ConfigError
+        If one is not an integer in its range (a bool is not an integer here).
+    """
     if isinstance(runs, bool) or int(runs) != runs or int(runs) < 1:
         raise ConfigError(f"runs must be a positive number of runs, got {runs!r}")
     if isinstance(seed, bool) or int(seed) != seed or int(seed) < 0:
@@ -82,18 +120,24 @@ class PathSetup:
 
     Parameters
     ----------
-    traj, config
+    traj, config : Trajectory, EstimationConfig
         The path (its samples are the filter steps) and the configuration.
-    names
+    names : sequence of str
         Filters to run (names of :data:`FILTERS`).
-    record_every
+    record_every : int or None
         Record stride (:func:`~obsplan.estimation.epochs.record_samples`).
-    runs
+    runs : int
         Number of runs (sizes the per-run info).
-    lines
+    lines : ndarray of bool, shape (N,), optional
         Boolean mask (N,) of the samples of the subset RMSE (e.g. on survey lines), or None.
-    limits
+    limits : TruthLimits, optional
         The truth's limits (for the area and depth bounds), or None.
+
+    Raises
+    ------
+    ConfigError
+        If the model and the path differ in dimension, or ``lines`` is not a mask of the path's
+        samples.
     """
 
     def __init__(self, traj, config, names, record_every, runs, lines=None, limits=None):
@@ -171,7 +215,22 @@ class RunDraws:
 
 def draw_run(setup: PathSetup, seed: int, run: int) -> RunDraws:
     """Run ``run``'s initial error and reading draws from its streams (the process noise is
-    drawn by the caller: all at once in open loop, block by block in closed loop)."""
+    drawn by the caller: all at once in open loop, block by block in closed loop).
+
+    Parameters
+    ----------
+    setup : PathSetup
+        The path's shared setup (epochs, priors).
+    seed : int
+        The Monte Carlo's seed.
+    run : int
+        Run index.
+
+    Returns
+    -------
+    RunDraws
+        The run's initial errors and reading draws.
+    """
     config, model = setup.config, setup.model
     g0 = run_rng(seed, run, STREAM_INIT)
     extra_err = None
@@ -187,7 +246,25 @@ def draw_run(setup: PathSetup, seed: int, run: int) -> RunDraws:
 def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float):
     """``(x̂0, extra0, r0)`` of a run that starts at the true state ``x0`` with first range
     reading ``r0``: the filters' common start
-    (:meth:`~obsplan.estimation.filters.ekf.ExtendedKalmanFilter.start`)."""
+    (:meth:`~obsplan.estimation.filters.ekf.ExtendedKalmanFilter.start`).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model.
+    x0 : ndarray, shape (state_dim,)
+        True initial state ``(p, v[, v_f])`` [m, m/s].
+    draws : RunDraws
+        The run's draws (its initial errors).
+    r0 : float
+        First range reading [m].
+
+    Returns
+    -------
+    tuple
+        ``(x̂0, extra0, r0)``: the initial estimate, the KF's extras (None unless sampled) and
+        the anchor range.
+    """
     n = model.dim
     extra0 = None
     if draws.extra_err is not None:
@@ -199,7 +276,20 @@ def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float):
 
 
 def nav_of(model, x: np.ndarray) -> np.ndarray:
-    """``(p, p')`` of states ``x`` (..., state_dim) -> (..., 2n)."""
+    """``(p, p')`` of states ``x`` (..., state_dim) -> (..., 2n).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (dimension, current).
+    x : ndarray, shape (..., state_dim)
+        States ``(p, v[, v_f])``.
+
+    Returns
+    -------
+    ndarray, shape (..., 2n)
+        Position [m] and inertial velocity ``v (+ v_f)`` [m/s].
+    """
     n = model.dim
     nu = x[..., n : 2 * n] + (x[..., 2 * n : 3 * n] if model.current else 0.0)
     return np.concatenate([x[..., :n], nu], axis=-1)

@@ -98,31 +98,31 @@ def monte_carlo(
 
     Parameters
     ----------
-    traj
+    traj : Trajectory
         The path (its samples are the model steps; its ``p'`` is the inertial velocity).
-    config
+    config : EstimationConfig
         Model, sensors' rates and noises, covariances, initial error, truth options.
-    runs
+    runs : int, optional
         Number of independent runs.
-    seed
+    seed : int, optional
         Seed of every random draw (an integer ≥ 0).
-    progress
+    progress : bool, optional
         Show a progress bar over runs.
-    filters
+    filters : sequence of str, optional
         Names from :data:`FILTERS` (default :data:`DEFAULT_FILTERS`).
-    record_every
+    record_every : int or None, optional
         Statistics are recorded every this many samples (and at the last one); by default
         ``max(1, N // 1000)``, so long runs keep ~1000 points (the time resolution of the
         convergence time). ``MonteCarloResult.t`` holds the recorded times.
-    run_start
+    run_start : int, optional
         Index of the first run in the seed's streams: runs ``run_start .. run_start+runs-1``
         are computed (shards of one Monte Carlo, merged by :func:`merge_monte_carlo`).
-    guidance
+    guidance : Guidance or None, optional
         Fly the path in closed loop with this guidance law (module docstring); ``None``: open
         loop.
-    limits
+    limits : TruthLimits or None, optional
         Limits the true paths are checked against (``MonteCarloResult.truth``).
-    lines
+    lines : ndarray of bool, shape (N,), optional
         Boolean mask (N,) of the samples of a per-run subset RMSE (e.g. on survey lines).
 
     Returns
@@ -130,6 +130,11 @@ def monte_carlo(
     MonteCarloResult
         Statistics per filter, the bound, the true paths; ``summary()``, ``plot()`` and
         ``to_dict()`` give what ``obsplan simulate`` prints, draws and writes (``--json``).
+
+    Raises
+    ------
+    ConfigError
+        For bad runs, seed, filters or masks, or a model of another dimension than the path.
 
     Notes
     -----
@@ -186,6 +191,41 @@ def monte_carlo_paths(
     Each result equals ``monte_carlo(path, ...)``; open loop, paths on the same time grid share
     every random draw and the truth's process-noise deviation, which are then computed once per
     run. ``lines`` holds one mask (or None) per path.
+
+    Parameters
+    ----------
+    paths : sequence of Trajectory
+        The paths, at least one.
+    config : EstimationConfig
+        Model, sensors' rates and noises, covariances, initial error, truth options.
+    runs : int, optional
+        Number of independent runs per path.
+    seed : int, optional
+        Seed of every random draw (an integer ≥ 0).
+    progress : bool, optional
+        Show a progress bar over runs.
+    filters : sequence of str, optional
+        Names from :data:`FILTERS`.
+    record_every : int or None, optional
+        Record stride in samples (:func:`monte_carlo`).
+    run_start : int, optional
+        Index of the first run in the seed's streams.
+    guidance : Guidance or None, optional
+        Fly every path in closed loop with this guidance law; ``None``: open loop.
+    limits : TruthLimits or None, optional
+        Limits the true paths are checked against.
+    lines : sequence of (ndarray of bool or None), optional
+        One mask (or None) per path of the samples of the subset RMSE.
+
+    Returns
+    -------
+    list of MonteCarloResult
+        One result per path, in order.
+
+    Raises
+    ------
+    ConfigError
+        For no path, bad runs, seed or filters, or not one mask per path.
     """
     runs, seed, run_start = check_runs(runs, seed, run_start)
     names = check_filters(filters)

@@ -70,12 +70,40 @@ MONITOR_WINDOW_FRACTION = 0.1
 
 
 def chi2_quantile(p: float, dof: float) -> float:
-    """``p``-quantile of ``χ²(dof)``."""
+    """``p``-quantile of ``χ²(dof)``.
+
+    Parameters
+    ----------
+    p : float
+        Probability, in (0, 1).
+    dof : float
+        Degrees of freedom.
+
+    Returns
+    -------
+    float
+        The quantile.
+    """
     return float(chdtri(dof, 1.0 - p))
 
 
 def nees_bounds(runs: int, dof: int, level: float = 0.95) -> tuple[float, float]:
-    """Two-sided ``level`` interval of the run-averaged NEES of a consistent filter."""
+    """Two-sided ``level`` interval of the run-averaged NEES of a consistent filter.
+
+    Parameters
+    ----------
+    runs : int
+        Number of runs ``M`` averaged.
+    dof : int
+        Dimension of the state the NEES is of (``2n`` for ``(p, p')``).
+    level : float, optional
+        Probability of the interval.
+
+    Returns
+    -------
+    lo, hi : float
+        The bounds; NaN for no runs.
+    """
     if runs < 1:
         return (float("nan"), float("nan"))
     a = 0.5 * (1.0 - level)
@@ -84,7 +112,22 @@ def nees_bounds(runs: int, dof: int, level: float = 0.95) -> tuple[float, float]
 
 
 def convergence_time(t: np.ndarray, err: np.ndarray, threshold: float) -> float | None:
-    """First time after which ``err`` stays at or below ``threshold`` (None if it ends above)."""
+    """First time after which ``err`` stays at or below ``threshold`` (None if it ends above).
+
+    Parameters
+    ----------
+    t : ndarray, shape (Nr,)
+        Recorded times [s].
+    err : ndarray, shape (Nr,)
+        An error at those times (e.g. the position RMSE [m]); NaN counts as above.
+    threshold : float
+        Convergence threshold, in the unit of ``err``.
+
+    Returns
+    -------
+    float or None
+        The time [s] (``t[0]`` if never above), or None if the last value is above.
+    """
     above = np.flatnonzero(~(err <= threshold))
     if above.size == 0:
         return float(t[0])
@@ -93,7 +136,18 @@ def convergence_time(t: np.ndarray, err: np.ndarray, threshold: float) -> float 
 
 
 def empty_metrics(runs: int) -> np.ndarray:
-    """The kernels' truth metrics (runs, N_TM) before any sample."""
+    """The kernels' truth metrics (runs, N_TM) before any sample.
+
+    Parameters
+    ----------
+    runs : int
+        Number of runs (or paths).
+
+    Returns
+    -------
+    ndarray, shape (runs, N_TM)
+        Zeros, the closest range ``inf`` (layout: :mod:`obsplan.estimation.columns`).
+    """
     tm = np.zeros((runs, N_TM))
     tm[:, TM_CLOSEST] = np.inf
     return tm
@@ -134,7 +188,23 @@ class StatsSums:
 
     @staticmethod
     def merge(parts: Sequence[StatsSums]) -> StatsSums:
-        """The statistics of the union of disjoint sets of runs (parts in run order)."""
+        """The statistics of the union of disjoint sets of runs (parts in run order).
+
+        Parameters
+        ----------
+        parts : sequence of StatsSums
+            Statistics recorded on the same grid.
+
+        Returns
+        -------
+        StatsSums
+            The sums added, the per-run rows concatenated.
+
+        Raises
+        ------
+        ConfigError
+            If the parts were recorded on different grids.
+        """
         shapes = {p.sums.shape for p in parts}
         if len(shapes) != 1:
             raise ConfigError(f"cannot merge statistics recorded on different grids: {shapes}")
@@ -175,6 +245,13 @@ class GroupStats:
     nees_t: np.ndarray
 
     def to_dict(self) -> dict:
+        """The group's summary (for JSON outputs; no arrays).
+
+        Returns
+        -------
+        dict
+            ``runs`` and the scalar statistics (None where not finite).
+        """
         return {
             "runs": int(self.runs),
             "rmse_pos": _num(self.rmse_pos),
@@ -298,7 +375,22 @@ class FilterStats:
 
     @classmethod
     def from_sums(cls, s: StatsSums, t: np.ndarray, threshold: float) -> FilterStats:
-        """Statistics over all runs of ``s`` recorded at times ``t``."""
+        """Statistics over all runs of ``s`` recorded at times ``t``.
+
+        Parameters
+        ----------
+        s : StatsSums
+            The sufficient statistics.
+        t : ndarray, shape (Nr,)
+            Recorded times [s].
+        threshold : float
+            Convergence threshold on the position error [m].
+
+        Returns
+        -------
+        FilterStats
+            The statistics over all runs and per monitor group.
+        """
         n = s.dim
         info = s.info
         R = info.shape[0]
@@ -342,7 +434,14 @@ class FilterStats:
         )
 
     def to_dict(self) -> dict:
-        """The stable keys of ``obsplan simulate --json`` first, then the extras (no arrays)."""
+        """The stable keys of ``obsplan simulate --json`` first, then the extras (no arrays).
+
+        Returns
+        -------
+        dict
+            Scalar statistics (None where not finite) and the ``unflagged`` and ``flagged``
+            groups (:meth:`GroupStats.to_dict`).
+        """
         return {
             "final_pos_err": _num(self.final_pos_err),
             "rmse_pos": _num(self.rmse_pos),
@@ -410,7 +509,20 @@ class TruthStats:
 
     @classmethod
     def from_metrics(cls, tm: np.ndarray, limits: TruthLimits | None) -> TruthStats:
-        """From the kernels' per-run metrics ``tm`` (runs, N_TM)."""
+        """From the kernels' per-run metrics ``tm`` (runs, N_TM).
+
+        Parameters
+        ----------
+        tm : ndarray, shape (runs, N_TM)
+            The metrics (layout: :mod:`obsplan.estimation.columns`).
+        limits : TruthLimits or None
+            The limits the paths are judged against.
+
+        Returns
+        -------
+        TruthStats
+            The per-run arrays.
+        """
         steps = np.maximum(tm[:, TM_SAMPLES] - 1.0, 1.0)
         return cls(
             closest_range_runs=np.sqrt(tm[:, TM_CLOSEST]),
@@ -427,7 +539,18 @@ class TruthStats:
 
     @staticmethod
     def merge(parts: Sequence[TruthStats]) -> TruthStats:
-        """The union of disjoint sets of runs (parts in run order)."""
+        """The union of disjoint sets of runs (parts in run order).
+
+        Parameters
+        ----------
+        parts : sequence of TruthStats
+            The parts, with the same limits.
+
+        Returns
+        -------
+        TruthStats
+            The per-run arrays concatenated.
+        """
         names = [f for f in TruthStats.__dataclass_fields__ if f.endswith("_runs")]
         cat = {f: np.concatenate([getattr(p, f) for p in parts]) for f in names}
         return TruthStats(**cat, limits=parts[0].limits)
@@ -457,7 +580,14 @@ class TruthStats:
         return int(np.sum(self.violations().get("min_range", np.zeros(self.runs, bool))))
 
     def violations(self) -> dict[str, np.ndarray]:
-        """Per limit that is set, which runs break it on their true path, (runs,) bool."""
+        """Per limit that is set, which runs break it on their true path, (runs,) bool.
+
+        Returns
+        -------
+        dict of str to ndarray of bool, shape (runs,)
+            Keys among ``accel``, ``speed``, ``area``, ``depth``, ``min_range``,
+            ``max_range``; empty without limits.
+        """
         lim = self.limits
         out: dict[str, np.ndarray] = {}
         if lim is None:
@@ -483,7 +613,13 @@ class TruthStats:
         accel_i - 1``), the speed [m/s], the area box and the depth band [m, the excursions],
         ``min_range`` and ``max_range`` [m, radial]. The same comparisons as
         :meth:`violations`: a run breaks a limit exactly where its excess is positive (at
-        ``rtol = atol_m = 0``)."""
+        ``rtol = atol_m = 0``).
+
+        Returns
+        -------
+        dict of str to ndarray, shape (runs,)
+            The excess per limit, >= 0; empty without limits.
+        """
         lim = self.limits
         out: dict[str, np.ndarray] = {}
         if lim is None:
@@ -515,7 +651,13 @@ class TruthStats:
     def breaks_words(self) -> str:
         """``"speed in 100.0 % (by up to 0.00087 m/s), depth in 8.0 % (by up to 1.2 m)"``: every
         limit some run's true path breaks, the fraction of runs and the worst excess ("" if
-        none)."""
+        none).
+
+        Returns
+        -------
+        str
+            The limits broken, comma-separated.
+        """
         worst = self.worst_excess
         words = []
         for name, frac in self.violation_fraction.items():
@@ -543,6 +685,14 @@ class TruthStats:
         return self.any_violation_runs / self.runs if self.runs else 0.0
 
     def to_dict(self) -> dict:
+        """The summary of the true paths (for JSON outputs; no per-run arrays).
+
+        Returns
+        -------
+        dict
+            Closest range [m], tracking RMSE and final drift [m], largest speed [m/s],
+            saturated fraction, the violations and excesses per limit, and the limits.
+        """
         return {
             "runs": self.runs,
             "closest_range_m": _num(self.closest_range_m),

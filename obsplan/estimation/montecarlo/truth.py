@@ -53,7 +53,24 @@ STREAM_INIT, STREAM_PROCESS, STREAM_NOISE, STREAM_DROPOUT = 0, 1, 2, 3
 
 
 def run_rng(seed: int, run: int, purpose: int, sensor: str | None = None) -> np.random.Generator:
-    """The generator of run ``run`` for one purpose (module docstring), from ``seed`` alone."""
+    """The generator of run ``run`` for one purpose (module docstring), from ``seed`` alone.
+
+    Parameters
+    ----------
+    seed : int
+        The Monte Carlo's seed.
+    run : int
+        Run index.
+    purpose : int
+        ``STREAM_INIT``, ``STREAM_PROCESS``, ``STREAM_NOISE`` or ``STREAM_DROPOUT``.
+    sensor : str or None, optional
+        The sensor of a noise or dropout stream.
+
+    Returns
+    -------
+    numpy.random.Generator
+        The stream (module docstring, "Random streams").
+    """
     key = (
         (int(run), int(purpose))
         if sensor is None
@@ -67,6 +84,16 @@ def noise_factor(Q: np.ndarray) -> np.ndarray:
 
     A diagonal ``Q`` gives the columns ``sqrt(Q_ii) e_i`` of its non-zero entries in state order,
     otherwise the scaled eigenvectors of the non-zero eigenvalues (ascending).
+
+    Parameters
+    ----------
+    Q : ndarray, shape (m, m)
+        Symmetric positive semi-definite covariance.
+
+    Returns
+    -------
+    ndarray, shape (m, rank)
+        The factor ``L``.
     """
     Q = 0.5 * (Q + Q.T)
     if np.count_nonzero(Q - np.diag(np.diag(Q))) == 0:
@@ -83,7 +110,31 @@ def truth_factor(
     continuous: bool, q: np.ndarray, n: int, current: bool
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(L_1, e)`` with ``L_k = diag(h_k^e) L_1`` the noise factor of a step ``h_k`` (module
-    docstring); ``q`` is the intensity ``W`` (continuous) or the per-step ``Q``, (m, m)."""
+    docstring); ``q`` is the intensity ``W`` (continuous) or the per-step ``Q``, (m, m).
+
+    Parameters
+    ----------
+    continuous : bool
+        ``q`` is an intensity of the physical noise (diagonal, on ``v`` and ``v_f`` only).
+    q : ndarray, shape (m, m)
+        Intensity [m²/s³] or per-step covariance of the process noise.
+    n : int
+        Spatial dimension.
+    current : bool
+        Whether the state has the current block ``v_f``.
+
+    Returns
+    -------
+    L_1 : ndarray, shape (m, c)
+        The factor of a unit step.
+    e : ndarray, shape (m,)
+        The exponents of the step length per state (zeros in the per-step setting).
+
+    Raises
+    ------
+    ValueError
+        If a continuous intensity is not diagonal on ``v`` (and ``v_f``).
+    """
     q = np.asarray(q, float)
     m = q.shape[0]
     if not continuous:
@@ -117,6 +168,26 @@ def truth_deviation(
 
     ``z`` has shape ``(N - 1, L.shape[1])``; ``δ_0 = 0``; the factor of step ``k`` is
     ``diag(h_k^expo) L`` (``expo`` zero by default: the per-step setting).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The nominal path (its times fix the steps).
+    model : VehicleModel
+        The vehicle model (dimension, current, beacon).
+    L : ndarray, shape (m, c)
+        Noise factor of a step (:func:`truth_factor`).
+    z : ndarray, shape (N - 1, c)
+        Standard normals, row ``k`` driving step ``k``.
+    points : ndarray of int, shape (P,)
+        Samples where ``δ`` is kept, sorted.
+    expo : ndarray, shape (m,), optional
+        Exponents of the step length in the factor (:func:`truth_factor`); None: zeros.
+
+    Returns
+    -------
+    ndarray, shape (P, state_dim)
+        The deviation from the nominal state at ``points``.
     """
     return open_loop_truth(traj, model, L, z, points, expo)[0]
 
@@ -137,6 +208,32 @@ def open_loop_truth(
     ``navs`` (J, N, 2n) are the paths' nominal ``(p, p')`` (none by default), ``box`` (3, 2)
     the area and depth bounds (``TruthLimits.box``). Returns ``δ`` at ``points`` and the
     metrics (J, N_TM) of :func:`obsplan.estimation.kernels.span_metrics`.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The nominal path (its times fix the steps).
+    model : VehicleModel
+        The vehicle model (dimension, current, beacon).
+    L : ndarray, shape (m, c)
+        Noise factor of a step (:func:`truth_factor`).
+    z : ndarray, shape (N - 1, c), or None
+        Standard normals, row ``k`` driving step ``k``.
+    points : ndarray of int, shape (P,)
+        Samples where ``δ`` is kept, sorted.
+    expo : ndarray, shape (m,), optional
+        Exponents of the step length in the factor (:func:`truth_factor`); None: zeros.
+    navs : ndarray, shape (J, N, 2n), optional
+        Nominal position [m] and inertial velocity [m/s] of each path.
+    box : ndarray, shape (3, 2), optional
+        Bounds of the area (x, y) and of the depth [m]; None: unbounded.
+
+    Returns
+    -------
+    delta : ndarray, shape (P, state_dim)
+        The deviation at ``points``.
+    metrics : ndarray, shape (J, N_TM)
+        The metrics of each true path (layout: :mod:`obsplan.estimation.columns`).
     """
     from obsplan.estimation import kernels
 
@@ -170,6 +267,18 @@ def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
 
     Columns in the model's output order: range ``r`` [m] (whatever the filter's range form),
     DVL [m/s], depth [m].
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (sensors, beacon).
+    x : ndarray, shape (K, state_dim)
+        True states.
+
+    Returns
+    -------
+    ndarray, shape (K, output_dim)
+        The readings without noise.
     """
     n = model.dim
     out = np.empty((x.shape[0], model.output_dim))
@@ -187,7 +296,20 @@ def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
 
 
 def true_readings(model: VehicleModel, x: np.ndarray) -> dict[str, np.ndarray]:
-    """Noise-free device readings at true states ``x`` (R, m), per sensor (R, width)."""
+    """Noise-free device readings at true states ``x`` (R, m), per sensor (R, width).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model.
+    x : ndarray, shape (R, m)
+        True states.
+
+    Returns
+    -------
+    dict of str to ndarray, shape (R, width)
+        Range [m], DVL [m/s], depth [m] by sensor.
+    """
     y = clean_readings(model, x)
     return {s: y[:, sl].copy() for s, sl in model.output_slices.items()}
 
@@ -199,6 +321,25 @@ def reading_draws(
 
     ``reports`` (E, sensors) says which sensor reports at each epoch. The range at the first
     epoch (sample 0, the KF's anchor) is never dropped.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (its sensors).
+    reports : ndarray of bool, shape (E, sensors)
+        Which sensor reports at each epoch.
+    dropout : dict of str to float
+        Probability per sensor that a report is missing.
+    seed : int
+        The Monte Carlo's seed.
+    run : int
+        Run index.
+
+    Returns
+    -------
+    list of (ndarray, ndarray or None)
+        Per sensor, the normals ``(reports, width)`` and the dropout mask ``(reports,)`` (None
+        if the sensor does not drop).
     """
     out = []
     for i, (s, sl) in enumerate(model.output_slices.items()):
@@ -225,6 +366,24 @@ def noisy_readings(
 
     ``x_epochs`` are the true states at the epochs (E, state_dim), ``draws`` from
     :func:`reading_draws` (shared by every path on the same time grid).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model.
+    x_epochs : ndarray, shape (E, state_dim)
+        True states at the epochs.
+    reports : ndarray of bool, shape (E, sensors)
+        Which sensor reports at each epoch.
+    noise : dict of str to float
+        Standard deviation per sensor (range [m], DVL [m/s], depth [m]).
+    draws : list of (ndarray, ndarray or None)
+        From :func:`reading_draws`.
+
+    Returns
+    -------
+    ndarray, shape (E, output_dim)
+        The device readings (range [m], DVL [m/s], depth [m]); NaN where none.
     """
     return clean_readings(model, x_epochs) + reading_noise(model, reports, noise, draws)
 
@@ -237,7 +396,24 @@ def reading_noise(
 ) -> np.ndarray:
     """The noise of the readings at the epochs, (E, output_dim): ``σ`` times the drawn normals
     where a sensor reports, NaN where it does not (or drops). A reading is the clean value at
-    the true state plus this (in closed loop computed inside the simulation loop)."""
+    the true state plus this (in closed loop computed inside the simulation loop).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model.
+    reports : ndarray of bool, shape (E, sensors)
+        Which sensor reports at each epoch.
+    noise : dict of str to float
+        Standard deviation per sensor (range [m], DVL [m/s], depth [m]).
+    draws : list of (ndarray, ndarray or None)
+        From :func:`reading_draws`.
+
+    Returns
+    -------
+    ndarray, shape (E, output_dim)
+        The noise of each reading; NaN where none.
+    """
     y = np.full((reports.shape[0], model.output_dim), np.nan)
     for i, (s, sl) in enumerate(model.output_slices.items()):
         rows = np.flatnonzero(reports[:, i])
