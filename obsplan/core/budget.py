@@ -341,37 +341,132 @@ def check_tasks(n: float, field: str = "axes", error=InputError) -> None:
 
 def check_max_runs(n: int, field: str = "--max-runs", error=InputError) -> None:
     """At most :data:`MAX_RUNS` runs for the doubling validation (``validation.max_runs``): a
-    verdict that never decides doubles its runs up to this cap."""
+    verdict that never decides doubles its runs up to this cap.
+
+    Parameters
+    ----------
+    n : int
+        The cap requested on the runs of the doubling validation [runs].
+    field : str, optional
+        The option or setting that asked for them (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
     fix = f"use at most {MAX_RUNS} (the runs double until every verdict is decided or this cap)"
     check_count(n, MAX_RUNS, field, "Monte Carlo runs", fix, error)
 
 
 def check_lines(n: float, field: str = "mission.lines", fix: str = "", error=InputError) -> None:
-    """At most :data:`MAX_LINES` survey lines (``n`` may be a float count, even infinite)."""
+    """At most :data:`MAX_LINES` survey lines (``n`` may be a float count, even infinite).
+
+    Parameters
+    ----------
+    n : float
+        Number of survey lines, given or computed from the area and the spacing before any
+        line is generated [lines]; may be infinite.
+    field : str, optional
+        The setting that asks for the lines (named in the message).
+    fix : str, optional
+        What the user can do instead (appended to the message); empty: split the survey.
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit (or NaN).
+    """
     fix = fix or f"plan at most {MAX_LINES} lines at a time (split the survey)"
     check_count(n, MAX_LINES, field, "lines", fix, error)
 
 
 def check_waypoints(n: float, field: str = "mission.waypoints", error=InputError) -> None:
-    """At most :data:`MAX_WAYPOINTS` waypoints (or their time windows)."""
+    """At most :data:`MAX_WAYPOINTS` waypoints (or their time windows).
+
+    Parameters
+    ----------
+    n : float
+        Number of waypoints (or time windows) [points].
+    field : str, optional
+        The setting that lists them (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
     fix = f"plan at most {MAX_WAYPOINTS} waypoints at a time (split the mission)"
     check_count(n, MAX_WAYPOINTS, field, "points", fix, error)
 
 
 def check_corners(n: float, field: str = "mission.area.polygon", error=InputError) -> None:
-    """At most :data:`MAX_POLYGON_CORNERS` corners of a polygon."""
+    """At most :data:`MAX_POLYGON_CORNERS` corners of a polygon.
+
+    Parameters
+    ----------
+    n : float
+        Number of corners of the polygon [corners].
+    field : str, optional
+        The setting that gives the polygon (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
     fix = f"simplify the polygon to at most {MAX_POLYGON_CORNERS} corners"
     check_count(n, MAX_POLYGON_CORNERS, field, "corners", fix, error)
 
 
 def check_name_length(text: str, field: str, error=InputError) -> None:
-    """A name of at most :data:`MAX_NAME_CHARS` characters (it heads reports and figures)."""
+    """A name of at most :data:`MAX_NAME_CHARS` characters (it heads reports and figures).
+
+    Parameters
+    ----------
+    text : str
+        The name (its length is counted in characters).
+    field : str
+        The setting that gives the name (named in the message), e.g. ``"problem.name"``.
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``text`` is longer than the limit.
+    """
     fix = "shorten it (it heads every report, progress line and figure title)"
     check_count(len(text), MAX_NAME_CHARS, field, "characters", fix, error)
 
 
 def check_workers(n: int, cores: int, field: str = "--workers", error=InputError) -> None:
-    """At least one and at most :data:`MAX_WORKERS_PER_CORE` x ``cores`` local worker processes."""
+    """At least one and at most :data:`MAX_WORKERS_PER_CORE` x ``cores`` local worker processes.
+
+    Parameters
+    ----------
+    n : int
+        Number of local worker processes requested [processes].
+    cores : int
+        Cores this process may use [cores] (fewer than one counts as one).
+    field : str, optional
+        The option that asked for the workers (named in the message).
+    error : type of InputError, optional
+        The exception raised (a problem check passes its own subclass).
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is less than 1 or beyond the limit.
+    """
     if n < 1:
         raise error(f"{field} must be at least 1, got {n}")
     limit = MAX_WORKERS_PER_CORE * max(1, cores)

@@ -132,7 +132,13 @@ class SweepStart:
 def default_workers() -> int:
     """Worker processes of a local cluster: one per core this process may run on
     (``dask.system.CPU_COUNT`` honours CPU affinity, e.g. ``taskset``, and cgroup quotas, e.g.
-    a SLURM allocation or a container, where ``os.cpu_count()`` counts the whole machine)."""
+    a SLURM allocation or a container, where ``os.cpu_count()`` counts the whole machine).
+
+    Returns
+    -------
+    int
+        The cores this process may use, at least one [processes].
+    """
     import dask.system
 
     return max(1, int(dask.system.CPU_COUNT))
@@ -141,7 +147,21 @@ def default_workers() -> int:
 def check_workers(workers: int | None, field: str = "--workers") -> None:
     """Refuse a local cluster of fewer than one or more than
     :data:`~obsplan.core.budget.MAX_WORKERS_PER_CORE` worker processes per core
-    (:func:`obsplan.core.budget.check_workers`), before anything starts."""
+    (:func:`obsplan.core.budget.check_workers`), before anything starts.
+
+    Parameters
+    ----------
+    workers : int or None
+        Worker processes asked for [processes]; None (one per core) is not checked.
+    field : str, optional
+        The option that asked for them (named in the message).
+
+    Raises
+    ------
+    InputError
+        If ``workers`` is less than 1 or more than
+        :data:`~obsplan.core.budget.MAX_WORKERS_PER_CORE` per core of :func:`default_workers`.
+    """
     if workers is not None:
         budget.check_workers(workers, default_workers(), field)
 
@@ -158,6 +178,29 @@ def local_cluster(workers: int | None = None, **kwargs: Any):
     SIGINT and SIGTERM are honoured: an interruption kills the workers already spawned and
     closes the cluster at once (:func:`_abort_start`), instead of waiting for every worker to
     start (minutes with many workers on a small machine).
+
+    Parameters
+    ----------
+    workers : int or None, optional
+        Worker processes [processes]; None: :func:`default_workers` (one per core).
+    **kwargs
+        Passed to :class:`distributed.LocalCluster` (except ``n_workers``, ``threads_per_worker``
+        and ``processes``, set here); by default ``dashboard_address=":8787"`` (another free
+        port if it is taken), ``silence_logs=logging.CRITICAL`` and
+        ``preload=["obsplan.sweeps.tasks"]``.
+
+    Returns
+    -------
+    distributed.LocalCluster
+        The cluster, its workers started; its scratch folder is removed when it closes.
+
+    Raises
+    ------
+    InputError
+        If ``workers`` is beyond what :func:`check_workers` allows.
+    ClusterError
+        If the workers do not start within :data:`START_TIMEOUT_S` seconds (the cluster is
+        stopped).
     """
     from multiprocessing import resource_tracker
 
@@ -279,7 +322,13 @@ def _cluster_class() -> type:
 
 def configured_scheduler() -> str | None:
     """The scheduler address of Dask's own configuration (``scheduler-address``: the
-    ``DASK_SCHEDULER_ADDRESS`` environment variable or a Dask config file), or None."""
+    ``DASK_SCHEDULER_ADDRESS`` environment variable or a Dask config file), or None.
+
+    Returns
+    -------
+    str or None
+        The address, e.g. ``"tcp://host:8786"``; None if none is configured.
+    """
     import dask
 
     address = dask.config.get("scheduler-address", None)
@@ -314,6 +363,16 @@ _SCHEDULER_FIX = (
 def scheduler_file_address(path: str | Path) -> str:
     """The scheduler's address in a scheduler file (``dask scheduler --scheduler-file FILE``
     writes a JSON object with a string ``"address"``), checked before it is used.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scheduler file (refused beyond :data:`MAX_SCHEDULER_FILE_BYTES` bytes).
+
+    Returns
+    -------
+    str
+        The scheduler's address, stripped of surrounding blanks, e.g. ``"tcp://host:8786"``.
 
     Raises
     ------
@@ -409,6 +468,15 @@ def probe_scheduler(address: str, where: str, timeout: float | None = None) -> N
     ``where`` names the option and what the user gave (``"--scheduler tcp://h:8787"``,
     ``"--scheduler-file FILE"``).
 
+    Parameters
+    ----------
+    address : str
+        The scheduler's address, e.g. ``"tcp://host:8786"``.
+    where : str
+        The option and what the user gave (starts every message).
+    timeout : float or None, optional
+        Time for the connection and the handshake in all [s]; None: :data:`CONNECT_TIMEOUT_S`.
+
     Raises
     ------
     InputError
@@ -486,6 +554,23 @@ def dask_client(
     the usual way on HPC), or, when no ``workers`` are asked for, of Dask's configured
     ``scheduler-address`` (``DASK_SCHEDULER_ADDRESS``); otherwise a new :func:`local_cluster`
     of ``workers``. Clients and clusters made here are closed on exit.
+
+    Parameters
+    ----------
+    workers : int or None, optional
+        Worker processes of a new local cluster [processes]; None: one per core, or Dask's
+        configured scheduler if there is one.
+    scheduler : str or None, optional
+        Address of an existing Dask scheduler, e.g. ``"tcp://host:8786"``.
+    client : distributed.Client or None, optional
+        An existing client, yielded as is (left open; the other arguments are then ignored).
+    scheduler_file : str or Path or None, optional
+        The JSON file of ``dask scheduler --scheduler-file FILE``.
+
+    Yields
+    ------
+    distributed.Client
+        The client of the cluster the sweep runs on.
 
     Raises
     ------
@@ -754,7 +839,14 @@ def sweep(
 
 def has_bokeh() -> bool:
     """Whether bokeh can be imported here (Dask serves a dashboard page without it, which only
-    says that it needs bokeh). Run on the scheduler by :func:`_dashboard`."""
+    says that it needs bokeh). Run on the scheduler by :func:`_dashboard`.
+
+    Returns
+    -------
+    bool
+        True if ``bokeh`` is installed (found without importing it); False also for a broken
+        installation.
+    """
     try:
         return importlib.util.find_spec("bokeh") is not None
     except (ImportError, ValueError):  # a broken or half-removed installation
@@ -764,7 +856,18 @@ def has_bokeh() -> bool:
 def workers_local(workers: int | None) -> bool:
     """Whether a sweep without a given client or scheduler runs on a local cluster (its workers
     then share this machine's numba cache): ``workers`` given, or no Dask scheduler-address
-    configured."""
+    configured.
+
+    Parameters
+    ----------
+    workers : int or None
+        Worker processes asked for [processes], or None.
+
+    Returns
+    -------
+    bool
+        True if the sweep's workers run on this machine.
+    """
     return workers is not None or configured_scheduler() is None
 
 

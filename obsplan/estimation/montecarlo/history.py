@@ -36,11 +36,33 @@ class RunHistory:
     range_m: np.ndarray
 
     def pos_error(self, name: str) -> np.ndarray:
-        """``|p̂ - p|`` of filter ``name`` over time, shape (Nr,) [m]."""
+        """``|p̂ - p|`` of filter ``name`` over time, shape (Nr,) [m].
+
+        Parameters
+        ----------
+        name : str
+            A filter of the run (a key of ``estimate``), e.g. ``"ekf"``.
+
+        Returns
+        -------
+        ndarray, shape (Nr,)
+            The norm of the position error at each recorded time [m].
+        """
         n = self.truth.shape[1] // 2
         return np.linalg.norm(self.estimate[name][:, :n] - self.truth[:, :n], axis=1)
 
     def vel_error(self, name: str) -> np.ndarray:
-        """``|p̂' - p'|`` of filter ``name`` over time, shape (Nr,) [m/s]."""
+        """``|p̂' - p'|`` of filter ``name`` over time, shape (Nr,) [m/s].
+
+        Parameters
+        ----------
+        name : str
+            A filter of the run (a key of ``estimate``), e.g. ``"ekf"``.
+
+        Returns
+        -------
+        ndarray, shape (Nr,)
+            The norm of the velocity error at each recorded time [m/s].
+        """
         n = self.truth.shape[1] // 2
         return np.linalg.norm(self.estimate[name][:, n:] - self.truth[:, n:], axis=1)

@@ -83,14 +83,40 @@ class MonteCarloResult:
     guidance: Guidance | None = None
 
     def stats(self, name: str) -> FilterStats:
-        """The statistics of filter ``name`` (error if that filter was not run)."""
+        """The statistics of filter ``name`` (error if that filter was not run).
+
+        Parameters
+        ----------
+        name : str
+            A filter that was run, e.g. ``"ekf"`` (a key of ``filters``).
+
+        Returns
+        -------
+        FilterStats
+            That filter's statistics over the runs.
+
+        Raises
+        ------
+        ConfigError
+            If filter ``name`` was not run.
+        """
         s = (self.filters or {}).get(name)
         if s is None:
             raise ConfigError(f"filter {name!r} was not run; pass filters=(..., {name!r})")
         return s
 
     def to_dict(self) -> dict:
-        """The stable keys of ``obsplan simulate --json``, then extras."""
+        """The stable keys of ``obsplan simulate --json``, then extras.
+
+        Returns
+        -------
+        dict
+            JSON-ready values: ``runs``, ``seed``, ``ekf`` and ``kf`` (None for a filter not run),
+            ``crlb_final_pos_std`` [m] (None if not finite), ``duration_s`` [s], ``samples``
+            and ``trajectory_samples`` (recorded and path samples), ``run_start``, ``wall_s``
+            [s], ``config``, ``mode``, ``guidance``, ``truth``; then every other filter that was
+            run, by name.
+        """
         crlb = float(self.crlb_final_pos_std)
         out = {
             "runs": int(self.runs),
@@ -114,7 +140,14 @@ class MonteCarloResult:
         return out
 
     def filter_stats(self) -> dict[str, FilterStats]:
-        """Every filter's statistics, by name, in the order they were run."""
+        """Every filter's statistics, by name, in the order they were run.
+
+        Returns
+        -------
+        dict[str, FilterStats]
+            ``ekf``, ``kf`` and any other filter that was run
+            (:func:`~obsplan.estimation.montecarlo.stats.filter_stats`).
+        """
         return filter_stats(self)
 
     def summary(self, title: str = "Monte Carlo") -> str:
@@ -241,6 +274,24 @@ def merge_monte_carlo(parts: Sequence[MonteCarloResult]) -> MonteCarloResult:
     :func:`~obsplan.estimation.montecarlo.simulate.monte_carlo` to round-off; the per-run arrays
     (filters' and truth's) are concatenated in run order. Run 0's history is kept from the shard
     that computed it.
+
+    Parameters
+    ----------
+    parts : sequence of MonteCarloResult
+        The shards, in any order: the same seed, recorded times, filters, configuration, mode
+        and guidance, all with or all without truth statistics.
+
+    Returns
+    -------
+    MonteCarloResult
+        One result over all the shards' runs (``runs`` summed, ``run_start`` the first shard's,
+        ``wall_s`` summed [s]).
+
+    Raises
+    ------
+    ConfigError
+        If ``parts`` is empty, the shards differ in any of the above, or their runs are not
+        contiguous.
     """
     parts = sorted(parts, key=lambda p: p.run_start)
     if not parts:
@@ -299,7 +350,37 @@ def merge_monte_carlo(parts: Sequence[MonteCarloResult]) -> MonteCarloResult:
 def build_result(setup, runs, seed, run_start, wall, crlb, truth, mode="open-loop", guidance=None):
     """The :class:`MonteCarloResult` of the runs whose statistics ``setup`` (a
     :class:`~obsplan.estimation.montecarlo.runs.PathSetup`) collected, with the bound ``crlb`` and
-    the truth's statistics ``truth``."""
+    the truth's statistics ``truth``.
+
+    Parameters
+    ----------
+    setup : PathSetup
+        The path's setup after its runs: configuration, filters, recorded times, the summed
+        statistics and per-run information of each filter, and run 0's history if it was run.
+    runs : int
+        Number of runs collected [runs].
+    seed : int
+        Seed of the random streams.
+    run_start : int
+        First run of the seed's streams collected here (runs ``run_start .. run_start+runs-1``).
+    wall : float
+        Wall time of the simulation of this path [s].
+    crlb : CRLBResult
+        The posterior CRB along the path (its samples; only the recorded ones are kept in
+        ``crlb_pos_std_t``).
+    truth : TruthStats or None
+        The runs' true paths against the plan and the limits.
+    mode : str, optional
+        ``"open-loop"`` or ``"closed-loop"``.
+    guidance : Guidance or None, optional
+        The guidance law of a closed-loop result.
+
+    Returns
+    -------
+    MonteCarloResult
+        The statistics of every filter of ``setup``, the bound and the truth; ``example`` holds
+        run 0's history if it was recorded, else None.
+    """
     config, names = setup.config, list(setup.filters)
     t_rec, plan = setup.t_rec, setup.plan
     stats = {
