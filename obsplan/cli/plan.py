@@ -231,6 +231,9 @@ def run(args: argparse.Namespace) -> int:
     )
     if s.note:
         print(f"note: {s.note}")
+    for st in s.starts:
+        if not st.success and st.note:
+            print(f"start {st.label}: {st.note}")
     k = result.keepout
     if k is not None and k.k > 0:
         print(

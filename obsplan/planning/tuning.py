@@ -191,6 +191,9 @@ class Tuning:
     warm_bound_frac: float = 1e-9
     #: [-] A warm start's initial barrier ``mu_init`` (every Hessian): small, the guess is close.
     warm_mu_init: float = 1e-6
+    #: Pairs of the L-BFGS Hessian approximation (``limited_memory_max_history``): each costs two
+    #: extra back-solves per iteration; more model the objective's curvature better.
+    lbfgs_history: int = 6
 
     # -- validation verdict (obsplan.planning.validation.verdict) -------------------------------
     #: [-] The EKF "diverges" on a path when the divergence monitor flags at least this fraction
@@ -250,6 +253,7 @@ _RANGES: dict[str, tuple[float | None, bool, float | None, bool]] = {
             "bootstrap",
             "replan_batch",
             "replan_max_iter",
+            "lbfgs_history",
         ),
         (1, True, None, False),
     ),
