@@ -430,6 +430,30 @@ def test_plan_is_never_worse_than_a_baseline_even_when_every_start_fails():
     assert res.starts[0].to_dict()["note"] == res.starts[0].note
 
 
+def sparse_ranges_problem():
+    """The stall class of issue 48 at a size that solves in seconds: ranges every 20 s (0.2 m)
+    over a long horizon at coarse steps (900 s in 60 steps of 15 s), from the lawn-mower."""
+    pb = load_problem(LOCALISE_PROBLEM)
+    return replace(
+        pb,
+        horizon=Horizon(duration=900.0, steps=60),
+        validation=replace(pb.validation, range_rate=0.05, range_std=0.2),
+        objective=replace(pb.objective, starts=1),
+    )
+
+
+def test_sparse_range_epochs_converge_with_the_monotone_barrier():
+    # the estimator objective's curvature sits in the last epochs' positions, which L-BFGS
+    # cannot model: under IPOPT's adaptive barrier (its default with L-BFGS) this start stopped
+    # at the iteration limit with the barrier bouncing; the monotone barrier converges
+    pb = sparse_ranges_problem()
+    res = solve(pb, processes=1)
+    assert res.success and res.starts[0].success and res.starts[0].note == ""
+    assert res.status == "Solve_Succeeded" and res.note == ""
+    assert res.objective < res.starts[0].initial_objective
+    assert_limits_and_dynamics(res.trajectory, pb)
+
+
 def test_a_stopped_solve_is_reported_in_words():
     trace = {
         "obj": [1.0] + [0.66 + 0.01 * (k % 3) for k in range(200)],

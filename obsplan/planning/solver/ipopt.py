@@ -83,34 +83,46 @@ def ipopt_settings(
     }
     limited = form.hessian.startswith("limited-memory")
     if limited:
-        ipopt.update(lbfgs_options(form.hessian == "limited-memory-sr1"))
+        ipopt.update(lbfgs_options(form.problem, form.hessian == "limited-memory-sr1"))
     if warm:
         ipopt.update(warm_start_options(limited))
     ipopt.update(ipopt_options or {})
     return ipopt
 
 
-def lbfgs_options(sr1: bool = False) -> dict[str, Any]:
-    """IPOPT options of the quasi-Newton (L-BFGS, or SR1) Hessian approximation.
+def range_epochs_per_step(pb: PlanningProblem) -> float:
+    """Range epochs per planning interval: the validation's range rate times the step [-]."""
+    return pb.validation.range_rate * pb.horizon.duration / pb.horizon.steps
+
+
+def lbfgs_options(pb: PlanningProblem, sr1: bool = False) -> dict[str, Any]:
+    """IPOPT options of the quasi-Newton (L-BFGS, or SR1) Hessian approximation of ``pb``.
 
     * ``limited_memory_max_history`` (``Tuning.lbfgs_history``): each stored pair costs two
       extra back-solves per iteration;
-    * ``mu_strategy = "monotone"``: IPOPT's default with a quasi-Newton Hessian is the adaptive
-      barrier (``mu`` chosen afresh each iteration by a quality function of the step), which
-      needs a Hessian model good enough to predict the step. The estimator objectives' curvature
-      is concentrated in a few variables (the last measurement epochs' positions: the final
-      std turns with the last bearings, steeply when the plan ends near the beacon; 1e2-1e3
-      against 1e-3 for the rest of the path), which a limited history cannot model: the
-      adaptive barrier then bounced between 1e-3 and 1e-5, steps overshot on those variables,
-      and the dual infeasibility stayed at 1e-2..1 there (0..1e-4 elsewhere) until the
-      iteration limit. Fiacco-McCormick's monotone decrease solves each barrier problem before
-      lowering ``mu``: the same starts converge (docs/tuning.md, "IPOPT").
+    * ``mu_strategy = "monotone"`` when the range epochs are sparse, at most
+      ``Tuning.monotone_epochs_per_step`` per planning interval
+      (:func:`range_epochs_per_step`); IPOPT's default, the adaptive barrier, otherwise.
+
+    Why (docs/tuning.md, "The barrier with L-BFGS"): the final std of the estimator objectives
+    turns with the bearings of the last range epochs, steeply where the plan ends near the
+    beacon. With sparse epochs each of those epochs sits on one node, so a handful of position
+    variables carry curvature 1e2-1e3 against 1e-3 for the rest of the path, which a short
+    L-BFGS history cannot model. IPOPT's adaptive barrier (its default with a quasi-Newton
+    Hessian) predicts each step with that model: ``mu`` bounced between 1e-3 and 1e-5, steps
+    overshot on those positions and every start stopped at the iteration limit with the dual
+    infeasibility at 1e-2..1 there. The monotone barrier solves each barrier problem before
+    lowering ``mu``, and the same starts converge. With denser epochs the curvature is spread
+    over many epochs and nodes, and the monotone barrier was the slower one (a 3-minute
+    ``kf-position-std`` problem at 2 epochs per step crept at 5e-4 per iteration to the limit
+    on every start, where the adaptive one converges in about 100 iterations).
     """
     out: dict[str, Any] = {
         "hessian_approximation": "limited-memory",
         "limited_memory_max_history": tuning().lbfgs_history,
-        "mu_strategy": "monotone",
     }
+    if range_epochs_per_step(pb) <= tuning().monotone_epochs_per_step:
+        out["mu_strategy"] = "monotone"
     if sr1:
         out["limited_memory_update_type"] = "sr1"
     return out
