@@ -90,7 +90,8 @@ def record(problems: list[Path], out_file: Path) -> int:
                 f"{time.perf_counter() - t0:.0f} s",
                 flush=True,
             )
-    out_file.write_text(json.dumps(results, indent=1, sort_keys=True))
+            # after each problem: a long record stopped early still compares what it has
+            out_file.write_text(json.dumps(results, indent=1, sort_keys=True))
     print(f"wrote {out_file}")
     return 0
 

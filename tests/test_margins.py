@@ -266,8 +266,9 @@ def test_keep_out_drops_only_the_speed_reserve_when_it_does_not_fit(
     def fake_resolve(form, margins, guess, label):
         asked.append(margins)
         if np.any(margins.speed > 0) or not reserve_free_fits:
-            return SimpleNamespace(status="Infeasible_Problem_Detected"), None, False
-        return SimpleNamespace(status="Solve_Succeeded"), guess, True
+            why = "IPOPT found the constraints locally infeasible (9 iterations)"
+            return SimpleNamespace(status="Infeasible_Problem_Detected", note=why), None, False
+        return SimpleNamespace(status="Solve_Succeeded", note=""), guess, True
 
     monkeypatch.setattr(margins_mod, "_resolve", fake_resolve)
     kept, report, best = keep_out(short_problem, lawnmower)
@@ -285,6 +286,8 @@ def test_keep_out_drops_only_the_speed_reserve_when_it_does_not_fit(
     else:
         assert best is None and kept is lawnmower and len(asked) == 2
         assert "nominal plan is returned" in report.note
+        # with the reason the last re-solve stopped, in words
+        assert "(Infeasible_Problem_Detected: IPOPT found the constraints locally" in report.note
 
 
 @pytest.mark.parametrize(
@@ -308,14 +311,16 @@ def test_the_headline_status_is_the_flown_paths(
         chosen="circle", note="from the start",
     )  # fmt: skip
     moved = replace(lawnmower, p=lawnmower.p + 0.0)
-    outcome = SimpleNamespace(status=resolve, iterations=17)
+    why = "" if resolve == "Solve_Succeeded" else "stopped at IPOPT's iteration limit (17 ...)"
+    outcome = SimpleNamespace(status=resolve, iterations=17, note=why)
     monkeypatch.setattr(margins_mod, "solve", lambda pb, **kw: nominal)
     report = SimpleNamespace(wall_s=0.5)
     monkeypatch.setattr(margins_mod, "keep_out", lambda pb, traj: (moved, report, outcome))
     kept, _ = solve_with_keepout(short_problem)
     assert kept.trajectory is moved
     assert (kept.status, kept.iterations) == (resolve, 17)
-    assert kept.note == f"from the start; keep-out re-solve: {resolve}"
+    words = f" ({why})" if why else ""
+    assert kept.note == f"from the start; keep-out re-solve: {resolve}{words}"
     assert kept.chosen == "circle + keep-out margins" and kept.success
     assert kept.to_dict()["status"] == resolve
 
@@ -341,7 +346,8 @@ def test_an_unconverged_re_solve_is_continued_from_its_own_iterate(
         traj = replace(lawnmower, p=lawnmower.p + len(calls))  # a new iterate each run
         status = "Solve_Succeeded" if done else "Maximum_Iterations_Exceeded"
         ok = SimpleNamespace(ok=lambda: True)
-        return SimpleNamespace(status=status, limits=ok, mission_complete=True), traj
+        outcome = SimpleNamespace(status=status, limits=ok, mission_complete=True, note="")
+        return outcome, traj
 
     monkeypatch.setattr(margins_mod, "run_start", fake_run_start)
     monkeypatch.setattr(margins_mod, "keeps_margins", lambda tight, traj: traj.p[0, 0] > 1e9)

@@ -44,7 +44,7 @@ from obsplan.planning.problem.parse import LOCALISE_PROBLEM, problem_from_dict
 from obsplan.planning.problem.sections import Horizon, Limits
 from obsplan.planning.problem.validation_setup import estimation_config
 from obsplan.planning.solver.formulation import build_formulation
-from obsplan.planning.solver.ipopt import make_projection
+from obsplan.planning.solver.ipopt import make_projection, stop_reason
 from obsplan.planning.solver.ipopt import project as _project
 from obsplan.planning.solver.starts import run_forked
 from obsplan.planning.transcription.grid import Grid
@@ -424,6 +424,56 @@ def test_plan_is_never_worse_than_a_baseline_even_when_every_start_fails():
     best_baseline = min(objective_value(b.trajectory, pb) for b in bls.values())
     assert res.objective <= best_baseline
     assert res.note  # says where the path came from
+    for s in res.starts:  # and each start why it stopped, in words
+        assert s.note.startswith("stopped at IPOPT's iteration limit (2 iterations) with the dual")
+        assert "(tol 1e-04)" in s.note and "the objective still moved by" in s.note
+    assert res.starts[0].to_dict()["note"] == res.starts[0].note
+
+
+def sparse_ranges_problem():
+    """The stall class of issue 48 at a size that solves in seconds: ranges every 20 s (0.2 m)
+    over a long horizon at coarse steps (900 s in 60 steps of 15 s), from the lawn-mower."""
+    pb = load_problem(LOCALISE_PROBLEM)
+    return replace(
+        pb,
+        horizon=Horizon(duration=900.0, steps=60),
+        validation=replace(pb.validation, range_rate=0.05, range_std=0.2),
+        objective=replace(pb.objective, starts=1),
+    )
+
+
+def test_sparse_range_epochs_converge_with_the_monotone_barrier():
+    # the estimator objective's curvature sits in the last epochs' positions, which L-BFGS
+    # cannot model: under IPOPT's adaptive barrier (its default with L-BFGS) this start stopped
+    # at the iteration limit with the barrier bouncing; the monotone barrier converges
+    pb = sparse_ranges_problem()
+    res = solve(pb, processes=1)
+    assert res.success and res.starts[0].success and res.starts[0].note == ""
+    assert res.status == "Solve_Succeeded" and res.note == ""
+    assert res.objective < res.starts[0].initial_objective
+    assert_limits_and_dynamics(res.trajectory, pb)
+
+
+def test_a_stopped_solve_is_reported_in_words():
+    trace = {
+        "obj": [1.0] + [0.66 + 0.01 * (k % 3) for k in range(200)],
+        "inf_du": [0.8] * 200 + [0.25],
+        "inf_pr": [1e-15] * 201,
+        "mu": [1e-4] * 201,
+    }
+    stats = {"return_status": "Maximum_Iterations_Exceeded", "iter_count": 200}
+    words = stop_reason({**stats, "iterations": trace}, 1e-4, 1e-8)
+    assert words.startswith("stopped at IPOPT's iteration limit (200 iterations) with the dual")
+    assert "2.5e-01 (tol 1e-04)" in words and "1.0e-15 (tol 1e-08)" in words
+    assert "the barrier at 1.0e-04" in words
+    assert "over the last 100 iterations" in words and "between 0.66 and 0.68" in words
+    assert stop_reason({"return_status": "Solve_Succeeded", "iter_count": 9}, 1e-4, 1e-8) == ""
+    failed = stop_reason({"return_status": "Restoration_Failed", "iter_count": 7}, 1e-4, 1e-8)
+    assert (
+        failed == "IPOPT's restoration phase failed to find a less infeasible point (7 iterations)"
+    )
+    odd = stop_reason({"return_status": "User_Requested_Stop", "iter_count": 3}, 1e-4, 1e-8)
+    assert odd == "IPOPT ended with User_Requested_Stop (3 iterations)"
 
 
 def test_projection_repairs_a_slightly_infeasible_path(pcrb_result):

@@ -68,6 +68,8 @@ PLANNER_VALUES = {
     "warm_bound_push": 1e-9,
     "warm_bound_frac": 1e-9,
     "warm_mu_init": 1e-6,
+    "lbfgs_history": 6,
+    "monotone_epochs_per_step": 1.6,
     # validation/verdict.py
     "diverged_fraction": 0.1,
     "diverged_ratio": 3.0,

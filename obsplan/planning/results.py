@@ -509,6 +509,7 @@ class PlanResult(ValidationResult):
         -------
         str
             Lines for the terminal: the status line, a ``note:`` line when the solve has one, a
+            ``start LABEL:`` line with the reason of each start that did not converge, a
             ``keep-out`` line when margins were applied.
         """
         s, pb = self.solve, self.problem
@@ -520,6 +521,7 @@ class PlanResult(ValidationResult):
         ]
         if s.note:
             lines.append(f"note: {s.note}")
+        lines.extend(f"start {st.label}: {st.note}" for st in s.starts if not st.success and st.note)
         k = self.keepout
         if k is not None and k.k > 0:
             lines.append(

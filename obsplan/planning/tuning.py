@@ -191,6 +191,13 @@ class Tuning:
     warm_bound_frac: float = 1e-9
     #: [-] A warm start's initial barrier ``mu_init`` (every Hessian): small, the guess is close.
     warm_mu_init: float = 1e-6
+    #: Pairs of the L-BFGS Hessian approximation (``limited_memory_max_history``): each costs two
+    #: extra back-solves per iteration; more model the objective's curvature better.
+    lbfgs_history: int = 6
+    #: [range epochs per planning interval] At most this many (sparse epochs), an L-BFGS solve
+    #: uses IPOPT's monotone barrier instead of its adaptive one: the final std's curvature then
+    #: sits on a few nodes' positions, which the adaptive barrier's step model cannot see.
+    monotone_epochs_per_step: float = 1.6
 
     # -- validation verdict (obsplan.planning.validation.verdict) -------------------------------
     #: [-] The EKF "diverges" on a path when the divergence monitor flags at least this fraction
@@ -250,6 +257,7 @@ _RANGES: dict[str, tuple[float | None, bool, float | None, bool]] = {
             "bootstrap",
             "replan_batch",
             "replan_max_iter",
+            "lbfgs_history",
         ),
         (1, True, None, False),
     ),
@@ -290,6 +298,11 @@ _RANGES: dict[str, tuple[float | None, bool, float | None, bool]] = {
             "replan_tol_factor",
         ),
         (0, False, None, False),
+    ),
+    # amounts that may be 0 (0: never)
+    **dict.fromkeys(
+        ("monotone_epochs_per_step",),
+        (0, True, None, False),
     ),
     # shares in [0, 1]
     **dict.fromkeys(

@@ -30,6 +30,19 @@ from obsplan.trajectory.sampled import Trajectory
 #: IPOPT's status of a converged solve (``Solved_To_Acceptable_Level`` is not).
 SUCCESS_STATUS = "Solve_Succeeded"
 
+#: What IPOPT's statuses of a stopped solve mean, in words (:func:`stop_reason`).
+_STOP_WORDS = {
+    "Maximum_Iterations_Exceeded": "stopped at IPOPT's iteration limit",
+    "Maximum_WallTime_Exceeded": "stopped at IPOPT's wall-time limit",
+    "Maximum_CpuTime_Exceeded": "stopped at IPOPT's CPU-time limit",
+    "Solved_To_Acceptable_Level": "stopped at IPOPT's acceptable level (acceptable_tol), not tol",
+    "Restoration_Failed": "IPOPT's restoration phase failed to find a less infeasible point",
+    "Infeasible_Problem_Detected": "IPOPT found the constraints locally infeasible",
+    "Search_Direction_Becomes_Too_Small": "IPOPT's search direction became too small",
+    "Error_In_Step_Computation": "IPOPT could not compute a step (singular KKT system)",
+    "Invalid_Number_Detected": "a function returned NaN or Inf",
+}
+
 
 def warm_start_options(limited: bool) -> dict[str, float]:
     """IPOPT options of a warm start (guesses that are coarse-grid optima): begin at the guess,
@@ -47,21 +60,18 @@ def warm_start_options(limited: bool) -> dict[str, float]:
     }
 
 
-def make_solver(
+def ipopt_settings(
     form: Formulation,
     verbose: bool = False,
-    expand: bool = True,
     ipopt_options: dict | None = None,
     warm: bool = False,
-) -> ca.Function:
-    """The IPOPT ``nlpsol`` of a formulation (MUMPS; exact Hessian or L-BFGS per objective).
-
-    ``warm`` adds :func:`warm_start_options`; ``ipopt_options`` are
-    passed last (e.g.
-    ``{"max_wall_time": 120.0}`` in the benchmark).
-    """
+) -> dict[str, Any]:
+    """The IPOPT options :func:`make_solver` gives the solver of ``form``: MUMPS, the
+    objective's tolerance and iteration limit, the exact Hessian or L-BFGS as the objective
+    asks (:func:`lbfgs_options`), :func:`warm_start_options` when ``warm``, and
+    ``ipopt_options`` last (e.g. ``{"max_wall_time": 120.0}`` in the benchmark)."""
     obj = form.problem.objective
-    ipopt = {
+    ipopt: dict[str, Any] = {
         "linear_solver": "mumps",
         "print_level": 5 if verbose else 0,
         "sb": "yes",
@@ -73,16 +83,62 @@ def make_solver(
     }
     limited = form.hessian.startswith("limited-memory")
     if limited:
-        ipopt["hessian_approximation"] = "limited-memory"
-        if form.hessian == "limited-memory-sr1":
-            ipopt["limited_memory_update_type"] = "sr1"
-        # a short history: each stored pair costs two extra back-solves per iteration, and six
-        # reach the same objective as twenty in fewer seconds (measured at N = 200 and 1000)
-        ipopt["limited_memory_max_history"] = 6
+        ipopt.update(lbfgs_options(form.problem, form.hessian == "limited-memory-sr1"))
     if warm:
         ipopt.update(warm_start_options(limited))
-
     ipopt.update(ipopt_options or {})
+    return ipopt
+
+
+def range_epochs_per_step(pb: PlanningProblem) -> float:
+    """Range epochs per planning interval: the validation's range rate times the step [-]."""
+    return pb.validation.range_rate * pb.horizon.duration / pb.horizon.steps
+
+
+def lbfgs_options(pb: PlanningProblem, sr1: bool = False) -> dict[str, Any]:
+    """IPOPT options of the quasi-Newton (L-BFGS, or SR1) Hessian approximation of ``pb``.
+
+    * ``limited_memory_max_history`` (``Tuning.lbfgs_history``): each stored pair costs two
+      extra back-solves per iteration;
+    * ``mu_strategy = "monotone"`` when the range epochs are sparse, at most
+      ``Tuning.monotone_epochs_per_step`` per planning interval
+      (:func:`range_epochs_per_step`); IPOPT's default, the adaptive barrier, otherwise.
+
+    Why (docs/tuning.md, "The barrier with L-BFGS"): the final std of the estimator objectives
+    turns with the bearings of the last range epochs, steeply where the plan ends near the
+    beacon. With sparse epochs each of those epochs sits on one node, so a handful of position
+    variables carry curvature 1e2-1e3 against 1e-3 for the rest of the path, which a short
+    L-BFGS history cannot model. IPOPT's adaptive barrier (its default with a quasi-Newton
+    Hessian) predicts each step with that model: ``mu`` bounced between 1e-3 and 1e-5, steps
+    overshot on those positions and every start stopped at the iteration limit with the dual
+    infeasibility at 1e-2..1 there. The monotone barrier solves each barrier problem before
+    lowering ``mu``, and the same starts converge. With denser epochs the curvature is spread
+    over many epochs and nodes, and the monotone barrier was the slower one (a 3-minute
+    ``kf-position-std`` problem at 2 epochs per step crept at 5e-4 per iteration to the limit
+    on every start, where the adaptive one converges in about 100 iterations).
+    """
+    out: dict[str, Any] = {
+        "hessian_approximation": "limited-memory",
+        "limited_memory_max_history": tuning().lbfgs_history,
+    }
+    if range_epochs_per_step(pb) <= tuning().monotone_epochs_per_step:
+        out["mu_strategy"] = "monotone"
+    if sr1:
+        out["limited_memory_update_type"] = "sr1"
+    return out
+
+
+def make_solver(
+    form: Formulation,
+    verbose: bool = False,
+    expand: bool = True,
+    ipopt_options: dict | None = None,
+    warm: bool = False,
+) -> ca.Function:
+    """The IPOPT ``nlpsol`` of a formulation with the options of :func:`ipopt_settings`
+    (MUMPS; exact Hessian or L-BFGS per objective; ``warm``: :func:`warm_start_options`;
+    ``ipopt_options`` passed last)."""
+    ipopt = ipopt_settings(form, verbose=verbose, ipopt_options=ipopt_options, warm=warm)
     opts: dict[str, Any] = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
     if form.hessian == "exact-without-penalty":
         opts["hess_lag"] = _hessian_without_penalty(form, expand)
@@ -197,6 +253,44 @@ def _call(solver: ca.Function, **kwargs) -> tuple[dict | None, dict, str | None]
             raise KeyboardInterrupt
     interrupts.check()  # SIGTERM (or a SIGINT CasADi swallowed) stops the solve the same way
     return sol, solver.stats(), err
+
+
+def stop_reason(stats: dict, tol: float, constr_viol_tol: float) -> str:
+    """Why a solve that did not converge stopped, in words ("" for ``Solve_Succeeded``):
+    IPOPT's status, the dual infeasibility and constraint violation of the last iterate against
+    the tolerances the solve needed (``tol``, ``constr_viol_tol``), the barrier parameter, and
+    how much the objective still moved over the last iterations (from ``stats["iterations"]``).
+
+    E.g. "stopped at IPOPT's iteration limit (1000 iterations) with the dual infeasibility at
+    2.5e-01 (tol 1e-04) and the constraint violation at 6.6e-15 (tol 1e-08), the barrier at
+    5.3e-05: the objective still moved by 1.4 % over the last 100 iterations (0.6580 -> 0.6578,
+    between 0.6520 and 0.6612)".
+    """
+    status = str(stats.get("return_status", "unknown"))
+    if status == SUCCESS_STATUS:
+        return ""
+    words = _STOP_WORDS.get(status, f"IPOPT ended with {status}")
+    iters = int(stats.get("iter_count", 0))
+    trace = stats.get("iterations") or {}
+    du, pr, mu, obj = (list(trace.get(k) or []) for k in ("inf_du", "inf_pr", "mu", "obj"))
+    if not (du and pr and obj):
+        return f"{words} ({iters} iterations)"
+    text = (
+        f"{words} ({iters} iterations) with the dual infeasibility at {du[-1]:.1e} (tol "
+        f"{tol:.0e}) and the constraint violation at {pr[-1]:.1e} (tol {constr_viol_tol:.0e})"
+    )
+    if mu:
+        text += f", the barrier at {mu[-1]:.1e}"
+    k = min(100, max(len(obj) // 2, 1))
+    last = np.asarray(obj[-k - 1 :], float)
+    scale = max(abs(float(last[0])), 1e-12)
+    if last.size > 1 and np.all(np.isfinite(last)):
+        moved = float(last.max() - last.min()) / scale
+        text += (
+            f": the objective still moved by {100 * moved:.2g} % over the last {k} iterations "
+            f"({last[0]:.4g} -> {last[-1]:.4g}, between {last.min():.4g} and {last.max():.4g})"
+        )
+    return text
 
 
 def project(

@@ -654,6 +654,7 @@ def keep_out(
     path, best, statuses = nominal, None, []
     held = unreserved = False
     guess = nominal
+    why = ""  # why the last re-solve stopped, in words ("" when it converged)
     for rnd in range(tuning().max_rounds):
         outcome, traj, keeps = _resolve(form, margins, guess, f"keep-out round {rnd + 1}")
         statuses.append(outcome.status)
@@ -666,6 +667,7 @@ def keep_out(
             unreserved = True
             outcome, traj, keeps = _resolve(form, margins, guess, f"keep-out round {rnd + 1}")
             statuses.append(outcome.status)
+        why = outcome.note
         if not keeps or traj is None:
             break
         path, best, guess = traj, outcome, traj
@@ -675,7 +677,8 @@ def keep_out(
             break
         margins = margins.maximum(again, 1.0 + tuning().inflate)
     if best is None:
-        notes = [f"the tightened re-solve failed ({statuses[-1]}); the nominal plan is returned"]
+        failed = statuses[-1] + (f": {why}" if why else "")
+        notes = [f"the tightened re-solve failed ({failed}); the nominal plan is returned"]
     else:
         notes = []
         if unreserved:
@@ -780,7 +783,9 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
         iterations=outcome.iterations,
         chosen=f"{res.chosen} + keep-out margins",
         wall_s=res.wall_s + rep.wall_s,
-        note=(res.note + "; " if res.note else "") + f"keep-out re-solve: {outcome.status}",
+        note=(res.note + "; " if res.note else "")
+        + f"keep-out re-solve: {outcome.status}"
+        + (f" ({outcome.note})" if outcome.note else ""),
     )
     if not check_limits(path, pb).ok():  # never reached: run_start keeps only feasible paths
         return res, rep

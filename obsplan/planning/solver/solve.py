@@ -299,7 +299,9 @@ def _result(
             else ""
         )
     elif not o.success:
-        note = f"the best path comes from a start that ended with {o.status}"
+        note = f"the best path comes from a start that ended with {o.status}" + (
+            f" ({o.note})" if o.note else ""
+        )
     return SolveResult(
         problem=pb,
         trajectory=best.trajectory,

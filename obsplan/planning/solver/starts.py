@@ -36,9 +36,11 @@ from obsplan.planning.solver.formulation import Formulation
 from obsplan.planning.solver.ipopt import (
     SUCCESS_STATUS,
     _call,
+    ipopt_settings,
     make_projection,
     make_solver,
     project,
+    stop_reason,
 )
 from obsplan.trajectory.sampled import Trajectory
 
@@ -93,6 +95,9 @@ class StartOutcome:
     #: The path completes the problem's mission (True without one):
     #: :func:`~obsplan.planning.missions.check.mission_check`.
     mission_complete: bool = True
+    #: Why a start that did not converge stopped, in words (""  when it converged):
+    #: :func:`~obsplan.planning.solver.ipopt.stop_reason`.
+    note: str = ""
 
     @property
     def feasible(self) -> bool:
@@ -111,6 +116,7 @@ class StartOutcome:
             "feasible": bool(self.feasible),
             "projected": bool(self.projected),
             "mission_complete": bool(self.mission_complete),
+            "note": self.note,
         }
 
 
@@ -121,6 +127,9 @@ class StartContext:
     form: Formulation
     solver: ca.Function
     projection: Callable[[], ca.Function]
+    #: The solver's ``tol`` and ``constr_viol_tol`` (what a stopped start is measured against).
+    tol: float = 0.0
+    constr_viol_tol: float = 0.0
 
 
 def start_context(
@@ -143,7 +152,14 @@ def start_context(
             cache.append(make_projection(form.problem, form))
         return cache[0]
 
-    return StartContext(form, solver, projection)
+    settings = ipopt_settings(form, ipopt_options=ipopt_options, warm=warm)
+    return StartContext(
+        form,
+        solver,
+        projection,
+        float(settings["tol"]),
+        float(settings["constr_viol_tol"]),
+    )
 
 
 def run_start(
@@ -166,10 +182,20 @@ def run_start(
     )
     status = err or str(stats.get("return_status", "unknown"))
     iters = int(stats.get("iter_count", 0))
+    note = err or stop_reason(stats, ctx.tol, ctx.constr_viol_tol)
     if sol is None or not np.all(np.isfinite(np.asarray(sol["x"]))):
         wall = time.perf_counter() - t0
         return StartOutcome(
-            label, False, status, iters, wall, None, None, _num(init_obj), _INF_CHECK
+            label,
+            False,
+            status,
+            iters,
+            wall,
+            None,
+            None,
+            _num(init_obj),
+            _INF_CHECK,
+            note=note or "the solver returned no finite point",
         ), None
     x = np.asarray(sol["x"]).reshape(-1)
     traj, _ = form.unpack(x)
@@ -195,6 +221,7 @@ def run_start(
         limits=limits,
         projected=projected,
         mission_complete=completes_mission(traj, pb.mission_context),
+        note=note,
     )
     return outcome, traj
 
