@@ -150,7 +150,9 @@ def test_failed_solve_exits_1(tmp_path, capsys):
     )
     code = main(["plan", str(prob), "--out", str(tmp_path / "o"), "--no-validate", *SMALL])
     assert code == 1
-    assert "no start converged" in capsys.readouterr().err
+    assert "not a converged solution (solver.status Maximum_Iterations_Exceeded)" in (
+        capsys.readouterr().err
+    )
     rep = _strict_json(tmp_path / "o" / "report.json")
     assert rep["solver"]["success"] is False
     assert rep["solver"]["status"] == "Maximum_Iterations_Exceeded"

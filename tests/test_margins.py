@@ -300,19 +300,24 @@ def test_keep_out_drops_only_the_speed_reserve_when_it_does_not_fit(
 def test_the_headline_status_is_the_flown_paths(
     short_problem, lawnmower, monkeypatch, start, resolve
 ):
-    """The kept path's status and iterations are the keep-out re-solve's (the path flown), not
-    those of the start it was re-solved from, which the note and ``starts`` keep."""
+    """The kept path's status, iterations and success are the keep-out re-solve's (the path
+    flown), not those of the start it was re-solved from, which the note and ``starts`` keep: a
+    converged re-solve of a stalled start is a success, a stalled re-solve of a converged start
+    is not."""
     from types import SimpleNamespace
 
     import obsplan.planning.solver.margins as margins_mod
 
     nominal = SolveResult(
-        short_problem, lawnmower, True, start, 1000, 1.0, 0.5, 0.5, "circle", (), 0.1,
+        short_problem, lawnmower, start == "Solve_Succeeded", start, 1000, 1.0, 0.5, 0.5,
+        "circle", (), 0.1,
         chosen="circle", note="from the start",
     )  # fmt: skip
     moved = replace(lawnmower, p=lawnmower.p + 0.0)
     why = "" if resolve == "Solve_Succeeded" else "stopped at IPOPT's iteration limit (17 ...)"
-    outcome = SimpleNamespace(status=resolve, iterations=17, note=why)
+    outcome = SimpleNamespace(
+        status=resolve, iterations=17, note=why, success=resolve == "Solve_Succeeded"
+    )
     monkeypatch.setattr(margins_mod, "solve", lambda pb, **kw: nominal)
     report = SimpleNamespace(wall_s=0.5)
     monkeypatch.setattr(margins_mod, "keep_out", lambda pb, traj: (moved, report, outcome))
@@ -321,8 +326,10 @@ def test_the_headline_status_is_the_flown_paths(
     assert (kept.status, kept.iterations) == (resolve, 17)
     words = f" ({why})" if why else ""
     assert kept.note == f"from the start; keep-out re-solve: {resolve}{words}"
-    assert kept.chosen == "circle + keep-out margins" and kept.success
+    assert kept.chosen == "circle + keep-out margins"
+    assert kept.success == (resolve == "Solve_Succeeded")
     assert kept.to_dict()["status"] == resolve
+    assert kept.to_dict()["success"] == kept.success
 
 
 @pytest.mark.parametrize("converges_after", [1, 2, 5])

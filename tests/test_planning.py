@@ -645,3 +645,50 @@ def test_run_forked_keeps_the_item_order_and_equals_serial():
     assert {r[2] for r in serial} == {os.getpid()}
     if "fork" in mp.get_all_start_methods():  # the state reached the workers by the fork
         assert os.getpid() not in {r[2] for r in forked}
+
+
+# ---------------------------------------------------------------- one meaning of success
+
+
+def _outcome(label: str, status: str, objective: float, pb) -> object:
+    from obsplan.planning.solver.starts import StartOutcome
+
+    lawn = lawnmower_baseline(pb).trajectory
+    return StartOutcome(
+        label, status == "Solve_Succeeded", status, 40, 0.1, objective, objective, 2.0,
+        check_limits(lawn, pb),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("statuses", "guess_wins", "success", "status"),
+    [
+        (("Solve_Succeeded", "Maximum_Iterations_Exceeded"), False, True, "Solve_Succeeded"),
+        # the best path is a stalled start's, although another start converged: not a success
+        (
+            ("Maximum_Iterations_Exceeded", "Solve_Succeeded"),
+            False, False, "Maximum_Iterations_Exceeded",
+        ),
+        (("Solved_To_Acceptable_Level",), False, False, "Solved_To_Acceptable_Level"),
+        # every start ended worse than the guess it started from: no solve produced the path
+        (("Solve_Succeeded", "Solve_Succeeded"), True, False, "Guess_Returned"),
+    ],
+)  # fmt: skip
+def test_success_means_the_flown_path_converged(statuses, guess_wins, success, status):
+    """``success`` is True exactly when the returned path is a converged solve's, and
+    ``status`` is that path's: they never disagree (``SolveResult`` refuses a pair that does)."""
+    from obsplan.planning.solver.solve import GUESS_STATUS, _Candidate, _result
+
+    pb = load_problem(LOCALISE_PROBLEM)
+    lawn = lawnmower_baseline(pb).trajectory
+    outs = [_outcome(f"s{i}", st, 1.0 + i, pb) for i, st in enumerate(statuses)]
+    cands = [_Candidate(o.label, lawn, o.objective, o) for o in outs]
+    if guess_wins:
+        cands.append(_Candidate("lawnmower", lawn, 0.5, None))
+    res = _result(pb, outs, [lawn] * len(outs), cands, wall=1.0, build_s=0.1)
+    assert (res.success, res.status) == (success, status)
+    assert (res.status == GUESS_STATUS) == guess_wins
+    d = res.to_dict()
+    assert d["success"] is success and d["status"] == status
+    with pytest.raises(ValueError, match="disagrees"):
+        replace(res, success=not success)

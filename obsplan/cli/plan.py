@@ -110,7 +110,8 @@ def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningP
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the verb; 0 on success, 1 if no start converged (outputs are still written).
+    """Run the verb; 0 when the flown path converged (``solver.success``), else 1 (outputs are
+    still written).
 
     Plans (:func:`obsplan.planning.plan.plan`), writes ``plan.csv``, ``report.json`` and the
     figures into ``--out`` (replaced whole) and prints the summary.
@@ -153,8 +154,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {', '.join(str(p) for p in written)}")
     if not result.success:
         print(
-            "obsplan plan: failed: no start converged"
-            + (" (the best feasible iterate was written)" if result.trajectory is not None else ""),
+            f"obsplan plan: failed: the flown path is not a converged solution "
+            f"(solver.status {result.solve.status})"
+            + (" (the best feasible path was written)" if result.trajectory is not None else ""),
             file=sys.stderr,
         )
         return 1

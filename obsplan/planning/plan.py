@@ -73,9 +73,10 @@ def plan(
     Returns
     -------
     PlanResult
-        ``success`` is False when no start converged (the best feasible iterate, if any, is still
-        reported, flagged by ``solve.status``). ``summary()``, ``plot()``, ``save()`` and
-        ``to_dict()`` give what ``obsplan plan`` prints, draws and writes.
+        ``success`` is True exactly when the flown path is a converged solution (IPOPT's
+        ``Solve_Succeeded``) of the problem it was last solved for, ``solve.status`` saying which;
+        otherwise the best feasible path, if any, is still reported. ``summary()``, ``plot()``,
+        ``save()`` and ``to_dict()`` give what ``obsplan plan`` prints, draws and writes.
 
     Raises
     ------

@@ -485,7 +485,8 @@ class PlanResult(ValidationResult):
 
     @property
     def success(self) -> bool:
-        """At least one start converged and a path was found."""
+        """The flown path is a converged solution of the problem it was last solved for
+        (``solve.success``; the exit code of ``obsplan plan``)."""
         return self.solve.success and self.trajectory is not None
 
     def to_dict(self) -> dict:
@@ -521,7 +522,9 @@ class PlanResult(ValidationResult):
         ]
         if s.note:
             lines.append(f"note: {s.note}")
-        lines.extend(f"start {st.label}: {st.note}" for st in s.starts if not st.success and st.note)
+        lines.extend(
+            f"start {st.label}: {st.note}" for st in s.starts if not st.success and st.note
+        )
         k = self.keepout
         if k is not None and k.k > 0:
             lines.append(

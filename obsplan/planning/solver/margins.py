@@ -779,6 +779,7 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
         res,
         trajectory=path,
         objective=objective_value(path, pb),
+        success=outcome.success,
         status=outcome.status,
         iterations=outcome.iterations,
         chosen=f"{res.chosen} + keep-out margins",

@@ -14,9 +14,13 @@ depends on the machine):
   best among every start's (projected) path, every feasible initial guess and every feasible
   baseline: the plan is never worse than the lawn-mower it starts from, and a start that ends
   worse than its own guess cannot beat that guess;
-* ``success`` means at least one start ended with IPOPT's ``Solve_Succeeded``;
-  ``Solved_To_Acceptable_Level`` and iteration or time limits are reported as such, and their paths
-  are used only if feasible and best. ``chosen`` names where the returned path came from.
+* ``success`` has one meaning: the returned path is a converged solution (IPOPT's
+  ``Solve_Succeeded``) of the problem it was last solved for, and ``status`` is that solve's
+  status. A start that stopped at ``Solved_To_Acceptable_Level`` or an iteration or time limit is
+  reported as such and its path used only if feasible and best, with ``success`` False; an initial
+  guess or baseline returned unchanged (every start ended worse) has ``status`` ``GUESS_STATUS``
+  and ``success`` False. ``chosen`` names where the returned path came from, and the exit code of
+  ``obsplan plan`` is 0 exactly when ``success`` is True.
 
 A fine grid (``N > Tuning.coarse_steps``) is first solved on a coarse grid from the same guesses,
 and each start's coarse plan becomes its fine guess (:mod:`obsplan.planning.transcription.guesses`).
@@ -38,6 +42,7 @@ from obsplan.planning.problem.checks import check_structure
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.feasibility import check_limits
 from obsplan.planning.solver.formulation import build_formulation
+from obsplan.planning.solver.ipopt import SUCCESS_STATUS
 from obsplan.planning.solver.starts import (
     Progress,
     StartOutcome,
@@ -53,6 +58,10 @@ from obsplan.planning.transcription.guesses import (
 from obsplan.planning.tuning import tuning
 from obsplan.trajectory.sampled import Trajectory
 
+#: ``SolveResult.status`` when the returned path is an initial guess or baseline, unchanged
+#: (every optimised start ended worse than it): no solve converged to this path
+GUESS_STATUS = "Guess_Returned"
+
 
 @dataclass(frozen=True, eq=False)
 class SolveResult:
@@ -61,7 +70,8 @@ class SolveResult:
     ``status``/``iterations`` are those of the start whose path was chosen (for a chosen initial
     guess or baseline: the best start's, with ``chosen`` saying so; after the keep-out re-solve
     of :func:`~obsplan.planning.solver.margins.solve_with_keepout`, the re-solve's); ``success`` is
-    true when at least one start converged (``Solve_Succeeded``); ``wall_s`` is the whole
+    true exactly when that status is ``Solve_Succeeded`` and there is a path (the module's
+    docstring; checked on construction); ``wall_s`` is the whole
     multi-start (the coarse-grid pass included, see ``Tuning.coarse_steps``); ``start_paths`` holds
     each start's returned path by label.
     """
@@ -80,6 +90,15 @@ class SolveResult:
     chosen: str | None = None
     note: str = ""
     start_paths: dict[str, Trajectory] = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        # the one meaning of success (module docstring): a result that says otherwise is a bug
+        converged = self.trajectory is not None and self.status == SUCCESS_STATUS
+        if bool(self.success) != converged:
+            raise ValueError(
+                f"SolveResult: success={self.success} disagrees with status {self.status!r} "
+                f"(path {'present' if self.trajectory is not None else 'absent'})"
+            )
 
     def to_dict(self) -> dict:
         """The ``solver`` keys of ``report.json`` (stable first, then extras)."""
@@ -269,7 +288,6 @@ def _result(
     build_s: float,
 ) -> SolveResult:
     """The :class:`SolveResult` of the chosen candidate (or of none)."""
-    success = any(o.success for o in outcomes)
     if not cands:
         last = outcomes[-1] if outcomes else None
         return SolveResult(
@@ -289,8 +307,6 @@ def _result(
         )
     best = _best(cands, pb)
     o = best.start
-    converged = [x for x in outcomes if x.success]
-    ref = o if o is not None else (converged[0] if converged else outcomes[0])
     note = ""
     if o is None:
         note = (
@@ -305,9 +321,9 @@ def _result(
     return SolveResult(
         problem=pb,
         trajectory=best.trajectory,
-        success=success,
-        status=ref.status,
-        iterations=ref.iterations,
+        success=o is not None and o.success,
+        status=o.status if o is not None else GUESS_STATUS,
+        iterations=o.iterations if o is not None else 0,
         wall_s=wall,
         objective=best.objective,
         lifted_objective=o.lifted if o is not None else None,
