@@ -90,25 +90,78 @@ class Formulation:
         return 3 * self.grid.n * self.grid.N
 
     def pack(self, traj: Trajectory) -> np.ndarray:
-        """Initial guess vector from a trajectory on the planning grid."""
+        """Initial guess vector from a trajectory on the planning grid.
+
+        Parameters
+        ----------
+        traj : Trajectory
+            A path with ``N + 1`` samples on the planning grid (its start is not read: it is
+            fixed).
+
+        Returns
+        -------
+        ndarray, shape (len(lbx),)
+            ``vec(W)`` (column-major, intrinsic units), then each variable block's initial value
+            ``init(W)``, in the order of :attr:`variables`.
+        """
         W = self.grid.from_trajectory(traj)
         extra = [np.asarray(v.init(W), float).reshape(-1) for v in self.variables]
         return np.concatenate([W.reshape(-1, order="F"), *extra])
 
     def unpack(self, x: np.ndarray) -> tuple[Trajectory, np.ndarray]:
-        """Solution vector to ``(trajectory [SI], variables after W)``."""
+        """Solution vector to ``(trajectory [SI], variables after W)``.
+
+        Parameters
+        ----------
+        x : ndarray, shape (len(lbx),)
+            A solution (or guess) vector, laid out as :meth:`pack` makes it.
+
+        Returns
+        -------
+        traj : Trajectory
+            The path of ``W`` on the planning grid, from the fixed start: positions [m],
+            velocities [m/s], inputs [m/s²].
+        extra : ndarray, shape (len(lbx) - n_w,)
+            The variables after ``W`` (the objective's lifting variables, then the parts'), as
+            the solver returned them.
+        """
         x = np.asarray(x, float).reshape(-1)
         n, N = self.grid.n, self.grid.N
         W = x[: self.n_w].reshape(3 * n, N, order="F")
         return self.grid.to_trajectory(W), x[self.n_w :]
 
     def lifted_value(self, f: float, x: np.ndarray | None = None) -> float:
-        """The solver's objective ``f`` in the user's sign and units; with the solution ``x``,
-        the parts' penalty there is taken out of ``f`` first."""
+        """The solver's objective ``f`` in the user's sign and units.
+
+        Parameters
+        ----------
+        f : float
+            The solver's objective value (normalised, minimised, penalty included).
+        x : ndarray, shape (len(lbx),), optional
+            The solution vector ``f`` was reached at: the parts' penalty there is taken out of
+            ``f`` first. Without it ``f`` is taken as the objective alone.
+
+        Returns
+        -------
+        float
+            The objective in its own sign and units (:attr:`to_objective`).
+        """
         return float(self.to_objective(float(f) - self.penalty_value(x)))
 
     def penalty_value(self, x: np.ndarray | None) -> float:
-        """The parts' penalty at the solution vector ``x`` (0 without ``x`` or penalty)."""
+        """The parts' penalty at the solution vector ``x`` (0 without ``x`` or penalty).
+
+        Parameters
+        ----------
+        x : ndarray, shape (len(lbx),) or None
+            A solution vector (:meth:`pack`'s layout).
+
+        Returns
+        -------
+        float
+            The penalty term of ``f`` at ``x`` (normalised like ``f``); 0.0 when ``x`` is None
+            or no part adds a penalty.
+        """
         if x is None or self.penalty.is_constant():  # no part adds one: the constant 0
             return 0.0
         fn = ca.Function("obsplan_penalty", [self.w, self.parameters], [self.penalty])
@@ -116,7 +169,23 @@ class Formulation:
 
 
 def box_bounds(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.ndarray]:
-    """Bounds ``(lbW, ubW)`` of ``W`` ``(3n, N)``: inputs, operating area and depth band."""
+    """Bounds ``(lbW, ubW)`` of ``W`` ``(3n, N)``: inputs, operating area and depth band.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid: its intrinsic units, step ``h`` [s], input bounds ``a`` [m/s²] and
+        beacon [m].
+    pb : PlanningProblem
+        The problem: ``limits.area`` and ``limits.depth`` (either may be absent).
+
+    Returns
+    -------
+    lbW, ubW : ndarray, shape (3n, N)
+        Lower and upper bounds in intrinsic units: ±1 on the inputs ``U``; on the positions
+        ``P`` the area and depth band tightened by ``a h² / 8`` (so the path between nodes stays
+        inside); ``-inf`` / ``inf`` elsewhere (the speed is a constraint, not a bound).
+    """
     n, N = grid.n, grid.N
     lim = pb.limits
     lbW = np.full((3 * n, N), -np.inf)
@@ -138,7 +207,26 @@ def box_bounds(grid: Grid, pb: PlanningProblem) -> tuple[np.ndarray, np.ndarray]
 
 
 def path_constraints(grid: Grid, pb: PlanningProblem, Wsym) -> list[ConstraintBlock]:
-    """Dynamics and limit constraints of ``W`` (module docstring), in intrinsic units."""
+    """Dynamics and limit constraints of ``W`` (module docstring), in intrinsic units.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid.
+    pb : PlanningProblem
+        The problem: its ``limits`` (ranges, minimum speed) and water current.
+    Wsym : casadi.MX, shape (3n, N)
+        The symbolic path ``W``.
+
+    Returns
+    -------
+    list of ConstraintBlock
+        In order: ``dynamics`` (``2 n N`` equalities), ``speed`` (``|V_k|² <= 1`` at the ``N``
+        nodes), then, when the limit is set, ``min_range`` and ``max_range`` (distance to the
+        beacon divided by ``Lp``) and ``min_speed`` (speed through the water squared over
+        ``v_max²``), each at nodes ``1..N`` then the ``N`` interval midpoints, with the margins
+        of the module docstring.
+    """
     n, N = grid.n, grid.N
     lim = pb.limits
     zeros = np.zeros(2 * n * N)
@@ -184,6 +272,21 @@ def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS)
     (:data:`obsplan.planning.objectives.registry.REGISTRY`), normalised by its value on
     :func:`~obsplan.planning.transcription.guesses.reference_path` (the lawn-mower); ``parts`` are
     appended after it (default :data:`PARTS`).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+    parts : sequence of PartBuilder, optional
+        Builders of the parts appended after the objective, in order; a builder returning None
+        adds nothing. Default :data:`PARTS`.
+
+    Returns
+    -------
+    Formulation
+        Symbols, bounds and blocks of the NLP. Its Hessian is the objective's, except that an
+        exact one leaves out the parts' penalty's curvature (``exact-without-penalty``): that
+        penalty's exact Hessian is dense and can exhaust memory.
     """
     grid = Grid.from_problem(pb)
     n, N = grid.n, grid.N

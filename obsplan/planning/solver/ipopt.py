@@ -47,9 +47,20 @@ _STOP_WORDS = {
 def warm_start_options(limited: bool) -> dict[str, float]:
     """IPOPT options of a warm start (guesses that are coarse-grid optima): begin at the guess,
     not 1 % inside the bounds (``bound_push`` / ``bound_frac``), with a small barrier
-    (``mu_init``); with the L-BFGS Hessian (``limited``) only the small barrier, starting on
-    the bounds its first steps wander off (``Tuning.warm_bound_push``,
-    ``warm_bound_frac``, ``warm_mu_init``)."""
+    (``mu_init``).
+
+    Parameters
+    ----------
+    limited : bool
+        Whether the Hessian is L-BFGS: then only the small barrier, since starting on the bounds
+        its first steps wander off.
+
+    Returns
+    -------
+    dict of str to float
+        ``mu_init`` (``Tuning.warm_mu_init``), and without ``limited`` also ``bound_push`` and
+        ``bound_frac`` (``Tuning.warm_bound_push``, ``warm_bound_frac``).
+    """
     tun = tuning()
     if limited:
         return {"mu_init": tun.warm_mu_init}
@@ -69,7 +80,27 @@ def ipopt_settings(
     """The IPOPT options :func:`make_solver` gives the solver of ``form``: MUMPS, the
     objective's tolerance and iteration limit, the exact Hessian or L-BFGS as the objective
     asks (:func:`lbfgs_options`), :func:`warm_start_options` when ``warm``, and
-    ``ipopt_options`` last (e.g. ``{"max_wall_time": 120.0}`` in the benchmark)."""
+    ``ipopt_options`` last.
+
+    Parameters
+    ----------
+    form : Formulation
+        The NLP: its problem's ``objective`` (``solver_tol``, ``max_iter``) and its ``hessian``.
+    verbose : bool, optional
+        Print IPOPT's iterations (``print_level`` 5 instead of 0).
+    ipopt_options : dict, optional
+        IPOPT options applied last, overriding the others (e.g. ``{"max_wall_time": 120.0}``
+        in the benchmark).
+    warm : bool, optional
+        The guesses are coarse-grid optima: add :func:`warm_start_options`.
+
+    Returns
+    -------
+    dict of str to Any
+        The ``ipopt`` options of ``nlpsol``; ``constr_viol_tol`` is at most 1e-8, not IPOPT's
+        default 1e-4, since the equality residuals bound how far an epigraph variable exceeds
+        what it bounds and how far the path is from the dynamics.
+    """
     obj = form.problem.objective
     ipopt: dict[str, Any] = {
         "linear_solver": "mumps",
@@ -91,7 +122,18 @@ def ipopt_settings(
 
 
 def range_epochs_per_step(pb: PlanningProblem) -> float:
-    """Range epochs per planning interval: the validation's range rate times the step [-]."""
+    """Range epochs per planning interval: the validation's range rate times the step [-].
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: ``validation.range_rate`` [Hz] and its ``horizon``.
+
+    Returns
+    -------
+    float
+        The expected number of range epochs in one step ``h`` [-].
+    """
     return pb.validation.range_rate * pb.horizon.duration / pb.horizon.steps
 
 
@@ -116,6 +158,19 @@ def lbfgs_options(pb: PlanningProblem, sr1: bool = False) -> dict[str, Any]:
     over many epochs and nodes, and the monotone barrier was the slower one (a 3-minute
     ``kf-position-std`` problem at 2 epochs per step crept at 5e-4 per iteration to the limit
     on every start, where the adaptive one converges in about 100 iterations).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its range rate and horizon decide the barrier strategy.
+    sr1 : bool, optional
+        Use the SR1 update instead of BFGS (``limited_memory_update_type = "sr1"``).
+
+    Returns
+    -------
+    dict of str to Any
+        ``hessian_approximation = "limited-memory"``, ``limited_memory_max_history``, and
+        ``mu_strategy`` and ``limited_memory_update_type`` when they apply.
     """
     out: dict[str, Any] = {
         "hessian_approximation": "limited-memory",
@@ -137,7 +192,29 @@ def make_solver(
 ) -> ca.Function:
     """The IPOPT ``nlpsol`` of a formulation with the options of :func:`ipopt_settings`
     (MUMPS; exact Hessian or L-BFGS per objective; ``warm``: :func:`warm_start_options`;
-    ``ipopt_options`` passed last)."""
+    ``ipopt_options`` passed last).
+
+    Parameters
+    ----------
+    form : Formulation
+        The NLP.
+    verbose : bool, optional
+        Print IPOPT's iterations and CasADi's timings.
+    expand : bool, optional
+        Expand the MX graph to SX before solving (CasADi's ``expand``): faster evaluations, at
+        the cost of building the expanded graph.
+    ipopt_options : dict, optional
+        IPOPT options applied last (:func:`ipopt_settings`).
+    warm : bool, optional
+        The guesses are coarse-grid optima (:func:`warm_start_options`).
+
+    Returns
+    -------
+    casadi.Function
+        The solver, called with ``x0``, ``p``, ``lbx``, ``ubx``, ``lbg``, ``ubg``. With the
+        ``exact-without-penalty`` Hessian it is given a ``hess_lag`` that leaves the parts'
+        penalty out of the objective's curvature.
+    """
     ipopt = ipopt_settings(form, verbose=verbose, ipopt_options=ipopt_options, warm=warm)
     opts: dict[str, Any] = {"expand": expand, "print_time": verbose, "ipopt": ipopt}
     if form.hessian == "exact-without-penalty":
@@ -178,6 +255,22 @@ def make_projection(pb: PlanningProblem, form: Formulation) -> ca.Function:
 
     The inputs determine the path, so nearest inputs mean the nearest flyable path; positions
     and velocities follow through the dynamics constraints.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its limits and mission give the constraints.
+    form : Formulation
+        The planning NLP: its grid.
+
+    Returns
+    -------
+    casadi.Function
+        The projection's ``nlpsol`` on ``vec(W)`` with parameter ``vec(W̄)``; its constraints are
+        the path constraints then the mission's, whose bounds :func:`project` passes at the call.
+        It starts at the given path with a small barrier (``bound_push`` 1e-9, ``mu_init``
+        1e-8): IPOPT's default push of 1 % off the bounds would move a long path by tens of
+        metres.
     """
     grid = form.grid
     n = grid.n
@@ -265,6 +358,24 @@ def stop_reason(stats: dict, tol: float, constr_viol_tol: float) -> str:
     2.5e-01 (tol 1e-04) and the constraint violation at 6.6e-15 (tol 1e-08), the barrier at
     5.3e-05: the objective still moved by 1.4 % over the last 100 iterations (0.6580 -> 0.6578,
     between 0.6520 and 0.6612)".
+
+    Parameters
+    ----------
+    stats : dict
+        The solver's ``stats()``: ``return_status``, ``iter_count`` and the per-iteration
+        ``iterations`` (``inf_du``, ``inf_pr``, ``mu``, ``obj``).
+    tol : float
+        IPOPT's ``tol`` of the solve, against which the dual infeasibility is reported.
+    constr_viol_tol : float
+        IPOPT's ``constr_viol_tol`` of the solve, against which the constraint violation is
+        reported.
+
+    Returns
+    -------
+    str
+        The reason; "" for ``Solve_Succeeded``; only the status's words and the iteration count
+        when ``stats`` has no per-iteration trace. The objective's movement is over the last
+        ``min(100, len(obj) // 2)`` iterations.
     """
     status = str(stats.get("return_status", "unknown"))
     if status == SUCCESS_STATUS:
@@ -297,7 +408,27 @@ def project(
     form: Formulation, projection: ca.Function, traj: Trajectory
 ) -> tuple[Trajectory | None, str]:
     """Nearest path to ``traj`` satisfying the path constraints, by the IPOPT ``projection`` of
-    :func:`make_projection` (module docstring); ``(path or None, IPOPT status)``."""
+    :func:`make_projection` (module docstring).
+
+    Parameters
+    ----------
+    form : Formulation
+        The planning NLP: its grid, and the bounds of ``W`` and of the path constraints.
+    projection : casadi.Function
+        The projection solver of :func:`make_projection` for the same problem.
+    traj : Trajectory
+        The path to project, on the planning grid (``N + 1`` samples); it is both the start and
+        the target ``W̄``.
+
+    Returns
+    -------
+    path : Trajectory or None
+        The projected inputs re-integrated exactly from the start, so the samples are
+        consistent; None when the call raised. Returned whatever IPOPT's status: the caller
+        checks the path itself.
+    status : str
+        IPOPT's ``return_status``, or the error message of a call that raised.
+    """
     grid = form.grid
     wbar = grid.from_trajectory(traj).reshape(-1, order="F")
     k, nw = form.n_path_constraints, form.n_w  # path constraints come first in g and x

@@ -118,7 +118,26 @@ class LoopResponse:
 
     @classmethod
     def of(cls, guidance: Guidance, samples: int = 4000) -> LoopResponse:
-        """The response of ``δ'' + Kd δ' + Kp δ = input``: ``(g, g') = e^{Aτ} [0 1]ᵀ``."""
+        """The response of ``δ'' + Kd δ' + Kp δ = input``: ``(g, g') = e^{Aτ} [0 1]ᵀ``.
+
+        Parameters
+        ----------
+        guidance : Guidance
+            The guidance law: its gains ``kp`` [1/s²] and ``kd`` [1/s].
+        samples : int, optional
+            Number of lags ``M`` from 0 to 30 times the loop's slowest time constant (beyond
+            it the response has decayed by ``e⁻³⁰``); the integrals use the trapezoidal rule.
+
+        Returns
+        -------
+        LoopResponse
+            The lags, ``∫₀^tau |g|`` on them, ``∫ g²`` and the gains.
+
+        Raises
+        ------
+        ValueError
+            If ``kp <= 0`` or ``kd <= 0`` (the loop does not settle).
+        """
         kp, kd = guidance.kp, guidance.kd
         if kp <= 0 or kd <= 0:
             raise ValueError("keep-out margins need a guidance with kp > 0 and kd > 0")
@@ -147,7 +166,19 @@ class LoopResponse:
         )
 
     def weight(self, x: np.ndarray) -> np.ndarray:
-        """``∫₀ˣ |g|`` at lags ``x`` [s] (0 for ``x <= 0``)."""
+        """``∫₀ˣ |g|`` at lags ``x`` [s] (0 for ``x <= 0``).
+
+        Parameters
+        ----------
+        x : ndarray
+            Lags [s], any shape.
+
+        Returns
+        -------
+        ndarray
+            ``∫₀ˣ |g|`` [s²], shape of ``x``, interpolated linearly on :attr:`tau` (the full
+            integral beyond its last lag).
+        """
         return np.interp(np.maximum(x, 0.0), self.tau, self.cum_abs)
 
 
@@ -169,8 +200,24 @@ class PathCovariance:
     vel: np.ndarray
 
     def gap_std(self, d: np.ndarray, block: str) -> np.ndarray:
-        """Per gap ``j`` (epoch ``j`` to ``j + 1``, shape (C, J - 1)) the largest ``sqrt(dᵀPd)``
-        at its ends, for each of the ``C`` unit directions ``d`` (C, n)."""
+        """Per gap ``j`` (epoch ``j`` to ``j + 1``) the largest ``sqrt(dᵀPd)`` at its ends, for
+        each of the ``C`` unit directions ``d``.
+
+        The variance in a fixed direction is convex in time between two epochs, so the larger of
+        the two ends bounds it on the whole gap.
+
+        Parameters
+        ----------
+        d : ndarray, shape (C, n)
+            Unit directions.
+        block : {"pos", "vel"}
+            The covariance: :attr:`pos`, or :attr:`vel` (any other value).
+
+        Returns
+        -------
+        ndarray, shape (C, J - 1)
+            The std along each direction per gap [m] or [m/s].
+        """
         P = self.pos if block == "pos" else self.vel
         var = np.einsum("ci,jik,ck->cj", d, P, d)
         return np.sqrt(np.maximum(np.maximum(var[:, :-1], var[:, 1:]), 0.0))
@@ -186,6 +233,19 @@ def path_covariance(traj: Trajectory, pb: PlanningProblem) -> PathCovariance:
 
     The recursion of the ``pcrb-position`` objective (its model, epochs, prior and range rows),
     so the margins and that objective predict the same covariance.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A path on the planning grid of ``pb`` (``N + 1`` samples).
+    pb : PlanningProblem
+        The problem: the validation's prior, process noise, sensor rates and noises.
+
+    Returns
+    -------
+    PathCovariance
+        The prior covariances of position [m²] and velocity [m²/s²] at every epoch, the first
+        the validation's prior.
     """
     cobj = _pcrb(pb)
     grid = Grid.from_problem(pb)
@@ -211,7 +271,23 @@ def path_loop_covariance(
 ) -> LoopCovariance:
     """The linearised closed loop along ``traj`` (planning grid) flown with ``guidance``
     (:func:`~obsplan.estimation.bounds.loop_covariance.loop_covariance`), with the posterior CRB of
-    the ``pcrb-position`` recursion as the filter's covariance."""
+    the ``pcrb-position`` recursion as the filter's covariance.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A path on the planning grid of ``pb`` (``N + 1`` samples).
+    pb : PlanningProblem
+        The problem: the validation's prior, process noise, sensor rates and noises.
+    guidance : Guidance
+        The guidance law flown: its gains ``kp`` [1/s²] and ``kd`` [1/s].
+
+    Returns
+    -------
+    LoopCovariance
+        The second moments of the filter's covariance, the estimated and the true deviations
+        from the plan after each epoch's update.
+    """
     cobj = _pcrb(pb)
     assert cobj.scale == 1.0  # the CRB's recursion is in metres and seconds, as the gains
     grid = Grid.from_problem(pb)
@@ -245,8 +321,28 @@ def deviation_bound(
     times: np.ndarray,
     dirs: np.ndarray,
 ) -> np.ndarray:
-    """``B(t) + σ_w`` (module docstring) [m] along unit directions ``dirs`` (C, n), the largest
-    over the times ``times`` (C, T) [s] of each direction."""
+    """``B(t) + σ_w`` (module docstring) [m] along unit directions ``dirs``, the largest over
+    the times ``times`` of each direction.
+
+    Parameters
+    ----------
+    cov : PathCovariance
+        The CRB's position and velocity covariances at the epochs along the path.
+    loop : LoopResponse
+        The guidance loop's impulse response.
+    q : float
+        White-acceleration intensity of the process noise [m²/s³], per axis.
+    times : ndarray, shape (C, T)
+        Times [s] from the start at which to bound each direction's deviation.
+    dirs : ndarray, shape (C, n)
+        Unit directions.
+
+    Returns
+    -------
+    ndarray, shape (C,)
+        Per direction, the largest ``B(t)`` over its ``T`` times plus ``σ_w = sqrt(q ∫ g²)``
+        [m]: a bound on the std of the true path's deviation along it (not yet times ``k``).
+    """
     sp = cov.gap_std(dirs, "pos")  # (C, J-1)
     sv = cov.gap_std(dirs, "vel")
     a, b = cov.time[:-1], cov.time[1:]
@@ -300,7 +396,23 @@ class KeepoutMargins:
 
     def maximum(self, other: KeepoutMargins, scale: float = 1.0) -> KeepoutMargins:
         """The larger of these margins and ``scale`` times ``other``'s at every point (the
-        reserves capped at ``Tuning.reserve_cap`` and :attr:`speed_cap`)."""
+        reserves capped at ``Tuning.reserve_cap`` and :attr:`speed_cap`).
+
+        Parameters
+        ----------
+        other : KeepoutMargins
+            Margins on the same grid (e.g. of another condition, or of the new path).
+        scale : float, optional
+            Factor on ``other``'s margins before the comparison (``1 + Tuning.inflate`` in
+            :func:`keep_out`, so that the rounds do not creep up in tiny steps).
+
+        Returns
+        -------
+        KeepoutMargins
+            These margins with every array the pointwise maximum; ``confidence``, ``k`` and
+            ``speed_cap`` are these margins', the speed reserve capped at the smaller of the two
+            caps.
+        """
         reserve = np.minimum(scale * other.accel_reserve, tuning().reserve_cap)
         speed = np.minimum(scale * other.speed, min(self.speed_cap, other.speed_cap))
         return replace(
@@ -312,13 +424,33 @@ class KeepoutMargins:
         )
 
     def without_speed_reserve(self) -> KeepoutMargins:
-        """These margins with no speed reserve (every other margin kept)."""
+        """These margins with no speed reserve (every other margin kept).
+
+        Returns
+        -------
+        KeepoutMargins
+            With ``speed`` zero and ``speed_cap`` 0, so that a later :meth:`maximum` adds no
+            speed reserve back.
+        """
         return replace(self, speed=np.zeros_like(self.speed), speed_cap=0.0)
 
     def grew(self, other: KeepoutMargins, atol: float | None = None) -> bool:
-        """True when ``other`` exceeds these margins anywhere by more than ``atol`` [m]
-        (default ``Tuning.margin_atol_m``), its reserves by more than
-        ``Tuning.reserve_atol`` and ``Tuning.speed_atol``."""
+        """True when ``other`` exceeds these margins anywhere by more than ``atol`` [m], its
+        reserves by more than ``Tuning.reserve_atol`` and ``Tuning.speed_atol``.
+
+        Parameters
+        ----------
+        other : KeepoutMargins
+            Margins on the same grid, typically recomputed on the re-solved path.
+        atol : float, optional
+            Tolerance on the distance and box margins [m] (default ``Tuning.margin_atol_m``).
+
+        Returns
+        -------
+        bool
+            Whether any margin grew beyond its tolerance (``other``'s speed reserve counted up to
+            :attr:`speed_cap`): if not, the path keeps the margins computed on itself.
+        """
         tun = tuning()
         if atol is None:
             atol = tun.margin_atol_m
@@ -330,6 +462,16 @@ class KeepoutMargins:
         )
 
     def to_dict(self) -> dict:
+        """JSON-ready summary of these margins.
+
+        Returns
+        -------
+        dict
+            ``confidence``, ``k``, and the largest margins ``max_range_margin_m`` [m],
+            ``max_box_margin_m`` [m], ``max_accel_reserve`` (fraction of the bound) and
+            ``max_speed_margin_mps`` [m/s] (0 when empty): the margin keys of ``keepout`` in
+            report.json (:meth:`KeepoutReport.to_dict`).
+        """
         return {
             "confidence": self.confidence,
             "k": self.k,
@@ -379,13 +521,19 @@ def keepout_margins(
 
     Parameters
     ----------
-    traj
+    traj : Trajectory
         A path on the planning grid (``N + 1`` samples).
-    pb
+    pb : PlanningProblem
         The problem: limits, ``limits.keepout_confidence``, the validation's filter settings.
-    guidance
+    guidance : Guidance, optional
         The guidance law the vehicle flies with (default: the validation's,
         :func:`~obsplan.planning.problem.validation_setup.validation_guidance` with ``at_sea``).
+
+    Returns
+    -------
+    KeepoutMargins
+        The margins [m] and reserves along ``traj`` (:func:`condition_margins`; all zero when
+        ``limits.keepout_confidence`` is 0).
     """
     flown = guidance or validation_guidance(pb, at_sea=True)
     assert flown is not None  # at_sea: never None
@@ -398,7 +546,27 @@ def keepout_margins(
 
 def condition_margins(traj: Trajectory, pb: PlanningProblem, guidance: Guidance) -> KeepoutMargins:
     """:func:`keepout_margins` of one condition: ``pb``'s own prior and noises, flown with
-    ``guidance`` (required: the vehicle's, whatever the condition)."""
+    ``guidance``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A path on the planning grid (``N + 1`` samples).
+    pb : PlanningProblem
+        The condition's problem: its limits, confidence, prior, noises and sensor rates.
+    guidance : Guidance
+        Required: the vehicle's guidance, whatever the condition (its gains from the nominal
+        prior).
+
+    Returns
+    -------
+    KeepoutMargins
+        ``k`` times the deviation bound at the distance constraints' points (each the largest
+        over ``±h/4``) and at the nodes of each bounded axis (over ``±h/2``), zero where there
+        is no such limit; the acceleration reserve between ``Tuning.reserve_floor`` and
+        ``Tuning.reserve_cap``; the speed reserve at most ``SPEED_RESERVE_CAP`` of the speed
+        bound (0 without one). All zero when ``k`` is 0.
+    """
     grid = Grid.from_problem(pb)
     n, N = grid.n, grid.N
     conf = float(pb.limits.keepout_confidence)
@@ -448,7 +616,26 @@ def _axis_dirs(count: int, n: int, axis: int) -> np.ndarray:
 
 def start_reach(grid: Grid, axis: int, sign: float, accel: float) -> np.ndarray:
     """Farthest displacement [m] along ``sign`` times ``axis`` from the start by each node
-    ``1..N``: the start velocity, then ``accel`` [m/s²] up to the speed bound, shape ``(N,)``."""
+    ``1..N``: the start velocity, then ``accel`` [m/s²] up to the speed bound.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid: node times, start velocity ``v0`` [m/s] and speed bound ``v_max``
+        [m/s].
+    axis : int
+        The axis (0, 1 or 2 for the depth).
+    sign : float
+        +1 or -1: the direction along the axis.
+    accel : float
+        The acceleration available along it [m/s²]; ``<= 0``: the start velocity only.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        The displacement [m] at nodes ``1..N`` (negative where the start velocity points the
+        other way and ``accel`` has not yet turned it).
+    """
     t = grid.times[1:]
     v = sign * float(grid.v0[axis])
     v_max = float(grid.v_max)
@@ -488,7 +675,24 @@ def box_margins(
     """Per area/depth axis, the margins [m] the NLP's lower and upper node bounds get, each
     ``(N,)``: ``margins.box`` at most ``Tuning.box_share`` of the width, and at most the
     start's distance to the limit plus ``Tuning.start_reach_share`` of what the vehicle can add
-    to it by each node (:func:`start_reach`, at the acceleration the reserve leaves)."""
+    to it by each node (:func:`start_reach`, at the acceleration the reserve leaves).
+
+    Why the second cap: a start closer to a limit than its margin cannot be ``k σ`` from it at
+    once, so the margin grows in with what the vehicle can reach (:func:`start_limited_s`).
+
+    Parameters
+    ----------
+    form : Formulation
+        The planning NLP (untightened): its node bounds and grid.
+    margins : KeepoutMargins
+        The margins: ``box`` and the acceleration reserve.
+
+    Returns
+    -------
+    dict of int to tuple of ndarray
+        Per bounded axis (0, 1: the area's x, y; 2: the depth band), ``(lower, upper)``
+        margins [m], each shape ``(N,)`` at nodes ``1..N``, never negative.
+    """
     return {
         axis: (np.minimum(full, np.maximum(lo, 0.0)), np.minimum(full, np.maximum(hi, 0.0)))
         for axis, (full, lo, hi) in _box_margin_limits(form, margins).items()
@@ -497,7 +701,22 @@ def box_margins(
 
 def start_limited_s(form: Formulation, margins: KeepoutMargins) -> float:
     """Time [s] of the last node whose area or depth margin the start limits
-    (:func:`box_margins`; 0 when none)."""
+    (:func:`box_margins`; 0 when none).
+
+    Parameters
+    ----------
+    form : Formulation
+        The planning NLP (untightened).
+    margins : KeepoutMargins
+        The margins.
+
+    Returns
+    -------
+    float
+        The time [s] from the start; a margin counts as limited when it is more than
+        ``Tuning.margin_atol_m`` below ``margins.box`` capped at ``Tuning.box_share`` of the
+        width.
+    """
     last = 0.0
     atol = tuning().margin_atol_m
     for full, lo, hi in _box_margin_limits(form, margins).values():
@@ -510,7 +729,23 @@ def start_limited_s(form: Formulation, margins: KeepoutMargins) -> float:
 def tighten(form: Formulation, margins: KeepoutMargins) -> Formulation:
     """``form`` with its distance and box limits tightened by ``margins`` (bounds only: the
     symbols, and so a compiled solver, are unchanged); the area and depth margins as
-    :func:`box_margins` gives them."""
+    :func:`box_margins` gives them.
+
+    Parameters
+    ----------
+    form : Formulation
+        The planning NLP (untightened).
+    margins : KeepoutMargins
+        The margins and reserves.
+
+    Returns
+    -------
+    Formulation
+        A copy with new ``lbg``, ``ubg``, ``lbx``, ``ubx``: ``min_range`` raised and
+        ``max_range`` lowered by the range margins, the speed constraint
+        ``|V|² <= (1 - speed / v_max)²``, the area/depth node bounds narrowed, and the inputs
+        bounded by ``|U| <= 1 - accel_reserve``.
+    """
     grid = form.grid
     lbg, ubg = form.lbg.copy(), form.ubg.copy()
     row = 0
@@ -537,8 +772,24 @@ def tighten(form: Formulation, margins: KeepoutMargins) -> Formulation:
 
 
 def keeps_margins(form: Formulation, traj: Trajectory, tol: float | None = None) -> bool:
-    """True when ``traj`` satisfies the (tightened) path constraints and bounds of ``form``
-    (to ``tol``, default ``Tuning.held_tol``)."""
+    """True when ``traj`` satisfies the (tightened) path constraints and bounds of ``form``.
+
+    Parameters
+    ----------
+    form : Formulation
+        The NLP, typically :func:`tighten`'s.
+    traj : Trajectory
+        A path on the planning grid (``N + 1`` samples).
+    tol : float, optional
+        Tolerance in intrinsic units (default ``Tuning.held_tol``): on the bounds of ``W``
+        absolute, on the path constraints relative (``tol (1 + |g|)``).
+
+    Returns
+    -------
+    bool
+        Whether every bound of ``W`` and every path constraint holds to ``tol`` (the
+        objective's and the parts' constraints are not checked).
+    """
     if tol is None:
         tol = tuning().held_tol
     W = form.grid.from_trajectory(traj)
@@ -594,6 +845,15 @@ class KeepoutReport:
     max_speed_margin_mps: float = 0.0
 
     def to_dict(self) -> dict:
+        """JSON-ready form of the report (``keepout`` of report.json).
+
+        Returns
+        -------
+        dict
+            Every attribute by name: ``confidence``, ``k``, ``rounds``, ``held``, ``statuses``
+            (a list), ``max_range_margin_m``, ``max_box_margin_m``, ``max_accel_reserve``,
+            ``max_speed_margin_mps``, ``planned_closest_range_m``, ``wall_s`` and ``note``.
+        """
         return {
             "confidence": self.confidence,
             "k": self.k,
@@ -639,8 +899,31 @@ def keep_out(
 ) -> tuple[Trajectory, KeepoutReport, StartOutcome | None]:
     """Re-solve from the ``nominal`` plan until it keeps its margins (module docstring).
 
-    Returns the path (``nominal`` when no re-solve kept the margins, with ``held`` False), the
-    report and the last kept re-solve's outcome (None if none).
+    Each round is a warm re-solve of the tightened NLP. When a re-solve fails to keep its
+    margins before any round has, and the margins include a speed reserve, it is tried again
+    without the speed reserve (a mission's timing may leave no room for it, and the margins off
+    the beacon and inside the box matter more); the report's note says so.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+    nominal : Trajectory
+        The plan solved without margins, on the planning grid.
+    guidance : Guidance, optional
+        The guidance the vehicle flies (default: the validation's, :func:`keepout_margins`).
+
+    Returns
+    -------
+    path : Trajectory
+        The path of the last re-solve that kept its limits, mission and margins; ``nominal``
+        when none did (``held`` False) or when no re-solve was needed (margins disabled, or
+        ``nominal`` already keeps them: 0 rounds, ``held`` True).
+    report : KeepoutReport
+        The margins, rounds and statuses, and a note in words of what was not achieved or
+        narrows the margins.
+    outcome : StartOutcome or None
+        The last kept re-solve's outcome (None if none).
     """
     t0 = time.perf_counter()
     first = keepout_margins(nominal, pb, guidance)
@@ -704,7 +987,20 @@ def keep_out(
 def narrow_limits(pb: PlanningProblem, margins: KeepoutMargins) -> list[str]:
     """A sentence per area axis or depth band narrower than twice the largest margin the plan
     must keep from it: no path keeps such a limit at ``limits.keepout_confidence`` (the vehicle
-    knows its position along that axis too poorly), whatever the objective. Empty otherwise."""
+    knows its position along that axis too poorly), whatever the objective.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its area and depth band.
+    margins : KeepoutMargins
+        The margins: ``box``, ``confidence`` and ``k``.
+
+    Returns
+    -------
+    list of str
+        One sentence per such limit, with what to change; empty otherwise.
+    """
     out = []
     names = {0: "the area's x range", 1: "the area's y range", 2: "the depth band"}
     for axis, (lo, hi) in _box_axes(pb):
@@ -750,9 +1046,22 @@ def _report(
 def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, KeepoutReport]:
     """:func:`~obsplan.planning.solver.solve.solve`, then :func:`keep_out` on its plan.
 
-    ``kwargs`` go to ``solve``. The returned :class:`SolveResult` carries the kept path (its
-    objective recomputed, its status and iterations those of the re-solve that returned it) when
-    a re-solve kept the margins, else the nominal result unchanged.
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+    **kwargs
+        Passed on to :func:`~obsplan.planning.solver.solve.solve`.
+
+    Returns
+    -------
+    result : SolveResult
+        The kept path (its objective recomputed, its status, success and iterations those of
+        the re-solve that returned it, a note of that re-solve's status) when a re-solve kept
+        the margins, else the nominal result unchanged.
+    report : KeepoutReport
+        :func:`keep_out`'s report; "no plan to keep out" (0 rounds) when ``solve`` returned no
+        path.
     """
     res = solve(pb, **kwargs)
     if res.trajectory is None:

@@ -68,10 +68,10 @@ class SolveResult:
     """Outcome of :func:`solve`.
 
     ``status``/``iterations`` are those of the start whose path was chosen (for a chosen initial
-    guess or baseline: the best start's, with ``chosen`` saying so; after the keep-out re-solve
-    of :func:`~obsplan.planning.solver.margins.solve_with_keepout`, the re-solve's); ``success`` is
-    true exactly when that status is ``Solve_Succeeded`` and there is a path (the module's
-    docstring; checked on construction); ``wall_s`` is the whole
+    guess or baseline: :data:`GUESS_STATUS` and 0, with ``chosen`` saying so; after the keep-out
+    re-solve of :func:`~obsplan.planning.solver.margins.solve_with_keepout`, the re-solve's);
+    ``success`` is true exactly when that status is ``Solve_Succeeded`` and there is a path (the
+    module's docstring; checked on construction); ``wall_s`` is the whole
     multi-start (the coarse-grid pass included, see ``Tuning.coarse_steps``); ``start_paths`` holds
     each start's returned path by label.
     """
@@ -101,7 +101,17 @@ class SolveResult:
             )
 
     def to_dict(self) -> dict:
-        """The ``solver`` keys of ``report.json`` (stable first, then extras)."""
+        """The ``solver`` keys of ``report.json`` (stable first, then extras).
+
+        Returns
+        -------
+        dict
+            JSON-ready: ``success``, ``status``, ``iterations``, ``wall_s`` [s],
+            ``objective_kind``, ``objective_mode``, ``objective`` and ``lifted_objective`` (None
+            when absent or not finite), ``best_start``, ``chosen``, ``note``,
+            ``converged_starts`` (how many starts converged), ``build_s`` [s] and ``starts``
+            (each start's :meth:`~obsplan.planning.solver.starts.StartOutcome.to_dict`).
+        """
         return {
             "success": bool(self.success),
             "status": self.status,

@@ -104,6 +104,16 @@ class StartOutcome:
         return self.limits.ok() and self.mission_complete
 
     def to_dict(self) -> dict:
+        """JSON-ready form of the outcome (an item of ``solver.starts`` in report.json).
+
+        Returns
+        -------
+        dict
+            ``label``, ``success``, ``status``, ``iterations``, ``wall_s`` [s], ``objective``,
+            ``lifted_objective`` and ``initial_objective`` (None when absent or not finite),
+            ``feasible`` (within the limits and completing the mission), ``projected``,
+            ``mission_complete`` and ``note``.
+        """
         return {
             "label": self.label,
             "success": bool(self.success),
@@ -141,7 +151,27 @@ def start_context(
     warm: bool = False,
 ) -> StartContext:
     """The solver of ``form`` (:func:`~obsplan.planning.solver.ipopt.make_solver`) and a projection
-    built on first use (most starts end within the limits and never need it)."""
+    built on first use (most starts end within the limits and never need it).
+
+    Parameters
+    ----------
+    form : Formulation
+        The NLP (possibly with tightened bounds: the starts use its bounds).
+    verbose : bool, optional
+        Print IPOPT's iterations and timings.
+    expand : bool, optional
+        Expand the MX graph to SX before solving.
+    ipopt_options : dict, optional
+        IPOPT options applied last (:func:`~obsplan.planning.solver.ipopt.ipopt_settings`).
+    warm : bool, optional
+        The guesses are coarse-grid optima (warm-start options).
+
+    Returns
+    -------
+    StartContext
+        The formulation, its solver, the lazy projection, and the solver's ``tol`` and
+        ``constr_viol_tol`` (what a stopped start is measured against).
+    """
     solver = make_solver(
         form, verbose=verbose, expand=expand, ipopt_options=ipopt_options, warm=warm
     )
@@ -165,7 +195,27 @@ def start_context(
 def run_start(
     ctx: StartContext, label: str, guess: Trajectory
 ) -> tuple[StartOutcome, Trajectory | None]:
-    """IPOPT from one guess; its path (projected onto the limits if needed) or None."""
+    """IPOPT from one guess; its path (projected onto the limits if needed) or None.
+
+    Parameters
+    ----------
+    ctx : StartContext
+        The formulation and its solver (:func:`start_context`).
+    label : str
+        The start's name, e.g. ``"lawnmower"`` or ``"random-3"``.
+    guess : Trajectory
+        The initial guess, on the planning grid.
+
+    Returns
+    -------
+    outcome : StartOutcome
+        Status, iterations, the objective recomputed numerically on the returned path, the
+        limit and mission checks of that path, and why a start that did not converge stopped.
+    path : Trajectory or None
+        The solver's path, projected onto the limits when it breaks a limit or the mission (the
+        unprojected path, with ``projected`` True and its failed checks, when the projection
+        fails); None when the solver returned no finite point.
+    """
     form = ctx.form
     pb = form.problem
     x0 = form.pack(guess)
@@ -311,7 +361,18 @@ def _stop_workers(workers: list[tuple[BaseProcess, Connection]], kill: bool) -> 
 
 
 def default_processes(n_starts: int) -> int:
-    """Worker processes for ``n_starts`` starts: one per available core, at most one per start."""
+    """Worker processes for ``n_starts`` starts: one per available core, at most one per start.
+
+    Parameters
+    ----------
+    n_starts : int
+        Number of starts.
+
+    Returns
+    -------
+    int
+        ``min(cores available to this process, n_starts)``, at least 1.
+    """
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not Linux
@@ -332,14 +393,31 @@ def run_forked(
     ``state`` (e.g. a built solver) reaches the workers by the fork, not by pickling; the items
     and the results are pickled, through one pipe per worker (no queue or lock shared between
     workers, so a worker killed at any moment cannot block the others or the parent). Serial
-    when ``processes <= 1``, with one item, or where ``fork`` is not available.
-    ``on_result(i, result)`` is called in item order as the results arrive. An exception of
+    when ``processes <= 1``, with one item, or where ``fork`` is not available. An exception of
     ``fn`` is raised here.
 
     The workers ignore SIGINT and SIGTERM (a terminal's Ctrl-C and a batch scheduler's SIGTERM
     reach the whole process group): the parent raises
     :class:`~obsplan.core.interrupts.Interrupted` (or ``KeyboardInterrupt``) and kills its
     workers at once, without waiting for their solves. A worker dies with its parent.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(state, item)``: the work on one item; its result must be picklable.
+    state : Any
+        Shared by every call; inherited by the forked workers, never pickled.
+    items : sequence
+        The items (picklable), one call each.
+    processes : int
+        At most this many worker processes (never more than items); ``<= 1`` runs serially.
+    on_result : callable, optional
+        ``on_result(i, result)`` for each item index ``i``, in item order as the results arrive.
+
+    Returns
+    -------
+    list
+        ``fn(state, item)`` for each item, in the order of ``items``.
 
     Raises
     ------
@@ -428,9 +506,24 @@ def run_starts(
 ) -> list[tuple[StartOutcome, Trajectory | None]]:
     """Every start, in the order of ``guesses``: ``(outcome, path or None)`` each.
 
-    ``processes``: default :func:`default_processes`; 1 (or ``verbose``, whose IPOPT output
-    would interleave) runs serially. ``progress``: a callback after each start, or True for a
-    tqdm bar (on stderr, closed at the end).
+    Parameters
+    ----------
+    ctx : StartContext
+        The formulation and its solver, shared by every start (inherited by the workers).
+    guesses : sequence of (str, Trajectory)
+        ``(label, initial guess)`` per start, on the planning grid.
+    processes : int, optional
+        Worker processes; default :func:`default_processes`; 1 runs serially.
+    progress : bool or Progress, optional
+        A callback ``(index, label, outcome)`` after each start, in order, or True for a tqdm
+        bar (on stderr, closed at the end).
+    verbose : bool, optional
+        Runs serially, since the starts' IPOPT output would interleave.
+
+    Returns
+    -------
+    list of (StartOutcome, Trajectory or None)
+        :func:`run_start`'s ``(outcome, path or None)`` per guess, in the order of ``guesses``.
     """
     guesses = list(guesses)
     bar = None
