@@ -419,7 +419,9 @@ def test_plan_is_never_worse_than_a_baseline_even_when_every_start_fails():
     res = solve(pb, baselines=bls, processes=1)
     assert not res.success
     assert all(not s.success for s in res.starts)
-    assert res.status == "Maximum_Iterations_Exceeded"
+    # the status is the flown path's: a stalled start's, or a guess or baseline returned unchanged
+    flown = "Guess_Returned" if res.best_start is None else "Maximum_Iterations_Exceeded"
+    assert res.status == flown
     assert res.trajectory is not None and check_limits(res.trajectory, pb).ok()
     best_baseline = min(objective_value(b.trajectory, pb) for b in bls.values())
     assert res.objective <= best_baseline
