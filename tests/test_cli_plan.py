@@ -152,11 +152,10 @@ def test_failed_solve_exits_1(tmp_path, capsys):
     assert code == 1
     rep = _strict_json(tmp_path / "o" / "report.json")
     assert rep["solver"]["success"] is False
-    # the status is the flown path's: a stalled start's, or a guess returned unchanged
-    flown = (
-        "Guess_Returned" if rep["solver"]["best_start"] is None else "Maximum_Iterations_Exceeded"
-    )
-    assert rep["solver"]["status"] == flown
+    # the status is the flown path's (a stalled start's or re-solve's, or a guess returned
+    # unchanged), and the words name it
+    flown = rep["solver"]["status"]
+    assert flown in ("Maximum_Iterations_Exceeded", "Guess_Returned")
     assert f"not a converged solution (solver.status {flown})" in capsys.readouterr().err
 
 
