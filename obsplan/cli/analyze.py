@@ -9,6 +9,7 @@ import numpy as np
 
 from obsplan.cli.common import add_vehicle_arguments, read_trajectory, resolve_beacon
 from obsplan.core.errors import InputError
+from obsplan.model.beacon import BeaconPath, read_beacon_path
 from obsplan.observability.analyze import ObservabilityReport, analyze
 from obsplan.observability.scaling import DEFAULT_SCALES, ScaleError, Scales, check_scale
 
@@ -25,8 +26,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     -------
     argparse.ArgumentParser
         The parser of ``obsplan analyze``: ``TRAJ.csv``, the vehicle options
-        (:func:`~obsplan.cli.common.add_vehicle_arguments`), ``--length-scale``, ``--time-scale``
-        and ``--json``.
+        (:func:`~obsplan.cli.common.add_vehicle_arguments`), ``--beacon-path``,
+        ``--length-scale``, ``--time-scale`` and ``--json``.
     """
     p = subparsers.add_parser(
         "analyze",
@@ -40,6 +41,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("trajectory", metavar="TRAJ.csv", help="trajectory CSV file")
     add_vehicle_arguments(p)
+    p.add_argument(
+        "--beacon-path",
+        metavar="B.csv",
+        default=None,
+        help="a moving beacon: CSV t,bx,by (2D) or t,bx,by,bz (3D) [s, m] in the trajectory's "
+        "frame, linearly interpolated, covering the trajectory's time span (instead of --beacon)",
+    )
     p.add_argument(
         "--length-scale",
         metavar="M",
@@ -79,7 +87,8 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
     verdict = "YES" if lwo.along_trajectory else "NO"
     lines = [
         f"{path}: {rep.dim}D, sensors {','.join(rep.sensors)}"
-        + (", unknown current" if rep.current else ""),
+        + (", unknown current" if rep.current else "")
+        + (", moving beacon (known path)" if rep.beacon_motion == "path" else ""),
         f"  LWO along trajectory (rank condition, eq. 9): {verdict}  "
         f"(full rank {lwo.state_dim} at {100 * lwo.full_rank_fraction:.1f}% of samples, "
         f"min rank {lwo.min_rank})",
@@ -90,6 +99,23 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
         f"min_eig {g.min_eig:.4g}, log_det {g.log_det:.4g}, condition {g.condition:.4g}",
     ]
     return "\n".join(lines)
+
+
+def _beacon_path(
+    args: argparse.Namespace, dim: int, beacon: tuple[float, ...] | None, t0: float, t1: float
+) -> BeaconPath | None:
+    """The ``--beacon-path``, read and checked against the trajectory; None when not given."""
+    if args.beacon_path is None:
+        return None
+    if beacon is not None:
+        given = "--beacon" if args.beacon is not None else "--beacon-geodetic"
+        raise InputError(
+            f"give either {given} (a fixed beacon) or --beacon-path (a moving one), not both"
+        )
+    where = f"--beacon-path {args.beacon_path}"
+    path = read_beacon_path(args.beacon_path, dim, where)
+    path.check_covers(t0, t1, f"{where} (the trajectory {args.trajectory})")
+    return path
 
 
 def run(args: argparse.Namespace) -> int:
@@ -112,20 +138,23 @@ def run(args: argparse.Namespace) -> int:
     Raises
     ------
     InputError
-        A bad scale, trajectory or beacon, or scales under which the full-rank Gramian's
-        metrics fall below round-off (exit 2).
+        A bad scale, trajectory, beacon or beacon path (malformed, of another dimension, not
+        covering the trajectory, or given with ``--beacon``), or scales under which the
+        full-rank Gramian's metrics fall below round-off (exit 2).
     """
     check_scale(args.length_scale, "--length-scale", "m")
     check_scale(args.time_scale, "--time-scale", "s")
     scales = Scales(length_m=args.length_scale, time_s=args.time_scale)
     traj = read_trajectory(args.trajectory, "analyze")
     beacon, origin = resolve_beacon(args, traj.dim)
+    path = _beacon_path(args, traj.dim, beacon, float(traj.t[0]), float(traj.t[-1]))
     rep = analyze(
         traj,
         sensors=args.sensors or "range",
         current=bool(args.current),
         beacon=beacon,
         scales=scales,
+        beacon_path=path,
     )
     try:
         rep.gramian.check_metrics()  # never print min_eig 0, log_det -inf for a full rank
@@ -140,6 +169,8 @@ def run(args: argparse.Namespace) -> int:
         if origin is not None:
             out["origin"] = origin.to_dict()
             out["beacon"] = list(beacon) if beacon is not None else [0.0] * traj.dim
+        if path is not None:
+            out["beacon_path"] = args.beacon_path
         print(json.dumps(out, indent=2))
     else:
         print(format_report(rep, args.trajectory))

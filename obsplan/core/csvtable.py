@@ -39,6 +39,7 @@ _BYTES_PER_CELL = 80
 COLUMN_LIMITS: dict[str, tuple[float, str]] = {
     "t": (1e10, "s"),
     **{f"p{a}": (1e7, "m") for a in "xyz"},
+    **{f"b{a}": (1e7, "m") for a in "xyz"},  # a beacon path's positions (model/beacon.py)
     **{f"v{a}": (1e4, "m/s") for a in "xyz"},
     **{f"u{a}": (1e3, "m/s²") for a in "xyz"},
 }

@@ -20,10 +20,16 @@ Two first-full-rank times, two definitions (JSON keys of the ``gramian`` dict):
   with range and DVL is rank 6 of 8 in every exact key; see ``structural.py``).
   ``null`` where the Gramian is never exactly non-singular, or when ``exact=False``.
 
-The beacon only enters the LWO test: the augmented Gramian depends on the inputs alone. A sample
-on the beacon is not an error: with the half-squared range O is defined there and simply loses
-rank; with the plain range (``range_form="range"``) O is undefined there (``∇|p-b|``) and those
-rows count as zero rows, i.e. the rank condition is not met at that sample.
+Moving beacon (``beacon_path``): only the motion relative to the beacon matters, and both tests
+are today's on the relative trajectory (``lwo.py`` and ``gramian.py``, "Moving beacon"). The
+exact rank profile is not computed for a moving beacon (its keys are ``null``): its rational
+arithmetic integrates held inputs, and the relative velocity jumps at the beacon's knots.
+``to_dict`` then adds ``"beacon_motion": "path"``.
+
+A fixed beacon only enters the LWO test: the augmented Gramian depends on the inputs alone. A
+sample on the beacon is not an error: with the half-squared range O is defined there and simply
+loses rank; with the plain range (``range_form="range"``) O is undefined there (``∇|p-b|``) and
+those rows count as zero rows, i.e. the rank condition is not met at that sample.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from obsplan.core.errors import InputError
+from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import RangeForm, make_model, parse_sensors
 from obsplan.observability.gramian import GramianReport, gramian_report
 from obsplan.observability.lwo import LWOReport, lwo_report
@@ -61,6 +68,8 @@ class ObservabilityReport:
     rank_tol
         Tolerance of the conditioning rank test behind ``gramian.rank`` and
         ``gramian.full_rank_from_t`` (eigenvalues of the equilibrated Gramian).
+    beacon_motion
+        ``"fixed"``, or ``"path"`` for a beacon on a known path.
     """
 
     dim: int
@@ -70,6 +79,7 @@ class ObservabilityReport:
     gramian: GramianReport
     exact: ExactRankProfile | None = None
     rank_tol: float = RANK_TOL
+    beacon_motion: str = "fixed"
 
     def to_dict(self) -> dict:
         """The stable keys of ``obsplan analyze --json``, JSON-serialisable.
@@ -81,7 +91,8 @@ class ObservabilityReport:
         -------
         dict
             ``dim``, ``sensors``, ``current``, ``lwo`` (:meth:`LWOReport.to_dict`) and
-            ``gramian``; non-finite metrics are None.
+            ``gramian``; non-finite metrics are None. A moving beacon adds
+            ``"beacon_motion": "path"`` (a fixed beacon's keys are the stable ones only).
         """
         g = self.gramian.to_dict()
         g["rank_tol"] = float(self.rank_tol)
@@ -89,13 +100,16 @@ class ObservabilityReport:
             g.update(self.exact.to_dict())
         else:
             g.update(rank_exact=None, full_rank_interval_exact=None, full_rank_from_t_exact=None)
-        return {
+        out = {
             "dim": int(self.dim),
             "sensors": list(self.sensors),
             "current": bool(self.current),
             "lwo": self.lwo.to_dict(),
             "gramian": g,
         }
+        if self.beacon_motion != "fixed":
+            out["beacon_motion"] = self.beacon_motion
+        return out
 
 
 def analyze(
@@ -106,6 +120,7 @@ def analyze(
     scales: Scales = DEFAULT_SCALES,
     range_form: RangeForm = "half-squared",
     exact: bool = True,
+    beacon_path: BeaconPath | None = None,
 ) -> ObservabilityReport:
     """Both observability verdicts of ``trajectory``.
 
@@ -125,7 +140,11 @@ def analyze(
     range_form : {"half-squared", "range"}, optional
         ``"half-squared"`` (the paper's ``½|p-b|²``) or ``"range"``.
     exact : bool, optional
-        Also compute the exact rank profile of the held-input Gramian (``report.exact``).
+        Also compute the exact rank profile of the held-input Gramian (``report.exact``); not
+        with ``beacon_path`` (module docstring).
+    beacon_path : BeaconPath or None, optional
+        A beacon moving on a known path covering the trajectory's span, of its dimension;
+        excludes ``beacon``. None: a fixed beacon.
 
     Returns
     -------
@@ -137,7 +156,9 @@ def analyze(
     ------
     InputError
         If ``trajectory`` is not a :class:`Trajectory`; ``ConfigError`` (an ``InputError``) for
-        unknown sensors, a beacon of the wrong dimension, a bad range form or bad scales.
+        unknown sensors, a beacon of the wrong dimension, a bad range form or bad scales; both
+        ``beacon`` and ``beacon_path``, or a beacon path of another dimension or that does not
+        cover the trajectory.
 
     Examples
     --------
@@ -157,6 +178,8 @@ def analyze(
         )
     if not isinstance(scales, Scales):
         raise InputError(f"scales must be an obsplan Scales, got {type(scales).__name__}")
+    if beacon_path is not None and beacon is not None:
+        raise InputError("give either a fixed beacon or a beacon path, not both")
     model = make_model(
         dim=trajectory.dim,
         sensors=parse_sensors(sensors),
@@ -168,8 +191,9 @@ def analyze(
         dim=model.dim,
         sensors=model.sensors,
         current=model.current,
-        lwo=lwo_report(trajectory, model),
-        gramian=gramian_report(trajectory, model, scales, RANK_TOL),
-        exact=exact_rank_profile(trajectory, model) if exact else None,
+        lwo=lwo_report(trajectory, model, beacon_path=beacon_path),
+        gramian=gramian_report(trajectory, model, scales, RANK_TOL, beacon_path=beacon_path),
+        exact=exact_rank_profile(trajectory, model) if exact and beacon_path is None else None,
         rank_tol=RANK_TOL,
+        beacon_motion="fixed" if beacon_path is None else "path",
     )

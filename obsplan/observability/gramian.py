@@ -23,6 +23,22 @@ for *every* input (the paper's claim of section 4.3, shown here by construction)
 The Gramian does not depend on the beacon or on ``p0``, ``v0``: only on the inputs. Radial and
 non-radial straight lines with the same acceleration profile have the same Gramian.
 
+Moving beacon
+-------------
+With a beacon on a known path ``b(t)`` the range is ``½|r|²`` with ``r = p - b`` and
+``r(t) = r0 + ρ0 τ + d_r(t)``, ``ρ = ν - b'``, where ``d_r = d - (b(t) - b0 - b'0 τ)`` is known
+(the displacement due to the relative input ``u - b''``). The same algebra as eqs. 18–21 gives
+``ȳ = d_rᵀ r(t) + τ r0ᵀρ0 + ½ τ² |ρ0|²`` plus the known ``-τ d_rᵀ b'0``, which a Gramian does
+not see: the augmented state is ``(r, v, [v_f], r0ᵀρ0, |ρ0|²)`` and every row above keeps its
+form with ``d`` replaced by ``d_r`` (DVL rows read ``v``, the depth row ``p_z = r_z + b_z``
+differs from ``r_z`` by a known term). Since ``b`` is known, ``(r0, ρ0)`` and ``(p0, ν0)``
+determine each other. So the functions below that take ``beacon_path`` compute today's Gramian
+of :func:`~obsplan.trajectory.relative.relative_trajectory`: the piecewise-linear beacon path
+is exact there (the union of the trajectory's samples and the path's knots makes the relative
+input held; the impulses of ``b''`` at the knots are jumps of ``ρ``, inside ``d_r`` and ``e``),
+and no ``b''`` is needed. Per-interval and per-sample results are given on the trajectory's own
+intervals and samples (the sub-intervals of an interval summed).
+
 Exact Gramian
 -------------
 On an interval ``[t_k, t_k + h)`` with constant input, ``d(t_k + σ) = d_k + e_k σ + ½ u_k σ²``
@@ -55,6 +71,7 @@ from functools import cache
 import casadi as ca
 import numpy as np
 
+from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import VehicleModel
 from obsplan.observability.scaling import (
     DEFAULT_SCALES,
@@ -64,6 +81,7 @@ from obsplan.observability.scaling import (
     numerical_rank,
     psd_metrics,
 )
+from obsplan.trajectory.relative import relative_trajectory
 from obsplan.trajectory.sampled import Trajectory
 
 _AXES = "xyz"
@@ -331,11 +349,22 @@ def _interval_factors(traj: Trajectory, aug: AugmentedModel, scales: Scales | No
     return np.swapaxes(VT, 2, 3).reshape(K, -1, m)
 
 
+def _relative(
+    traj: Trajectory, beacon_path: BeaconPath | None
+) -> tuple[Trajectory, np.ndarray | None]:
+    """The trajectory the Gramian is taken of and where the original samples sit in it: itself
+    (None) for a fixed beacon; relative to a moving one (module docstring, "Moving beacon")."""
+    if beacon_path is None:
+        return traj, None
+    return relative_trajectory(traj, beacon_path)
+
+
 def interval_gramians(
     traj: Trajectory,
     model: VehicleModel | AugmentedModel,
     scales: Scales | None = DEFAULT_SCALES,
     row_weights: np.ndarray | None = None,
+    beacon_path: BeaconPath | None = None,
 ) -> np.ndarray:
     """Exact per-interval contributions ``G_k``, shape ``(N-1, m, m)``, referred to ``z(t_0)``.
 
@@ -354,6 +383,9 @@ def interval_gramians(
         Nondimensionalisation of the trajectory; None: its own (SI) units.
     row_weights : ndarray, shape (N-1, n_outputs), optional
         Weight of each output row on each interval (information per unit time); None: 1.
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span (module docstring, "Moving beacon"); None: a
+        fixed beacon (where it is does not matter).
 
     Returns
     -------
@@ -365,18 +397,30 @@ def interval_gramians(
     ------
     ValueError
         If the model and the trajectory differ in dimension.
+    InputError
+        A beacon path of another dimension, or one that does not cover ``traj``.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
-    V = _interval_factors(traj, aug, scales)
+    rel, samples = _relative(traj, beacon_path)
+    V = _interval_factors(rel, aug, scales)
     if row_weights is not None:
         K, rows = V.shape[0], aug.n_outputs
-        w = np.sqrt(np.asarray(row_weights, float).reshape(K, rows))
+        w = np.asarray(row_weights, float).reshape(traj.n_samples - 1, rows)
+        if samples is not None:  # each sub-interval carries the weights of its interval
+            w = w[np.searchsorted(samples, np.arange(K), side="right") - 1]
+        w = np.sqrt(w)
         V = (V.reshape(K, rows, 4, -1) * w[:, :, None, None]).reshape(V.shape)
-    return np.swapaxes(V, 1, 2) @ V
+    G = np.swapaxes(V, 1, 2) @ V
+    if samples is not None:  # the sub-intervals of each interval of traj, summed
+        G = np.add.reduceat(G, samples[:-1], axis=0)
+    return G
 
 
 def cumulative_gramians(
-    traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
+    traj: Trajectory,
+    model: VehicleModel | AugmentedModel,
+    scales: Scales | None = DEFAULT_SCALES,
+    beacon_path: BeaconPath | None = None,
 ) -> np.ndarray:
     """``G(t_k, t_0)`` at every sample, shape ``(N, m, m)`` (the first is zero).
 
@@ -388,20 +432,25 @@ def cumulative_gramians(
         The sensor configuration.
     scales : Scales or None, optional
         Nondimensionalisation of the trajectory; None: its own (SI) units.
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span; None: a fixed beacon.
 
     Returns
     -------
     ndarray, shape (N, m, m)
         The running sums of :func:`interval_gramians`.
     """
-    Gk = interval_gramians(traj, model, scales)
+    Gk = interval_gramians(traj, model, scales, beacon_path=beacon_path)
     out = np.zeros((Gk.shape[0] + 1, *Gk.shape[1:]))
     np.cumsum(Gk, axis=0, out=out[1:])
     return out
 
 
 def gramian(
-    traj: Trajectory, model: VehicleModel | AugmentedModel, scales: Scales | None = DEFAULT_SCALES
+    traj: Trajectory,
+    model: VehicleModel | AugmentedModel,
+    scales: Scales | None = DEFAULT_SCALES,
+    beacon_path: BeaconPath | None = None,
 ) -> np.ndarray:
     """The exact observability Gramian ``G(t_N, t_0)`` (eq. 25), shape ``(m, m)``, in ``scales``.
 
@@ -415,6 +464,8 @@ def gramian(
         The sensor configuration.
     scales : Scales or None, optional
         Nondimensionalisation of the trajectory; None: its own (SI) units.
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span; None: a fixed beacon.
 
     Returns
     -------
@@ -422,7 +473,8 @@ def gramian(
         The Gramian over the whole trajectory, symmetrised.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
-    V = _interval_factors(traj, aug, scales).reshape(-1, aug.state_dim)
+    rel, _ = _relative(traj, beacon_path)
+    V = _interval_factors(rel, aug, scales).reshape(-1, aug.state_dim)
     G = V.T @ V
     return 0.5 * (G + G.T)
 
@@ -488,7 +540,7 @@ class GramianReport:
         }
 
 
-def rank_scales(traj: Trajectory) -> Scales:
+def rank_scales(traj: Trajectory, beacon_path: BeaconPath | None = None) -> Scales:
     """Scales of the rank test, taken from the trajectory so that they change with its units.
 
     Length: the larger of the RMS displacement ``|d|`` (eq. 15) and the RMS spread of the
@@ -500,29 +552,44 @@ def rank_scales(traj: Trajectory) -> Scales:
     any units; the exact rank never depends on them. The spread matters when ``d`` is round-off
     only (constant velocity): a length taken from ``d`` alone would blow that noise up to O(1).
 
+    With ``beacon_path`` the length is the larger of the vehicle's and that of its motion
+    relative to the beacon: a beacon trailing the vehicle leaves relative displacements of
+    round-off size, which a length taken from them alone would blow up to O(1).
+
     Parameters
     ----------
     traj : Trajectory
         The sampled path.
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span; None: a fixed beacon.
 
     Returns
     -------
     Scales
         Length [m] and time [s] (the duration) of the rank test.
     """
+    ell = _rank_length(traj)
+    if beacon_path is not None:
+        ell = max(ell, _rank_length(relative_trajectory(traj, beacon_path)[0]))
+    return Scales(length_m=ell if ell > 0 else 1.0, time_s=traj.duration)
+
+
+def _rank_length(traj: Trajectory) -> float:
+    """The length of :func:`rank_scales` of one trajectory [m] (0 if it does not move)."""
     d = traj.displacement()
     rms_d = float(np.sqrt(np.mean(np.sum(d**2, axis=1))))
     spread = traj.p - traj.p.mean(axis=0)
     ell = max(rms_d, float(np.sqrt(np.mean(np.sum(spread**2, axis=1)))))
     if not ell > 0:
         ell = float(np.sqrt(np.mean(np.sum(traj.v**2, axis=1)))) * traj.duration
-    return Scales(length_m=ell if ell > 0 else 1.0, time_s=traj.duration)
+    return ell
 
 
 def rank_over_time(
     traj: Trajectory,
     model: VehicleModel | AugmentedModel,
     tol: float = RANK_TOL,
+    beacon_path: BeaconPath | None = None,
 ) -> np.ndarray:
     """Unit-invariant rank of ``G(t_k, t_0)`` at every sample, shape ``(N,)``.
 
@@ -537,6 +604,8 @@ def rank_over_time(
     tol : float, optional
         Tolerance on the equilibrated eigenvalues
         (:func:`~obsplan.observability.scaling.numerical_rank`).
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span; None: a fixed beacon.
 
     Returns
     -------
@@ -544,7 +613,7 @@ def rank_over_time(
         Rank of the Gramian from ``t_0`` to each sample (0 at the first).
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
-    G = cumulative_gramians(traj, aug, rank_scales(traj))
+    G = cumulative_gramians(traj, aug, rank_scales(traj, beacon_path), beacon_path)
     ranks = np.zeros(G.shape[0], dtype=int)
     ranks[1:] = numerical_rank(G[1:], tol)
     return ranks
@@ -555,6 +624,7 @@ def gramian_report(
     model: VehicleModel | AugmentedModel,
     scales: Scales = DEFAULT_SCALES,
     tol: float = RANK_TOL,
+    beacon_path: BeaconPath | None = None,
 ) -> GramianReport:
     """Rank, first full-rank time and scaled metrics of the augmented Gramian along ``traj``.
 
@@ -575,6 +645,9 @@ def gramian_report(
         Fixed nondimensionalisation of the metrics ``min_eig``, ``log_det``, ``condition``.
     tol : float, optional
         Tolerance of the rank test on the equilibrated eigenvalues.
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span (module docstring, "Moving beacon"); None: a
+        fixed beacon.
 
     Returns
     -------
@@ -583,7 +656,7 @@ def gramian_report(
         ``-inf`` and ``condition`` ``inf``.
     """
     aug = model if isinstance(model, AugmentedModel) else augmented_model(model)
-    Gcum = cumulative_gramians(traj, aug, rank_scales(traj))
+    Gcum = cumulative_gramians(traj, aug, rank_scales(traj, beacon_path), beacon_path)
     rank = numerical_rank(0.5 * (Gcum[-1] + Gcum[-1].T), tol)
     full = rank == aug.state_dim
     t_full: float | None = None
@@ -592,7 +665,7 @@ def gramian_report(
         k = int(np.argmax(ranks == aug.state_dim)) + 1
         t_full = float(traj.t[k])
     if full:
-        min_eig, log_det, cond = psd_metrics(gramian(traj, aug, scales))
+        min_eig, log_det, cond = psd_metrics(gramian(traj, aug, scales, beacon_path))
     else:
         # The unit-invariant test found a null direction: the fixed-scale eigenvalue there is
         # round-off (e.g. 1e-16 beside a DVL block), not information, so report it as zero.

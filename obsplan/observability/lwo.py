@@ -35,6 +35,22 @@ O depends on the state only through ``p`` and ``ν = v + v_f`` (the range rows) 
 rows), so the split does not change O (tested). For ``input_derivatives > 0`` the derivatives of u
 are estimated from the samples by finite differences (:func:`input_derivative_estimates`).
 
+Moving beacon
+-------------
+With a beacon on a known path ``b(t)`` (:class:`~obsplan.model.beacon.BeaconPath`) the outputs
+depend on time, and the Lie derivatives gain ``∂_t``. In the coordinates ``(r, v[, v_f])`` with
+``r = p - b`` the dynamics are ``r' = v (+ v_f) - b'``, ``v' = u``: the range rows are those of a
+beacon fixed at the origin evaluated at the relative state ``(r, ν - b')`` with the relative input
+``u - b''`` (the shift ``v -> v - b'`` has the identity for Jacobian, so the gradient rows do not
+change; DVL rows are constant and the depth row ``p_z = r_z + b_z`` has the gradient ``e_z``
+either way). So every function below that takes ``beacon_path`` evaluates today's matrix on
+:func:`~obsplan.trajectory.relative.relative_samples` with the beacon at the origin: one place
+for the logic, and ``beacon_path=None`` runs exactly today's code. The beacon's ``b'`` and ``b''``
+are those of the smooth path its samples are taken from (a local test cannot see the impulses of
+a piecewise-linear path; :mod:`obsplan.model.beacon`). Between two samples ``b''`` varies, so
+the "sampling is exact" argument below holds for a held relative input only (a fixed beacon, or
+one at constant velocity or constant acceleration): the verdict is that of the samples.
+
 Rank test
 ---------
 O mixes units (rows of m², m²/s, ..., columns of m and m/s). Changing units multiplies O by fixed
@@ -78,7 +94,9 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from obsplan.core.errors import InputError
+from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import VehicleModel
+from obsplan.trajectory.relative import relative_samples
 from obsplan.trajectory.sampled import Trajectory
 
 #: Relative tolerance on the singular values of the dimensionless O at one sample.
@@ -286,12 +304,30 @@ def _check_dims(traj: Trajectory, model: VehicleModel) -> None:
         )
 
 
-def lwo_matrices(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0) -> np.ndarray:
+def _relative(
+    traj: Trajectory, model: VehicleModel, beacon_path: BeaconPath | None
+) -> tuple[Trajectory, VehicleModel]:
+    """The trajectory and model the rank test evaluates: unchanged for a fixed beacon; relative
+    to a moving one, with the beacon at the origin (module docstring, "Moving beacon")."""
+    if beacon_path is None:
+        return traj, model
+    _check_dims(traj, model)
+    return relative_samples(traj, beacon_path), replace(model, beacon=None)
+
+
+def lwo_matrices(
+    traj: Trajectory,
+    model: VehicleModel,
+    input_derivatives: int = 0,
+    beacon_path: BeaconPath | None = None,
+) -> np.ndarray:
     """O (eq. 9) at every sample of ``traj``, in SI units, shape ``(N, rows, state_dim)``.
 
     The state at each sample is ``(p, ν)`` (``(p, ν, 0)`` with current; see module docstring); the
     input is ``u[k]``. With the ``"range"`` range form, O is not defined at a sample on the beacon
     (``r = 0``): those rows are NaN there (:func:`lwo_ranks` does not use them; module docstring).
+    With ``beacon_path`` the state is relative to the moving beacon and the input is ``u - b''``
+    (module docstring, "Moving beacon").
 
     Parameters
     ----------
@@ -302,6 +338,9 @@ def lwo_matrices(traj: Trajectory, model: VehicleModel, input_derivatives: int =
     input_derivatives : int, optional
         ``m``: number of time derivatives of ``u`` used (estimated by
         :func:`input_derivative_estimates`).
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span (it replaces ``model.beacon``); None: the
+        model's fixed beacon.
 
     Returns
     -------
@@ -311,11 +350,12 @@ def lwo_matrices(traj: Trajectory, model: VehicleModel, input_derivatives: int =
     Raises
     ------
     InputError
-        If the model and the trajectory differ in dimension, or ``input_derivatives`` is not a
-        non-negative integer.
+        If the model, the trajectory or the beacon path differ in dimension, the path does not
+        cover the trajectory, or ``input_derivatives`` is not a non-negative integer.
     """
     m = _check_m(input_derivatives)
     _check_dims(traj, model)
+    traj, model = _relative(traj, model, beacon_path)
     fn = lwo_matrix_function(model, m)
     N = traj.n_samples
     x = _trajectory_state(traj, model)
@@ -325,11 +365,20 @@ def lwo_matrices(traj: Trajectory, model: VehicleModel, input_derivatives: int =
     return out.reshape(rows, N, model.state_dim).transpose(1, 0, 2)
 
 
-def characteristic_scales(traj: Trajectory, model: VehicleModel) -> tuple[float, float]:
+def _rms(a: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum(a**2, axis=1))))
+
+
+def characteristic_scales(
+    traj: Trajectory, model: VehicleModel, beacon_path: BeaconPath | None = None
+) -> tuple[float, float]:
     """Length ``ℓ`` [m] and time ``T`` [s] of a trajectory, covariant with the units.
 
     ``ℓ`` is the RMS range to the beacon (else the RMS distance from the mean position, else 1);
-    ``T = ℓ / RMS speed`` (else ``√(ℓ / RMS |u|)``, else the duration).
+    ``T = ℓ / RMS speed`` (else ``√(ℓ / RMS |u|)``, else the duration). With ``beacon_path``
+    the range is to the moving beacon and the speed (acceleration) is the larger of the
+    vehicle's and the relative one: a beacon trailing the vehicle leaves a relative speed of
+    round-off size, which ``ℓ / speed`` would blow up to an O(1) direction.
 
     Parameters
     ----------
@@ -337,6 +386,8 @@ def characteristic_scales(traj: Trajectory, model: VehicleModel) -> tuple[float,
         The sampled path (positions [m], velocities [m/s], held inputs [m/s²]).
     model : VehicleModel
         The vehicle model (sensors, range form, current, beacon).
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span (it replaces ``model.beacon``).
 
     Returns
     -------
@@ -348,9 +399,12 @@ def characteristic_scales(traj: Trajectory, model: VehicleModel) -> tuple[float,
     Raises
     ------
     InputError
-        If the model and the trajectory differ in dimension.
+        If the model, the trajectory or the beacon path differ in dimension, or the path does
+        not cover the trajectory.
     """
     _check_dims(traj, model)
+    own = traj
+    traj, model = _relative(traj, model, beacon_path)
     rel = traj.p - model.beacon_array
     ell = float(np.sqrt(np.mean(np.sum(rel**2, axis=1))))
     if not ell > 0:
@@ -358,6 +412,8 @@ def characteristic_scales(traj: Trajectory, model: VehicleModel) -> tuple[float,
         ell = float(np.sqrt(np.mean(np.sum(spread**2, axis=1)))) or 1.0
     speed = float(np.sqrt(np.mean(np.sum(traj.v**2, axis=1))))
     accel = float(np.sqrt(np.mean(np.sum(traj.u**2, axis=1))))
+    if beacon_path is not None:
+        speed, accel = max(speed, _rms(own.v)), max(accel, _rms(own.u))
     if speed > 0:
         T = ell / speed
     elif accel > 0:
@@ -367,9 +423,16 @@ def characteristic_scales(traj: Trajectory, model: VehicleModel) -> tuple[float,
     return ell, T
 
 
-def _dimensionless(traj: Trajectory, model: VehicleModel, input_derivatives: int) -> np.ndarray:
-    """O of the trajectory nondimensionalised by :func:`characteristic_scales`."""
-    ell, T = characteristic_scales(traj, model)
+def _dimensionless(
+    traj: Trajectory,
+    model: VehicleModel,
+    input_derivatives: int,
+    beacon_path: BeaconPath | None = None,
+) -> np.ndarray:
+    """O of the trajectory (relative to ``beacon_path`` if given) nondimensionalised by
+    :func:`characteristic_scales` (of the relative trajectory)."""
+    ell, T = characteristic_scales(traj, model, beacon_path)
+    traj, model = _relative(traj, model, beacon_path)
     tr = Trajectory(
         t=traj.t / T,
         p=(traj.p - model.beacon_array) / ell,
@@ -413,7 +476,12 @@ def ranks_of(O: np.ndarray, tol: float = LWO_RANK_TOL) -> np.ndarray:
     return np.sum((s > tol * smax) & (smax > 0), axis=-1).astype(int)
 
 
-def lwo_ranks(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0) -> np.ndarray:
+def lwo_ranks(
+    traj: Trajectory,
+    model: VehicleModel,
+    input_derivatives: int = 0,
+    beacon_path: BeaconPath | None = None,
+) -> np.ndarray:
     """Unit-invariant rank of O at every sample, shape ``(N,)`` int.
 
     O is nondimensionalised by :func:`characteristic_scales` and its singular values compared with
@@ -427,13 +495,16 @@ def lwo_ranks(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0)
         The vehicle model (sensors, range form, current, beacon).
     input_derivatives : int, optional
         ``m``: number of time derivatives of ``u`` used.
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span (module docstring, "Moving beacon"); None:
+        the model's fixed beacon.
 
     Returns
     -------
     ndarray of int, shape (N,)
         Rank of O at each sample; full rank is ``model.state_dim``.
     """
-    return ranks_of(_dimensionless(traj, model, input_derivatives))
+    return ranks_of(_dimensionless(traj, model, input_derivatives, beacon_path))
 
 
 @dataclass(frozen=True)
@@ -478,7 +549,12 @@ class LWOReport:
         }
 
 
-def lwo_report(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0) -> LWOReport:
+def lwo_report(
+    traj: Trajectory,
+    model: VehicleModel,
+    input_derivatives: int = 0,
+    beacon_path: BeaconPath | None = None,
+) -> LWOReport:
     """Rank of O along ``traj`` summarised as an :class:`LWOReport`.
 
     Parameters
@@ -489,13 +565,16 @@ def lwo_report(traj: Trajectory, model: VehicleModel, input_derivatives: int = 0
         The vehicle model (sensors, range form, current, beacon).
     input_derivatives : int, optional
         ``m``: number of time derivatives of ``u`` used.
+    beacon_path : BeaconPath or None, optional
+        A moving beacon covering ``traj``'s span (module docstring, "Moving beacon"); None:
+        the model's fixed beacon.
 
     Returns
     -------
     LWOReport
         The verdict, the fraction of full-rank samples and the rank at each sample.
     """
-    ranks = lwo_ranks(traj, model, input_derivatives)
+    ranks = lwo_ranks(traj, model, input_derivatives, beacon_path)
     full = ranks == model.state_dim
     ranks.setflags(write=False)
     return LWOReport(
