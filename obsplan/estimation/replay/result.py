@@ -53,7 +53,7 @@ class ReplayResult:
     used : ndarray of bool, shape (R,)
         Whether the gate let the range in.
     inflation : ndarray, shape (R,)
-        Covariance scale of a re-acquisition at that range (1: none).
+        Factor by which a re-acquisition widened ``hᵀ P h`` of that range (1: none).
     gate_probability, gate_nis : float
         The gate's confidence and its NIS threshold.
     truth : ndarray, shape (N, n) or None

@@ -26,16 +26,19 @@ throw away ten times more good ranges; a tighter one lets more multipath through
 
 **Re-acquisition.** A gate can also lock the filter out: after a long dropout, or from a bad
 initial guess, every range looks like an outlier and the filter dead-reckons on silently. After
-:data:`REACQUIRE_AFTER` = 5 consecutive rejections the filter is declared lost: the covariance
-of the next range's prior is scaled up by the factor that puts its NIS on the gate (a
-fading-memory step, ``α = (ν²/γ - r)/(hᵀ P h)``, applied to the whole ``P`` so that the
-correlations are kept) and that range is used. Five in a row is the choice because independent
-multipath at a 10 % rate gives five in a row once in 1e5 ranges, so re-acquisition almost never
-fires on outliers, while a lost filter is back within five ranges (one or two minutes at one
-range every 10-30 s). The inflation is stored as the prior of that row, i.e. as process noise
-of that step, so the smoother stays consistent. A robust weight (accepting the next range
-down-weighted to the gate) was the alternative: its pull is bounded by the prior's small
-covariance, so a filter that is lost because it is overconfident stays lost for many ranges.
+:data:`REACQUIRE_AFTER` = 5 consecutive rejections the filter is declared lost: an isotropic
+position variance is added to the next range's prior, just enough to put that range's NIS on
+the gate (``hᵀ ΔP h = ν²/γ - s``), and that range is used. Five in a row is the choice because
+independent multipath at a 10 % rate gives five in a row once in 1e5 ranges, so
+re-acquisition almost never fires on outliers, while a lost filter is back within five ranges
+(one or two minutes at one
+range every 10-30 s). The widened prior is stored as the prediction of that row, i.e. as process
+noise of that step, so the smoother stays consistent. Two alternatives were measured
+(``tests/test_replay.py``): scaling the whole covariance (position and velocity) by the same
+factor let a filter started 57 m off with a 2 m std wander to 460 m instead of recovering,
+because the inflated velocity was then pulled by single ranges; a robust weight (the next range
+down-weighted to the gate) is bounded by the prior's small covariance, so an overconfident filter
+stays lost for many ranges. Position only, isotropic, brings that filter back to ~16 m.
 
 **Smoother.** :func:`obsplan.estimation.filters.linear.rts_smooth` over the stored predicted and
 filtered moments and the transitions; rejected ranges stay out of it.
@@ -305,7 +308,8 @@ class _Gate:
     run: int = 0
 
     def judge(self, nu: float, s: float, hPh: float, r: float) -> tuple[bool, float]:
-        """``(use, inflation)``: use the range, after scaling ``P`` by ``inflation`` (>= 1)."""
+        """``(use, inflation)``: use the range, after widening the prior so that ``hᵀ P h`` grows
+        by the factor ``inflation`` (>= 1; 1: no re-acquisition)."""
         if nu * nu <= self.nis_max * s:
             self.run = 0
             return True, 1.0
@@ -412,8 +416,9 @@ def _filter(log, config, model, om, beacons, x, P, Y, V) -> dict[str, np.ndarray
             rec["residual"][j] = log.ranges[k] - float(np.linalg.norm(x[:n] - b))
             rec["nis"][j] = nu * nu / s
             rec["used"][j], rec["inflation"][j] = use, alpha
-            if alpha > 1.0:  # re-acquisition: the inflated prior is this row's prediction
-                P = alpha * P
+            if alpha > 1.0:  # re-acquisition: the widened prior is this row's prediction
+                P = P.copy()
+                P[:n, :n] += (alpha - 1.0) * hPh / float(h[:n] @ h[:n]) * np.eye(n)
                 nu, h, r, hPh = _range_row(om, x, P, b, Y[k, 0], V[k, 0], config.second_order)
             xp[k], Pp[k] = x, P
             if use:
