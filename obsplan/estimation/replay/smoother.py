@@ -31,8 +31,8 @@ position variance is added to the next range's prior, just enough to put that ra
 the gate (``hᵀ ΔP h = ν²/γ - s``), and that range is used. Five in a row is the choice because
 independent multipath at a 10 % rate gives five in a row once in 1e5 ranges, so
 re-acquisition almost never fires on outliers, while a lost filter is back within five ranges
-(one or two minutes at one
-range every 10-30 s). The widened prior is stored as the prediction of that row, i.e. as process
+(one or two minutes at one range every 10-30 s). The widened prior is stored as the prediction
+of that row, i.e. as process
 noise of that step, so the smoother stays consistent. Two alternatives were measured
 (``tests/test_replay.py``): scaling the whole covariance (position and velocity) by the same
 factor let a filter started 57 m off with a 2 m std wander to 460 m instead of recovering,
