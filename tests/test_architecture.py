@@ -54,6 +54,7 @@ ROOMS: dict[str, tuple[str, ...]] = {
         "filters",  # EKF, augmented KF, Gaussian sum behind one interface
         "bounds",  # Riccati recursions, posterior CRB, closed-loop covariance
         "montecarlo",  # truth, guidance, runs, statistics, results, figures
+        "replay",  # one logged mission: gated EKF, RTS smoother, result, simulated logs
         "__init__",
     ),
     "planning": (

@@ -331,6 +331,7 @@ def test_b_every_float_option_beyond_its_limit_is_refused_by_name(files, capsys,
         "simulate": [files["traj"]],
         "plan": [DEFAULT],
         "import": [files["track"], "--out", files["tmp"] / "never.csv"],
+        "estimate": [files["track"], "--out", files["tmp"] / "never.csv"],
         "export": [files["traj"], "--qgc", files["tmp"] / "never.plan", "--origin", "43.7,10.3"],
     }[verb]
     words = {"huge": "is beyond", "tiny": "is below", "nan": "not a finite", "inf": "not a finite"}

@@ -33,7 +33,17 @@ from obsplan.core import interrupts, outputs
 from obsplan.core.errors import InputError, ObsplanError
 from obsplan.version import __version__
 
-VERBS = ("plan", "analyze", "simulate", "paper", "sweep", "import", "export", "problems")
+VERBS = (
+    "plan",
+    "analyze",
+    "simulate",
+    "paper",
+    "sweep",
+    "import",
+    "export",
+    "estimate",
+    "problems",
+)
 #: Exit code of a verb whose output's reader went away: 128 + SIGPIPE, as a shell reports a tool
 #: killed by the signal (module docstring).
 EXIT_CLOSED_OUTPUT = 128 + 13

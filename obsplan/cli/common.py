@@ -78,6 +78,13 @@ def option_limits() -> dict[str, tuple[float, str]]:
         "--depth": (MAX_DEPTH_M, "m"),
         "--acceptance-radius": metres,
         "--replan": seconds,
+        "--range-std": metres,
+        "--dvl-std": speed,
+        "--depth-std": (MAX_DEPTH_M, "m"),
+        "--accel-std": (accel[0], "m/s²/√Hz"),
+        "--init-std": metres,
+        "--init-velocity-std": speed,
+        "--gate": (1e6, ""),  # a probability; (0, 1] is checked by the verb
     }
 
 

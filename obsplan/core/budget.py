@@ -16,6 +16,7 @@ filter samples per run    :data:`MAX_SAMPLES`                 the filters loop o
 sweep tasks               :data:`MAX_TASKS`                   counted before the axes are
                                                               expanded
 rows of an input file     :data:`MAX_ROWS`                    estimated from the file size first
+rows of a mission log     :data:`MAX_LOG_ROWS`                the replay keeps 3 covariances a row
 problem or sweep file     :data:`MAX_TOML_BYTES`              parsed at ~1.5 MB/s, in memory
 survey lines              :data:`MAX_LINES`                   given or generated (counted from
                                                               ``mission.spacing`` first)
@@ -59,6 +60,11 @@ MAX_RUNS = 10_000
 MAX_SAMPLES = 2_000_000
 MAX_TASKS = 100_000
 MAX_ROWS = 2_000_000
+#: Most rows of a logged mission replayed by ``obsplan estimate``
+#: (:mod:`obsplan.estimation.replay`). The replay is a Python loop of ~50-100 µs a row (~20 s at
+#: the limit) and keeps the filtered, predicted and smoothed covariances of every row: 3 x 81
+#: floats a row in 3D with current, ~400 MB at the limit. A day of a 1 Hz DVL is 86,400 rows.
+MAX_LOG_ROWS = 200_000
 #: Largest problem or sweep file [bytes]. The largest real one is a sweep whose axes list
 #: :data:`MAX_TASKS` values (~1-2 MB); Python's TOML parser reads ~1.5 MB/s, so a parse takes
 #: seconds at most, where a 1 GB file (the limit of other text files) took ten minutes.
@@ -496,6 +502,28 @@ def check_rows(n: float, field: str, error=InputError) -> None:
         (or ``error``) If ``n`` is beyond the limit.
     """
     check_count(n, MAX_ROWS, field, "rows", "cut or decimate the file first", error)
+
+
+def check_log_rows(n: float, field: str, error=InputError) -> None:
+    """At most :data:`MAX_LOG_ROWS` rows of a logged mission (counted or estimated).
+
+    Parameters
+    ----------
+    n : float
+        Number of rows.
+    field : str
+        The argument naming the log (named in the message).
+    error : type of InputError, optional
+        The exception raised.
+
+    Raises
+    ------
+    InputError
+        (or ``error``) If ``n`` is beyond the limit.
+    """
+    check_count(
+        n, MAX_LOG_ROWS, field, "rows", "cut the log into legs or decimate its DVL rows", error
+    )
 
 
 def estimate_rows(path: str | Path, probe_bytes: int = 1 << 16) -> float:

@@ -42,6 +42,10 @@ COLUMN_LIMITS: dict[str, tuple[float, str]] = {
     **{f"b{a}": (1e7, "m") for a in "xyz"},  # a beacon path's positions (model/beacon.py)
     **{f"v{a}": (1e4, "m/s") for a in "xyz"},
     **{f"u{a}": (1e3, "m/s²") for a in "xyz"},
+    # a logged mission's readings (obsplan.io.missionlog): DVL velocities, range, depth
+    **{f"dv{a}": (1e4, "m/s") for a in "xyz"},
+    "range": (1e7, "m"),
+    "depth": (1e7, "m"),
 }
 #: Magnitude limit of any other numeric column.
 OTHER_LIMIT = (1e10, "")
@@ -123,7 +127,7 @@ class CsvTable:
             )
         return where[0]
 
-    def numbers(self, names: Sequence[str]) -> np.ndarray:
+    def numbers(self, names: Sequence[str], blank: bool = False) -> np.ndarray:
         """The named columns as finite floats, shape ``(rows, len(names))``.
 
         Parameters
@@ -131,6 +135,10 @@ class CsvTable:
         names : sequence of str
             Column names, lower-case; each is checked against its magnitude limit
             (:data:`COLUMN_LIMITS`, :data:`OTHER_LIMIT`).
+        blank : bool, optional
+            Read an empty cell, a cell missing at the end of a short row, or ``nan`` as NaN
+            ("no reading in this row", a logged mission's sparse columns); infinities and text
+            are still refused. Default False: every cell must be a finite number.
 
         Returns
         -------
@@ -146,6 +154,9 @@ class CsvTable:
         data = np.empty((len(self.rows), len(names)))
         for i, (r, line) in enumerate(zip(self.rows, self.lines, strict=True)):
             for j, (c, k) in enumerate(zip(names, idx, strict=True)):
+                if blank and (k >= len(r) or r[k].strip().lower() in ("", "nan")):
+                    data[i, j] = math.nan
+                    continue
                 if k >= len(r):
                     raise TrajectoryFormatError(
                         f"{self.path}: row {line} has no value for column {c!r}"
