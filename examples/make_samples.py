@@ -8,7 +8,11 @@
   ``pip install 'obsplan[mavlink]'``);
 * ``examples/geodetic.toml`` — the default problem with the beacon and the start given in
   latitude and longitude about an ``[origin]`` (a smaller horizon grid and Monte Carlo, so that
-  the README's example runs in seconds).
+  the README's example runs in seconds);
+* ``examples/mission-log.csv`` — a logged mission for ``obsplan estimate``: a 4-leg lawn-mower
+  (200 m legs 40 m apart at 1 m/s, from (50, -100) m) flown with white-acceleration process
+  noise, bottom-track DVL velocities every 2 s, ranges to the beacon at the origin every 10-30 s
+  with 10 % multipath outliers and 10 % dropouts, and the true positions (``px,py``) for scoring.
 
     python examples/make_samples.py [--out FOLDER]
 """
@@ -22,6 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from obsplan.core.csvtable import write_table
+from obsplan.estimation.replay.simulate import simulate_log
+from obsplan.io.missionlog import write_mission_log
 from obsplan.model.frames import GeodeticOrigin, local_to_geodetic
 from obsplan.trajectory import generators
 
@@ -123,13 +129,23 @@ dt = 0.1                       # s, filter step (divides the 6 s steps)
     return path
 
 
+def write_mission_log_csv(out: Path) -> Path:
+    """``mission-log.csv``: a simulated DVL log with multipath and dropouts (seeded)."""
+    traj = generators.lawnmower((50.0, -100.0), 200.0, 40.0, 4, 1.0).sample(2.0)
+    sim = simulate_log(
+        traj, inputs=False, dvl="bottom", accel_std=0.001, outlier_fraction=0.1, dropout=0.1,
+        seed=47,
+    )  # fmt: skip
+    return write_mission_log(sim.log, out / "mission-log.csv")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=HERE, help="folder to write into (default: here)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    for path in (write_log_csv(args.out), write_tlog(args.out), write_geodetic_problem(args.out)):
-        print(f"wrote {path}")
+    for write in (write_log_csv, write_tlog, write_geodetic_problem, write_mission_log_csv):
+        print(f"wrote {write(args.out)}")
 
 
 if __name__ == "__main__":
