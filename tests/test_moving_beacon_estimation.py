@@ -106,6 +106,25 @@ def test_a_path_that_does_not_cover_the_trajectory_is_refused():
         )
 
 
+def test_noise_free_filters_follow_the_truth_exactly():
+    """No process noise, a 1 µm range noise, the exact start: the KF (relative coordinates, the
+    beacon's motion as a known displacement) and the EKF stay on the truth within a millimetre
+    (what the 1 µm noise leaves, as with a fixed beacon), ranges every 2 s and records in between
+    (the KF's records add back the beacon of their epoch). Measured: KF 0.5 mm, EKF 0.06 mm RMS;
+    without the KF's displacement of the table or of ``d``: 128 m and 89 m."""
+    cfg = EstimationConfig(
+        model=make_model(2, "range"),
+        beacon_path=_circling(),
+        rates_hz={"range": 0.5},
+        noise={"range": 1e-6},
+        init_error=np.zeros(4),
+        process_noise=False,
+    )
+    res = monte_carlo(LINE, cfg, runs=2, seed=0, filters=("ekf", "kf"))
+    for name, s in _stats(res).items():
+        assert s.rmse_pos < 0.01 and s.final_vel_err < 1e-3, (name, s.rmse_pos)
+
+
 # ----------------------------------------------------------------------------- observability
 @pytest.fixture(scope="module")
 def line_results():
@@ -206,13 +225,17 @@ def files(tmp_path_factory):
     return {"traj": str(traj), "ship": str(ship), "short": str(short)}
 
 
-@pytest.mark.parametrize("loop", [["--open-loop"], []])
-def test_cli_simulate_with_a_beacon_path(files, capsys, loop):
+@pytest.mark.parametrize("loop", [["--open-loop"], ["--out", "{out}"]])
+def test_cli_simulate_with_a_beacon_path(files, capsys, loop, tmp_path):
+    """Open loop, and closed loop (the default) with its figures (the beacon's path drawn, the
+    rank of the motion relative to it)."""
     argv = ["simulate", files["traj"], "--beacon-path", files["ship"], "--runs", "2", "--json"]
-    assert main([*argv, *loop]) == 0
+    assert main([*argv, *[a.format(out=tmp_path / "figs") for a in loop]]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["config"]["beacon_motion"] == "path"
     assert np.isfinite(d["crlb_final_pos_std"]) and d["ekf"]["final_pos_err"] >= 0.0
+    if "--out" in loop:
+        assert (tmp_path / "figs" / "estimation.png").stat().st_size > 10_000
 
 
 @pytest.mark.parametrize(

@@ -524,6 +524,7 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
     from obsplan.estimation.bounds.crlb import sampled_rank_over_time
     from obsplan.estimation.montecarlo import plots
     from obsplan.observability.gramian import augmented_model
+    from obsplan.trajectory.relative import relative_samples
 
     staging = out.stage()
     written = []
@@ -535,7 +536,9 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
         # the figure `obsplan plan` writes as filters.png, for this one path
         fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)}, problem=pb.name)
         written.append(plots.save(fig, staging / "filters.png"))
-    ranks = sampled_rank_over_time(fine, cfg)
+    # a moving beacon: the rank of the motion relative to it (docs/guides/observability.md)
+    rel = fine if cfg.beacon_path is None else relative_samples(fine, cfg.beacon_path)
+    ranks = sampled_rank_over_time(rel, cfg)
     idx = np.searchsorted(fine.t, res.t)
     full = augmented_model(cfg.model).state_dim
     fig = plots.scenario_figure(fine, res, res.t, ranks[idx], full, title=args.trajectory)
