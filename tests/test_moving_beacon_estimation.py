@@ -5,6 +5,8 @@ and ``obsplan simulate --beacon-path``."""
 from __future__ import annotations
 
 import json
+import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -98,6 +100,8 @@ def test_a_path_that_does_not_cover_the_trajectory_is_refused():
     cfg = EstimationConfig(model=make_model(2, "range"), beacon_path=path)
     with pytest.raises(ConfigError, match="beacon_path: covers t = 0..100 s"):
         monte_carlo(LINE, cfg, runs=1)
+    back = pickle.loads(pickle.dumps(cfg))  # shipped to worker processes
+    assert np.array_equal(back.beacon_path.positions, path.positions)
     with pytest.raises(ConfigError, match="replaces the model's fixed beacon"):
         EstimationConfig(model=make_model(2, "range", beacon=(1.0, 0.0)), beacon_path=path)
     with pytest.raises(ConfigError, match="3D but the model is 2D"):
@@ -222,7 +226,8 @@ def files(tmp_path_factory):
     ship.write_text("t,bx,by\n" + "\n".join(rows) + "\n")
     short = d / "short.csv"
     short.write_text("t,bx,by\n0,0,0\n30,10,0\n")
-    return {"traj": str(traj), "ship": str(ship), "short": str(short)}
+    problem = Path(__file__).resolve().parents[1] / "problems" / "default.toml"
+    return {"traj": str(traj), "ship": str(ship), "short": str(short), "problem": str(problem)}
 
 
 @pytest.mark.parametrize("loop", [["--open-loop"], ["--out", "{out}"]])
@@ -243,6 +248,7 @@ def test_cli_simulate_with_a_beacon_path(files, capsys, loop, tmp_path):
     [
         (["--beacon-path", "{short}"], "--beacon-path"),
         (["--beacon-path", "{ship}", "--beacon", "1,2"], "not both"),
+        (["--beacon-path", "{ship}", "--problem", "{problem}"], "the problem's [beacon]"),
     ],
 )
 def test_cli_simulate_refuses_a_bad_beacon_path(files, capsys, extra, needle):

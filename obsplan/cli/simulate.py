@@ -54,7 +54,7 @@ PROBLEM_REPLACES = {
     "current": "vehicle.current",
     "beacon": "beacon.position",
     "beacon_geodetic": "beacon.geodetic",
-    "beacon_path": "the problem's [beacon]",
+    "beacon_path": "[beacon]",
     "origin": "[origin]",
     "rates": "validation.*_rate",
     "noise": "validation.*_std",
