@@ -4,7 +4,7 @@ Run (minutes; the full validation Monte Carlo of every path):
 
     MPLBACKEND=Agg python benchmarks/bench_planning_suite.py [--runs N] [--max-runs N]
         [--open-loop] [--ekf-update second-order] [--navigation gsf] [--json out.json]
-        [FILES...]
+        [--truth-runs N] [--markdown docs/results/generated/suite-table.md] [FILES...]
 
 For each problem (default: ``problems/*.toml`` then ``problems/suite/*.toml``) this runs
 ``obsplan.plan`` exactly as ``obsplan plan`` does and prints: solver status, solve time, and the
@@ -25,7 +25,9 @@ objective) follow their row. ``--objective gramian`` keeps the problems whose ob
 starts with ``gramian``. ``--set SECTION.FIELD=VALUE`` (repeatable; VALUE a TOML value, a bare
 word taken as a string) changes a field of every problem, checked as the problem file's are:
 e.g. ``--set objective.kind=pcrb-position --set objective.mode=final`` plans every problem for
-its final bound.
+its final bound. ``--markdown FILE`` also writes the table and its summary as the Markdown page
+the documentation includes (``docs/results/suite.md``): the site's suite numbers are this
+script's output, not copied by hand.
 """
 
 from __future__ import annotations
@@ -171,6 +173,91 @@ def run_one(
     return row
 
 
+#: Number words of the page's sentences ("the twenty suite rows").
+WORDS = (
+    "zero one two three four five six seven eight nine ten eleven twelve thirteen fourteen "
+    "fifteen sixteen seventeen eighteen nineteen twenty twenty-one twenty-two twenty-three "
+    "twenty-four twenty-five twenty-six twenty-seven twenty-eight twenty-nine thirty"
+).split()
+
+
+def _word(n: int) -> str:
+    return WORDS[n] if n < len(WORDS) else str(n)
+
+
+def _cell(x: float | None, digits: int = 2) -> str:
+    return "-" if x is None else f"{x:.{digits}f}"
+
+
+def letters_of(r: dict) -> str:
+    """The verdict letters against the lawn-mower and the circle (``BBBB / BtBB``)."""
+    return " / ".join(
+        "".join(_letter_of(d) for d in r["verdicts"].get(b, {}).values()) or "-"
+        for b in VERDICT_BASELINES
+    )
+
+
+def markdown_page(rows: list[dict], command: str, wall_s: float) -> str:
+    """The suite table and its summary as Markdown (the page ``docs/results/suite.md``
+    includes)."""
+    head = [
+        "problem", "objective", "status", "solve [s]", "EKF RMSE", "EKF final", "KF RMSE",
+        "KF final", "final bound", "runs", "plan's true closest, alone [m]",
+        "runs inside `min_range`, alone", "breaks", "vs lawn-mower / circle",
+    ]  # fmt: skip
+    out = [
+        f"Written by `{command}` ({wall_s / 60:.0f} min wall); ratios planned / lawn-mower.",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|---|---|---|" + "---:|" * (len(head) - 4) + "---|",
+    ]
+    for r in rows:
+        name = r["problem"].removeprefix("obsplan/").removeprefix("problems/")
+        lm = r["lawnmower"]
+        t = r.get("truth_runs") or {}
+        closest = _cell(t.get("closest_range_m", r.get("true_closest_m")))
+        inside = t.get("runs_inside_min_range", r.get("runs_inside_min_range"))
+        breaks = r.get("any_violation_fraction")
+        cells = [
+            f"`{name}`", r["objective"], r["status"], f"{r['solve_s']:.0f}",
+            *(_cell(lm.get(k)) for _, k in RATIOS),
+            "-" if r["runs"] is None else str(r["runs"]), closest,
+            "-" if inside is None else str(inside),
+            "-" if breaks is None else f"{100 * breaks:.0f} %", letters_of(r),
+        ]  # fmt: skip
+        out.append("| " + " | ".join(cells) + " |")
+    suite = [r for r in rows if "/suite/" in r["problem"]] or rows
+    med = []
+    for col, key in RATIOS[:4]:
+        vals = [r["lawnmower"][key] for r in suite if r["lawnmower"].get(key) is not None]
+        if vals:
+            med.append(f"{col} {statistics.median(vals):.2f}")
+    decided = sum(
+        bool(r["verdicts"])
+        and all(d["outcome"] == "better" for b in r["verdicts"].values() for d in b.values())
+        for r in rows
+    )
+    worse = [
+        r["problem"].rsplit("/", 1)[-1]
+        for r in rows
+        if any(d["outcome"] == "worse" for b in r["verdicts"].values() for d in b.values())
+    ]
+    ahead = sum(r["beats_all"] and r["success"] for r in rows)
+    out += [
+        "",
+        f"Medians over the {_word(len(suite))} suite rows, planned / lawn-mower: "
+        + ", ".join(med)
+        + f". {_word(ahead).capitalize()} of {_word(len(rows))} converged and are ahead of every "
+        f"fitted baseline on every headline metric; {_word(decided)} of {_word(len(rows))} beat "
+        "both the lawn-mower and the circle with every verdict decided at 95 %; a verdict is "
+        f"decided against the plan on {_word(len(worse))}"
+        + (f" ({', '.join(worse)})" if worse else "")
+        + ".",
+        "",
+    ]
+    return "\n".join(out)
+
+
 def fmt(x: float | None) -> str:
     return "   -  " if x is None else f"{x:6.2f}"
 
@@ -201,6 +288,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     ap.add_argument(
+        "--markdown",
+        metavar="FILE",
+        help="also write the table and its summary as Markdown (the docs' suite page)",
+    )
+    ap.add_argument(
         "--objective",
         metavar="PREFIX",
         help="only the problems whose objective.kind starts with PREFIX (e.g. gramian, lwo)",
@@ -220,6 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.objective:
         files = [f for f in files if load_problem(f).objective.kind.startswith(args.objective)]
     rows = []
+    t_start = time.perf_counter()
     head = (
         f"{'problem':34s} {'objective':34s} {'status':26s} {'solve':>6s}  "
         + "  ".join(f"{c:>13s}" for c, _ in RATIOS)
@@ -244,10 +337,7 @@ def main(argv: list[str] | None = None) -> int:
         cells = "  ".join(
             f"{fmt(r['lawnmower'].get(k))}|{fmt(r['best'].get(k))}" for _, k in RATIOS
         )
-        letters = "/".join(
-            "".join(_letter_of(d) for d in r["verdicts"].get(b, {}).values()) or "-"
-            for b in VERDICT_BASELINES
-        )
+        letters = letters_of(r).replace(" ", "")
         # behind on a mean but not decided worse is a tie, not a loss; ahead on every mean
         # with a verdict not decided is not yet a win
         if "W" in letters:
@@ -324,6 +414,14 @@ def main(argv: list[str] | None = None) -> int:
     print(f"plan's true path outside min_range in >= 99.9 % of runs: {len(kept)} of {len(rows)}")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
+    if args.markdown:
+        command = "python benchmarks/bench_planning_suite.py " + " ".join(
+            a for a in (argv if argv is not None else sys.argv[1:])
+        )
+        Path(args.markdown).write_text(
+            markdown_page(rows, command.strip(), time.perf_counter() - t_start), encoding="utf-8"
+        )
+        print(f"wrote {args.markdown}")
     return 0
 
 

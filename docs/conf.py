@@ -27,7 +27,13 @@ extensions = [
 # .rst first: autosummary writes its generated pages with the first suffix (they are reST)
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 root_doc = "index"
-exclude_patterns = ["_build", "img/*.md", "**.ipynb_checkpoints", "notebooks/README.md"]
+exclude_patterns = [
+    "_build",
+    "img/*.md",
+    "results/generated/*.md",
+    "**.ipynb_checkpoints",
+    "notebooks/README.md",
+]
 
 # notebooks: committed without outputs, shown as they are (the tests execute them)
 nb_execution_mode = "off"

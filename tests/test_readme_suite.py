@@ -1,5 +1,6 @@
-"""The suite page's table (docs/results/suite.md) covers every shipped problem, once, with the
-objective it names."""
+"""The suite page's table (docs/results/suite.md, which includes the table and summary that
+``benchmarks/bench_planning_suite.py --markdown`` wrote) covers every shipped problem, once, with
+the objective it names."""
 
 from __future__ import annotations
 
@@ -9,7 +10,14 @@ from pathlib import Path
 from obsplan.planning import load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGE = (ROOT / "docs" / "results" / "suite.md").read_text(encoding="utf-8")
+RESULTS = ROOT / "docs" / "results"
+INCLUDE = "```{include} generated/suite-table.md\n```"
+#: the page as the site renders it: the generated table in place of its include directive
+PAGE = (
+    (RESULTS / "suite.md")
+    .read_text(encoding="utf-8")
+    .replace(INCLUDE, (RESULTS / "generated" / "suite-table.md").read_text(encoding="utf-8"))
+)
 SECTION = "# The planner's verdict on the problem suite"
 NUMBERS = (
     "zero one two three four five six seven eight nine ten eleven twelve thirteen "
@@ -20,6 +28,7 @@ NUMBERS = (
 
 def _section() -> str:
     assert PAGE.startswith(SECTION)
+    assert INCLUDE not in PAGE, "suite.md no longer includes the generated table"
     return PAGE
 
 
@@ -51,3 +60,10 @@ def test_the_section_counts_the_suite_as_it_is():
     n = len(list((ROOT / "problems/suite").glob("*.toml")))
     assert f"{NUMBERS[n]} of `problems/suite/`" in _section()
     assert f"Medians over the {NUMBERS[n]} suite rows" in _section()
+
+
+def test_the_table_is_the_benchmarks_output():
+    """The page's table was written by the benchmark, with the command that wrote it."""
+    table = (RESULTS / "generated" / "suite-table.md").read_text(encoding="utf-8")
+    assert table.startswith("Written by `python benchmarks/bench_planning_suite.py ")
+    assert "--markdown docs/results/generated/suite-table.md" in table.splitlines()[0]
