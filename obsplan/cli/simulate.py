@@ -40,6 +40,7 @@ from obsplan.estimation.montecarlo.simulate import (
     monte_carlo,
 )
 from obsplan.estimation.schedule import sample_rate
+from obsplan.model.beacon import BeaconPath, read_beacon_path
 from obsplan.model.vehicle import make_model
 
 #: Options that apply only to some runs (:func:`obsplan.cli.common.check_applies`).
@@ -53,6 +54,7 @@ PROBLEM_REPLACES = {
     "current": "vehicle.current",
     "beacon": "beacon.position",
     "beacon_geodetic": "beacon.geodetic",
+    "beacon_path": "[beacon]",
     "origin": "[origin]",
     "rates": "validation.*_rate",
     "noise": "validation.*_std",
@@ -79,11 +81,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     -------
     argparse.ArgumentParser
         The parser of ``obsplan simulate``: ``TRAJ.csv``, the vehicle options
-        (:func:`~obsplan.cli.common.add_vehicle_arguments`), ``--rates``, ``--noise``, ``--dt``,
-        ``--problem``, ``--runs``, ``--seed``, ``--filters``, ``--init-error``,
-        ``--no-process-noise``, ``--open-loop``, ``--navigation``, ``--accel-noise``,
-        ``--paper-noise``, ``--accel``, ``--speed``, ``--json``, ``--out``, ``--force`` and
-        ``--quiet``.
+        (:func:`~obsplan.cli.common.add_vehicle_arguments`), ``--beacon-path``, ``--rates``,
+        ``--noise``, ``--dt``, ``--problem``, ``--runs``, ``--seed``, ``--filters``,
+        ``--init-error``, ``--no-process-noise``, ``--open-loop``, ``--navigation``,
+        ``--accel-noise``, ``--paper-noise``, ``--accel``, ``--speed``, ``--json``, ``--out``,
+        ``--force`` and ``--quiet``.
     """
     p = subparsers.add_parser(
         "simulate",
@@ -99,6 +101,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("trajectory", metavar="TRAJ.csv", help="trajectory CSV file")
     add_vehicle_arguments(p)
+    p.add_argument(
+        "--beacon-path",
+        metavar="B.csv",
+        default=None,
+        help="a moving beacon: CSV t,bx,by (2D) or t,bx,by,bz (3D) [s, m] in the trajectory's "
+        "frame, linearly interpolated, covering the trajectory's time span (instead of --beacon)",
+    )
     p.add_argument(
         "--rates",
         metavar="S=HZ,...",
@@ -347,7 +356,24 @@ def _filters(args: argparse.Namespace) -> tuple[str, ...]:
     return tuple(s.strip() for s in args.filters.split(",") if s.strip())
 
 
-def _check_beacon_clear(args: argparse.Namespace, traj, pb, beacon) -> None:
+def _beacon_path(args: argparse.Namespace, traj, beacon) -> BeaconPath | None:
+    """The ``--beacon-path``, read and checked against the trajectory; None when not given."""
+    if args.beacon_path is None:
+        return None
+    if beacon is not None:
+        given = "--beacon" if args.beacon is not None else "--beacon-geodetic"
+        raise InputError(
+            f"give either {given} (a fixed beacon) or --beacon-path (a moving one), not both"
+        )
+    where = f"--beacon-path {args.beacon_path}"
+    path = read_beacon_path(args.beacon_path, traj.dim, where)
+    path.check_covers(
+        float(traj.t[0]), float(traj.t[-1]), f"{where} (the trajectory {args.trajectory})"
+    )
+    return path
+
+
+def _check_beacon_clear(args: argparse.Namespace, traj, pb, beacon, path=None) -> None:
     """Refuse a beacon at the trajectory's start: the geometry every plan refuses
     (:func:`obsplan.planning.problem.checks.check_start_clear`, at the problem's
     ``limits.min_range``, or the default one without a problem)."""
@@ -356,6 +382,10 @@ def _check_beacon_clear(args: argparse.Namespace, traj, pb, beacon) -> None:
     if pb is not None:
         where = f"beacon.position of --problem {args.problem}"
         check_start_clear(traj.p[0], pb.beacon, pb.limits.min_range, where=where, fix=_CLEAR)
+        return
+    if path is not None:
+        where = f"--beacon-path {args.beacon_path} (at the trajectory's start)"
+        check_start_clear(traj.p[0], path.position(traj.t[0])[0], where=where, fix=_CLEAR)
         return
     if args.beacon is not None:
         where = f"--beacon {args.beacon}"
@@ -391,7 +421,9 @@ def run(args: argparse.Namespace) -> int:
     Raises
     ------
     InputError
-        A bad seed, ``--runs``, trajectory, beacon (or one at the trajectory's start), filter
+        A bad seed, ``--runs``, trajectory, beacon (or one at the trajectory's start), beacon
+        path (malformed, of another dimension, not covering the trajectory, or given with
+        ``--beacon``), filter
         grid or option value, an option that does not apply (:data:`APPLIES`) or that
         ``--problem`` replaces (:data:`PROBLEM_REPLACES`), a problem of another dimension, or
         an ``--out`` folder that cannot be written or replaced (exit 2).
@@ -406,7 +438,8 @@ def run(args: argparse.Namespace) -> int:
     traj = read_trajectory(args.trajectory, "simulate")
     pb = _problem_mode(args, traj) if args.problem else None
     beacon = None if pb is not None else resolve_beacon(args, traj.dim)[0]
-    _check_beacon_clear(args, traj, pb, beacon)
+    path = None if pb is not None else _beacon_path(args, traj, beacon)
+    _check_beacon_clear(args, traj, pb, beacon, path)
     runs = args.runs if args.runs is not None else (pb.validation.runs if pb else 50)
     check_filter_grid(traj, pb.validation.dt if pb else args.dt, runs)
     # the output folder is checked before the (long) simulation, written only at the end
@@ -445,6 +478,7 @@ def run(args: argparse.Namespace) -> int:
                 "noise": parse_pairs(args.noise or "", "--noise"),
                 "init_error": _init_error(args.init_error or "sample"),
                 "process_noise": not args.no_process_noise,
+                "beacon_path": path,
             }
             if args.paper_noise:
                 cfg = EstimationConfig.paper(model, 1.0 / sample_rate(fine), **common)
@@ -490,6 +524,7 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
     from obsplan.estimation.bounds.crlb import sampled_rank_over_time
     from obsplan.estimation.montecarlo import plots
     from obsplan.observability.gramian import augmented_model
+    from obsplan.trajectory.relative import relative_samples
 
     staging = out.stage()
     written = []
@@ -501,7 +536,9 @@ def _write_figures(out: OutputDir, res: MonteCarloResult, fine, pb, args) -> lis
         # the figure `obsplan plan` writes as filters.png, for this one path
         fig = plot_filter_errors({"trajectory": PathValidation("trajectory", res)}, problem=pb.name)
         written.append(plots.save(fig, staging / "filters.png"))
-    ranks = sampled_rank_over_time(fine, cfg)
+    # a moving beacon: the rank of the motion relative to it (docs/guides/observability.md)
+    rel = fine if cfg.beacon_path is None else relative_samples(fine, cfg.beacon_path)
+    ranks = sampled_rank_over_time(rel, cfg)
     idx = np.searchsorted(fine.t, res.t)
     full = augmented_model(cfg.model).state_dim
     fig = plots.scenario_figure(fine, res, res.t, ranks[idx], full, title=args.trajectory)

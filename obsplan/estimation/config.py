@@ -60,6 +60,7 @@ from obsplan.core.csvtable import COLUMN_LIMITS
 from obsplan.core.errors import ConfigError
 from obsplan.core.textfiles import check_magnitude
 from obsplan.estimation.kalman import integrated_noise
+from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import SENSOR_ALIASES, SENSORS, VehicleModel
 from obsplan.observability.gramian import augmented_model
 
@@ -103,6 +104,25 @@ def _sensor_key(model: VehicleModel, key: str, fieldname: str) -> str:
             f"({', '.join(model.sensors)}); add it to the sensors or remove it here"
         )
     return name
+
+
+def _check_beacon_path(model: VehicleModel, path: object) -> None:
+    """Refuse a beacon path that is not a :class:`BeaconPath` of the model's dimension, or one
+    given with a fixed beacon away from the origin (which of the two would be meant?)."""
+    if path is None:
+        return
+    if not isinstance(path, BeaconPath):
+        raise ConfigError("beacon_path must be a BeaconPath (obsplan.model.beacon) or None")
+    if path.dim != model.dim:
+        raise ConfigError(
+            f"beacon_path is {path.dim}D but the model is {model.dim}D; give "
+            f"{'t,bx,by,bz' if model.dim == 3 else 't,bx,by'}"
+        )
+    if np.any(model.beacon_array != 0.0):
+        raise ConfigError(
+            f"beacon_path replaces the model's fixed beacon, but the model has one at "
+            f"{model.beacon}; build the model without a beacon (the origin)"
+        )
 
 
 def _matrix(value: object, m: int, fieldname: str, definite: bool) -> np.ndarray:
@@ -293,6 +313,12 @@ class EstimationConfig:
         (default, the paper's EKF) or ``"second-order"``, the Gaussian second-order filter's,
         which adds the range's curvature over the prior to the prediction and the variance
         (:mod:`obsplan.estimation.filters.ekf`).
+    beacon_path : BeaconPath or None, optional
+        A beacon moving along a known path (a ship's GPS track, linearly interpolated) instead of
+        the model's fixed beacon (which must then be the origin, the default). The truth, the
+        filters and the posterior CRB range to it; the path must cover every trajectory it is
+        used on and have the model's dimension (:mod:`obsplan.estimation.epochs`, "A moving
+        beacon"). None (default): the model's fixed beacon.
 
     Instances pickle (the model is rebuilt from its parameters), so they can be shipped to worker
     processes.
@@ -316,6 +342,7 @@ class EstimationConfig:
     accel_noise: float | None = None
     current_noise: float = 0.0
     ekf_update: EkfUpdate = "first-order"
+    beacon_path: BeaconPath | None = None
 
     def __reduce__(self):
         # the model may hold CasADi symbols (not picklable) and the mappings are read-only
@@ -339,6 +366,7 @@ class EstimationConfig:
                 "accel_noise",
                 "current_noise",
                 "ekf_update",
+                "beacon_path",
             )
         }
         for f in ("rates_hz", "noise", "dropout"):
@@ -377,6 +405,7 @@ class EstimationConfig:
         object.__setattr__(self, "rates_hz", MappingProxyType(rates))
         object.__setattr__(self, "noise", MappingProxyType(full_noise))
         object.__setattr__(self, "dropout", MappingProxyType(drop))
+        _check_beacon_path(model, self.beacon_path)
 
         mx = model.state_dim
         mz = augmented_model(model).state_dim
@@ -577,9 +606,10 @@ class EstimationConfig:
         -------
         dict
             Sensors, rates [Hz], noises, the flags, the initial error, the true current [m/s]
-            and the process noise model and intensities.
+            and the process noise model and intensities; with a ``beacon_path`` also
+            ``"beacon_motion": "path"`` and its time span [s].
         """
-        return {
+        out = {
             "sensors": list(self.model.sensors),
             "current": bool(self.model.current),
             "rates_hz": dict(self.rates_hz),
@@ -603,6 +633,10 @@ class EstimationConfig:
             ),
             "current_noise": float(self.current_noise),
         }
+        if self.beacon_path is not None:
+            out["beacon_motion"] = "path"
+            out["beacon_path_span_s"] = [self.beacon_path.start, self.beacon_path.end]
+        return out
 
 
 def _rebuild_config(model_args: tuple, values: dict) -> EstimationConfig:

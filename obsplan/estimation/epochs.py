@@ -22,6 +22,22 @@ degree ≤ 4 in ``σ_j = t_{j+1} - t_a``: the sum is computed exactly by a discr
 ``min(k, 5)`` nodes (exact to degree 9) for the measure ``Σ_j δ(σ - σ_j)``, also stored here.
 With the physical noise the sum is the integral ``∫_0^T M(σ) W M(σ)ᵀ dσ``, of degree ≤ 6 in
 ``σ``: the 5-node Gauss–Legendre rule on ``[0, T]`` is exact.
+
+A moving beacon
+---------------
+With ``EstimationConfig.beacon_path`` (a :class:`~obsplan.model.beacon.BeaconPath`, linearly
+interpolated) every range is taken to the beacon's position at its *transmission*: a range is a
+one-way travel time, so the reading at epoch ``t_e`` left the beacon at ``t_e - r/c``
+(:data:`SOUND_SPEED` ``c = 1500`` m/s). :func:`epoch_beacons` fixes these positions once per
+trajectory, with ``r`` the range of the *nominal* path (a fixed point, three iterations: each
+contracts by ``|b'|/c``, about 1e-3); the truth, the filters and the posterior CRB all range to
+the same ``(E, n)`` array. What this neglects is the beacon's motion during the difference of the
+true and the nominal travel times: ``|b'| |r_true - r_nom| / c``, 1.3 mm for a beacon at 2 m/s and
+a true path 1 m off the nominal (against ``|b'| r / c`` = 1.3 m at 1 km had the beacon been taken
+at the reception epoch). Before the path's first sample (the first ``r/c`` seconds) its first
+position is held. The truth's metrics (closest approach) use the beacon at each sample's own time
+(:func:`sample_beacons`). A fixed beacon is the single row ``(1, n)``, broadcast by the kernels:
+its results are those of the model's beacon, bit for bit.
 """
 
 from __future__ import annotations
@@ -32,6 +48,7 @@ import numpy as np
 
 from obsplan.core.errors import ConfigError
 from obsplan.estimation.schedule import Schedule
+from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import VehicleModel
 from obsplan.trajectory.sampled import Trajectory
 
@@ -39,6 +56,79 @@ from obsplan.trajectory.sampled import Trajectory
 GAUSS_NODES = 5
 #: Default bound on the number of recorded samples (see :func:`record_samples`).
 MAX_RECORDS = 1000
+#: Speed of sound [m/s] turning a range into its one-way travel time (module docstring).
+SOUND_SPEED = 1500.0
+#: Fixed-point iterations of the transmission time (each contracts the error by ``|b'|/c``).
+TRANSMIT_ITERATIONS = 3
+
+
+def _covered(path: BeaconPath, t: np.ndarray) -> None:
+    path.check_covers(float(t[0]), float(t[-1]), "beacon_path", error=ConfigError)
+
+
+def epoch_beacons(
+    model: VehicleModel, path: BeaconPath | None, t: np.ndarray, p: np.ndarray
+) -> np.ndarray:
+    """The beacon position each range of epochs ``t`` is taken to (module docstring).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (its fixed beacon when ``path`` is None).
+    path : BeaconPath or None
+        The moving beacon; None: the model's fixed beacon.
+    t : ndarray, shape (E,)
+        Epoch (reception) times [s], increasing.
+    p : ndarray, shape (E, n)
+        Nominal vehicle positions at the epochs [m].
+
+    Returns
+    -------
+    ndarray, shape (E, n), or (1, n) for a fixed beacon
+        Beacon positions at the transmission times [m], C-contiguous.
+
+    Raises
+    ------
+    ConfigError
+        A path that does not cover ``t``.
+    """
+    if path is None:
+        return np.ascontiguousarray(model.beacon_array[None, :])
+    t = np.asarray(t, float)
+    _covered(path, t)
+    ts = t
+    for _ in range(TRANSMIT_ITERATIONS):
+        b = path.position(np.maximum(ts, path.start))
+        ts = t - np.linalg.norm(np.asarray(p, float) - b, axis=1) / SOUND_SPEED
+    return np.ascontiguousarray(path.position(np.maximum(ts, path.start)))
+
+
+def sample_beacons(model: VehicleModel, path: BeaconPath | None, t: np.ndarray) -> np.ndarray:
+    """The beacon position at each sample time ``t`` (the truth's closest approach).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (its fixed beacon when ``path`` is None).
+    path : BeaconPath or None
+        The moving beacon; None: the model's fixed beacon.
+    t : ndarray, shape (N,)
+        Sample times [s], increasing.
+
+    Returns
+    -------
+    ndarray, shape (N, n), or (1, n) for a fixed beacon
+        Beacon positions [m], C-contiguous.
+
+    Raises
+    ------
+    ConfigError
+        A path that does not cover ``t``.
+    """
+    if path is None:
+        return np.ascontiguousarray(model.beacon_array[None, :])
+    _covered(path, np.asarray(t, float))
+    return np.ascontiguousarray(path.position(t))
 
 
 def record_samples(n_samples: int, record_every: int | None) -> np.ndarray:
@@ -368,6 +458,9 @@ class RunContext:
     rec_w : (Nr,), optional
         Weight 1 for the records of the subset whose RMSE is reported per run (e.g. samples on
         survey lines), 0 elsewhere; default none (that RMSE is NaN).
+    beacons : (E, n) or (1, n), optional
+        The beacon each epoch's range is taken to [m] (:func:`epoch_beacons`); one row: a fixed
+        beacon; default the origin.
     """
 
     plan: EpochPlan
@@ -377,10 +470,18 @@ class RunContext:
     nees_bound: float
     window_s: float
     rec_w: np.ndarray | None = None
+    beacons: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.rec_w is None:
             object.__setattr__(self, "rec_w", np.zeros(self.t_rec.size))
+        if self.beacons is None:
+            object.__setattr__(self, "beacons", np.zeros((1, self.d_epochs.shape[1] // 2)))
+
+    @property
+    def beacon_moves(self) -> bool:
+        """Whether the beacon is given per epoch (a moving beacon)."""
+        return self.beacons is not None and self.beacons.shape[0] > 1
 
     def corrections(self, ce: np.ndarray | None, cr: np.ndarray | None):
         """The kernels' input-correction arrays (empty: open loop).

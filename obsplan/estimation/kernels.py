@@ -93,7 +93,7 @@ NW_MEAN, NW_E, NW_Y, NW_OFF, NW_CORR, NW_C = 0, 1, 2, 3, 4, 5
 
 # ----------------------------------------------------------------------------- truth
 @inline
-def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
+def span_metrics(tm, j, xb, K, n, beacon, box, has_box, k0):
     """Add ``K`` consecutive samples of true path ``j`` to its metrics ``tm[j]`` (``stats.TM_*``).
 
     ``xb`` (≥ K, 3n) rows: true position ``p``, true inertial velocity ``p'``, reference
@@ -115,14 +115,18 @@ def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
         Number of samples of ``xb`` to add.
     n : int
         Spatial dimension.
-    beacon : ndarray, shape (n,)
-        Beacon position [m].
+    beacon : ndarray, shape (Nb, n)
+        Beacon position [m] at every sample of the path (``Nb = N``, a moving beacon) or one
+        row (a fixed beacon).
     box : ndarray, shape (3, 2)
         Area and depth bounds [m] (:meth:`TruthLimits.box
         <obsplan.estimation.montecarlo.guidance.TruthLimits.box>`).
     has_box : bool
         Whether any bound of ``box`` is finite (:func:`bounded`).
+    k0 : int
+        The path's sample of ``xb[0]`` (the row of a moving beacon).
     """
+    moving = beacon.shape[0] > 1
     close, far = tm[j, TM_CLOSEST], tm[j, TM_FARTHEST]
     ss, vmax = tm[j, TM_TRACK_SS], tm[j, TM_SPEED_MAX]
     area, depth = tm[j, TM_AREA_OUT], tm[j, TM_DEPTH_OUT]
@@ -135,9 +139,11 @@ def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
         dd = 0.0
         v2 = 0.0
         e2 = 0.0
+        kb = k0 + k if moving else 0
+        kp = kb - 1 if moving else 0
         for i in range(n):
-            rel = xb[k, i] - beacon[i]
-            a = xb[k - 1, i] - beacon[i] if k > 0 else tm[j, TM_PREV + i]
+            rel = xb[k, i] - beacon[kb, i]
+            a = xb[k - 1, i] - beacon[kp, i] if k > 0 else tm[j, TM_PREV + i]
             s = rel - a
             r2 += rel * rel
             aa += a * a
@@ -163,8 +169,9 @@ def span_metrics(tm, j, xb, K, n, beacon, box, has_box):
     tm[j, TM_TRACK_LAST] = e2
     tm[j, TM_SAMPLES] += K
     if K > 0:
+        kb = k0 + K - 1 if moving else 0
         for i in range(n):
-            tm[j, TM_PREV + i] = xb[K - 1, i] - beacon[i]
+            tm[j, TM_PREV + i] = xb[K - 1, i] - beacon[kb, i]
 
 
 @inline
@@ -218,8 +225,8 @@ def truth_deviation(z, L, h, expo, n, cur, points, out, noms, beacon, box, tm):
         Receives ``δ`` at ``points`` (zero-initialised by the caller).
     noms : ndarray, shape (J, N, 2n)
         Nominal ``(p, p')`` of each path [m, m/s] (``J`` may be 0).
-    beacon : ndarray, shape (n,)
-        Beacon position [m].
+    beacon : ndarray, shape (N, n) or (1, n)
+        Beacon position [m] at every sample (a moving beacon) or one row (a fixed beacon).
     box : ndarray, shape (3, 2)
         Area and depth bounds [m].
     tm : ndarray, shape (J, N_TM)
@@ -275,7 +282,7 @@ def truth_deviation(z, L, h, expo, n, cur, points, out, noms, beacon, box, tm):
                     nu = noms[jp, k, n + i] + dspan[kk, n + i]
                     xb[kk, n + i] = nu + (dspan[kk, 2 * n + i] if cur else 0.0)
                     xb[kk, 2 * n + i] = noms[jp, k, i]
-            span_metrics(tm, jp, xb, K, n, beacon, box, has_box)
+            span_metrics(tm, jp, xb, K, n, beacon, box, has_box, k0)
 
 
 # ----------------------------------------------------------------------------- Kalman steps
@@ -886,8 +893,8 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
         Spatial dimension.
     G : int
         Members per run.
-    beacon : ndarray, shape (n,)
-        Beacon position [m].
+    beacon : ndarray, shape (E, n) or (1, n)
+        Beacon position [m] of each epoch's range (a moving beacon) or one row (a fixed beacon).
     half_sq : bool
         The half-squared range form (else the range).
     second : bool
@@ -902,6 +909,7 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
     """
     B = X.shape[1]
     any_ok = False
+    eb = e if beacon.shape[0] > 1 else 0
     for i in range(n):
         iw[i] = i
     for b in range(B):
@@ -909,7 +917,7 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
         ok = math.isfinite(rm)
         rho2 = 0.0
         for i in range(n):
-            h = X[i, b] - beacon[i]
+            h = X[i, b] - beacon[eb, i]
             ws[WS_VAL, i, b] = h
             rho2 += h * h
         if half_sq:
@@ -1354,7 +1362,8 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     X = Z0.copy()
     P = P0.copy()
     Q = np.zeros((m, m, B))
-    ws, iw, nw = workspaces(m, B, n, mdl.beacon, rcd.qz)
+    ws, iw, nw = workspaces(m, B, n, mdl.beacon[0], rcd.qz)
+    moving = mdl.beacon.shape[0] > 1
     kw = np.zeros((8, mdl.qk.shape[0], B))
     lw = np.zeros(B)
     w = np.ones(B)
@@ -1370,6 +1379,9 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
         if e > 0:
             kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp)
         kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt)
+        if moving:  # a record based at epoch e predicts r with ν: absolute at b_e (kf_relative)
+            for i in range(n):
+                nw[NW_OFF, i] = mdl.beacon[e, i]
         while ri < n_rec and rec_base[ri] == e:
             record_batch(X, P, lw, w, 1, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
             ri += 1

@@ -13,6 +13,10 @@ Range information. A reading ``r + ε``, ``ε ~ N(0, σ_r²)``, carries the Fish
 beacon ``∇r`` is undefined; the bound uses ``(p - b)(p - b)ᵀ / (σ_r² (r² + r_ε²))`` with
 ``r_ε =`` :data:`RANGE_REG_M`, which differs from ``u uᵀ/σ_r²`` by less than ``r_ε²/r²`` (1e-6
 beyond 1 m) and tends to no information (a finite bound) at the beacon.
+
+A moving beacon (``EstimationConfig.beacon_path``): the same information at ``p(t_k) - b_k``,
+``b_k`` the beacon each epoch's range is taken to (at its transmission,
+:func:`~obsplan.estimation.epochs.epoch_beacons`), the dynamics being the vehicle's own.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from obsplan.estimation.bounds.riccati import (
     run_recursion,
 )
 from obsplan.estimation.config import EstimationConfig
-from obsplan.estimation.epochs import nominal_states
+from obsplan.estimation.epochs import epoch_beacons, nominal_states
 from obsplan.estimation.schedule import Schedule, make_schedule, sample_rate
 from obsplan.estimation.sensors import output_model
 from obsplan.model.vehicle import VehicleModel
@@ -214,7 +218,9 @@ def posterior_crlb(
     rec = pcrb_model_of(config, dt)
     xs = nominal_states(traj, model, config.current_array)
     n = model.dim
-    rel = (xs[epochs.index, :n] - model.beacon_array).T
+    t_ep = traj.t[epochs.index]
+    beacons = epoch_beacons(model, config.beacon_path, t_ep, xs[epochs.index, :n])
+    rel = (xs[epochs.index, :n] - beacons).T
     h, rho = range_information(rel, config.noise["range"])
     _, D = run_recursion(rec, epochs, cov["p0_ekf"], h, rho)
     var = epochs.sample_values(np.asarray(D))  # (2n, N)

@@ -15,12 +15,14 @@ from collections import namedtuple
 
 import numpy as np
 
+from obsplan.core.errors import ConfigError
 from obsplan.estimation.epochs import RunContext
 from obsplan.model.vehicle import VehicleModel
 
 #: What the EKF (and the Gaussian sum's components) predict and update with: the segment table
 #: ``tab``, the composed process-noise terms ``qt`` (3, m, m), the transition's packed entries
-#: ``tr``, the linear output rows ``lin``, the dimension ``n``, current ``cur``, beacon (n,),
+#: ``tr``, the linear output rows ``lin``, the dimension ``n``, current ``cur``, the beacon of each
+#: epoch's range ``beacon`` (E, n) (one row (1, n): a fixed beacon),
 #: range form ``half_sq``, the second-order range update ``second`` and the range noise
 #: ``sig_r`` [m].
 EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig_r")
@@ -28,7 +30,8 @@ EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig
 #: What the augmented KF predicts and updates with: as :data:`EkfModel` plus the segments'
 #: Gauss rules ``rule``, the input displacement and rate at the epochs ``ep_d`` (E, 2n), the
 #: full augmented noise ``qk``, whether it is diagonal ``qdiag``, the coupling switch
-#: ``couple`` and ``inflate`` (``y0_mode="inflate"``).
+#: ``couple`` and ``inflate`` (``y0_mode="inflate"``). With a moving beacon ``tab`` and ``ep_d``
+#: are the relative motion's (:func:`kf_relative`).
 KfModel = namedtuple(
     "KfModel", "tab rule ep_d qt qk qdiag couple tr lin n cur beacon sig_r inflate"
 )
@@ -76,7 +79,7 @@ def ekf_model(model: VehicleModel, ctx: RunContext, filt) -> EkfModel:
         lin=filt._lin,
         n=int(model.dim),
         cur=bool(model.current),
-        beacon=model.beacon_array,
+        beacon=ctx.beacons,
         half_sq=model.range_form == "half-squared",
         second=bool(filt.second_order),
         sig_r=float(filt.noise["range"]),
@@ -99,23 +102,92 @@ def kf_model(model: VehicleModel, ctx: RunContext, filt) -> KfModel:
     -------
     KfModel
         The bundle (layouts: :mod:`obsplan.estimation.kernels`).
+
+    Raises
+    ------
+    ConfigError
+        A moving beacon whose depth changes, with a depth gauge (:func:`kf_relative`).
     """
+    tab, ep_d, lin = kf_relative(model, ctx, filt._lin)
     return KfModel(
-        tab=ctx.plan.seg_tab,
+        tab=tab,
         rule=ctx.plan.seg_rule,
-        ep_d=ctx.d_epochs,
+        ep_d=ep_d,
         qt=filt.q_terms,
         qk=filt.q,
         qdiag=bool(filt.q_diag),
         couple=bool(filt.coupling),
         tr=filt._tr,
-        lin=filt._lin,
+        lin=lin,
         n=int(model.dim),
         cur=bool(model.current),
-        beacon=model.beacon_array,
+        beacon=ctx.beacons,
         sig_r=float(filt.noise["range"]),
         inflate=filt.y0_mode == "inflate",
     )
+
+
+#: First column of the input displacement ``dp`` in a segment table (kernels' ``TAB_G``).
+_TAB_DP = 5
+
+
+def kf_relative(
+    model: VehicleModel, ctx: RunContext, lin: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The augmented KF's segment table, input displacement and linear rows relative to a moving
+    beacon (unchanged, the same arrays, for a fixed one).
+
+    The KF's positions are ``r = p - b``. With the beacon known at every epoch, its motion is a
+    known displacement of ``r`` and nothing else: over segment ``e`` the prediction of ``r`` gains
+    ``-(b_e - b_{e-1})`` (``dp`` of the table), and ``r = r0 + ν0 τ + D`` with ``D = d - (b -
+    b_0)``, so the range output ``ȳ = y - y0 + ½|D|² = Dᵀr + τ α + ½ τ² β`` keeps the form of
+    eq. 21 with ``D`` for ``d`` (``ep_d``'s positions) and ``α = r0·ν0``, ``β = |ν0|²`` of the
+    *vehicle's* velocity: the velocity states, the rate ``ḋ`` and the process-noise coupling
+    (``r - D = r0 + ν0 τ + n``) are those of a fixed beacon. Exact for any beacon motion sampled
+    at the epochs, the impulses of a piecewise-linear path included. A depth gauge reads
+    ``r_z + b_z``: its offset is the beacon's depth, which must then be constant.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The filter's vehicle model.
+    ctx : RunContext
+        The epochs and the beacon of each (``ctx.beacons``).
+    lin : ndarray, shape (outputs, 5)
+        The filter's linear rows (depth offset: the model's beacon depth).
+
+    Returns
+    -------
+    tab : ndarray, shape (E, 5 + 2n)
+        Segment table of the relative motion.
+    ep_d : ndarray, shape (E, 2n)
+        ``(D, ḋ)`` at the epochs [m, m/s].
+    lin : ndarray, shape (outputs, 5)
+        The linear rows with the depth offset of the beacon's depth.
+
+    Raises
+    ------
+    ConfigError
+        A depth gauge with a beacon whose depth changes along its path.
+    """
+    if not ctx.beacon_moves:
+        return ctx.plan.seg_tab, ctx.d_epochs, lin
+    n = int(model.dim)
+    b = np.asarray(ctx.beacons, float)
+    tab = ctx.plan.seg_tab.copy()
+    tab[1:, _TAB_DP : _TAB_DP + n] -= np.diff(b, axis=0)
+    ep_d = ctx.d_epochs.copy()
+    ep_d[:, :n] -= b - b[0]
+    lin = lin.copy()
+    if "depth" in model.sensors:
+        if np.any(b[:, 2] != b[0, 2]):
+            raise ConfigError(
+                "the augmented KF with a depth gauge needs the moving beacon at a constant depth "
+                f"(its path goes from bz = {b[:, 2].min():g} to {b[:, 2].max():g} m); run the "
+                "EKF or the Gaussian sum, or drop the depth gauge"
+            )
+        lin[model.output_slices["depth"].start, 4] = b[0, 2]
+    return np.ascontiguousarray(tab), np.ascontiguousarray(ep_d), lin
 
 
 def records(ctx: RunContext, truth_rec: np.ndarray, q_nav: np.ndarray) -> Records:

@@ -45,6 +45,18 @@ time-varying linear change of coordinates (its estimates and covariance of ``(p,
 same); the configured noise of ``(α, β)`` enters the chain through ``J(τ) = [[τ, ½τ²], [1, τ],
 [0, ½]]``. ``y0_mode="inflate"`` starts ``κ`` known (variance 0) and adds ``var(y0)`` to every
 range variance instead (over-confident: the common error is averaged as if independent).
+
+A moving beacon
+---------------
+With a known beacon path (``EstimationConfig.beacon_path``) the filter keeps its coordinates:
+positions relative to the beacon ``r = p - b``, the vehicle's own velocity. The beacon's motion
+is then a known displacement of ``r`` alone: with ``D = d - (b - b0)``, ``r = r0 + ν0 τ + D (+
+n)`` and ``ȳ = y - y0 + ½|D|² = Dᵀr + τα + ½τ²β`` with ``α = r0·ν0``, ``β = |ν0|²``: eq. 21 with
+``D`` for ``d``; the chain, the coupling (``r - D = r0 + ν0 τ + n``) and the velocity rows are
+unchanged. It is exact for the beacon sampled at the epochs, however it moves between them (the
+velocity jumps of a piecewise-linear path need no impulse: they are inside ``b``), and it is
+built by :func:`~obsplan.estimation.filters.bundles.kf_relative`; records add back the beacon of
+their epoch. A depth gauge reads ``r_z + b_z``, so it needs the beacon at a constant depth.
 """
 
 from __future__ import annotations
@@ -134,6 +146,10 @@ class AugmentedKalmanFilter(Filter):
             kalman.kinematic_entries(n, model.current)
             + [(kc, kc + 1, 1.0, 1), (kc, kc + 2, 1.0, 2), (kc + 1, kc + 2, 2.0, 1)]
         )
+        #: The beacon [m] the relative positions start from: the model's, or a moving beacon's
+        #: at the first range (set by the Monte Carlo's ``PathSetup``; :func:`bundles.kf_relative
+        #: <obsplan.estimation.filters.bundles.kf_relative>` moves it with the beacon).
+        self.origin = model.beacon_array
         bz = model.beacon_array[2] if model.dim == 3 else 0.0
         self.rows = kalman.linear_rows(model, self.noise, bz)
         self._tr, self._lin = self.transition.packed(), self.rows.packed()
@@ -229,7 +245,7 @@ class AugmentedKalmanFilter(Filter):
             )
         n, mx = self.model.dim, self.model.state_dim
         xhat0 = np.asarray(xhat0, float)
-        prel = xhat0[:n] - self.model.beacon_array
+        prel = xhat0[:n] - self.origin
         nu = xhat0[n : 2 * n] + (xhat0[2 * n : 3 * n] if self.model.current else 0.0)
         if extra0 is None:
             extra0 = np.array([prel @ nu, nu @ nu])
@@ -296,7 +312,7 @@ class AugmentedKalmanFilter(Filter):
         Z0, P0, anc = self._members(batch.states)
         m, B = Z0.shape
         n = self.model.dim
-        ws, iw, _ = kernels.workspaces(m, B, n, self.model.beacon_array, self.q_nav)
+        ws, iw, _ = kernels.workspaces(m, B, n, self.origin, self.q_nav)
         parts = {
             "mdl": bundles.kf_model(self.model, ctx, self),
             "anc": anc,

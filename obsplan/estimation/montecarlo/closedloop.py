@@ -67,8 +67,8 @@ GRID_RTOL = 1e-9
 
 NavPath = namedtuple(
     "NavPath",
-    "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon n cur half_sq second sig_r L "
-    "expo scaled box has_box alim G",
+    "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon beacon_s n cur half_sq second "
+    "sig_r L expo scaled box has_box alim G",
 )
 NavGains = namedtuple("NavGains", "kp kd amax vmax kv truth")
 NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
@@ -213,7 +213,8 @@ class ClosedLoop:
             tr=f.transition.packed(),
             lin=f.rows.packed(),
             qz=f.q_nav,
-            beacon=model.beacon_array,
+            beacon=s.ctx.beacons,
+            beacon_s=s.sample_beacons,
             n=model.dim,
             cur=bool(model.current),
             half_sq=model.range_form == "half-squared",
@@ -503,7 +504,8 @@ class ClosedLoop:
             if io.ex_run >= 0:
                 s.hist[nav] = io.ex
         x0 = s.states[0]
-        starts = [start_of(model, x0, dr, io.Y[0, 0, b]) for b, dr in enumerate(self._draws)]
+        b0 = ctx.beacons[0]
+        starts = [start_of(model, x0, dr, io.Y[0, 0, b], b0) for b, dr in enumerate(self._draws)]
         truth_rec = np.ascontiguousarray(io.rec[:, :, kernels.TAB_G + 2 * n :])
         Nr = s.records.size
         for name in self.names:

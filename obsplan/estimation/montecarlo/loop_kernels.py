@@ -102,10 +102,11 @@ def nav_measure(pt, gn, st, io, k, e):
                 for c in range(G):
                     X[i, g * G + c] += sh
     Y = io.Y
+    eb = e if pt.beacon.shape[0] > 1 else 0  # a moving beacon: its row of epoch e
     for b in range(R):  # device readings at the true state x_plan + c + δ
         rho2 = 0.0
         for i in range(n):
-            rel = pt.xplan[k, i] + st.c[i, b] + st.dl[i, b] - pt.beacon[i]
+            rel = pt.xplan[k, i] + st.c[i, b] + st.dl[i, b] - pt.beacon[eb, i]
             rho2 += rel * rel
         Y[e, 0, b] = math.sqrt(rho2) + io.Yn[e, 0, b]
         for o in range(1, Y.shape[1]):  # the EKF's linear rows are the clean readings
@@ -282,17 +283,19 @@ def buffer_truth(xb, j, xplan, nuplan, c, dl, ref, kr, has_ref, k, n, cur):
 
 
 @jit
-def flush_metrics(pt, st, io):
+def flush_metrics(pt, st, io, k_last):
     """Add the buffered samples of every run to its truth metrics.
 
     Parameters
     ----------
     pt, st, io : NavPath, NavState, NavIO
         The bundles (module docstring).
+    k_last : int
+        The sample of the last buffered row (the rows are consecutive samples).
     """
     K = st.pos[3]
     for b in range(io.xb.shape[0]):
-        span_metrics(io.tm, b, io.xb[b], K, pt.n, pt.beacon, pt.box, pt.has_box)
+        span_metrics(io.tm, b, io.xb[b], K, pt.n, pt.beacon_s, pt.box, pt.has_box, k_last - K + 1)
     st.pos[3] = 0
 
 
@@ -483,7 +486,7 @@ def nav_run(pt, gn, st, io, z, ref, ka, has_ref, k_from, k_to):
         buffer_truth(xb, pos[3], xplan, nuplan, c, dl, ref, kr + 1, has_ref, k + 1, n, cur)
         pos[3] += 1
         if pos[3] == xb.shape[1]:
-            flush_metrics(pt, st, io)
+            flush_metrics(pt, st, io, k + 1)
 
 
 @jit
@@ -526,7 +529,7 @@ def navigate(pt, gn, st, io, z, ref, ka, has_ref, k_end):
         k = k_next
         phase = 0
     st.pos[0], st.pos[1], st.pos[2] = k, phase, e_last
-    flush_metrics(pt, st, io)
+    flush_metrics(pt, st, io, k)
 
 
 def empty_reference(n: int, B: int) -> np.ndarray:

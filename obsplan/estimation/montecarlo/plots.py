@@ -99,8 +99,9 @@ def plot_trajectory_estimates(hist: RunHistory, ax=None, beacon=None) -> Figure:
         Run 0's history (truth, each filter's estimate and std).
     ax : matplotlib.axes.Axes or None, optional
         Axes to draw on; None: a new figure.
-    beacon : array_like, shape (n,), optional
-        Beacon position [m]; None: the origin.
+    beacon : array_like, shape (n,) or (M, n), optional
+        Beacon position [m], or a moving beacon's path (drawn as a line, its start marked);
+        None: the origin.
 
     Returns
     -------
@@ -119,6 +120,9 @@ def plot_trajectory_estimates(hist: RunHistory, ax=None, beacon=None) -> Figure:
     for name, est in hist.estimate.items():
         draw(est, color=_color(name), lw=1.0, ls="--", label=_label(name))
     b = np.zeros(n) if beacon is None else np.asarray(beacon, float)
+    if b.ndim == 2:  # a moving beacon: its path, from its first position
+        draw(b, color="g", lw=0.8, label="beacon path")
+        b = b[0]
     ax.scatter(*b[:k], marker="^", color="g", s=40, label="beacon")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -318,7 +322,9 @@ def scenario_figure(
     n = hist.truth.shape[1] // 2 if traj is None else traj.dim
     fig = plt.figure(figsize=(13, 8))
     ax_a = fig.add_subplot(2, 3, 1, projection="3d" if n == 3 else None)
-    plot_trajectory_estimates(hist, ax=ax_a, beacon=result.config.model.beacon)
+    path = result.config.beacon_path
+    beacon = result.config.model.beacon if path is None else path.position(hist.t)
+    plot_trajectory_estimates(hist, ax=ax_a, beacon=beacon)
     plot_error_norms(hist, ax=fig.add_subplot(2, 3, 2))
     plot_std(hist, ax=fig.add_subplot(2, 3, 3))
     plot_std(hist, ax=fig.add_subplot(2, 3, 4), velocity=True)

@@ -18,13 +18,16 @@ from obsplan.core.errors import ConfigError
 from obsplan.estimation.columns import N_INFO
 from obsplan.estimation.epochs import (
     RunContext,
+    epoch_beacons,
     epoch_plan,
     input_displacement,
     nominal_states,
     record_samples,
+    sample_beacons,
 )
 from obsplan.estimation.filters import ekf, gsf, kf  # noqa: F401  (they register their filters)
 from obsplan.estimation.filters.base import REGISTRY, make_filter
+from obsplan.estimation.filters.kf import AugmentedKalmanFilter
 from obsplan.estimation.montecarlo.guidance import TruthLimits
 from obsplan.estimation.montecarlo.stats import (
     MONITOR_LEVEL,
@@ -169,8 +172,16 @@ class PathSetup:
             nees_bound=chi2_quantile(MONITOR_LEVEL, 2 * n),
             window_s=window,
             rec_w=_lines_weights(lines, traj.n_samples, self.records),
+            beacons=epoch_beacons(
+                model, config.beacon_path, traj.t[plan.epochs], traj.p[plan.epochs]
+            ),
         )
+        #: the beacon at every sample (the truth's closest approach); one row if it is fixed
+        self.sample_beacons = sample_beacons(model, config.beacon_path, traj.t)
         self.filters = {name: make_filter(name, config, self.cov, pn) for name in names}
+        for f in self.filters.values():
+            if isinstance(f, AugmentedKalmanFilter):
+                f.origin = self.ctx.beacons[0].copy()
         self.states = nominal_states(traj, model, config.current_array)
         self.nominal = self.states[plan.points]
         self.nav = np.ascontiguousarray(np.hstack([traj.p, traj.v]))  # nominal (p, p')
@@ -243,7 +254,7 @@ def draw_run(setup: PathSetup, seed: int, run: int) -> RunDraws:
     return RunDraws(run=run, err0=err0, extra_err=extra_err, readings=rd)
 
 
-def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float):
+def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float, beacon0=None):
     """``(x̂0, extra0, r0)`` of a run that starts at the true state ``x0`` with first range
     reading ``r0``: the filters' common start
     (:meth:`~obsplan.estimation.filters.ekf.ExtendedKalmanFilter.start`).
@@ -258,6 +269,9 @@ def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float):
         The run's draws (its initial errors).
     r0 : float
         First range reading [m].
+    beacon0 : ndarray, shape (n,), optional
+        The beacon of the first range [m] (``ctx.beacons[0]``, a moving beacon's); None: the
+        model's.
 
     Returns
     -------
@@ -269,7 +283,7 @@ def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float):
     extra0 = None
     if draws.extra_err is not None:
         # p, v of the KF start where the EKF's do; the extras get their own prior draw
-        prel = x0[:n] - model.beacon_array
+        prel = x0[:n] - (model.beacon_array if beacon0 is None else beacon0)
         nu = x0[n : 2 * n] + (x0[2 * n : 3 * n] if model.current else 0.0)
         extra0 = np.array([prel @ nu, nu @ nu]) + draws.extra_err
     return (x0 + draws.err0, extra0, float(r0))

@@ -21,6 +21,10 @@ summed by a compiled recursion; in closed loop the guidance at every step). Run 
 streams that depend only on ``(seed, r)`` (:mod:`obsplan.estimation.montecarlo.truth`), so
 ``monte_carlo(..., runs=k, run_start=s)`` computes runs ``s .. s+k-1`` of the seed and
 :func:`merge_monte_carlo` merges such shards into exactly the unsharded result.
+
+A moving beacon (``EstimationConfig.beacon_path``) is fixed per path at the epochs, at each
+range's transmission (:mod:`obsplan.estimation.epochs`, "A moving beacon"), and at the samples
+for the truth's closest approach; every filter, the truth and the bound use those positions.
 """
 
 from __future__ import annotations
@@ -323,7 +327,15 @@ def _open_loop(
                         (first.traj.n_samples - 1, L.shape[1])
                     )
                 delta, tm = open_loop_truth(
-                    first.traj, model, L, z, plan.points, first.expo, navs, first.box
+                    first.traj,
+                    model,
+                    L,
+                    z,
+                    plan.points,
+                    first.expo,
+                    navs,
+                    first.box,
+                    first.sample_beacons,
                 )
                 for job, row in zip(group, tm, strict=True):
                     job.tm.append(row)
@@ -353,9 +365,10 @@ def _run_batch(job: PathSetup, chunk, run_start: int, draws: list[tuple[RunDraws
     Ys, truths, starts = [], [], []
     for dr, delta in draws:
         x = job.nominal + delta
-        Ys.append(noisy_readings(model, x[plan.epoch_pt], plan.reports, noise, dr.readings))
+        bs = job.ctx.beacons
+        Ys.append(noisy_readings(model, x[plan.epoch_pt], plan.reports, noise, dr.readings, bs))
         truths.append(nav_of(model, x[plan.rec_pt]))
-        starts.append(start_of(model, x[0], dr, Ys[-1][0, 0]))
+        starts.append(start_of(model, x[0], dr, Ys[-1][0, 0], bs[0]))
     Y = np.stack(Ys, axis=2)
     truth_rec = np.stack(truths)
     ex_run = chunk.index(0) if 0 in chunk else -1

@@ -201,6 +201,7 @@ def open_loop_truth(
     expo: np.ndarray | None = None,
     navs: np.ndarray | None = None,
     box: np.ndarray | None = None,
+    beacons: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`truth_deviation` and the metrics of the true paths ``nav + δ`` of paths on the
     same grid.
@@ -227,6 +228,9 @@ def open_loop_truth(
         Nominal position [m] and inertial velocity [m/s] of each path.
     box : ndarray, shape (3, 2), optional
         Bounds of the area (x, y) and of the depth [m]; None: unbounded.
+    beacons : ndarray, shape (N, n) or (1, n), optional
+        The beacon at every sample [m] (a moving beacon,
+        :func:`~obsplan.estimation.epochs.sample_beacons`); None: the model's.
 
     Returns
     -------
@@ -255,14 +259,16 @@ def open_loop_truth(
         points,
         out,
         np.ascontiguousarray(navs),
-        model.beacon_array,
+        np.ascontiguousarray(model.beacon_array[None, :] if beacons is None else beacons),
         np.tile([-np.inf, np.inf], (3, 1)) if box is None else np.asarray(box, float),
         tm,
     )
     return out, tm
 
 
-def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
+def clean_readings(
+    model: VehicleModel, x: np.ndarray, beacons: np.ndarray | None = None
+) -> np.ndarray:
     """Noise-free stacked readings at true states ``x`` (K, state_dim): (K, output_dim).
 
     Columns in the model's output order: range ``r`` [m] (whatever the filter's range form),
@@ -274,6 +280,8 @@ def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
         The vehicle model (sensors, beacon).
     x : ndarray, shape (K, state_dim)
         True states.
+    beacons : ndarray, shape (K, n) or (1, n), optional
+        The beacon of each state's range [m] (a moving beacon); None: the model's.
 
     Returns
     -------
@@ -281,10 +289,11 @@ def clean_readings(model: VehicleModel, x: np.ndarray) -> np.ndarray:
         The readings without noise.
     """
     n = model.dim
+    b = model.beacon_array if beacons is None else beacons
     out = np.empty((x.shape[0], model.output_dim))
     for s, sl in model.output_slices.items():
         if s == "range":
-            rel = x[:, :n] - model.beacon_array
+            rel = x[:, :n] - b
             out[:, sl] = np.sqrt(np.einsum("ki,ki->k", rel, rel))[:, None]
         elif s == "dvl-bottom":
             out[:, sl] = x[:, n : 2 * n] + (x[:, 2 * n : 3 * n] if model.current else 0.0)
@@ -361,6 +370,7 @@ def noisy_readings(
     reports: np.ndarray,
     noise: dict[str, float],
     draws: list[tuple[np.ndarray, np.ndarray | None]],
+    beacons: np.ndarray | None = None,
 ) -> np.ndarray:
     """Readings at the epochs: (E, output_dim), NaN where a sensor does not report (or drops).
 
@@ -379,13 +389,17 @@ def noisy_readings(
         Standard deviation per sensor (range [m], DVL [m/s], depth [m]).
     draws : list of (ndarray, ndarray or None)
         From :func:`reading_draws`.
+    beacons : ndarray, shape (E, n) or (1, n), optional
+        The beacon of each epoch's range [m] (a moving beacon,
+        :func:`~obsplan.estimation.epochs.epoch_beacons`); None: the model's.
 
     Returns
     -------
     ndarray, shape (E, output_dim)
         The device readings (range [m], DVL [m/s], depth [m]); NaN where none.
     """
-    return clean_readings(model, x_epochs) + reading_noise(model, reports, noise, draws)
+    clean = clean_readings(model, x_epochs, beacons)
+    return clean + reading_noise(model, reports, noise, draws)
 
 
 def reading_noise(
