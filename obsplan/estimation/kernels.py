@@ -1093,7 +1093,9 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
     run_nis = np.zeros(R)
     run_cnt = np.zeros(R)
     var_r = sig_r * sig_r
-    ri = 0
+    # typed int64 from the start: a literal 0 makes numba compile record_batch a second time
+    # for the Literal[int] it sees before the loop's increment widens the type
+    ri = np.int64(0)
     n_rec = rec_base.shape[0]
     corr = ce.shape[0] > 0
     Sp = (-1.0, -1.0, -1.0)
@@ -1372,8 +1374,9 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     buf = np.zeros((B, rec_base.shape[0], COL_AXES + 2 * n))
     run_nis = np.zeros(B)
     run_cnt = np.zeros(B)
-    ri = 0
+    ri = np.int64(0)  # int64, not Literal[int] (as in ekf_batch)
     n_rec = rec_base.shape[0]
+    one = np.int64(1)  # the KF is one member per run; a literal 1 would compile record_batch anew
     Sp = np.full(3, -1.0)
     for e in range(E):
         if e > 0:
@@ -1383,7 +1386,7 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
             for i in range(n):
                 nw[NW_OFF, i] = mdl.beacon[e, i]
         while ri < n_rec and rec_base[ri] == e:
-            record_batch(X, P, lw, w, 1, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
+            record_batch(X, P, lw, w, one, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
             ri += 1
     for g in range(B):
         finish_run(
