@@ -7,9 +7,14 @@ import json
 
 import numpy as np
 
-from obsplan.cli.common import add_vehicle_arguments, read_trajectory, resolve_beacon
+from obsplan.cli.common import (
+    add_beacon_path_argument,
+    add_vehicle_arguments,
+    read_trajectory,
+    resolve_beacon,
+    resolve_beacon_path,
+)
 from obsplan.core.errors import InputError
-from obsplan.model.beacon import BeaconPath, read_beacon_path
 from obsplan.observability.analyze import ObservabilityReport, analyze
 from obsplan.observability.scaling import DEFAULT_SCALES, ScaleError, Scales, check_scale
 
@@ -41,13 +46,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("trajectory", metavar="TRAJ.csv", help="trajectory CSV file")
     add_vehicle_arguments(p)
-    p.add_argument(
-        "--beacon-path",
-        metavar="B.csv",
-        default=None,
-        help="a moving beacon: CSV t,bx,by (2D) or t,bx,by,bz (3D) [s, m] in the trajectory's "
-        "frame, linearly interpolated, covering the trajectory's time span (instead of --beacon)",
-    )
+    add_beacon_path_argument(p)
     p.add_argument(
         "--length-scale",
         metavar="M",
@@ -101,23 +100,6 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
     return "\n".join(lines)
 
 
-def _beacon_path(
-    args: argparse.Namespace, dim: int, beacon: tuple[float, ...] | None, t0: float, t1: float
-) -> BeaconPath | None:
-    """The ``--beacon-path``, read and checked against the trajectory; None when not given."""
-    if args.beacon_path is None:
-        return None
-    if beacon is not None:
-        given = "--beacon" if args.beacon is not None else "--beacon-geodetic"
-        raise InputError(
-            f"give either {given} (a fixed beacon) or --beacon-path (a moving one), not both"
-        )
-    where = f"--beacon-path {args.beacon_path}"
-    path = read_beacon_path(args.beacon_path, dim, where)
-    path.check_covers(t0, t1, f"{where} (the trajectory {args.trajectory})")
-    return path
-
-
 def run(args: argparse.Namespace) -> int:
     """Run ``obsplan analyze``; exit code 0 (errors raise, mapped by the dispatcher).
 
@@ -147,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
     scales = Scales(length_m=args.length_scale, time_s=args.time_scale)
     traj = read_trajectory(args.trajectory, "analyze")
     beacon, origin = resolve_beacon(args, traj.dim)
-    path = _beacon_path(args, traj.dim, beacon, float(traj.t[0]), float(traj.t[-1]))
+    path = resolve_beacon_path(args, traj.dim, beacon, float(traj.t[0]), float(traj.t[-1]))
     rep = analyze(
         traj,
         sensors=args.sensors or "range",

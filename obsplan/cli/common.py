@@ -35,6 +35,7 @@ from obsplan.core.csvtable import COLUMN_LIMITS
 from obsplan.core.errors import InputError
 from obsplan.core.outputs import OutputDir, OutputFile
 from obsplan.core.textfiles import check_magnitude
+from obsplan.model.beacon import BeaconPath, read_beacon_path
 
 if TYPE_CHECKING:
     from obsplan.trajectory.sampled import Trajectory
@@ -398,6 +399,65 @@ def parse_beacon(text: str | None, dim: int) -> tuple[float, ...] | None:
     limit, unit = COLUMN_LIMITS["px"]  # the same bound as a position in a trajectory CSV
     check_magnitude(values, f"--beacon {text!r}", limit, unit)
     return values
+
+
+def add_beacon_path_argument(p: argparse.ArgumentParser) -> None:
+    """``--beacon-path B.csv``: a moving beacon along a trajectory (read by
+    :func:`resolve_beacon_path`).
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The verb's parser (one with :func:`add_vehicle_arguments` and a ``trajectory``).
+    """
+    p.add_argument(
+        "--beacon-path",
+        metavar="B.csv",
+        default=None,
+        help="a moving beacon: CSV t,bx,by (2D) or t,bx,by,bz (3D) [s, m] in the trajectory's "
+        "frame, linearly interpolated, covering the trajectory's time span (instead of --beacon)",
+    )
+
+
+def resolve_beacon_path(
+    args: argparse.Namespace, dim: int, beacon: tuple[float, ...] | None, t0: float, t1: float
+) -> BeaconPath | None:
+    """The ``--beacon-path``, read and checked against the trajectory; None when not given.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Arguments with :func:`add_beacon_path_argument`, :func:`add_vehicle_arguments` and
+        ``trajectory``.
+    dim : int
+        The trajectory's dimension, 2 or 3.
+    beacon : tuple of float or None
+        The fixed beacon :func:`resolve_beacon` returned (None: none given).
+    t0, t1 : float
+        The trajectory's time span [s], which the path must cover.
+
+    Returns
+    -------
+    BeaconPath or None
+        The path; None without ``--beacon-path``.
+
+    Raises
+    ------
+    InputError
+        A fixed beacon given as well, or a path that does not read, is of another dimension or
+        does not cover ``[t0, t1]``.
+    """
+    if args.beacon_path is None:
+        return None
+    if beacon is not None:
+        given = "--beacon" if args.beacon is not None else "--beacon-geodetic"
+        raise InputError(
+            f"give either {given} (a fixed beacon) or --beacon-path (a moving one), not both"
+        )
+    where = f"--beacon-path {args.beacon_path}"
+    path = read_beacon_path(args.beacon_path, dim, where)
+    path.check_covers(t0, t1, f"{where} (the trajectory {args.trajectory})")
+    return path
 
 
 #: The vehicle options that apply only to some inputs (:func:`resolve_beacon`).

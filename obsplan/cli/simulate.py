@@ -21,6 +21,7 @@ import numpy as np
 from obsplan.cli.common import (
     Applies,
     OutputDir,
+    add_beacon_path_argument,
     add_output_arguments,
     add_vehicle_arguments,
     check_applies,
@@ -28,6 +29,7 @@ from obsplan.cli.common import (
     given_fact,
     read_trajectory,
     resolve_beacon,
+    resolve_beacon_path,
 )
 from obsplan.core import budget
 from obsplan.core.errors import InputError
@@ -40,7 +42,6 @@ from obsplan.estimation.montecarlo.simulate import (
     monte_carlo,
 )
 from obsplan.estimation.schedule import sample_rate
-from obsplan.model.beacon import BeaconPath, read_beacon_path
 from obsplan.model.vehicle import make_model
 
 #: Options that apply only to some runs (:func:`obsplan.cli.common.check_applies`).
@@ -101,13 +102,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("trajectory", metavar="TRAJ.csv", help="trajectory CSV file")
     add_vehicle_arguments(p)
-    p.add_argument(
-        "--beacon-path",
-        metavar="B.csv",
-        default=None,
-        help="a moving beacon: CSV t,bx,by (2D) or t,bx,by,bz (3D) [s, m] in the trajectory's "
-        "frame, linearly interpolated, covering the trajectory's time span (instead of --beacon)",
-    )
+    add_beacon_path_argument(p)
     p.add_argument(
         "--rates",
         metavar="S=HZ,...",
@@ -356,23 +351,6 @@ def _filters(args: argparse.Namespace) -> tuple[str, ...]:
     return tuple(s.strip() for s in args.filters.split(",") if s.strip())
 
 
-def _beacon_path(args: argparse.Namespace, traj, beacon) -> BeaconPath | None:
-    """The ``--beacon-path``, read and checked against the trajectory; None when not given."""
-    if args.beacon_path is None:
-        return None
-    if beacon is not None:
-        given = "--beacon" if args.beacon is not None else "--beacon-geodetic"
-        raise InputError(
-            f"give either {given} (a fixed beacon) or --beacon-path (a moving one), not both"
-        )
-    where = f"--beacon-path {args.beacon_path}"
-    path = read_beacon_path(args.beacon_path, traj.dim, where)
-    path.check_covers(
-        float(traj.t[0]), float(traj.t[-1]), f"{where} (the trajectory {args.trajectory})"
-    )
-    return path
-
-
 def _check_beacon_clear(args: argparse.Namespace, traj, pb, beacon, path=None) -> None:
     """Refuse a beacon at the trajectory's start: the geometry every plan refuses
     (:func:`obsplan.planning.problem.checks.check_start_clear`, at the problem's
@@ -438,7 +416,11 @@ def run(args: argparse.Namespace) -> int:
     traj = read_trajectory(args.trajectory, "simulate")
     pb = _problem_mode(args, traj) if args.problem else None
     beacon = None if pb is not None else resolve_beacon(args, traj.dim)[0]
-    path = None if pb is not None else _beacon_path(args, traj, beacon)
+    path = (
+        None
+        if pb is not None
+        else resolve_beacon_path(args, traj.dim, beacon, float(traj.t[0]), float(traj.t[-1]))
+    )
     _check_beacon_clear(args, traj, pb, beacon, path)
     runs = args.runs if args.runs is not None else (pb.validation.runs if pb else 50)
     check_filter_grid(traj, pb.validation.dt if pb else args.dt, runs)
