@@ -6,12 +6,13 @@ observability tests read).
 Imports :mod:`obsplan.core` only.
 """
 
-from obsplan.model.beacon import BeaconPath, read_beacon_path
+from obsplan.model.beacon import BeaconPath, BeaconVehicle, read_beacon_path
 from obsplan.model.frames import GeodeticOrigin, geodetic_to_local, local_to_geodetic
 from obsplan.model.vehicle import SENSORS, VehicleModel, make_model, parse_sensors
 
 __all__ = [
     "BeaconPath",
+    "BeaconVehicle",
     "SENSORS",
     "GeodeticOrigin",
     "VehicleModel",

@@ -393,3 +393,86 @@ def read_beacon_path(
             "increasing"
         )
     return BeaconPath(times=t, positions=data[:, 1:])
+
+
+@dataclass(frozen=True, eq=False)
+class BeaconVehicle:
+    """The vehicle that carries a planned beacon: a surface craft (ASV, ship) with GPS.
+
+    It is a horizontal double integrator ``b'' = a`` at a constant depth: in 3D its ``z`` stays at
+    ``start[2]`` (the depth of the transducer it carries). Limits are those a planner must keep
+    on the whole path.
+
+    Attributes
+    ----------
+    start : ndarray, shape (n,)
+        Start position [m] in the problem's frame, ``n`` = 2 or 3.
+    speed : float
+        Bound on the horizontal speed ``|b'|`` [m/s], > 0.
+    accel : ndarray, shape (2,)
+        Per-axis bound on the horizontal acceleration ``|b''_i|`` [m/s²], each > 0.
+    velocity : ndarray, shape (2,)
+        Start horizontal velocity [m/s]; zeros for a craft that starts holding station.
+    area : ndarray, shape (2, 2) or None
+        ``[[x_min, x_max], [y_min, y_max]]`` [m] the craft must stay in, or None (anywhere).
+    max_range : float or None
+        Maximum distance ``|p - b|`` [m] to the vehicle (the acoustic link), or None.
+    min_distance : float
+        Minimum *horizontal* distance ``|p_xy - b_xy|`` [m] to the vehicle (collision, the
+        vehicle surfacing under the craft); 0 disables it.
+
+    Raises
+    ------
+    InputError
+        For a limit that is not positive and finite, a start velocity above ``speed``, a start
+        outside ``area`` or arrays of the wrong shape (the field is named).
+    """
+
+    start: np.ndarray
+    speed: float
+    accel: np.ndarray
+    velocity: np.ndarray
+    area: np.ndarray | None = None
+    max_range: float | None = None
+    min_distance: float = 0.0
+
+    def __post_init__(self) -> None:
+        start = np.asarray(self.start, float).reshape(-1)
+        accel = np.broadcast_to(np.asarray(self.accel, float), (2,)).copy()
+        vel = np.asarray(self.velocity, float).reshape(-1)
+        if start.size not in (2, 3) or not np.all(np.isfinite(start)):
+            raise InputError(f"beacon vehicle start must be 2 or 3 finite values, got {start}")
+        if not (np.isfinite(self.speed) and self.speed > 0):
+            raise InputError(f"beacon vehicle speed must be > 0 m/s, got {self.speed}")
+        if not np.all(np.isfinite(accel) & (accel > 0)):
+            raise InputError(f"beacon vehicle accel must be > 0 m/s^2 per axis, got {accel}")
+        if vel.shape != (2,) or not np.all(np.isfinite(vel)):
+            raise InputError(f"beacon vehicle velocity must be 2 finite values, got {vel}")
+        if np.linalg.norm(vel) > self.speed * (1 + 1e-9):
+            raise InputError(
+                f"beacon vehicle start velocity |{vel.tolist()}| exceeds its speed bound "
+                f"{self.speed} m/s"
+            )
+        area = None
+        if self.area is not None:
+            area = np.asarray(self.area, float)
+            if area.shape != (2, 2) or not np.all(area[:, 0] < area[:, 1]):
+                raise InputError(
+                    "beacon vehicle area must be [[x_min, x_max], [y_min, y_max]] with min < max"
+                )
+            if np.any(start[:2] < area[:, 0]) or np.any(start[:2] > area[:, 1]):
+                raise InputError(f"beacon vehicle start {start[:2].tolist()} is outside its area")
+            area.setflags(write=False)
+        if self.max_range is not None and not (self.max_range > 0):
+            raise InputError(f"beacon vehicle max_range must be > 0 m, got {self.max_range}")
+        if not (np.isfinite(self.min_distance) and self.min_distance >= 0):
+            raise InputError(f"beacon vehicle min_distance must be >= 0 m, got {self.min_distance}")
+        for name, a in (("start", start), ("accel", accel), ("velocity", vel)):
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        object.__setattr__(self, "area", area)
+
+    @property
+    def dim(self) -> int:
+        """Spatial dimension of the problem the craft serves (2 or 3)."""
+        return int(self.start.size)
