@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from obsplan.core.budget import check_file_rows
-from obsplan.core.csvtable import read_table
+from obsplan.core.csvtable import read_table, write_table
 from obsplan.core.errors import InputError, TrajectoryFormatError
 
 _AXES = "xyz"
@@ -393,6 +393,36 @@ def read_beacon_path(
             "increasing"
         )
     return BeaconPath(times=t, positions=data[:, 1:])
+
+
+def write_beacon_csv(
+    path: str | Path, times: np.ndarray, positions: np.ndarray, velocities: np.ndarray
+) -> Path:
+    """Write a beacon's path with its velocities: ``t,bx,by[,bz],vbx,vby[,vbz]``, atomically.
+
+    :func:`read_beacon_path` reads it back (the velocity columns are extra columns to it).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file (replaced whole).
+    times : ndarray, shape (M,)
+        Times [s].
+    positions : ndarray, shape (M, n)
+        Beacon positions [m].
+    velocities : ndarray, shape (M, n)
+        Beacon velocities [m/s].
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    b = np.asarray(positions, float)
+    dim = b.shape[1]
+    header = beacon_columns(dim) + [f"vb{a}" for a in _AXES[:dim]]
+    rows = np.column_stack([np.asarray(times, float), b, np.asarray(velocities, float)])
+    return write_table(path, header, rows)
 
 
 @dataclass(frozen=True, eq=False)

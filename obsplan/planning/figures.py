@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from obsplan.model.beacon import BeaconPath
 from obsplan.observability.gramian import cumulative_gramians
 from obsplan.planning.missions.check import mission_check
 from obsplan.planning.missions.schedule import mission_schedule
@@ -386,6 +387,70 @@ def _crossing_note(validation: Mapping[str, PathValidation], names: tuple[str, .
         f"{mower.final_pos_err:.3g} m,\nand the mission RMSE, {plan.rmse_pos:.3g} vs "
         f"{mower.rmse_pos:.3g} m"
     )
+
+
+def plot_beacon_paths(
+    vehicle: Trajectory,
+    beacons: Mapping[str, BeaconPath],
+    pb: PlanningProblem,
+    ax=None,
+    links: int = 12,
+) -> Figure:
+    """The vehicle's path and the beacon's paths (planned and baselines), with range links.
+
+    Horizontal view [m]: the vehicle (black), ``"planned"`` bold, each baseline thin, the mission's
+    lines, and ``links`` range links (grey) from the vehicle to the planned beacon (the first path
+    without one) at evenly spaced times.
+
+    Parameters
+    ----------
+    vehicle : Trajectory
+        The vehicle's path [m].
+    beacons : Mapping of str to BeaconPath
+        The beacon's paths by name (``"planned"``, baseline names).
+    pb : PlanningProblem
+        The problem (its mission, start and title).
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw on; None makes a new figure.
+    links : int, optional
+        Number of range links drawn.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure of ``ax`` (or the new one).
+    """
+    if ax is None:
+        fig = plt.figure(figsize=(7, 5.6))
+        ax = fig.add_subplot(111)
+    fig = ax.figure
+    ax.plot(vehicle.p[:, 0], vehicle.p[:, 1], color="k", lw=1.5, label="vehicle")
+    ax.plot(pb.p0[0], pb.p0[1], "ko", ms=5, label="vehicle start")
+    for name, path in beacons.items():
+        style = {"lw": 2.0, "color": "tab:green"} if name == "planned" else {"lw": 0.8}
+        ax.plot(path.positions[:, 0], path.positions[:, 1], label=name, **style)
+    if beacons:
+        shown = beacons.get("planned", next(iter(beacons.values())))
+        t = np.linspace(max(vehicle.t[0], shown.start), min(vehicle.t[-1], shown.end), links)
+        b = shown.position(t)
+        for k, tk in enumerate(t):
+            i = int(np.argmin(np.abs(vehicle.t - tk)))
+            ax.plot(
+                [vehicle.p[i, 0], b[k, 0]],
+                [vehicle.p[i, 1], b[k, 1]],
+                color="0.6",
+                lw=0.6,
+                label="range links" if k == 0 else None,
+            )
+        ax.plot(shown.positions[0, 0], shown.positions[0, 1], "r^", ms=9, label="beacon start")
+    _draw_mission(ax, pb, 0, 1)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{_problem_title(pb)}the vehicle and the beacon's paths", fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left")
+    return fig
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:

@@ -11,23 +11,41 @@ seeds).
 from __future__ import annotations
 
 import time
-from dataclasses import fields
+from collections.abc import Sequence
+from dataclasses import fields, replace
 from pathlib import Path
+from typing import Protocol
 
-from obsplan.core.errors import ProblemError
+import numpy as np
+
+from obsplan.core.errors import ProblemError, field_error
+from obsplan.estimation.bounds.crlb import posterior_crlb
+from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.montecarlo.runs import DEFAULT_FILTERS
+from obsplan.estimation.schedule import make_schedule
+from obsplan.model.beacon import BeaconPath, BeaconVehicle
+from obsplan.planning.baselines.beacon import beacon_baselines, craft_limit_breaks
 from obsplan.planning.baselines.vehicle import Baseline, baselines, unfitted_baselines
 from obsplan.planning.missions.check import mission_check
 from obsplan.planning.objectives.evaluate import path_metrics
+from obsplan.planning.problem.checks import vehicle_path
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.parse import load_problem
+from obsplan.planning.problem.schema import LAWNMOWER_PATH
+from obsplan.planning.problem.validation_setup import estimation_config
 from obsplan.planning.replan import replan_monte_carlo, replan_nodes
-from obsplan.planning.results import PlanResult, ValidationResult
+from obsplan.planning.results import (
+    BeaconBound,
+    BeaconPlanResult,
+    BeaconSolve,
+    PlanResult,
+    ValidationResult,
+)
 from obsplan.planning.solver.margins import solve_with_keepout
 from obsplan.planning.validation.stress import stress_active, stress_validate
 from obsplan.planning.validation.validate import PathValidation
 from obsplan.planning.validation.verdict import ekf_diverges, validate_until_decided
-from obsplan.trajectory.sampled import Trajectory
+from obsplan.trajectory.sampled import Trajectory, resample
 
 
 def plan(
@@ -98,6 +116,7 @@ def plan(
     """
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
+    _fixed_only(pb, "plan")
     if replan is not None:
         if not validate:
             raise ProblemError(
@@ -189,7 +208,218 @@ def validate(
     True
     """
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
+    _fixed_only(pb, "validate")
     return _assess(trajectory, pb, baselines(pb), True, runs, max_runs, progress)
+
+
+def _fixed_only(pb: PlanningProblem, verb: str) -> None:
+    """Refuse a moving beacon in :func:`plan` / :func:`validate` (their metrics and baselines
+    are a fixed beacon's), pointing to what handles it."""
+    if pb.beacon_motion.moving:
+        check_beacon_plannable(pb)
+        raise field_error(
+            "beacon.motion",
+            f'"{pb.beacon_motion.motion}": {verb}() is for a fixed beacon; a beacon planned for '
+            "a vehicle on a given path is planned and validated by plan_moving_beacon "
+            "(obsplan plan does it)",
+        )
+
+
+class BeaconPlanner(Protocol):
+    """A beacon planner: ``obsplan.planning.beacon.plan_beacon``'s signature."""
+
+    def __call__(
+        self,
+        vehicle: Trajectory,
+        craft: BeaconVehicle,
+        config: EstimationConfig,
+        *,
+        weights: np.ndarray | None = None,
+        guesses: Sequence[BeaconPath] = (),
+    ) -> BeaconSolve: ...
+
+
+def check_beacon_plannable(pb: PlanningProblem) -> None:
+    """Refuse a moving-beacon problem ``obsplan plan`` cannot plan yet, saying what it can.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+
+    Raises
+    ------
+    ProblemError
+        ``beacon.motion = "path"`` (planning the vehicle for a known beacon path), or
+        ``"planned"`` without ``vehicle.path`` (planning both jointly).
+    """
+    bm = pb.beacon_motion
+    supported = (
+        'supported: beacon.motion = "planned" with vehicle.path (a trajectory CSV or '
+        '"lawnmower"): the beacon planned for the vehicle flying that path, or a fixed beacon'
+    )
+    if bm.motion == "path":
+        raise field_error(
+            "beacon.motion",
+            '"path": planning the vehicle for a known beacon path is not built yet; '
+            f"{supported}. To validate a path with that beacon: obsplan simulate TRAJ.csv "
+            "--problem FILE",
+        )
+    if bm.motion == "planned" and pb.vehicle.path is None:
+        raise field_error(
+            "vehicle.path",
+            f"missing: planning the vehicle and the beacon jointly is not built yet; {supported}",
+        )
+
+
+def vehicle_trajectory(pb: PlanningProblem) -> Trajectory:
+    """The path the vehicle flies while the beacon is planned (``vehicle.path``).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        A problem with ``vehicle.path``.
+
+    Returns
+    -------
+    Trajectory
+        ``"lawnmower"``: the problem's lawn-mower baseline (its mission's plain lawn-mower);
+        else the trajectory CSV (:func:`~obsplan.planning.problem.checks.vehicle_path`).
+
+    Raises
+    ------
+    ProblemError
+        On ``vehicle.path``: no path, or a lawn-mower that does not fit the problem.
+    """
+    name = pb.vehicle.path
+    if name is None:
+        raise field_error("vehicle.path", "missing: the path the vehicle flies")
+    if name != LAWNMOWER_PATH:
+        return vehicle_path(pb)
+    bls = baselines(pb)
+    if "lawnmower" not in bls:
+        why = unfitted_baselines(pb).get("lawnmower", "it does not fit")
+        raise field_error("vehicle.path", f'"lawnmower": no lawn-mower fits the problem: {why}')
+    return bls["lawnmower"].trajectory
+
+
+def plan_moving_beacon(
+    problem: PlanningProblem | str | Path | None,
+    planner: BeaconPlanner,
+    *,
+    validate: bool = True,
+    runs: int | None = None,
+    max_runs: int | None = None,
+    progress: bool = False,
+) -> BeaconPlanResult:
+    """Plan the beacon's craft for a vehicle flying a given path, and validate it against the
+    beacon baselines.
+
+    The vehicle flies ``vehicle.path`` (:func:`vehicle_trajectory`); the beacon baselines
+    (:func:`~obsplan.planning.baselines.beacon.beacon_baselines`) are built first and given to
+    ``planner`` as its initial guesses, with weight 1 on the range epochs the vehicle flies on
+    its survey lines (all epochs without lines). Then every beacon path is validated as a fixed
+    beacon's plan is: the vehicle's filters in Monte Carlo (closed loop unless
+    ``validation.mode = "open-loop"``) on the same path with that beacon, the same runs and seeds
+    for every beacon (paired), in batches until each verdict is decided at 95 % or
+    ``validation.max_runs`` is reached.
+
+    Parameters
+    ----------
+    problem : PlanningProblem or str or Path or None
+        A problem with ``beacon.motion = "planned"`` and ``vehicle.path`` (or its file or
+        shipped name).
+    planner : callable
+        The beacon planner (:class:`BeaconPlanner`).
+    validate : bool, default True
+        Run the Monte Carlo validation.
+    runs, max_runs : int or None, default None
+        Override ``validation.runs`` and ``validation.max_runs``.
+    progress : bool, default False
+        Progress bars.
+
+    Returns
+    -------
+    BeaconPlanResult
+        The planned beacon, the baselines, their bounds and validations, the verdict.
+
+    Raises
+    ------
+    ProblemError
+        A problem whose beacon is not planned for a given vehicle path
+        (:func:`check_beacon_plannable`).
+    """
+    t0 = time.perf_counter()
+    pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
+    if not pb.beacon_motion.moving:
+        raise field_error("beacon.motion", '"fixed": plan it with obsplan.plan')
+    check_beacon_plannable(pb)
+    craft = pb.beacon_vehicle
+    assert craft is not None
+    vehicle = vehicle_trajectory(pb)
+    fine = resample(vehicle, pb.validation.dt)
+    chk = mission_check(vehicle, pb.mission_context)
+    on_lines = chk is not None and bool(chk.lines)
+    mask = chk.line_mask(fine.t) if chk is not None and on_lines else None
+    T = pb.horizon.duration
+    config = estimation_config(pb, BeaconPath.fixed(craft.start.tolist(), 0.0, T))
+    bls = beacon_baselines(
+        fine, craft, config, centre=_survey_centre(pb), weights=mask, step=pb.validation.dt
+    )
+    solve = planner(
+        fine,
+        craft,
+        config,
+        weights=_epoch_weights(fine, config, mask),
+        guesses=[b.path for b in bls.values()],
+    )
+    beacons = {"planned": solve.path, **{k: b.path for k, b in bls.items()}}
+    bounds = {k: _bound(fine, replace(config, beacon_path=b), mask) for k, b in beacons.items()}
+    validation = {}
+    if validate:
+        validation = validate_until_decided(
+            {k: vehicle for k in beacons},
+            pb,
+            runs=runs,
+            max_runs=max_runs,
+            progress=progress,
+            lines=None if mask is None else {k: mask for k in beacons},
+            beacons=beacons,
+        )
+    return BeaconPlanResult(
+        problem=pb,
+        vehicle=vehicle,
+        solve=solve,
+        baselines=bls,
+        bounds=bounds,
+        validation=validation,
+        lines=on_lines,
+        wall_s=time.perf_counter() - t0,
+        planned_breaks=craft_limit_breaks(solve.path, solve.velocities, craft, fine),
+    )
+
+
+def _survey_centre(pb: PlanningProblem) -> np.ndarray | None:
+    """The horizontal centre of the mission's lines (None without lines)."""
+    m = pb.mission
+    if m is None or not m.lines:
+        return None
+    pts = np.array([q[:2] for a, b in m.segments(pb.dim) for q in (a, b)], float)
+    return 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+
+
+def _epoch_weights(fine: Trajectory, config: EstimationConfig, mask: np.ndarray | None):
+    """Weight of each range epoch on ``fine``: 1 on the survey lines, 0 off them (None: all)."""
+    if mask is None:
+        return None
+    sched = make_schedule(fine, config.model.sensors, config.rates_hz)
+    return mask[sched.reports("range")].astype(float)
+
+
+def _bound(fine: Trajectory, config: EstimationConfig, mask: np.ndarray | None) -> BeaconBound:
+    std = posterior_crlb(fine, config).pos_std_t
+    lines = None if mask is None or not np.any(mask) else float(np.mean(std[mask]))
+    return BeaconBound(float(np.mean(std)), lines, float(std[-1]))
 
 
 def _assess(

@@ -22,13 +22,18 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
+import numpy as np
 from matplotlib.figure import Figure
 
 from obsplan.core.errors import ConfigError
 from obsplan.core.outputs import OutputDir
+from obsplan.model.beacon import BeaconPath, write_beacon_csv
+from obsplan.planning.baselines.beacon import BeaconBaseline
 from obsplan.planning.baselines.vehicle import Baseline
 from obsplan.planning.figures import (
+    plot_beacon_paths,
     plot_filter_errors,
     plot_gramian_eigs,
     plot_paths,
@@ -42,6 +47,7 @@ from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.replan import ReplanResult
 from obsplan.planning.solver.margins import KeepoutReport
 from obsplan.planning.solver.solve import SolveResult
+from obsplan.planning.tuning import tuning
 from obsplan.planning.validation.stress import Robustness
 from obsplan.planning.validation.validate import PathValidation
 from obsplan.planning.validation.verdict import (
@@ -567,3 +573,345 @@ def _schedule_dict(pb: PlanningProblem) -> dict | None:
         "lead_in_s": float(lead.lead_in),
         "headroom": float(base.headroom),
     }
+
+
+# ---------------------------------------------------------------------------------- moving beacon
+class BeaconSolve(Protocol):
+    """What :class:`BeaconPlanResult` reads of a beacon planner's result
+    (``obsplan.planning.beacon``'s ``BeaconPlan``)."""
+
+    @property
+    def times(self) -> np.ndarray: ...  # (M,) [s]
+
+    @property
+    def positions(self) -> np.ndarray: ...  # (M, n) [m]
+
+    @property
+    def velocities(self) -> np.ndarray: ...  # (M, n) [m/s]
+
+    @property
+    def path(self) -> BeaconPath: ...
+
+    @property
+    def success(self) -> bool: ...
+
+    @property
+    def status(self) -> str: ...
+
+    @property
+    def iterations(self) -> int: ...
+
+    @property
+    def wall_s(self) -> float: ...
+
+    @property
+    def objective(self) -> float | None: ...
+
+
+#: The metrics a planned beacon is judged on against each beacon baseline (the first is the
+#: survey's when the vehicle has lines, else the whole path's).
+BEACON_HEADLINE: tuple[str, ...] = ("ekf.rmse_pos_lines", "ekf.rmse_pos", "ekf.final_pos_err")
+_BEACON_COLUMNS = (
+    ("beacon", 14),
+    ("PCRB avg", 9),
+    ("PCRB fin", 9),
+    ("EKF rmse", 9),
+    ("EKF lines", 9),
+    ("EKF fin", 8),
+    ("KF rmse", 8),
+    ("limits", 6),
+    ("planned", 7),
+)
+
+
+@dataclass(frozen=True, eq=False)
+class BeaconBound:
+    """The posterior CRB of the vehicle's position with one beacon path [m]: its mean over the
+    path, over the survey lines (None without lines) and its final value."""
+
+    mean_pos_std: float
+    lines_pos_std: float | None
+    final_pos_std: float
+
+    def to_dict(self) -> dict:
+        """``report.json``'s ``metrics`` entry of a beacon path.
+
+        Returns
+        -------
+        dict
+            ``pcrb_mean_pos_std``, ``pcrb_lines_pos_std``, ``pcrb_final_pos_std`` [m].
+        """
+        return {
+            "pcrb_mean_pos_std": self.mean_pos_std,
+            "pcrb_lines_pos_std": self.lines_pos_std,
+            "pcrb_final_pos_std": self.final_pos_std,
+        }
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class BeaconPlanResult:
+    """What ``obsplan plan`` reports for a planned beacon serving a vehicle on a given path.
+
+    Attributes
+    ----------
+    problem : PlanningProblem
+        A problem with ``beacon.motion = "planned"`` and ``vehicle.path``.
+    vehicle : Trajectory
+        The vehicle's path (``plan.csv``), on the planning grid or the file's.
+    solve : BeaconSolve
+        The beacon planner's result: the planned beacon path, status, iterations, time.
+    baselines : dict[str, BeaconBaseline]
+        The beacon baselines by name (:data:`~obsplan.planning.baselines.beacon.BEACON_BASELINES`).
+    bounds : dict[str, BeaconBound]
+        ``"planned"`` and every baseline: the vehicle's posterior CRB with that beacon.
+    validation : dict[str, PathValidation]
+        ``"planned"`` and every baseline: the Monte Carlo of the vehicle's filters on its path
+        with that beacon (same runs and seeds: paired); empty without validation.
+    lines : bool
+        The vehicle has survey lines (``ekf.rmse_pos_lines`` is compared).
+    wall_s : float
+        Total time [s].
+    planned_breaks : str
+        The craft's limits the planned path breaks, in words (empty: none;
+        :func:`~obsplan.planning.baselines.beacon.craft_limit_breaks`).
+    """
+
+    problem: PlanningProblem
+    vehicle: Trajectory
+    solve: BeaconSolve
+    baselines: dict[str, BeaconBaseline]
+    bounds: dict[str, BeaconBound]
+    validation: dict[str, PathValidation]
+    lines: bool
+    wall_s: float
+    planned_breaks: str = ""
+
+    @property
+    def success(self) -> bool:
+        """The beacon planner converged (the exit code of ``obsplan plan``)."""
+        return bool(self.solve.success)
+
+    @property
+    def trajectory(self) -> Trajectory:
+        """The vehicle's path (what ``plan.csv`` holds)."""
+        return self.vehicle
+
+    def beacons(self) -> dict[str, BeaconPath]:
+        """``planned`` then every baseline's beacon path.
+
+        Returns
+        -------
+        dict of str to BeaconPath
+            Name -> path.
+        """
+        return {"planned": self.solve.path, **{k: b.path for k, b in self.baselines.items()}}
+
+    @property
+    def verdict(self) -> Verdict:
+        """The planned beacon against every beacon baseline
+        (:func:`~obsplan.planning.validation.verdict.verdict`, with the survey lines' RMSE)."""
+        notes = tuple(
+            f"{name} breaks the craft's limits ({b.breaks}); it is compared all the same"
+            for name, b in self.baselines.items()
+            if b.breaks
+        )
+        if self.planned_breaks:
+            notes = (f"the planned beacon breaks the craft's limits: {self.planned_breaks}", *notes)
+        return verdict(self.validation, {}, notes, lines=self.lines)
+
+    def outcomes(self) -> dict[str, str]:
+        """Per baseline, ``"beats"`` (every headline metric better, decided at 95 %),
+        ``"loses"`` (one of them worse, decided) or ``"ties"``; the headline metrics are
+        :data:`BEACON_HEADLINE` without the lines' RMSE when the vehicle has no lines.
+
+        Returns
+        -------
+        dict of str to str
+            Baseline name -> outcome (empty without validation).
+        """
+        keys = [k for k in BEACON_HEADLINE if self.lines or k != "ekf.rmse_pos_lines"]
+        out = {}
+        for name, comps in self.verdict.comparisons.items():
+            cs = [comps[k] for k in keys if k in comps]
+            if cs and all(c.outcome == "better" for c in cs):
+                out[name] = "beats"
+            elif any(c.outcome == "worse" for c in cs):
+                out[name] = "loses"
+            else:
+                out[name] = "ties"
+        return out
+
+    def to_dict(self) -> dict:
+        """``report.json``: ``solver``, ``metrics``, ``validation``, ``verdict`` (with
+        ``outcomes`` per baseline), ``beacon``, ``problem``, ``problem_file``, ``wall_s``.
+
+        Returns
+        -------
+        dict
+            JSON-serialisable with ``allow_nan=False``.
+        """
+        pb, s = self.problem, self.solve
+        obj = None if s.objective is None or not math.isfinite(s.objective) else s.objective
+        craft = pb.beacon_vehicle
+        assert craft is not None
+        val = {}
+        if self.validation:
+            val = {
+                "mode": pb.validation.mode,
+                **{k: v.to_dict() for k, v in self.validation.items()},
+            }
+        return {
+            "solver": {
+                "success": bool(s.success),
+                "status": str(s.status),
+                "iterations": int(s.iterations),
+                "wall_s": float(s.wall_s),
+                "objective": obj,
+            },
+            "metrics": {k: b.to_dict() for k, b in self.bounds.items()},
+            "validation": val,
+            "verdict": {**self.verdict.to_dict(), "outcomes": self.outcomes()},
+            "beacon": {
+                "motion": pb.beacon_motion.motion,
+                "vehicle_path": pb.vehicle.path,
+                "craft": {
+                    "start": craft.start.tolist(),
+                    "speed": craft.speed,
+                    "accel": craft.accel.tolist(),
+                    "velocity": craft.velocity.tolist(),
+                    "area": None if craft.area is None else craft.area.tolist(),
+                    "max_range": craft.max_range,
+                    "min_distance": craft.min_distance,
+                },
+                "paths": {
+                    "planned": {"description": "planned", "breaks": self.planned_breaks},
+                    **{
+                        k: {"description": b.description, "breaks": b.breaks}
+                        for k, b in self.baselines.items()
+                    },
+                },
+            },
+            "problem": {
+                "name": pb.name,
+                "dim": pb.dim,
+                "sensors": list(pb.vehicle.sensors),
+                "duration_s": pb.horizon.duration,
+            },
+            "problem_file": pb.to_dict(),
+            "wall_s": float(self.wall_s),
+        }
+
+    def table(self) -> str:
+        """Each beacon path: the bound, the filters' errors [m], whether it keeps the craft's
+        limits, and what the planned beacon does against it (beats, ties, loses).
+
+        Returns
+        -------
+        str
+            The table ``obsplan plan`` prints, one line per beacon path.
+        """
+        widths = [w for _, w in _BEACON_COLUMNS]
+        head = _text_row([c for c, _ in _BEACON_COLUMNS], widths)
+        outcomes = self.outcomes()
+        rows = [head, "-" * len(head)]
+        breaks = {"planned": self.planned_breaks}
+        breaks.update({k: b.breaks for k, b in self.baselines.items()})
+        for name, bd in self.bounds.items():
+            v = self.validation.get(name)
+            r = None if v is None else v.result
+            cells = [
+                name,
+                _fmt(bd.mean_pos_std),
+                _fmt(bd.final_pos_std),
+                _fmt(r.ekf.rmse_pos if r is not None and r.ekf else None),
+                _fmt(metric_value(v, "ekf.rmse_pos_lines") if v is not None else None),
+                _fmt(r.ekf.final_pos_err if r is not None and r.ekf else None),
+                _fmt(r.kf.rmse_pos if r is not None and r.kf else None),
+                "NO" if breaks.get(name) else "ok",
+                outcomes.get(name, "-"),
+            ]
+            rows.append(_text_row(cells, widths))
+        return "\n".join(rows)
+
+    def summary(self) -> str:
+        """What ``obsplan plan`` prints: the planner's status, the table, which baselines the
+        planned beacon beats, ties and loses to, and the verdict in words.
+
+        Returns
+        -------
+        str
+            Lines for the terminal.
+        """
+        s, pb = self.solve, self.problem
+        lines = [
+            f"{pb.name or 'problem'}: beacon planned for the vehicle's path ({pb.vehicle.path}): "
+            f"{s.status}, {int(s.iterations)} iterations, {float(s.wall_s):.1f} s solve, "
+            f"{self.wall_s:.1f} s total",
+            self.table(),
+        ]
+        if self.validation:
+            groups: dict[str, list[str]] = {}
+            for name, o in self.outcomes().items():
+                groups.setdefault(o, []).append(name)
+            said = {"beats": "beats", "ties": "ties with", "loses": "loses to"}
+            conf = f"{100 * tuning().confidence:.0f} %"
+            parts = [f"{said[o]} {', '.join(groups[o])}" for o in said if o in groups]
+            lines.append(f"the planned beacon {'; '.join(parts)} (decided at {conf})")
+        lines += self.verdict.summary()
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return f"<BeaconPlanResult {self.problem.name or 'problem'}: {self.solve.status}>"
+
+    def write_files(self, folder: str | Path) -> list[Path]:
+        """Write ``plan.csv`` (the vehicle's path), ``beacon.csv`` (the planned beacon:
+        ``t,bx,by[,bz],vbx,vby[,vbz]``), ``report.json`` and the figures into ``folder``.
+
+        Parameters
+        ----------
+        folder : str or Path
+            Created if missing; files of the same names are replaced.
+
+        Returns
+        -------
+        list of Path
+            The files written, in order.
+        """
+        out = Path(folder)
+        out.mkdir(parents=True, exist_ok=True)
+        s = self.solve
+        written = [
+            write_csv(self.vehicle, out / "plan.csv"),
+            write_beacon_csv(out / "beacon.csv", s.times, s.positions, s.velocities),
+        ]
+        report = out / "report.json"
+        report.write_text(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
+        written.append(report)
+        fig = plot_beacon_paths(self.vehicle, self.beacons(), self.problem)
+        written.append(save_figure(fig, out / FIGURES["path"]))
+        if self.validation:
+            fig = plot_filter_errors(self.validation, problem=self.problem.name)
+            written.append(save_figure(fig, out / FIGURES["filters"]))
+        return written
+
+    def save(self, folder: str | Path, *, force: bool = False) -> list[Path]:
+        """Save the files of ``obsplan plan`` into ``folder``, whole or not at all (as
+        :meth:`ValidationResult.save`).
+
+        Parameters
+        ----------
+        folder : str or Path
+            The output folder.
+        force : bool, default False
+            Replace an earlier obsplan output folder.
+
+        Returns
+        -------
+        list of Path
+            The files written, at their final place.
+        """
+        out = OutputDir(folder, force, option="folder", verb="plan", force_option="force=True")
+        with out:
+            written = [out.final(p) for p in self.write_files(out.stage())]
+            out.commit()
+        return written

@@ -23,7 +23,7 @@ from typing import TypeVar
 import numpy as np
 
 from obsplan.core import budget
-from obsplan.core.errors import ConfigError, ProblemError, field_error
+from obsplan.core.errors import ConfigError, InputError, ProblemError, field_error
 from obsplan.estimation.config import EKF_UPDATES
 from obsplan.estimation.montecarlo.guidance import NAVIGATION_FILTERS
 from obsplan.model.vehicle import VehicleModel, parse_sensors
@@ -34,6 +34,8 @@ from obsplan.planning.missions.order import MAX_FREE_LINES, free_order
 from obsplan.planning.missions.schedule import check_mission_geometry, mission_fit_error
 from obsplan.planning.missions.spec import MISSION_KINDS, MISSION_ORDERS
 from obsplan.planning.problem.schema import (
+    BEACON_MOTIONS,
+    LAWNMOWER_PATH,
     LINE_MODES,
     MAX_DURATION_S,
     MAX_MAGNITUDE,
@@ -47,7 +49,7 @@ from obsplan.planning.problem.schema import (
     VALIDATION_MODES,
 )
 from obsplan.planning.problem.sections import ProblemData
-from obsplan.trajectory.sampled import Trajectory
+from obsplan.trajectory.sampled import Trajectory, read_csv, resample
 
 P = TypeVar("P", bound=ProblemData)
 
@@ -78,6 +80,7 @@ def check_values(pb: ProblemData) -> None:
     _check_objective(pb)
     _check_validation(pb)
     _check_budget(pb)
+    _check_beacon_motion(pb)
     if pb.objective.mode in LINE_MODES and (pb.mission is None or not pb.mission.lines):
         raise field_error(
             "objective.mode",
@@ -87,6 +90,110 @@ def check_values(pb: ProblemData) -> None:
         _check_mission(pb)
         if not unordered(pb):
             mission_fit_error(pb.mission_context)
+
+
+def _check_beacon_motion(pb: ProblemData) -> None:
+    """A moving beacon: its path covers the horizon, its craft's limits hold at its start, the
+    vehicle's given path fits the problem."""
+    bm, T = pb.beacon_motion, pb.horizon.duration
+    if bm.motion not in BEACON_MOTIONS:
+        raise field_error(
+            "beacon.motion", f"must be one of {', '.join(BEACON_MOTIONS)}, got {bm.motion!r}"
+        )
+    if not bm.moving:
+        if pb.vehicle.path is not None:
+            raise field_error("vehicle.path", "is for a moving beacon (beacon.motion); remove it")
+        return
+    if bm.motion == "path":
+        try:
+            path = pb.beacon_path
+        except InputError as exc:
+            raise field_error("beacon.path", str(exc).removeprefix("beacon.path: ")) from None
+        assert path is not None
+        path.check_covers(0.0, T, where="beacon.path", error=ProblemError)
+    else:
+        _check_craft(pb)
+    if pb.vehicle.path is not None and pb.vehicle.path != LAWNMOWER_PATH:
+        vehicle_path(pb)
+
+
+def _check_craft(pb: ProblemData) -> None:
+    """The planned beacon's craft: its limits, and its start against the vehicle's."""
+    bm = pb.beacon_motion
+    if bm.speed is not None and not (math.isfinite(bm.speed) and bm.speed > 0):
+        raise field_error("beacon.speed", f"must be > 0 m/s, got {bm.speed}")
+    if bm.accel is not None and not all(math.isfinite(a) and a > 0 for a in bm.accel):
+        raise field_error("beacon.accel", f"every bound must be > 0 m/s^2, got {list(bm.accel)}")
+    if not (math.isfinite(bm.min_distance) and bm.min_distance >= 0):
+        raise field_error("beacon.min_distance", f"must be >= 0 m (0: none), got {bm.min_distance}")
+    if bm.max_range is not None and not (math.isfinite(bm.max_range) and bm.max_range > 0):
+        raise field_error("beacon.max_range", f"must be > 0 m, got {bm.max_range}")
+    try:
+        craft = pb.beacon_vehicle
+    except InputError as exc:
+        field = "velocity" if "velocity" in str(exc) else "area" if "area" in str(exc) else ""
+        raise field_error(f"beacon.{field or 'position'}", str(exc)) from None
+    assert craft is not None
+    d = float(np.linalg.norm(pb.p0[:2] - craft.start[:2]))
+    if d < craft.min_distance:
+        raise field_error(
+            "beacon.min_distance",
+            f"the vehicle starts {d:.4g} m (horizontally) from the craft, inside "
+            f"beacon.min_distance = {craft.min_distance:g} m; move one of the starts",
+        )
+    r = float(np.linalg.norm(pb.p0 - craft.start))
+    if craft.max_range is not None and r > craft.max_range:
+        raise field_error(
+            "beacon.max_range",
+            f"the vehicle starts {r:.4g} m from the craft, beyond beacon.max_range = "
+            f"{craft.max_range:g} m",
+        )
+
+
+def vehicle_path(pb: ProblemData) -> Trajectory:
+    """The trajectory CSV of ``vehicle.path``, checked against the problem.
+
+    Parameters
+    ----------
+    pb : ProblemData
+        A problem whose ``vehicle.path`` is a trajectory CSV (not ``"lawnmower"``).
+
+    Returns
+    -------
+    Trajectory
+        The path: of the vehicle's dimension, from t = 0 to ``horizon.duration``, starting at
+        ``start.position``, every interval a multiple of ``validation.dt``.
+
+    Raises
+    ------
+    ProblemError
+        On ``vehicle.path``: a file that does not read, or a path that does not fit.
+    """
+    name = pb.vehicle.path
+    assert name is not None and name != LAWNMOWER_PATH
+    try:
+        traj = read_csv(name)
+    except (InputError, OSError) as exc:
+        raise field_error("vehicle.path", str(exc)) from None
+    T = pb.horizon.duration
+    if traj.dim != pb.dim:
+        raise field_error("vehicle.path", f"{name} is {traj.dim}D but vehicle.dim = {pb.dim}")
+    if abs(traj.t[0]) > 1e-9 or abs(traj.t[-1] - T) > 1e-6 * max(1.0, T):
+        raise field_error(
+            "vehicle.path",
+            f"{name} runs t = {traj.t[0]:g}..{traj.t[-1]:g} s; it must run from 0 to "
+            f"horizon.duration = {T:g} s",
+        )
+    if float(np.linalg.norm(traj.p[0] - pb.p0)) > 1e-6 * max(1.0, float(np.linalg.norm(pb.p0))):
+        raise field_error(
+            "vehicle.path",
+            f"{name} starts at {traj.p[0].tolist()}, not at start.position = {list(pb.p0)}",
+        )
+    try:
+        resample(traj, pb.validation.dt)
+    except InputError as exc:
+        raise field_error("vehicle.path", f"{name}: {exc}") from None
+    return traj
 
 
 def unordered(pb: ProblemData) -> bool:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,9 +38,17 @@ from obsplan.planning.missions.spec import (
     generate_lines,
     lines_at_altitude,
 )
-from obsplan.planning.problem.schema import MAX_MAGNITUDE, SCHEMA, FieldSpec
+from obsplan.planning.problem.schema import (
+    BEACON_MOTIONS,
+    CRAFT_FIELDS,
+    LAWNMOWER_PATH,
+    MAX_MAGNITUDE,
+    SCHEMA,
+    FieldSpec,
+)
 from obsplan.planning.problem.sections import (
     Area,
+    BeaconMotion,
     Horizon,
     Limits,
     ObjectiveSpec,
@@ -66,7 +75,7 @@ def _parse_value(section: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
     k = spec.kind
     if k in ("float", "float-or-str") and not isinstance(value, str):
         _magnitude(where, value, spec.unit)
-    elif k in ("float-list", "vec", "vec-or-float", "range"):
+    elif k in ("float-list", "vec", "vec-or-float", "hvec", "hvec-or-float", "range"):
         _magnitude(where, value, spec.unit)
     elif k in ("lines", "tracks", "points", "windows"):
         _magnitude(where, [x for row in value for x in row], spec.unit)
@@ -109,6 +118,18 @@ def _parse_raw(where: str, spec: FieldSpec, raw: Any, dim: int) -> Any:
         ):
             raise field_error(
                 where, f"expected a list of positive numbers such as [1, 5], got {raw!r}"
+            )
+        return tuple(float(x) for x in raw)
+    if k in ("hvec", "hvec-or-float"):  # the horizontal axes of a surface craft
+        if k == "hvec-or-float" and _is_number(raw):
+            raw = [raw, raw]
+        if not (
+            isinstance(raw, list)
+            and len(raw) == 2
+            and all(_is_number(x) and math.isfinite(x) for x in raw)
+        ):
+            raise field_error(
+                where, f"expected 2 finite numbers [{spec.unit}] (horizontal x, y), got {raw!r}"
             )
         return tuple(float(x) for x in raw)
     if k in ("vec", "vec-or-float"):
@@ -384,8 +405,18 @@ def sections_from_dict(data: Mapping[str, Any], name: str = "") -> dict[str, Any
         current=veh["current"],
         current_velocity=veh["current_velocity"] or (0.0,) * dim,
         range_form=veh["range_form"],
+        path=veh["path"],
     )
     lim = s["limits"]
+    motion = _beacon_motion(data, s["beacon"])
+    if veh["path"] is not None and not motion.moving:
+        raise field_error(
+            "vehicle.path",
+            "is the path the vehicle flies while a moving beacon is planned; with a fixed "
+            "beacon the vehicle is planned: remove it (or set beacon.motion)",
+        )
+    if motion.moving:
+        lim = _moving_beacon_limits(data, lim)
     return dict(
         name=s["problem"]["name"] or name,
         vehicle=vehicle,
@@ -408,7 +439,73 @@ def sections_from_dict(data: Mapping[str, Any], name: str = "") -> dict[str, Any
         validation=ValidationSpec(**s["validation"]),
         origin=origin,
         mission=_mission(data, s["mission"], dim, s["start"]["position"]),
+        beacon_motion=motion,
     )
+
+
+def _beacon_motion(data: Mapping[str, Any], vals: dict[str, Any]) -> BeaconMotion:
+    """``[beacon] motion`` and its fields; a field meaningless for the motion is refused."""
+    motion = vals["motion"]
+    if motion not in BEACON_MOTIONS:
+        raise field_error(
+            "beacon.motion", f"must be one of {', '.join(BEACON_MOTIONS)}, got {motion!r}"
+        )
+    given = set(data.get("beacon", {}))
+    craft = [f for f in CRAFT_FIELDS if f in given]
+    if motion != "planned" and craft:
+        raise field_error(
+            f"beacon.{craft[0]}",
+            f'is a limit of a planned beacon\'s craft; set beacon.motion = "planned" or remove '
+            f"it (motion is {motion!r})",
+        )
+    if motion != "path" and "path" in given:
+        raise field_error(
+            "beacon.path",
+            f'is the file of a known beacon path: set beacon.motion = "path" '
+            f"or remove it (motion is {motion!r})",
+        )
+    if motion == "path":
+        if vals["path"] is None:
+            raise field_error("beacon.path", 'missing; motion = "path" needs the CSV t,bx,by[,bz]')
+        if "position" in given or "geodetic" in given:
+            raise field_error(
+                "beacon.position",
+                'a beacon on a known path has no fixed position (motion = "path"); remove it',
+            )
+    if motion == "planned":
+        for key in ("speed", "accel"):
+            if vals[key] is None:
+                raise field_error(
+                    f"beacon.{key}", f'missing; motion = "planned" needs the craft\'s {key} limit'
+                )
+        if "position" not in given and "geodetic" not in given:
+            raise field_error(
+                "beacon.position", 'missing; motion = "planned" needs the craft\'s start'
+            )
+    return BeaconMotion(
+        motion=motion,
+        path=vals["path"],
+        speed=vals["speed"],
+        accel=vals["accel"],
+        velocity=vals["velocity"],
+        area=vals["area"],
+        max_range=vals["max_range"],
+        min_distance=vals["min_distance"],
+    )
+
+
+def _moving_beacon_limits(data: Mapping[str, Any], lim: dict[str, Any]) -> dict[str, Any]:
+    """The limits of a problem with a moving beacon: the distance limits to the beacon are the
+    craft's (``beacon.min_distance``, ``beacon.max_range``), ``limits.min_range`` is 0."""
+    given = data.get("limits", {})
+    for key, instead in (("min_range", "min_distance"), ("max_range", "max_range")):
+        if isinstance(given, Mapping) and key in given:
+            raise field_error(
+                f"limits.{key}",
+                f"is a distance to a fixed beacon; with a moving beacon give "
+                f'beacon.{instead} (motion = "planned") or remove it',
+            )
+    return {**lim, "min_range": 0.0, "max_range": None}
 
 
 def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
@@ -430,6 +527,7 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
         ``{section: {field: value}}``: TOML's types only (bool, int, float, str, lists, tables).
     """
     veh, lim, hor, obj, val = pb.vehicle, pb.limits, pb.horizon, pb.objective, pb.validation
+    moving = pb.beacon_motion.moving
     limits: dict[str, Any] = {
         "accel": list(lim.accel),
         "speed": lim.speed,
@@ -437,6 +535,8 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
         "min_speed": lim.min_speed,
         "keepout_confidence": lim.keepout_confidence,
     }
+    if moving:  # the craft's limits replace them (beacon.min_distance, beacon.max_range)
+        del limits["min_range"]
     if lim.depth is not None:
         limits["depth"] = list(lim.depth)
     if lim.area is not None:
@@ -452,7 +552,7 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
             "current_velocity": list(veh.current_velocity),
             "range_form": veh.range_form,
         },
-        "beacon": {"position": list(pb.beacon)},
+        "beacon": _beacon_to_dict(pb),
         "start": {"position": list(pb.start_position), "velocity": list(pb.start_velocity)},
         "limits": limits,
         "horizon": {"duration": hor.duration, "steps": hor.steps},
@@ -464,11 +564,37 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
         "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
         "validation": {f: getattr(val, f) for f in val.__dataclass_fields__},
     }
+    if veh.path is not None:
+        out["vehicle"]["path"] = veh.path
     if pb.mission is not None:
         out["mission"] = _mission_to_dict(pb.mission)
     if pb.origin is not None:
         o = pb.origin
         out["origin"] = {"latitude": o.latitude, "longitude": o.longitude, "altitude": o.altitude}
+    return out
+
+
+def _beacon_to_dict(pb: ProblemData) -> dict[str, Any]:
+    """``[beacon]``: its position alone for a fixed beacon (as before beacon.motion), else the
+    motion and its fields."""
+    bm = pb.beacon_motion
+    if bm.motion == "fixed":
+        return {"position": list(pb.beacon)}
+    if bm.motion == "path":
+        return {"motion": "path", "path": bm.path}
+    out: dict[str, Any] = {
+        "motion": "planned",
+        "position": list(pb.beacon),
+        "speed": bm.speed,
+        "accel": list(bm.accel or ()),
+        "min_distance": bm.min_distance,
+    }
+    if bm.velocity is not None:
+        out["velocity"] = list(bm.velocity)
+    if bm.area is not None:
+        out["area"] = {"x": list(bm.area.x), "y": list(bm.area.y)}
+    if bm.max_range is not None:
+        out["max_range"] = bm.max_range
     return out
 
 
@@ -536,6 +662,35 @@ def problem_to_toml(pb: ProblemData) -> str:
     """
     header = f"{pb.name or 'problem'}: every field, unit and default: docs/problem-files.md"
     return toml_text(problem_to_dict(pb), header=header)
+
+
+def resolve_problem_files(data: Mapping[str, Any], base: str | Path) -> Mapping[str, Any]:
+    """``beacon.path`` and ``vehicle.path`` (a CSV, not ``"lawnmower"``) resolved against the
+    folder of the problem file that names them, as the loader reads them.
+
+    Parameters
+    ----------
+    data : Mapping of str to Any
+        The problem file's sections as parsed from TOML.
+    base : str or Path
+        The folder of the problem file.
+
+    Returns
+    -------
+    Mapping of str to Any
+        ``data`` with those relative paths made absolute (unchanged when there are none; a
+        malformed value is left for the parser to name).
+    """
+    out = dict(data)
+    for section in ("beacon", "vehicle"):
+        sec = data.get(section)
+        if not isinstance(sec, Mapping) or not isinstance(sec.get("path"), str):
+            continue
+        name = sec["path"]
+        if (section == "vehicle" and name == LAWNMOWER_PATH) or Path(name).is_absolute():
+            continue
+        out[section] = {**sec, "path": str(Path(base) / name)}
+    return out
 
 
 # ---------------------------------------------------------------------- geodetic problem fields

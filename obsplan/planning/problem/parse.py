@@ -24,6 +24,7 @@ from obsplan.planning.problem.mapping import (
     origin_of,
     problem_to_dict,
     problem_to_toml,
+    resolve_problem_files,
     resolve_problem_geodetic,
 )
 
@@ -140,7 +141,9 @@ def load_problem(path: str | Path | None = None) -> PlanningProblem:
         raise ProblemError(
             f"problem file not found: {path} (`obsplan problems` lists the shipped ones by name)"
         )
-    data = read_toml(path, "a problem file (TOML)", error=ProblemError)
+    data = resolve_problem_files(
+        read_toml(path, "a problem file (TOML)", error=ProblemError), path.parent
+    )
     try:
         return problem_from_dict(data, name=path.stem)
     except ProblemError as exc:

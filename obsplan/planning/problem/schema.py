@@ -126,6 +126,20 @@ LINEARISED_KINDS: tuple[str, ...] = ("gramian-min-eig",)
 TIMED_OBJECTIVES: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.timed)
 #: Objectives for which a smaller value is better.
 MINIMISED: tuple[str, ...] = tuple(k for k, o in OBJECTIVE_KINDS.items() if o.sense == "min")
+#: ``beacon.motion`` values (the first is the default): a fixed beacon, a known path, a planned
+#: surface craft (:mod:`obsplan.model.beacon`).
+BEACON_MOTIONS: tuple[str, ...] = ("fixed", "path", "planned")
+#: The ``[beacon]`` fields of a planned beacon's craft (refused for any other motion).
+CRAFT_FIELDS: tuple[str, ...] = (
+    "speed",
+    "accel",
+    "velocity",
+    "area",
+    "max_range",
+    "min_distance",
+)
+#: ``vehicle.path``'s name for the mission's plain lawn-mower.
+LAWNMOWER_PATH = "lawnmower"
 #: ``validation.mode`` values (the first is the default).
 VALIDATION_MODES: tuple[str, ...] = ("closed-loop", "open-loop")
 #: ``validation.process_noise_model`` values (the first is the default).
@@ -152,8 +166,8 @@ class FieldSpec:
 
     name: str
     # "int", "float", "float-or-str", "bool", "str", "str-list", "float-list", "vec",
-    # "vec-or-float", "range", "area"; the mission's "lines", "line-area", "points", "windows",
-    # "end"
+    # "vec-or-float", "hvec" (2 values), "hvec-or-float", "range", "area"; the mission's
+    # "lines", "line-area", "points", "windows", "end"
     kind: str
     default: Any
     unit: str
@@ -204,6 +218,16 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "-",
             'Range output of the filters: "half-squared" (y = |p-b|^2/2, eq. 3) or "range".',
         ),
+        FieldSpec(
+            "path",
+            "str",
+            _NONE,
+            "-",
+            'With a moving beacon (beacon.motion other than "fixed"): the path the vehicle '
+            "flies while the beacon is planned: a trajectory CSV (relative to the problem file; "
+            't from 0 to horizon.duration) or "lawnmower" (the mission\'s plain lawn-mower '
+            "baseline). Default none (the vehicle is planned).",
+        ),
     ),
     "origin": (
         FieldSpec(
@@ -233,6 +257,71 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "deg, deg[, m]",
             "Instead of position: [latitude, longitude] (2D) or [latitude, longitude, depth] "
             "(3D) about [origin].",
+        ),
+        FieldSpec(
+            "motion",
+            "str",
+            "fixed",
+            "-",
+            'How the beacon moves: "fixed" (at position), "path" (a known path: beacon.path), '
+            'or "planned" (a surface craft obsplan plans: speed, accel, position its start, '
+            "optional velocity, area, max_range, min_distance). Ranges are one-way travel "
+            "times: the beacon is where it was when it transmitted.",
+        ),
+        FieldSpec(
+            "path",
+            "str",
+            _NONE,
+            "-",
+            'motion = "path": the beacon path CSV t,bx,by[,bz] [s, m] in the problem\'s frame '
+            "(relative to the problem file), linearly interpolated; it must cover the horizon.",
+        ),
+        FieldSpec(
+            "speed",
+            "float",
+            _NONE,
+            "m/s",
+            'motion = "planned" (required): bound on the craft\'s horizontal speed.',
+        ),
+        FieldSpec(
+            "accel",
+            "hvec-or-float",
+            _NONE,
+            "m/s^2",
+            'motion = "planned" (required): bound on the craft\'s horizontal acceleration per '
+            "axis: one number or [ax, ay].",
+        ),
+        FieldSpec(
+            "velocity",
+            "hvec",
+            _NONE,
+            "m/s",
+            'motion = "planned": the craft\'s start horizontal velocity [vx, vy]; default at rest.',
+        ),
+        FieldSpec(
+            "area",
+            "area",
+            _NONE,
+            "m",
+            'motion = "planned": the area {x = [min, max], y = [min, max]} the craft must stay '
+            "in; default anywhere.",
+        ),
+        FieldSpec(
+            "max_range",
+            "float",
+            _NONE,
+            "m",
+            'motion = "planned": largest distance |p - b| from the craft to the vehicle (the '
+            "acoustic link); default none.",
+        ),
+        FieldSpec(
+            "min_distance",
+            "float",
+            0.0,
+            "m",
+            'motion = "planned": least horizontal distance from the craft to the vehicle '
+            "(collision, surfacing); replaces limits.min_range for a moving beacon. 0 disables "
+            "it.",
         ),
     ),
     "start": (

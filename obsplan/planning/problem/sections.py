@@ -13,6 +13,7 @@ from functools import cached_property
 import numpy as np
 
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
+from obsplan.model.beacon import BeaconPath, BeaconVehicle, read_beacon_path
 from obsplan.model.frames import GeodeticOrigin
 from obsplan.model.vehicle import VehicleModel
 from obsplan.observability.scaling import Scales
@@ -36,6 +37,9 @@ class VehicleSpec:
     current: bool = False
     current_velocity: tuple[float, ...] = (0.0, 0.0)
     range_form: str = "half-squared"
+    #: With a moving beacon: a trajectory CSV the vehicle flies, or ``"lawnmower"``; None: the
+    #: vehicle is planned.
+    path: str | None = None
 
 
 @dataclass(frozen=True)
@@ -56,6 +60,30 @@ class Area:
     @property
     def center(self) -> tuple[float, float]:
         return (0.5 * (self.x[0] + self.x[1]), 0.5 * (self.y[0] + self.y[1]))
+
+
+@dataclass(frozen=True)
+class BeaconMotion:
+    """How the beacon moves (``[beacon] motion`` and its fields; units and defaults:
+    :data:`~obsplan.planning.problem.schema.SCHEMA`): ``"fixed"`` at ``beacon.position``,
+    ``"path"`` along the CSV ``path`` (resolved against the problem file's folder by the
+    loader), or ``"planned"``: a surface craft starting at ``beacon.position`` with the limits
+    ``speed`` [m/s], per-axis ``accel`` [m/s²], start ``velocity`` [m/s], ``area``, ``max_range``
+    and horizontal ``min_distance`` [m]."""
+
+    motion: str = "fixed"
+    path: str | None = None
+    speed: float | None = None
+    accel: tuple[float, float] | None = None
+    velocity: tuple[float, float] | None = None
+    area: Area | None = None
+    max_range: float | None = None
+    min_distance: float = 0.0
+
+    @property
+    def moving(self) -> bool:
+        """The beacon moves (``motion`` is not ``"fixed"``)."""
+        return self.motion != "fixed"
 
 
 @dataclass(frozen=True)
@@ -213,6 +241,8 @@ class ProblemData:
     origin: GeodeticOrigin | None = None
     #: What the vehicle must do besides localising (None: free localisation).
     mission: Mission | None = None
+    #: How the beacon moves (default: fixed at ``beacon``).
+    beacon_motion: BeaconMotion = field(default_factory=BeaconMotion)
 
     @cached_property
     def model(self) -> VehicleModel:
@@ -229,6 +259,45 @@ class ProblemData:
     @property
     def dim(self) -> int:
         return self.vehicle.dim
+
+    @cached_property
+    def beacon_path(self) -> BeaconPath | None:
+        """The known beacon path of ``beacon.motion = "path"`` (read from ``beacon.path``),
+        else None.
+
+        Raises
+        ------
+        TrajectoryFormatError
+            A file that is missing or malformed, or of another dimension than the vehicle's.
+        """
+        bm = self.beacon_motion
+        if bm.motion != "path" or bm.path is None:
+            return None
+        return read_beacon_path(bm.path, self.dim, where="beacon.path")
+
+    @cached_property
+    def beacon_vehicle(self) -> BeaconVehicle | None:
+        """The craft of ``beacon.motion = "planned"`` (start ``beacon.position``), else None.
+
+        Raises
+        ------
+        InputError
+            A limit that is not positive, a start velocity above the speed, a start outside
+            the craft's area.
+        """
+        bm = self.beacon_motion
+        if bm.motion != "planned" or bm.speed is None or bm.accel is None:
+            return None
+        area = None if bm.area is None else np.array([bm.area.x, bm.area.y], float)
+        return BeaconVehicle(
+            start=np.asarray(self.beacon, float),
+            speed=float(bm.speed),
+            accel=np.asarray(bm.accel, float),
+            velocity=np.asarray(bm.velocity or (0.0, 0.0), float),
+            area=area,
+            max_range=bm.max_range,
+            min_distance=float(bm.min_distance),
+        )
 
     @property
     def p0(self) -> np.ndarray:

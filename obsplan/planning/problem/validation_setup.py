@@ -10,20 +10,25 @@ read them here, so the planner's bound is the validation's own.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 from scipy.stats import norm
 
+from obsplan.core.errors import field_error
 from obsplan.estimation.bounds.riccati import Epochs, make_epochs
 from obsplan.estimation.config import EstimationConfig, paper_covariances
 from obsplan.estimation.montecarlo.guidance import Guidance, TruthLimits
 from obsplan.estimation.schedule import make_schedule
+from obsplan.model.beacon import BeaconPath
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.trajectory.sampled import Trajectory
 
 
-def estimation_config(pb: PlanningProblem) -> EstimationConfig:
+def estimation_config(
+    pb: PlanningProblem, beacon_path: BeaconPath | None = None
+) -> EstimationConfig:
     """The filters' configuration of the validation of ``pb``.
 
     The paper's prior (section 7) with the position and velocity blocks set by
@@ -34,10 +39,19 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     range update ``validation.ekf_update``. Used by the validation and by the planning
     objectives.
 
+    A moving beacon: ``beacon_path``, or the known path of ``beacon.motion = "path"``
+    (:attr:`~obsplan.planning.problem.sections.ProblemData.beacon_path`), becomes the
+    configuration's ``beacon_path`` (the model's fixed beacon then at the origin, as
+    :class:`~obsplan.estimation.config.EstimationConfig` wants it); a planned beacon has no path
+    of its own until one is given.
+
     Parameters
     ----------
     pb : PlanningProblem
         The problem: its vehicle model and ``[validation]`` section.
+    beacon_path : BeaconPath or None, optional
+        The beacon's path (a planned beacon's plan, or a beacon baseline's); None: the
+        problem's own beacon.
 
     Returns
     -------
@@ -45,6 +59,15 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
         The EKF's and KF's priors, sensor rates [Hz] and noises, process noise and true current.
     """
     model, val, n = pb.model, pb.validation, pb.dim
+    path = pb.beacon_path if beacon_path is None else beacon_path
+    if path is None and pb.beacon_motion.motion == "planned":
+        raise field_error(
+            "beacon.motion",
+            '"planned": the beacon has no path until it is planned (obsplan plan); give its '
+            "path to validate with it",
+        )
+    if path is not None or pb.beacon_motion.moving:
+        model = replace(model, beacon=(0.0,) * n)
     cov: dict[str, Any] = paper_covariances(model, val.dt)
     for key in ("p0_ekf", "p0_kf"):
         d = np.diag(cov[key]).copy()
@@ -72,6 +95,7 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
         p0_ekf=cov["p0_ekf"],
         p0_kf=cov["p0_kf"],
         ekf_update=val.ekf_update,  # type: ignore[arg-type]
+        beacon_path=path,
         **noise_model,
     )
 

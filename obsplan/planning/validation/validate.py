@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,6 +34,7 @@ from obsplan.estimation.montecarlo.simulate import (
     merge_monte_carlo,
     monte_carlo_paths,
 )
+from obsplan.model.beacon import BeaconPath
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.validation_setup import (
     estimation_config,
@@ -91,6 +93,7 @@ def validate_paths(
     filters: Sequence[str] = DEFAULT_FILTERS,
     run_start: int = 0,
     lines: Mapping[str, np.ndarray] | None = None,
+    beacons: Mapping[str, BeaconPath] | None = None,
 ) -> dict[str, PathValidation]:
     """Monte Carlo of the filters on each path under the problem's ``[validation]`` settings.
 
@@ -114,6 +117,10 @@ def validate_paths(
     lines
         Name -> boolean mask of the filter samples (``pb.filter_times``) flown on survey lines:
         the samples of that path's ``rmse_pos_lines``; default none.
+    beacons
+        Name -> the moving beacon's path that path is flown with (a planned beacon and its
+        baselines, the vehicle's path the same): each path is then run with its own beacon, on
+        the same seed's runs (paired); default none: the problem's beacon for every path.
 
     Returns
     -------
@@ -121,15 +128,12 @@ def validate_paths(
         Name -> its Monte Carlo result, in the order of ``paths`` (empty without paths).
     """
     val = pb.validation
-    config = estimation_config(pb)
     n_runs = val.runs if runs is None else int(runs)
     if not paths:
         return {}
     fine = [resample(traj, val.dt) for traj in paths.values()]
     masks = [None if lines is None else lines.get(name) for name in paths]
-    results = monte_carlo_paths(
-        fine,
-        config,
+    kwargs: dict[str, Any] = dict(
         runs=n_runs,
         seed=val.seed,
         progress=progress,
@@ -137,8 +141,22 @@ def validate_paths(
         run_start=run_start,
         guidance=validation_guidance(pb),
         limits=truth_limits(pb),
-        lines=masks if any(m is not None for m in masks) else None,
     )
+    if beacons is None:
+        config = estimation_config(pb)
+        results = monte_carlo_paths(
+            fine, config, lines=masks if any(m is not None for m in masks) else None, **kwargs
+        )
+    else:
+        results = [
+            monte_carlo_paths(
+                [tr],
+                estimation_config(pb, beacons[name]),
+                lines=None if mask is None else [mask],
+                **kwargs,
+            )[0]
+            for name, tr, mask in zip(paths, fine, masks, strict=True)
+        ]
     return {name: PathValidation(name, res) for name, res in zip(paths, results, strict=True)}
 
 

@@ -32,13 +32,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 import scipy.stats
 
 from obsplan.estimation.montecarlo.simulate import DEFAULT_FILTERS
 from obsplan.estimation.montecarlo.stats import FilterStats
+from obsplan.model.beacon import BeaconPath
 from obsplan.planning.objectives.evaluate import PathMetrics
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.tuning import tuning
@@ -749,9 +750,11 @@ def validate_until_decided(
     progress: bool = False,
     filters: Sequence[str] = DEFAULT_FILTERS,
     lines: Mapping[str, np.ndarray] | None = None,
+    beacons: Mapping[str, BeaconPath] | None = None,
 ) -> dict[str, PathValidation]:
     """:func:`~obsplan.planning.validation.validate.validate_paths` in batches until decided
-    (``lines``: each path's samples on the survey lines, for its ``rmse_pos_lines``).
+    (``lines``: each path's samples on the survey lines, for its ``rmse_pos_lines``;
+    ``beacons``: each path's moving beacon).
 
     The first batch has ``runs`` (default ``validation.runs``) runs. While a run-estimated
     verdict of ``paths["planned"]`` against a baseline is undecided, a batch as large as all the
@@ -775,6 +778,8 @@ def validate_until_decided(
         Estimators to run (as :func:`~obsplan.planning.validation.validate.validate_paths`).
     lines : Mapping of str to ndarray or None, optional
         Name -> boolean mask of the filter samples on the survey lines.
+    beacons : Mapping of str to BeaconPath or None, optional
+        Name -> the moving beacon that path is flown with (none: the problem's beacon).
 
     Returns
     -------
@@ -783,15 +788,12 @@ def validate_until_decided(
     """
     done = pb.validation.runs if runs is None else int(runs)
     cap = max(done, pb.validation.max_runs if max_runs is None else int(max_runs))
-    parts = [validate_paths(paths, pb, runs=done, progress=progress, filters=filters, lines=lines)]
+    common: dict[str, Any] = dict(progress=progress, filters=filters, lines=lines, beacons=beacons)
+    parts = [validate_paths(paths, pb, runs=done, **common)]
     merged = parts[0]
     while done < cap and "planned" in paths and not verdict(merged, {}).all_decided:
         k = min(done, cap - done)
-        parts.append(
-            validate_paths(
-                paths, pb, runs=k, progress=progress, filters=filters, run_start=done, lines=lines
-            )
-        )
+        parts.append(validate_paths(paths, pb, runs=k, run_start=done, **common))
         done += k
         merged = merge_validations(parts)
     return merged
