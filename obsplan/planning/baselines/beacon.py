@@ -18,14 +18,14 @@ The baselines, by their names in ``report.json`` (:data:`BEACON_BASELINES`):
     Holding its start (a craft started moving brakes and returns to it).
 ``beacon-circle``
     Circling the survey's centre (the mission lines' centre, else the middle of the vehicle's
-    path) at constant speed, counter-clockwise, starting at the angle of its own start; the
+    path) at constant speed, counter-clockwise (steered onto the circle at its own angle); the
     radius is the best of a grid (:data:`CIRCLE_RADII` times the survey's half-diagonal, and
     no closer than ``min_distance``) by the same posterior Cramér–Rao bound the planner uses
     (:func:`~obsplan.estimation.bounds.crlb.posterior_crlb`: its mean over the weighted samples
     plus its final value), among the radii whose circle keeps the craft's limits when any does
     (the circle may cross the survey lines within ``min_distance`` of the vehicle). The speed
     is the craft's, lowered to ``sqrt(a r)`` so that the centripetal acceleration fits. The
-    craft transits from its start by chasing the circling point.
+    craft transits from its start straight out to the circle.
 ``beacon-trail``
     Following the vehicle :data:`TRAIL_OFFSET_M` behind it along its horizontal velocity
     (the last heading when it hovers), speed-limited.
@@ -109,7 +109,11 @@ class BeaconBaseline:
         return not self.breaks
 
 
-Reference = Callable[[float], tuple[np.ndarray, np.ndarray]]
+#: ``(t, b) -> (r, r')``: the reference point and its velocity at time ``t`` for the craft at ``b``
+#: (horizontal, [m], [m/s]); a circling reference is the point of the circle at the craft's own
+#: angle (a vector field: a point chased around the circle is never caught at nearly the craft's
+#: speed).
+Reference = Callable[[float, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 def _step_velocity(v: np.ndarray, target: np.ndarray, craft: BeaconVehicle, h: float):
@@ -139,7 +143,8 @@ def fly_reference(
     times : ndarray, shape (M,)
         Knot times [s], increasing.
     reference : callable
-        ``t -> (r, r')``: the horizontal reference position [m] and velocity [m/s], each (2,).
+        ``(t, b) -> (r, r')``: the horizontal reference position [m] and velocity [m/s], each
+        (2,), at time ``t`` for the craft at ``b``.
 
     Returns
     -------
@@ -154,12 +159,15 @@ def fly_reference(
     vel = np.zeros((times.size, 2))
     pos[0], vel[0] = craft.start[:2], craft.velocity
     brake = BRAKE * float(np.min(craft.accel))
+    # the closing speed's time constant: the craft's own (speed / accel); a shorter one makes the
+    # saturated loop ring around a moving reference
+    tau = craft.speed / float(np.min(craft.accel))
     for k in range(times.size - 1):
         h = float(times[k + 1] - times[k])
-        r, rv = reference(float(times[k + 1]))
+        r, rv = reference(float(times[k + 1]), pos[k] + vel[k] * h)
         e = r - (pos[k] + vel[k] * h)
         d = float(np.linalg.norm(e))
-        close = min(craft.speed, math.sqrt(2.0 * brake * d), d / max(h, 1e-9))
+        close = min(craft.speed, math.sqrt(2.0 * brake * d), d / max(h, tau))
         target = rv + (e / d * close if d > 0 else 0.0)
         vel[k + 1] = _step_velocity(vel[k], target, craft, h)
         pos[k + 1] = pos[k] + 0.5 * (vel[k] + vel[k + 1]) * h
@@ -234,27 +242,29 @@ def _baseline(
     return BeaconBaseline(name, path, vel, words, craft_limit_breaks(path, vel, craft, vehicle))
 
 
-def _circle_ref(centre: np.ndarray, radius: float, phase: float, craft: BeaconVehicle):
+def _around(
+    centre: np.ndarray, velocity: np.ndarray, radius: float, speed: float, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The point of a circle about a centre moving at ``velocity`` at the craft's angle, moving
+    counter-clockwise at ``speed`` relative to the centre (at the centre: angle 0)."""
+    d = b - centre
+    a = math.atan2(d[1], d[0]) if np.linalg.norm(d) > 1e-9 else 0.0
+    c, s = math.cos(a), math.sin(a)
+    return centre + radius * np.array([c, s]), velocity + speed * np.array([-s, c])
+
+
+def _circle_ref(centre: np.ndarray, radius: float, craft: BeaconVehicle) -> Reference:
     speed = CRUISE * min(craft.speed, math.sqrt(float(np.min(craft.accel)) * radius))
-    w = speed / radius
-
-    def ref(t: float) -> tuple[np.ndarray, np.ndarray]:
-        a = phase + w * t
-        c, s = math.cos(a), math.sin(a)
-        return centre + radius * np.array([c, s]), speed * np.array([-s, c])
-
-    return ref
+    return lambda t, b: _around(centre, np.zeros(2), radius, speed, b)
 
 
 def _circle(craft, vehicle, times, config, centre, weights, span) -> BeaconBaseline:
-    d = craft.start[:2] - centre
-    phase = math.atan2(d[1], d[0]) if np.linalg.norm(d) > 0 else 0.0
     best: tuple[tuple[bool, float], BeaconBaseline] | None = None
     for f in CIRCLE_RADII:
         radius = max(f * span, craft.min_distance, 1.0)
         words = f"circling the survey centre {np.round(centre, 1).tolist()} at {radius:.3g} m"
         bl = _baseline(
-            "beacon-circle", craft, vehicle, times, _circle_ref(centre, radius, phase, craft), words
+            "beacon-circle", craft, vehicle, times, _circle_ref(centre, radius, craft), words
         )
         # a radius whose circle keeps the craft's limits beats any that breaks them
         score = (bool(bl.breaks), bound_score(vehicle, bl.path, config, weights))
@@ -301,7 +311,7 @@ def bound_score(
 def _trail_ref(vehicle: Trajectory, offset: float) -> Reference:
     last = np.array([1.0, 0.0])
 
-    def ref(t: float) -> tuple[np.ndarray, np.ndarray]:
+    def ref(t: float, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         nonlocal last
         p, v = _vehicle_at(vehicle, min(t, float(vehicle.t[-1])))
         s = float(np.linalg.norm(v[:2]))
@@ -312,17 +322,14 @@ def _trail_ref(vehicle: Trajectory, offset: float) -> Reference:
     return ref
 
 
-def _orbit_ref(vehicle: Trajectory, craft: BeaconVehicle, radius: float, phase: float):
+def _orbit_ref(vehicle: Trajectory, craft: BeaconVehicle, radius: float) -> Reference:
     vmax = float(np.max(np.linalg.norm(vehicle.v[:, :2], axis=1)))
     room = max(craft.speed - vmax, 0.1 * craft.speed)
     speed = CRUISE * min(room, math.sqrt(float(np.min(craft.accel)) * radius))
-    w = speed / radius
 
-    def ref(t: float) -> tuple[np.ndarray, np.ndarray]:
+    def ref(t: float, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p, v = _vehicle_at(vehicle, min(t, float(vehicle.t[-1])))
-        a = phase + w * t
-        c, s = math.cos(a), math.sin(a)
-        return p[:2] + radius * np.array([c, s]), v[:2] + speed * np.array([-s, c])
+        return _around(p[:2], v[:2], radius, speed, b)
 
     return ref
 
@@ -502,7 +509,7 @@ def beacon_baselines(
             craft,
             vehicle,
             times,
-            lambda t: (start, np.zeros(2)),
+            lambda t, b: (start, np.zeros(2)),
             f"holding its start {np.round(start, 1).tolist()}",
         )
     }
@@ -526,14 +533,12 @@ def beacon_baselines(
         craft_limit_breaks(gpath, gv, craft, vehicle),
     )
     radius = orbit_radius(vehicle, craft)
-    d = start - vehicle.p[0, :2]
-    phase = math.atan2(d[1], d[0]) if np.linalg.norm(d) > 0 else 0.0
     out["beacon-orbit"] = _baseline(
         "beacon-orbit",
         craft,
         vehicle,
         times,
-        _orbit_ref(vehicle, craft, radius, phase),
+        _orbit_ref(vehicle, craft, radius),
         f"orbiting the vehicle at {radius:.3g} m",
     )
     return out
