@@ -45,7 +45,10 @@ def _rows() -> dict[str, list[str]]:
 def _shipped() -> dict[str, Path]:
     files = {p.name: p for p in sorted((ROOT / "problems").glob("*.toml"))}
     files |= {f"suite/{p.name}": p for p in sorted((ROOT / "problems/suite").glob("*.toml"))}
-    return files
+    # the benchmark plans a fixed beacon's problems (obsplan.plan); a problem whose beacon moves
+    # (the ASV problems) is planned by plan_moving_beacon and has no row until the benchmark
+    # runs it
+    return {k: p for k, p in files.items() if not load_problem(p).beacon_motion.moving}
 
 
 def test_every_shipped_problem_has_one_row_naming_its_objective():
