@@ -65,6 +65,7 @@ ROOMS: dict[str, tuple[str, ...]] = {
         "transcription",  # grid, guesses, NLP blocks, the mission's constraints
         "objectives",  # every objective.kind, its registry, values on a path
         "solver",  # formulation, IPOPT, starts, multi-start, keep-out margins
+        "beacon",  # the craft carrying the beacon, planned for a vehicle on a fixed path
         "validation",  # Monte Carlo of every path, verdict, robustness
         "figures",
         "replan",  # receding-horizon re-solves inside the closed-loop Monte Carlo
