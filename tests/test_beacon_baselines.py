@@ -103,7 +103,7 @@ class _GivenPath:
     objective: float | None = None
 
 
-def _best_baseline(vehicle, craft, config, *, weights=None, guesses=()):
+def _best_baseline(vehicle, craft, config, *, weights=None, guesses=(), guess_labels=None):
     """Not a planner: the guess with the lowest bound (the flow's path is what is tested)."""
     scores = [bound_score(vehicle, g, config) for g in guesses]
     g = guesses[int(np.argmin(scores))]

@@ -9,7 +9,8 @@ from dataclasses import replace
 from obsplan.cli.common import OutputDir
 from obsplan.core import budget
 from obsplan.core.errors import InputError
-from obsplan.planning.plan import plan
+from obsplan.planning.beacon import plan_beacon
+from obsplan.planning.plan import check_beacon_plannable, plan, plan_moving_beacon
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.parse import DEFAULT_PROBLEM, load_problem
 from obsplan.planning.problem.sections import Horizon
@@ -136,6 +137,8 @@ def run(args: argparse.Namespace) -> int:
     """
     # validate the problem and the output folder before any work
     pb = _apply_overrides(load_problem(args.problem), args)
+    if pb.beacon_motion.moving:
+        return _run_moving_beacon(pb, args)
     out = OutputDir(args.out, args.force, inputs=[args.problem or DEFAULT_PROBLEM], verb="plan")
     with out:  # Ctrl-C or an error: no output folder, an old one untouched
         result = plan(
@@ -157,6 +160,37 @@ def run(args: argparse.Namespace) -> int:
             f"obsplan plan: failed: the flown path is not a converged solution "
             f"(solver.status {result.solve.status})"
             + (" (the best feasible path was written)" if result.trajectory is not None else ""),
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _run_moving_beacon(pb: PlanningProblem, args: argparse.Namespace) -> int:
+    """``obsplan plan`` of a beacon planned for a vehicle on a given path
+    (:func:`~obsplan.planning.plan.plan_moving_beacon`): ``plan.csv`` (the vehicle's path),
+    ``beacon.csv``, ``report.json`` and the figures; 0 when the beacon planner converged."""
+    check_beacon_plannable(pb)  # what is not built yet is refused before any output
+    if args.replan is not None:
+        raise InputError("--replan re-plans a vehicle; the beacon's replanning is not built yet")
+    out = OutputDir(args.out, args.force, inputs=[args.problem or DEFAULT_PROBLEM], verb="plan")
+    with out:
+        result = plan_moving_beacon(
+            pb,
+            plan_beacon,
+            validate=not args.no_validate,
+            runs=args.runs,
+            max_runs=args.max_runs,
+            progress=not args.quiet,
+        )
+        written = [out.final(p) for p in result.write_files(out.stage())]
+        out.commit()
+    print(result.summary())
+    print(f"wrote {', '.join(str(p) for p in written)}")
+    if not result.success:
+        print(
+            f"obsplan plan: failed: the beacon's plan did not converge (solver.status "
+            f"{result.solve.status}); its best path was written",
             file=sys.stderr,
         )
         return 1

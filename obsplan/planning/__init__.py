@@ -7,7 +7,8 @@ planning): the floor :mod:`~.tuning` (the planner's numeric tuning knobs, docs/t
 :mod:`~.replan`, :mod:`~.results` and :mod:`~.plan` on top.
 
 Public API: :func:`plan` -> :class:`PlanResult`, :func:`validate` -> :class:`ValidationResult`
-(a given path validated as :func:`plan` validates its plan), :func:`load_problem`,
+(a given path validated as :func:`plan` validates its plan), :func:`plan_moving_beacon` ->
+:class:`BeaconPlanResult` (a planned beacon for a vehicle on a given path), :func:`load_problem`,
 :class:`PlanningProblem` and its sections, :func:`solve` -> :class:`SolveResult`,
 :func:`baselines`, :func:`path_metrics`, :func:`estimation_config` (the validation's filter
 configuration of a problem). The modules form
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 from obsplan.planning.baselines.vehicle import Baseline, baselines
 from obsplan.planning.objectives.evaluate import PathMetrics, path_metrics
-from obsplan.planning.plan import plan, validate
+from obsplan.planning.plan import plan, plan_moving_beacon, validate
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.parse import load_problem, problem_from_dict
 from obsplan.planning.problem.schema import OBJECTIVES
@@ -31,13 +32,14 @@ from obsplan.planning.problem.sections import (
     VehicleSpec,
 )
 from obsplan.planning.problem.validation_setup import estimation_config
-from obsplan.planning.results import PlanResult, ValidationResult
+from obsplan.planning.results import BeaconPlanResult, PlanResult, ValidationResult
 from obsplan.planning.solver.solve import SolveResult, solve
 
 __all__ = [
     "OBJECTIVES",
     "Area",
     "Baseline",
+    "BeaconPlanResult",
     "Horizon",
     "Limits",
     "ObjectiveSpec",
@@ -53,6 +55,7 @@ __all__ = [
     "load_problem",
     "path_metrics",
     "plan",
+    "plan_moving_beacon",
     "problem_from_dict",
     "solve",
     "validate",

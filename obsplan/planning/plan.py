@@ -22,10 +22,10 @@ from obsplan.core.errors import ProblemError, field_error
 from obsplan.estimation.bounds.crlb import posterior_crlb
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.montecarlo.runs import DEFAULT_FILTERS
-from obsplan.estimation.schedule import make_schedule
 from obsplan.model.beacon import BeaconPath, BeaconVehicle
 from obsplan.planning.baselines.beacon import beacon_baselines, craft_limit_breaks
 from obsplan.planning.baselines.vehicle import Baseline, baselines, unfitted_baselines
+from obsplan.planning.beacon import range_epoch_times
 from obsplan.planning.missions.check import mission_check
 from obsplan.planning.objectives.evaluate import path_metrics
 from obsplan.planning.problem.checks import vehicle_path
@@ -236,6 +236,7 @@ class BeaconPlanner(Protocol):
         *,
         weights: np.ndarray | None = None,
         guesses: Sequence[BeaconPath] = (),
+        guess_labels: Sequence[str] | None = None,
     ) -> BeaconSolve: ...
 
 
@@ -366,12 +367,16 @@ def plan_moving_beacon(
     bls = beacon_baselines(
         fine, craft, config, centre=_survey_centre(pb), weights=mask, step=pb.validation.dt
     )
+    weights = None
+    if chk is not None and on_lines:  # 1 on the range epochs the vehicle flies on its lines
+        weights = chk.line_mask(range_epoch_times(fine, config)).astype(float)
     solve = planner(
         fine,
         craft,
         config,
-        weights=_epoch_weights(fine, config, mask),
+        weights=weights,
         guesses=[b.path for b in bls.values()],
+        guess_labels=list(bls),
     )
     beacons = {"planned": solve.path, **{k: b.path for k, b in bls.items()}}
     bounds = {k: _bound(fine, replace(config, beacon_path=b), mask) for k, b in beacons.items()}
@@ -406,14 +411,6 @@ def _survey_centre(pb: PlanningProblem) -> np.ndarray | None:
         return None
     pts = np.array([q[:2] for a, b in m.segments(pb.dim) for q in (a, b)], float)
     return 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-
-
-def _epoch_weights(fine: Trajectory, config: EstimationConfig, mask: np.ndarray | None):
-    """Weight of each range epoch on ``fine``: 1 on the survey lines, 0 off them (None: all)."""
-    if mask is None:
-        return None
-    sched = make_schedule(fine, config.model.sensors, config.rates_hz)
-    return mask[sched.reports("range")].astype(float)
 
 
 def _bound(fine: Trajectory, config: EstimationConfig, mask: np.ndarray | None) -> BeaconBound:
