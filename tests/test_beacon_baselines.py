@@ -5,13 +5,17 @@ beacon.csv beside plan.csv."""
 from __future__ import annotations
 
 import json
+import tomllib
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from obsplan import load_problem
+from obsplan.cli import main
 from obsplan.core.errors import ProblemError
+from obsplan.core.textfiles import toml_text
 from obsplan.model.beacon import BeaconPath, BeaconVehicle, read_beacon_path
 from obsplan.planning.baselines.beacon import (
     BEACON_BASELINES,
@@ -155,3 +159,46 @@ def test_unsupported_moving_beacon_flows_are_refused(edit, match):
     pb = load_problem("asv-survey").with_changes(**edit)
     with pytest.raises(ProblemError, match=match):
         plan_moving_beacon(pb, _best_baseline, validate=False)
+
+
+def _small_asv(tmp_path) -> Path:
+    """asv-survey cut to two 100 m lines (a short horizon: a few seconds to plan)."""
+    pb = load_problem("asv-survey").with_changes(
+        start={"position": [-70.0, 25.0]},
+        horizon={"duration": 420.0, "steps": 84},
+        mission={"lines": [[-50.0, 25.0, 50.0, 25.0], [50.0, -25.0, -50.0, -25.0]]},
+        validation={"runs": 4, "max_runs": 4},
+    )
+    path = tmp_path / "asv-small.toml"
+    path.write_text(pb.to_toml())
+    return path
+
+
+@pytest.mark.slow
+def test_obsplan_plan_writes_the_beacon_plan_and_its_verdict(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["plan", str(_small_asv(tmp_path)), "--out", str(out), "--quiet"])
+    report = json.loads((out / "report.json").read_text())
+    assert code == (0 if report["solver"]["success"] else 1)
+    assert {"plan.csv", "beacon.csv", "report.json", "path.png", "filters.png"} <= {
+        p.name for p in out.iterdir()
+    }
+    for key in ("validation", "verdict"):
+        names = report[key] if key == "validation" else report[key]["baselines"]
+        assert set(BEACON_BASELINES) <= set(names)
+    assert "ekf.rmse_pos_lines" in report["verdict"]["baselines"]["beacon-circle"]
+    said = capsys.readouterr().out
+    assert "the planned beacon" in said and "beacon-orbit" in said
+    beacon = read_beacon_path(out / "beacon.csv", 2)
+    assert beacon.start == 0.0 and beacon.end == pytest.approx(420.0)
+    assert np.array_equal(read_csv(out / "plan.csv").p[0], [-70.0, 25.0])
+
+
+def test_obsplan_plan_refuses_joint_planning_before_any_output(tmp_path, capsys):
+    path = tmp_path / "joint.toml"
+    data = tomllib.loads(load_problem("asv-survey").to_toml())
+    del data["vehicle"]["path"]
+    path.write_text(toml_text(data))
+    assert main(["plan", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "jointly is not built yet" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

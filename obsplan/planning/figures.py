@@ -426,8 +426,11 @@ def plot_beacon_paths(
     fig = ax.figure
     ax.plot(vehicle.p[:, 0], vehicle.p[:, 1], color="k", lw=1.5, label="vehicle")
     ax.plot(pb.p0[0], pb.p0[1], "ko", ms=5, label="vehicle start")
+    others = iter(("tab:blue", "tab:orange", "tab:purple", "tab:red", "tab:brown", "tab:pink"))
     for name, path in beacons.items():
-        style = {"lw": 2.0, "color": "tab:green"} if name == "planned" else {"lw": 0.8}
+        style: dict = {"lw": 2.2, "color": "tab:green", "zorder": 3}
+        if name != "planned":  # the baselines behind the plan, none in its colour
+            style = {"lw": 0.8, "alpha": 0.7, "color": next(others, "0.5")}
         ax.plot(path.positions[:, 0], path.positions[:, 1], label=name, **style)
     if beacons:
         shown = beacons.get("planned", next(iter(beacons.values())))
@@ -438,8 +441,10 @@ def plot_beacon_paths(
             ax.plot(
                 [vehicle.p[i, 0], b[k, 0]],
                 [vehicle.p[i, 1], b[k, 1]],
-                color="0.6",
-                lw=0.6,
+                color="0.3",
+                lw=0.7,
+                ls="--",
+                zorder=4,
                 label="range links" if k == 0 else None,
             )
         ax.plot(shown.positions[0, 0], shown.positions[0, 1], "r^", ms=9, label="beacon start")
