@@ -18,7 +18,8 @@ table: wall time of the whole planning, the chosen start's iterations and status
   .flyable_path`), best by the planner's objective;
 
 then the posterior CRB (mean and final position std [m]) and a seeded Monte Carlo of the EKF
-(open loop, ``--runs`` runs, first-order EKF) on each: RMSE over time and final error [m], and the
+(open loop, ``--runs`` runs; ``--ekf-update``, default the second-order update that problem files
+use, steadier on close passes) on each: RMSE over time and final error [m], and the
 planned path's ratios to the circle's and holding's.
 """
 
@@ -86,8 +87,9 @@ def best_circle(traj, cfg, craft, dim: int) -> tuple[str, BeaconPath, float]:
     return best  # type: ignore[return-value]
 
 
-def ekf(traj, cfg, path: BeaconPath, runs: int, seed: int):
-    res = monte_carlo(traj, replace(cfg, beacon_path=path), runs=runs, seed=seed, filters=("ekf",))
+def ekf(traj, cfg, path: BeaconPath, runs: int, seed: int, update: str):
+    cfg = replace(cfg, beacon_path=path, ekf_update=update)
+    res = monte_carlo(traj, cfg, runs=runs, seed=seed, filters=("ekf",))
     return res.ekf.rmse_pos, res.ekf.final_pos_err
 
 
@@ -97,6 +99,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--sigma", type=float, default=0.3)
     ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--ekf-update", default="second-order", choices=("first-order", "second-order"))
     args = ap.parse_args()
     plan_rows, mc_rows = [], []
     for name in args.cases.split(","):
@@ -113,7 +116,7 @@ def main() -> None:
         )
         paths = {"planned": plan.path, "circle": circ, "hold": hold}
         crb = {k: posterior_crlb(traj, replace(cfg, beacon_path=p)) for k, p in paths.items()}
-        mc = {k: ekf(traj, cfg, p, args.runs, args.seed) for k, p in paths.items()}
+        mc = {k: ekf(traj, cfg, p, args.runs, args.seed, args.ekf_update) for k, p in paths.items()}
         for k in paths:
             ratio = (
                 f"{mc['planned'][0] / mc[k][0]:.2f} / {mc['planned'][1] / mc[k][1]:.2f}"
@@ -133,7 +136,10 @@ def main() -> None:
     print("|---|---:|---:|---|---:|---:|---:|---|")
     print("\n".join(plan_rows))
     print()
-    print(f"EKF, {args.runs} runs, seed {args.seed}, sigma_r {args.sigma} m (open loop)")
+    print(
+        f"EKF ({args.ekf_update}), {args.runs} runs, seed {args.seed}, sigma_r {args.sigma} m "
+        "(open loop)"
+    )
     print(
         "| case | beacon | PCRB mean std | PCRB final std | EKF RMSE | EKF final | "
         "planned / this (RMSE / final) |"
