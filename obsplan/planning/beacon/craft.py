@@ -14,9 +14,10 @@ over the horizon as the vehicle's grid has it, took 1.3-1.8x the iterations on a
 Only the horizontal components are variables; in 3D ``b_z`` is the craft's start depth.
 
 Between nodes ``t_k`` (every ``step`` seconds from the vehicle's first sample; the last interval
-ends at its last sample and may be shorter) the acceleration is held, so the path is the exact
-quadratic ``b(t_k + s) = b_k + v_k s + a_k s²/2``: :meth:`CraftGrid.state` gives it at any time
-as an affine function of ``W``.
+ends at its last sample, half a step to one and a half long, or the whole of a short horizon) the
+acceleration is
+held, so the path is the exact quadratic ``b(t_k + s) = b_k + v_k s + a_k s²/2``:
+:meth:`CraftGrid.state` gives it at any time as an affine function of ``W``.
 
 Limits, and why they hold between the points where they are imposed
 --------------------------------------------------------------------
@@ -426,6 +427,8 @@ def craft_grid(
             raise InputError(f"{name} must be a positive time in seconds, got {val!r}")
     t0, tf = float(vehicle.t[0]), float(vehicle.t[-1])
     N = max(1, math.ceil((tf - t0) / step - 1e-9))
+    if N > 1 and (tf - t0) - (N - 1) * step < 0.5 * step:
+        N -= 1  # a sliver of a last interval joins the one before (at most 1.5 steps long)
     nodes = np.append(t0 + step * np.arange(N), tf)
     L = craft.speed * step
     C = max(1, math.ceil((tf - t0) / check_dt - 1e-9))
