@@ -15,8 +15,7 @@ Only the horizontal components are variables; in 3D ``b_z`` is the craft's start
 
 Between nodes ``t_k`` (every ``step`` seconds from the vehicle's first sample; the last interval
 ends at its last sample, half a step to one and a half long, or the whole of a short horizon) the
-acceleration is
-held, so the path is the exact quadratic ``b(t_k + s) = b_k + v_k s + a_k s²/2``:
+acceleration is held, so the path is the exact quadratic ``b(t_k + s) = b_k + v_k s + a_k s²/2``:
 :meth:`CraftGrid.state` gives it at any time as an affine function of ``W``.
 
 Limits, and why they hold between the points where they are imposed
