@@ -252,3 +252,18 @@ def test_3d_plan_at_the_surface_for_a_vehicle_at_depth():
     _check_limits(traj, c, plan)
     assert plan.objective < plan.hold_objective
     assert math.isfinite(plan.objective)
+
+
+def test_a_start_that_stops_says_why_and_the_plan_is_not_a_success():
+    # three iterations cannot converge: every start stops at the limit, says so in words, and
+    # the plan returned (the best of them) is not called a success
+    traj = survey(2, dt=1.0, legs=1)
+    seen = []
+    plan = plan_beacon(
+        traj, craft(), config(), max_iter=3, callback=lambda i, label, s: seen.append(label)
+    )
+    assert seen == [s.label for s in plan.starts] and seen[0] == "hold"
+    assert not plan.success and plan.status == "Maximum_Iterations_Exceeded"
+    for s in plan.starts:
+        assert not s.success and "iteration limit" in s.reason
+    assert "NOT converged" in plan.summary()
