@@ -33,10 +33,12 @@ mean position variance over the gap that follows the ping (exact when it grows l
 
     J = Σ_k w_k e_k / Σ_k w_k + tr P_pp(t_f)        [m²]
 
-with ``w_k`` the caller's weights (e.g. 1 on the survey lines, 0 in the turns). The mean is what
-the EKF's RMSE over the lines measures (its square is the time-mean of ``tr P``); the final term
-is the error at recovery, which the validation judges too, in the same unit so neither needs a
-reference value. Variances, not standard deviations: smooth at any value and additive over time.
+with ``w_k`` the caller's weights (e.g. 1 on the survey lines, 0 in the turns). The mean is the
+bound on the EKF's mean squared position error over the (weighted) survey; the final term is the
+error at recovery, which the validation judges too. Both in m², so neither needs a reference
+value to be added to the other. Variances rather than standard deviations (the EKF's
+``rmse_pos`` averages a root): smooth at any value, additive over time, and they weigh the worst
+stretches of the survey more.
 
 Beacon at transmission: each range is taken to the beacon at ``t_k - r_k/c``
 (:func:`~obsplan.estimation.epochs.epoch_beacons`); :class:`RangeRecursion` takes those positions
