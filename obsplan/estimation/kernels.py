@@ -54,6 +54,7 @@ import numba as nb
 import numpy as np
 
 from obsplan.estimation import jitcache
+from obsplan.estimation.channel import REACQUIRE_AFTER
 from obsplan.estimation.columns import (
     COL_AXES,
     COL_NEES,
@@ -67,8 +68,10 @@ from obsplan.estimation.columns import (
     INFO_LAST_ABOVE,
     INFO_NIS,
     INFO_NONFINITE,
+    INFO_RANGES_USED,
     INFO_RMSE_LINES,
     INFO_RMSE_POS,
+    N_GATE,
     TM_AREA_OUT,
     TM_CLOSEST,
     TM_DEPTH_OUT,
@@ -494,6 +497,89 @@ def linear_updates(X, P, Y, e, lin, iw, ws, G):
             ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
         if any_ok:
             update_rows(X, P, iw, ws, nnz)
+
+
+@inline
+def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg):
+    """The innovation gate on a range row of every run, before its update (with ``gate =
+    inf`` it only counts).
+
+    Per run, the range is used when the smallest NIS ``ν²/s`` of its members (one: the EKF, the
+    KF; a Gaussian sum's components: the range fits some branch) is at most ``gate``; else it is
+    rejected (its members' validity set to 0), unless the run has rejected
+    :data:`~obsplan.estimation.channel.REACQUIRE_AFTER` ranges in a row: then it re-acquires
+    (the replay's rule, :mod:`obsplan.estimation.replay.smoother`): each member whose NIS is
+    above the gate gets the isotropic position variance ``(ν²/gate - s)/|h_p|²`` that puts it on
+    the gate, and the range is used.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' priors (``P`` widened in place on re-acquisition).
+    iw : ndarray of int, shape (m,)
+        State indices of the row's non-zero entries (the first ``nnz``; the first ``npos`` of
+        them the position).
+    ws : ndarray
+        Workspace: the row's values, innovations, variances and validity (module docstring).
+    nnz, npos : int
+        Non-zero entries of the row; those on the position.
+    G : int
+        Members per run.
+    gate : float
+        The largest NIS of a range used (``inf``: no gate).
+    rg : ndarray, shape (4, R)
+        Per run: ranges used, rejected, re-acquisitions, the current run of rejections.
+    """
+    B = X.shape[1]
+    for g in range(B // G):
+        b0 = g * G
+        seen = False
+        best = math.inf
+        for c in range(G):
+            b = b0 + c
+            if ws[WS_SC, SC_OK, b] == 0.0:
+                continue
+            seen = True
+            if gate < math.inf:
+                hph = 0.0
+                for t in range(nnz):
+                    acc = 0.0
+                    for u in range(nnz):
+                        acc += P[iw[t], iw[u], b] * ws[WS_VAL, u, b]
+                    hph += ws[WS_VAL, t, b] * acc
+                s = hph + ws[WS_SC, SC_R, b]
+                ws[WS_SC, SC_S, b] = s  # scratch until update_rows sets it
+                nu = ws[WS_SC, SC_NU, b]
+                best = min(best, nu * nu / s)
+        if not seen:
+            continue
+        if not best > gate:
+            rg[0, g] += 1.0
+            rg[3, g] = 0.0
+        elif rg[3, g] >= REACQUIRE_AFTER:
+            for c in range(G):
+                b = b0 + c
+                if ws[WS_SC, SC_OK, b] == 0.0:
+                    continue
+                nu, s = ws[WS_SC, SC_NU, b], ws[WS_SC, SC_S, b]
+                hh = 0.0
+                for t in range(npos):
+                    hh += ws[WS_VAL, t, b] * ws[WS_VAL, t, b]
+                if nu * nu > gate * s and hh > 0.0:
+                    d = (nu * nu / gate - s) / hh
+                    for t in range(npos):
+                        P[iw[t], iw[t], b] += d
+            rg[0, g] += 1.0
+            rg[2, g] += 1.0
+            rg[3, g] = 0.0
+        else:
+            for c in range(G):
+                b = b0 + c
+                ws[WS_SC, SC_OK, b] = 0.0
+                ws[WS_SC, SC_NU, b] = 0.0
+                ws[WS_SC, SC_R, b] = 1.0
+            rg[1, g] += 1.0
+            rg[3, g] += 1.0
 
 
 # ----------------------------------------------------------------------------- statistics
@@ -965,7 +1051,7 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
 
 @jit
 def ekf_measure(
-    X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt
+    X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt, gate, rg
 ):
     """The EKF's updates at epoch ``e`` (range row, then the linear rows) of every member, and
     their NIS: per run, or for a Gaussian sum (``G > 1``) the mixture's with the prior weights,
@@ -993,6 +1079,10 @@ def ekf_measure(
         The linear output rows.
     run_nis, run_cnt : ndarray, shape (R,)
         Each run's sum of normalised innovations squared and their number, added to.
+    gate : float
+        The innovation gate on the ranges (:func:`gate_rows`; ``inf``: none).
+    rg : ndarray, shape (4, R)
+        Each run's gate counters (:func:`gate_rows`).
     """
     B = X.shape[1]
     R = B // G
@@ -1001,6 +1091,7 @@ def ekf_measure(
         ws[WS_SC, SC_CNT, b] = 0.0
         ws[WS_SC, SC_LL, b] = 0.0
     if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
+        gate_rows(X, P, iw, ws, n, n, G, gate, rg)
         update_rows(X, P, iw, ws, n)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, lin, iw, ws, G)
@@ -1092,6 +1183,7 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
     buf = np.zeros((R, rec_base.shape[0], COL_AXES + 2 * n))
     run_nis = np.zeros(R)
     run_cnt = np.zeros(R)
+    rg = np.zeros((N_GATE + 1, R))
     var_r = sig_r * sig_r
     # typed int64 from the start: a literal 0 makes numba compile record_batch a second time
     # for the Literal[int] it sees before the loop's increment widens the type
@@ -1109,13 +1201,33 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
             if corr:
                 correct_inputs(X, ce, e, tab[e, TAB_T], n, G)
         ekf_measure(
-            X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt
+            X,
+            P,
+            Y,
+            e,
+            lw,
+            w,
+            G,
+            iw,
+            ws,
+            n,
+            beacon,
+            half_sq,
+            second,
+            var_r,
+            lin,
+            run_nis,
+            run_cnt,
+            mdl.gate,
+            rg,
         )
         while ri < n_rec and rec_base[ri] == e:
             record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
             ri += 1
     for g in range(R):
         finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g], rec_w)
+        for j in range(N_GATE):
+            info[g, INFO_RANGES_USED + j] = rg[j, g]
 
 
 # ----------------------------------------------------------------------------- augmented KF
@@ -1273,7 +1385,7 @@ def kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp):
 
 
 @inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
-def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
+def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
     """The augmented KF's updates at epoch ``e`` (the linear range row ``ȳ``, then the linear
     rows) of every run, and their NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``).
 
@@ -1295,6 +1407,8 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
         The runs' input corrections (empty: open loop).
     run_nis, run_cnt : ndarray, shape (R,)
         Each run's sum of normalised innovations squared and their number, added to.
+    rg : ndarray, shape (4, R)
+        Each run's gate counters (:func:`gate_rows`, with the gate ``mdl.gate``).
     """
     n, ep_d, ce, y0, var0 = mdl.n, mdl.ep_d, cor.ce, anc.y0, anc.var0
     var_r = mdl.sig_r * mdl.sig_r
@@ -1328,6 +1442,7 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
             ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
             any_ok = any_ok or ok
         if any_ok:
+            gate_rows(X, P, iw, ws, n + 1, n, 1, mdl.gate, rg)
             update_rows(X, P, iw, ws, n + 1)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, mdl.lin, iw, ws, 1)
@@ -1374,6 +1489,7 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     buf = np.zeros((B, rec_base.shape[0], COL_AXES + 2 * n))
     run_nis = np.zeros(B)
     run_cnt = np.zeros(B)
+    rg = np.zeros((N_GATE + 1, B))
     ri = np.int64(0)  # int64, not Literal[int] (as in ekf_batch)
     n_rec = rec_base.shape[0]
     one = np.int64(1)  # the KF is one member per run; a literal 1 would compile record_batch anew
@@ -1381,7 +1497,7 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     for e in range(E):
         if e > 0:
             kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp)
-        kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt)
+        kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg)
         if moving:  # a record based at epoch e predicts r with ν: absolute at b_e (kf_relative)
             for i in range(n):
                 nw[NW_OFF, i] = mdl.beacon[e, i]
@@ -1401,3 +1517,5 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
             info[g],
             rcd.rec_w,
         )
+        for j in range(N_GATE):
+            info[g, INFO_RANGES_USED + j] = rg[j, g]

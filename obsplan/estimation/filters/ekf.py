@@ -222,6 +222,7 @@ class ExtendedKalmanFilter(Filter):
             parts=parts,
             run_nis=np.zeros(R),
             run_cnt=np.zeros(R),
+            rg=np.zeros((4, R)),
         )
 
     def predict(self, run: FilterRun) -> None:
@@ -274,5 +275,7 @@ class ExtendedKalmanFilter(Filter):
             mdl.lin,
             run.run_nis,
             run.run_cnt,
+            mdl.gate,
+            run.rg,
         )
         run.updated = True

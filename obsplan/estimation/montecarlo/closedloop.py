@@ -39,7 +39,7 @@ from obsplan.core.errors import ConfigError
 from obsplan.estimation import kalman
 from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.bounds.crlb import CRLBResult, posterior_crlb
-from obsplan.estimation.columns import COL_AXES
+from obsplan.estimation.columns import COL_AXES, INFO_RANGES_USED, N_GATE
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.epochs import segment_table
 from obsplan.estimation.filters.ekf import ExtendedKalmanFilter
@@ -55,7 +55,12 @@ from obsplan.estimation.montecarlo.runs import (
     start_of,
 )
 from obsplan.estimation.montecarlo.stats import TruthStats, empty_metrics
-from obsplan.estimation.montecarlo.truth import STREAM_PROCESS, reading_noise, run_rng
+from obsplan.estimation.montecarlo.truth import (
+    STREAM_PROCESS,
+    corrupt_ranges,
+    reading_noise,
+    run_rng,
+)
 from obsplan.trajectory.sampled import Trajectory
 
 #: Samples advanced per kernel call: bounds the process-noise normals held at once.
@@ -68,11 +73,11 @@ GRID_RTOL = 1e-9
 NavPath = namedtuple(
     "NavPath",
     "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon beacon_s n cur half_sq second "
-    "sig_r L expo scaled box has_box alim G",
+    "sig_r L expo scaled box has_box alim G rscale gate",
 )
 NavGains = namedtuple("NavGains", "kp kd amax vmax kv truth")
 NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
-NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt tm xb ex ex_run")
+NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt rg tm xb ex ex_run")
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,6 +232,8 @@ class ClosedLoop:
             has_box=bool(np.any(np.isfinite(s.box))),
             alim=lim.accel_bounds(model.dim),
             G=self.members,
+            rscale=1.0 + self.config.channel.sound_speed_scale,
+            gate=s.ctx.gate_nis,
         )
 
     def _gains_bundle(self):
@@ -278,11 +285,7 @@ class ClosedLoop:
             sat=np.zeros(R),
             vl=np.full(R, np.inf),
         )
-        noise = dict(self.config.noise)
-        Yn = np.stack(
-            [reading_noise(model, s.plan.reports, noise, dr.readings) for dr in self._draws],
-            axis=2,
-        )
+        Yn = np.stack([self._reading_noise(dr) for dr in self._draws], axis=2)
         ex_run = int(np.flatnonzero(self.run_ids == 0)[0]) if 0 in self.run_ids else -1
         io = NavIO(
             Yn=np.ascontiguousarray(Yn),
@@ -293,6 +296,7 @@ class ClosedLoop:
             buf=np.zeros((R, Nr, COL_AXES + 2 * n)),
             run_nis=np.zeros(R),
             run_cnt=np.zeros(R),
+            rg=np.zeros((N_GATE + 1, R)),
             tm=empty_metrics(R),
             xb=np.zeros((R, METRIC_SPAN, 3 * n)),
             ex=np.zeros((2, Nr, 2 * n)) if ex_run >= 0 else s.ctx.no_example,
@@ -481,6 +485,15 @@ class ClosedLoop:
         )
         return self._result
 
+    def _reading_noise(self, dr) -> np.ndarray:
+        """Run ``dr``'s reading noise at the epochs, with the channel's bias, late arrivals and
+        lost pings (the clean range, scaled, is added in the loop)."""
+        s = self.setup
+        model, reports = self.config.model, s.plan.reports
+        y = reading_noise(model, reports, dict(self.config.noise), dr.readings)
+        corrupt_ranges(model, y, reports, self.config.channel, dr.channel, s.rho_epochs)
+        return y
+
     def _finish_filters(self) -> None:
         from obsplan.estimation import kernels
 
@@ -501,6 +514,7 @@ class ClosedLoop:
                     s.info[nav][b],
                     ctx.rec_w,
                 )
+                s.info[nav][b, INFO_RANGES_USED : INFO_RANGES_USED + N_GATE] = io.rg[:N_GATE, b]
             if io.ex_run >= 0:
                 s.hist[nav] = io.ex
         x0 = s.states[0]

@@ -39,6 +39,7 @@ from obsplan.planning.missions.spec import (
 )
 from obsplan.planning.problem.schema import MAX_MAGNITUDE, SCHEMA, FieldSpec
 from obsplan.planning.problem.sections import (
+    CHANNEL_KEYS,
     Area,
     Horizon,
     Limits,
@@ -462,13 +463,26 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
             if (v := getattr(obj, f)) is not None
         },
         "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
-        "validation": {f: getattr(val, f) for f in val.__dataclass_fields__},
+        "validation": _validation_to_dict(val),
     }
     if pb.mission is not None:
         out["mission"] = _mission_to_dict(pb.mission)
     if pb.origin is not None:
         o = pb.origin
         out["origin"] = {"latitude": o.latitude, "longitude": o.longitude, "altitude": o.altitude}
+    return out
+
+
+def _validation_to_dict(val: ValidationSpec) -> dict[str, Any]:
+    """The ``[validation]`` table; the channel's fields only where they differ from their
+    defaults, so that a problem written before the channel existed keeps its mapping (and a
+    sweep its task ids)."""
+    out: dict[str, Any] = {}
+    for f in val.__dataclass_fields__:
+        v = getattr(val, f)
+        if (f == "channel" or f == "gate" or f in CHANNEL_KEYS) and v == getattr(ValidationSpec, f):
+            continue
+        out[f] = list(v) if isinstance(v, tuple) else v
     return out
 
 

@@ -31,8 +31,10 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     ``vehicle.current_velocity``, and the process noise of ``validation.process_noise_model``:
     ``"physical"``, the white acceleration noise ``accel_noise`` [m/s²/√Hz] (exact for any
     ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``; the EKF's
-    range update ``validation.ekf_update``. Used by the validation and by the planning
-    objectives.
+    range update ``validation.ekf_update``; the acoustic channel of the truth
+    (``validation.channel`` and its ``channel_*`` fields) and the filters' range gate
+    (``validation.gate``). Used by the validation and by the planning objectives (which read
+    neither the channel nor the gate).
 
     Parameters
     ----------
@@ -72,8 +74,32 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
         p0_ekf=cov["p0_ekf"],
         p0_kf=cov["p0_kf"],
         ekf_update=val.ekf_update,  # type: ignore[arg-type]
+        channel=val.channel_model(),
+        gate=val.gate,
         **noise_model,
     )
+
+
+def channel_dict(pb: PlanningProblem) -> dict:
+    """``report.json``'s ``validation.channel``: the acoustic channel of the validation's truth
+    (its ``name`` and fields, :meth:`Channel.to_dict
+    <obsplan.estimation.channel.Channel.to_dict>`) and the filters' range ``gate`` (its
+    confidence; None: no gate).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its ``[validation]`` section.
+
+    Returns
+    -------
+    dict
+        JSON-ready.
+    """
+    val = pb.validation
+    channel = val.channel_model()
+    cfg_gate = EstimationConfig(model=pb.model, channel=channel, gate=val.gate).gate_probability
+    return {**channel.to_dict(), "gate": cfg_gate}
 
 
 def confidence_quantile(confidence: float) -> float:
