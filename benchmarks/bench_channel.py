@@ -12,8 +12,12 @@ initial errors and, in the at-sea channel, the same lost and late pings) with
 
 * ``ideal``: Gaussian ranges (today's validation; no gate);
 * ``at-sea``: the preset (10 % multipath +2...30 m, 20 % lost pings, 1 % sound-speed scale),
-  the filters gated at 0.999 with re-acquisition (the default);
-* ``at-sea, no gate``: the same ranges, ``validation.gate = "off"``.
+  the filters gated at 0.999 with re-acquisition and the EKF and Gaussian sum with a
+  range-scale state (the defaults);
+* ``at-sea, no gate``: the same ranges, ``validation.gate = "off"``;
+* ``at-sea, no scale state``: the same ranges, ``validation.scale_state = "off"``;
+* ``at-sea, no scale error``: the preset without its sound-speed error (gated): what the
+  outliers and lost pings alone cost.
 
 Per path and channel it prints the EKF's position RMSE and mean final error, the lost runs of
 the EKF, the KF and the Gaussian sum (final error over 10x the path's posterior-CRB final std,
@@ -42,6 +46,8 @@ CHANNELS = {
     "ideal": {},
     "at-sea": {"channel": "at-sea"},
     "at-sea, no gate": {"channel": "at-sea", "gate": "off"},
+    "at-sea, no scale state": {"channel": "at-sea", "scale_state": "off"},
+    "at-sea, no scale error": {"channel": "at-sea", "channel_sound_speed_scale": 0.0},
 }
 #: The acceptance's bound on the at-sea EKF RMSE relative to the ideal's.
 RMSE_RATIO = 1.5

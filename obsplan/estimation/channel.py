@@ -73,6 +73,10 @@ REACQUIRE_AFTER = 5
 #: A run is *lost* when its final position error exceeds this many times the bound (the
 #: posterior CRB's final position std of the path).
 LOST_FACTOR = 10.0
+#: Prior standard deviation of the range-scale state of the EKF and the Gaussian sum (relative):
+#: a sound speed known to ±30 m/s of 1500 m/s (the spread of sea water's from 0 to 30 °C at a
+#: given salinity is about 60 m/s) is known to 2 %.
+SCALE_PRIOR_STD = 0.02
 #: Largest excess of a late arrival [m] accepted: beyond it a "range" is not the beacon's.
 MAX_EXCESS_M = 1e5
 #: Largest clock offset [s] accepted.

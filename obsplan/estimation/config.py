@@ -59,7 +59,13 @@ import numpy as np
 from obsplan.core.csvtable import COLUMN_LIMITS
 from obsplan.core.errors import ConfigError
 from obsplan.core.textfiles import check_magnitude
-from obsplan.estimation.channel import CHANNEL_PRESETS, Channel, default_gate, gate_nis
+from obsplan.estimation.channel import (
+    CHANNEL_PRESETS,
+    SCALE_PRIOR_STD,
+    Channel,
+    default_gate,
+    gate_nis,
+)
 from obsplan.estimation.kalman import integrated_noise
 from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import SENSOR_ALIASES, SENSORS, VehicleModel
@@ -330,6 +336,11 @@ class EstimationConfig:
         quantile of one degree of freedom, ``"off"`` (or 1), or ``"auto"`` (default: on at
         :data:`~obsplan.estimation.channel.GATE_PROBABILITY` when the channel has outliers,
         off otherwise; :func:`~obsplan.estimation.channel.default_gate`).
+    scale_state : "auto", "on" or "off", optional
+        A range-scale state in the EKF and the Gaussian sum (a sound-speed error estimated,
+        prior std :data:`~obsplan.estimation.channel.SCALE_PRIOR_STD`): ``"auto"`` (default)
+        adds it when the channel is not ideal (ranges at sea have an unknown sound speed), never
+        on the ideal channel (whose numbers stay those of before).
 
     Instances pickle (the model is rebuilt from its parameters), so they can be shipped to worker
     processes.
@@ -356,6 +367,7 @@ class EstimationConfig:
     beacon_path: BeaconPath | None = None
     channel: Channel = CHANNEL_PRESETS["ideal"]
     gate: float | str = "auto"
+    scale_state: str = "auto"
 
     def __reduce__(self):
         # the model may hold CasADi symbols (not picklable) and the mappings are read-only
@@ -382,6 +394,7 @@ class EstimationConfig:
                 "beacon_path",
                 "channel",
                 "gate",
+                "scale_state",
             )
         }
         for f in ("rates_hz", "noise", "dropout"):
@@ -495,6 +508,10 @@ class EstimationConfig:
             raise ConfigError(
                 "dropout['range'] and the channel's dropout are the same loss of pings: give one"
             )
+        if self.scale_state not in ("auto", "on", "off"):
+            raise ConfigError(
+                f"scale_state must be 'auto', 'on' or 'off', got {self.scale_state!r}"
+            )
         g = self.gate
         if isinstance(g, str):
             if g not in ("auto", "off"):
@@ -505,6 +522,12 @@ class EstimationConfig:
             raise ConfigError(f"gate must be a confidence in (0, 1], 'auto' or 'off', got {g!r}")
         else:
             object.__setattr__(self, "gate", float(g))
+
+    @property
+    def scale_prior_std(self) -> float | None:
+        """The prior std of the filters' range-scale state, None without one."""
+        on = self.scale_state == "on" or (self.scale_state == "auto" and not self.channel.is_ideal)
+        return SCALE_PRIOR_STD if on else None
 
     @property
     def gate_probability(self) -> float | None:
@@ -684,6 +707,7 @@ class EstimationConfig:
         if not self.channel.is_ideal or self.gate_probability is not None:
             out["channel"] = self.channel.to_dict()
             out["gate"] = self.gate_probability
+            out["scale_state"] = self.scale_prior_std is not None
         if self.beacon_path is not None:
             out["beacon_motion"] = "path"
             out["beacon_path_span_s"] = [self.beacon_path.start, self.beacon_path.end]

@@ -953,7 +953,7 @@ def record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm
 
 # ----------------------------------------------------------------------------- EKF
 @inline
-def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
+def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
     """The range row of every member, linearised at its prior; returns whether any reports.
 
     ``second``: the Gaussian second-order update (Jazwinski 1970, sec. 9.3; Bar-Shalom, Li and
@@ -987,6 +987,10 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
         The Gaussian second-order update.
     var_r : float
         Variance of the range noise [m²].
+    ks : int
+        Index of the range-scale state ``k`` (-1: none): the row predicts ``k ρ`` (``½ k² ρ²``
+        half-squared), its entry on ``k`` is ``ρ`` (``k ρ²``) in position ``n`` of the row, and
+        the row on ``p`` and the second-order terms carry ``k`` (``k²``).
 
     Returns
     -------
@@ -998,6 +1002,8 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
     eb = e if beacon.shape[0] > 1 else 0
     for i in range(n):
         iw[i] = i
+    if ks >= 0:
+        iw[n] = ks
     for b in range(B):
         rm = Y[e, 0, b // G]
         ok = math.isfinite(rm)
@@ -1042,16 +1048,83 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
                     uw += ws[WS_VAL, i, b] * wi
                 nu -= 0.5 * (trp - uw) / rho
                 r += 0.5 * (trp2 - 2.0 * ww + uw * uw) / (rho * rho)
-        ws[WS_SC, SC_NU, b] = nu if ok else 0.0
-        ws[WS_SC, SC_R, b] = r if ok else 1.0
+        if ks >= 0 and ok:
+            scale_row(X, P, ws, n, b, ks, half_sq, rm, rho2, var_r, nu, r)
+        else:
+            ws[WS_SC, SC_NU, b] = nu if ok else 0.0
+            ws[WS_SC, SC_R, b] = r if ok else 1.0
         ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
         any_ok = any_ok or ok
     return any_ok
 
 
+@inline
+def scale_row(X, P, ws, n, b, ks, half_sq, rm, rho2, var_r, nu, r):
+    """Member ``b``'s range row with the range-scale state ``k = X[ks, b]``, from the row
+    without it (``ws[WS_VAL, :n, b]``, innovation ``nu`` and variance ``r`` of ``k = 1``).
+
+    Range form: prediction ``k ρ`` and row ``(k u, ρ)``; the second-order terms (``nu - rm +
+    ρ``, ``r - var_r``) scale by ``k``, ``k²``. Half-squared: prediction ``½ k² ρ²``, row
+    ``(k² (p - b), k ρ²)``, terms by ``k²``, ``k⁴``.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' priors.
+    ws : ndarray
+        Workspace: the row (updated), innovation and variance (set).
+    n, b, ks : int
+        Spatial dimension, member, index of the scale state.
+    half_sq : bool
+        The half-squared range form.
+    rm, rho2, var_r : float
+        The reading [m], ``ρ²`` at the prior [m²], the range noise variance [m²].
+    nu, r : float
+        The innovation and variance of the row without the scale.
+    """
+    k = X[ks, b]
+    if half_sq:
+        base = 0.5 * rm * rm - 0.5 * var_r - 0.5 * rho2
+        r0 = rm * rm * var_r + 0.5 * var_r * var_r
+        k2 = k * k
+        nu_s = 0.5 * rm * rm - 0.5 * var_r - 0.5 * k2 * rho2 + k2 * (nu - base)
+        r_s = r0 + k2 * k2 * (r - r0)
+        for i in range(n):
+            ws[WS_VAL, i, b] *= k2
+        ws[WS_VAL, n, b] = k * rho2
+    else:
+        rho = math.sqrt(rho2)
+        nu_s = rm - k * rho + k * (nu - rm + rho)
+        r_s = var_r + k * k * (r - var_r)
+        for i in range(n):
+            ws[WS_VAL, i, b] *= k
+        ws[WS_VAL, n, b] = rho
+    ws[WS_SC, SC_NU, b] = nu_s
+    ws[WS_SC, SC_R, b] = r_s
+
+
 @jit
 def ekf_measure(
-    X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt, gate, rg
+    X,
+    P,
+    Y,
+    e,
+    lw,
+    w,
+    G,
+    iw,
+    ws,
+    n,
+    beacon,
+    half_sq,
+    second,
+    var_r,
+    lin,
+    run_nis,
+    run_cnt,
+    gate,
+    rg,
+    ks,
 ):
     """The EKF's updates at epoch ``e`` (range row, then the linear rows) of every member, and
     their NIS: per run, or for a Gaussian sum (``G > 1``) the mixture's with the prior weights,
@@ -1083,16 +1156,19 @@ def ekf_measure(
         The innovation gate on the ranges (:func:`gate_rows`; ``inf``: none).
     rg : ndarray, shape (4, R)
         Each run's gate counters (:func:`gate_rows`).
+    ks : int
+        Index of the range-scale state (-1: none; :func:`ekf_range_row`).
     """
     B = X.shape[1]
     R = B // G
+    nnz = n + 1 if ks >= 0 else n
     for b in range(B):
         ws[WS_SC, SC_NIS, b] = 0.0
         ws[WS_SC, SC_CNT, b] = 0.0
         ws[WS_SC, SC_LL, b] = 0.0
-    if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
-        gate_rows(X, P, iw, ws, n, n, G, gate, rg)
-        update_rows(X, P, iw, ws, n)
+    if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
+        gate_rows(X, P, iw, ws, nnz, n, G, gate, rg)
+        update_rows(X, P, iw, ws, nnz)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, lin, iw, ws, G)
     if G == 1:
@@ -1220,6 +1296,7 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
             run_cnt,
             mdl.gate,
             rg,
+            mdl.ks,
         )
         while ri < n_rec and rec_base[ri] == e:
             record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)

@@ -135,6 +135,7 @@ def nav_measure(pt, gn, st, io, k, e):
         io.run_cnt,
         pt.gate,
         io.rg,
+        pt.ks,
     )
     for g in range(R):  # the estimate's offset: its mixture's mean (one member: w = 1 exactly)
         mixture_weights(st.lw, st.w, g, G)

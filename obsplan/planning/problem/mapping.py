@@ -480,7 +480,8 @@ def _validation_to_dict(val: ValidationSpec) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in val.__dataclass_fields__:
         v = getattr(val, f)
-        if (f == "channel" or f == "gate" or f in CHANNEL_KEYS) and v == getattr(ValidationSpec, f):
+        new_field = f in ("channel", "gate", "scale_state") or f in CHANNEL_KEYS
+        if new_field and v == getattr(ValidationSpec, f):
             continue
         out[f] = list(v) if isinstance(v, tuple) else v
     return out

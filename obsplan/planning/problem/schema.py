@@ -816,6 +816,14 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             'after 5 rejections in a row): a confidence in (0, 1), "off", or "auto" (0.999 '
             "when the channel has outliers, off otherwise).",
         ),
+        FieldSpec(
+            "scale_state",
+            "str",
+            "auto",
+            "-",
+            "A range-scale state (a sound-speed error, prior std 2 %) in the EKF and the "
+            'Gaussian sum: "on", "off", or "auto" (on when the channel is not ideal).',
+        ),
     ),
 }
 

@@ -210,6 +210,7 @@ class ValidationSpec:
     channel_sound_speed_scale: float | None = None
     channel_clock_offset: float | None = None
     gate: float | str = "auto"
+    scale_state: str = "auto"
 
     def channel_model(self) -> Channel:
         """The acoustic channel of the validation: the preset ``channel`` with the

@@ -32,9 +32,9 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
     ``"physical"``, the white acceleration noise ``accel_noise`` [m/s²/√Hz] (exact for any
     ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``; the EKF's
     range update ``validation.ekf_update``; the acoustic channel of the truth
-    (``validation.channel`` and its ``channel_*`` fields) and the filters' range gate
-    (``validation.gate``). Used by the validation and by the planning objectives (which read
-    neither the channel nor the gate).
+    (``validation.channel`` and its ``channel_*`` fields), the filters' range gate
+    (``validation.gate``) and range-scale state (``validation.scale_state``). Used by the
+    validation and by the planning objectives (which read none of the last three).
 
     Parameters
     ----------
@@ -76,6 +76,7 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
         ekf_update=val.ekf_update,  # type: ignore[arg-type]
         channel=val.channel_model(),
         gate=val.gate,
+        scale_state=val.scale_state,
         **noise_model,
     )
 
@@ -83,8 +84,8 @@ def estimation_config(pb: PlanningProblem) -> EstimationConfig:
 def channel_dict(pb: PlanningProblem) -> dict:
     """``report.json``'s ``validation.channel``: the acoustic channel of the validation's truth
     (its ``name`` and fields, :meth:`Channel.to_dict
-    <obsplan.estimation.channel.Channel.to_dict>`) and the filters' range ``gate`` (its
-    confidence; None: no gate).
+    <obsplan.estimation.channel.Channel.to_dict>`), the filters' range ``gate`` (its
+    confidence; None: no gate) and whether they carry a range-scale state (``scale_state``).
 
     Parameters
     ----------
@@ -98,8 +99,14 @@ def channel_dict(pb: PlanningProblem) -> dict:
     """
     val = pb.validation
     channel = val.channel_model()
-    cfg_gate = EstimationConfig(model=pb.model, channel=channel, gate=val.gate).gate_probability
-    return {**channel.to_dict(), "gate": cfg_gate}
+    cfg = EstimationConfig(
+        model=pb.model, channel=channel, gate=val.gate, scale_state=val.scale_state
+    )
+    return {
+        **channel.to_dict(),
+        "gate": cfg.gate_probability,
+        "scale_state": cfg.scale_prior_std is not None,
+    }
 
 
 def confidence_quantile(confidence: float) -> float:
