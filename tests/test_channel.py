@@ -298,3 +298,24 @@ def test_cli_plan_bad_channel_exit_2(capsys):
     assert main(["plan", "--channel", "sea", "--no-validate", "--out", "/nonexistent/x"]) == 2
     err = capsys.readouterr().err
     assert "--channel" in err and "at-sea" in err
+
+
+def test_cli_plan_at_sea_report_keys(tmp_path, capsys):
+    from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+
+    out = tmp_path / "run"
+    small = ["--steps", "20", "--starts", "1", "--runs", "4", "--max-runs", "4", "--quiet"]
+    args = ["plan", str(LOCALISE_PROBLEM), "--out", str(out), *small, "--channel", "at-sea"]
+    assert main(args) == 0
+    rep = json.loads((out / "report.json").read_text())
+    ch = rep["validation"]["channel"]
+    assert ch["name"] == "at-sea" and ch["gate"] == GATE_PROBABILITY and ch["scale_state"]
+    assert rep["problem_file"]["validation"]["channel"] == "at-sea"
+    for path, v in rep["validation"].items():
+        if path in ("mode", "channel"):
+            continue
+        for name in ("ekf", "kf"):
+            d = v[name]
+            assert {"ranges_used", "ranges_rejected", "lost_runs"} <= set(d), (path, name)
+            assert 0 <= d["lost_runs"] <= v["runs"]
+            assert d["ranges_used"] > 0 and d["ranges_rejected"] >= 0
