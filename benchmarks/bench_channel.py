@@ -22,8 +22,10 @@ initial errors and, in the at-sea channel, the same lost and late pings) with
 Per path and channel it prints the EKF's position RMSE and mean final error, the lost runs of
 the EKF, the KF and the Gaussian sum (final error over 10x the path's posterior-CRB final std,
 :data:`obsplan.estimation.channel.LOST_FACTOR`), the EKF's ranges used and rejected per run,
-and the EKF RMSE's ratio to the ideal channel's. Acceptance (issue 47): in the at-sea preset
-the gated EKF's RMSE within 1.5x the ideal's, and no more lost runs than with the ideal channel.
+its time-averaged NEES of ``(p, p')`` (dof ``2n``) with the fraction of record times whose
+run-averaged NEES is inside the 95 % band, and the EKF RMSE's ratio to the ideal channel's.
+Acceptance (issue 47): in the at-sea preset the gated EKF's RMSE within 1.5x the ideal's, and no
+more lost runs than with the ideal channel.
 """
 
 from __future__ import annotations
@@ -81,6 +83,8 @@ def _rows(path: Path, runs: int) -> list[dict]:
                     "lost": {f: d[f]["lost_runs"] for f in FILTERS},
                     "used": ekf["ranges_used"],
                     "rejected": ekf["ranges_rejected"],
+                    "nees": ekf["nees_mean"],
+                    "nees_inside": ekf["nees_inside_fraction"],
                     "ratio": ekf["rmse_pos"] / ideal[name],
                     "bound": r.crlb_final_pos_std,
                 }
@@ -91,15 +95,15 @@ def _rows(path: Path, runs: int) -> list[dict]:
 def _fmt(rows: list[dict], runs: int) -> str:
     head = (
         "| problem | path | channel | EKF RMSE [m] | EKF final [m] | lost EKF/KF/GSF "
-        f"(of {runs}) | ranges used/run | rejected/run | RMSE / ideal |"
+        f"(of {runs}) | ranges used/run | rejected/run | EKF NEES (in band) | RMSE / ideal |"
     )
-    lines = [head, "|---|---|---|---:|---:|---:|---:|---:|---:|"]
+    lines = [head, "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lost = "/".join(str(r["lost"][f]) for f in FILTERS)
         lines.append(
             f"| {r['problem']} | {r['path']} | {r['channel']} | {r['ekf_rmse']:.3f} | "
             f"{r['ekf_final']:.3f} | {lost} | {r['used']:.1f} | {r['rejected']:.1f} | "
-            f"{r['ratio']:.2f} |"
+            f"{r['nees']:.3g} ({r['nees_inside']:.2f}) | {r['ratio']:.2f} |"
         )
     return "\n".join(lines)
 
