@@ -15,6 +15,10 @@ survive ranges as the sea gives them. A reading of the range sensor at true rang
 * ``m``: with probability ``outlier_fraction`` the range is a multipath arrival, late by an
   excess uniform in ``outlier_excess_m`` ``(lo, hi)`` [m] (a later arrival is a longer path:
   ``m > 0``), else ``m = 0``;
+* ``ρ̇ δ`` (``ping_jitter_s`` = ``j``): the ping leaves at ``δ`` uniform in ``[-j, j]`` from its
+  scheduled time but is stamped at the schedule (the filters update at the scheduled epoch), so
+  the range is the one of ``δ`` later, to first order ``ρ + ρ̇ δ``; ``ρ̇`` is the path's planned
+  range rate (as the growing loss below, a property of the path);
 * with probability ``dropout`` the ping is lost (no reading); beyond ``dropout_range_m`` the
   probability grows linearly in the range, from ``dropout`` to 1 at twice that range. The range
   the growth is judged on is the path's planned (nominal) range at the ping, so the loss pattern
@@ -40,7 +44,9 @@ Presets (:data:`CHANNEL_PRESETS`)
     multipath rate and excess are those measured with an independent EKF in obsplan's issue 47
     ("10 % multipath outliers (+2...30 m)"): late arrivals of metres to tens of metres in shallow
     water. A clock offset is zero in the preset because one-way-travel-time modems synchronise
-    their clocks (a residual offset is a user field, ``channel_clock_offset``).
+    their clocks (a residual offset is a user field, ``channel_clock_offset``); so is the ping
+    jitter, because a modem stamps its ranges with the time they were taken (``channel_ping_jitter``
+    models a modem that does not).
 
 The innovation gate
 -------------------
@@ -105,6 +111,8 @@ class Channel:
     clock_offset_s : float
         Clock offset [s] between the beacon and the vehicle: a range bias of
         ``SOUND_SPEED · clock_offset_s``.
+    ping_jitter_s : float
+        Half-width [s] of the uniform error of a ping's time against its stamp (``>= 0``).
     """
 
     name: str = "ideal"
@@ -114,6 +122,7 @@ class Channel:
     outlier_excess_m: tuple[float, float] = (2.0, 30.0)
     sound_speed_scale: float = 0.0
     clock_offset_s: float = 0.0
+    ping_jitter_s: float = 0.0
 
     def __post_init__(self) -> None:
         for f in ("dropout", "outlier_fraction"):
@@ -144,6 +153,12 @@ class Channel:
                 f"channel clock_offset_s must be within ±{MAX_CLOCK_OFFSET_S:g} s, got {c!r}"
             )
         object.__setattr__(self, "clock_offset_s", c)
+        j = float(self.ping_jitter_s)
+        if not 0.0 <= j <= MAX_CLOCK_OFFSET_S:
+            raise ConfigError(
+                f"channel ping_jitter_s must be in [0, {MAX_CLOCK_OFFSET_S:g}] s, got {j!r}"
+            )
+        object.__setattr__(self, "ping_jitter_s", j)
 
     @property
     def range_bias_m(self) -> float:
@@ -163,6 +178,7 @@ class Channel:
             and self.outlier_fraction == 0.0
             and self.sound_speed_scale == 0.0
             and self.clock_offset_s == 0.0
+            and self.ping_jitter_s == 0.0
         )
 
     def to_dict(self) -> dict:
@@ -295,7 +311,9 @@ def channel_errors(
     u_drop: np.ndarray,
     u_out: np.ndarray,
     u_excess: np.ndarray,
+    u_jitter: np.ndarray,
     rho: np.ndarray | None,
+    rho_dot: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The additive errors and the lost pings of one run's ranges.
 
@@ -305,16 +323,19 @@ def channel_errors(
         The channel.
     rows : ndarray of int, shape (K,)
         The epochs of the range reports (row 0: the anchor, never lost nor late).
-    u_drop, u_out, u_excess : ndarray, shape (K,)
-        The run's uniforms of loss, of multipath and of the excess (its seeded streams).
+    u_drop, u_out, u_excess, u_jitter : ndarray, shape (K,)
+        The run's uniforms of loss, of multipath, of the excess and of the ping's time (its
+        seeded streams).
     rho : ndarray, shape (K,) or None
         The path's nominal range at the reports [m] (for a loss probability growing with range;
         None: no growth is possible).
+    rho_dot : ndarray, shape (K,) or None, optional
+        The path's nominal range rate at the reports [m/s] (for the ping jitter; None: none).
 
     Returns
     -------
     add : ndarray, shape (K,)
-        ``c Δt + m`` [m] (module docstring).
+        ``c Δt + ρ̇ δ + m`` [m] (module docstring).
     lost : ndarray of bool, shape (K,)
         The lost pings.
     """
@@ -327,4 +348,6 @@ def channel_errors(
     late = (u_out < channel.outlier_fraction) & ~anchor
     lo, hi = channel.outlier_excess_m
     add = np.where(late, lo + (hi - lo) * u_excess, 0.0) + channel.range_bias_m
+    if channel.ping_jitter_s > 0.0 and rho_dot is not None:
+        add = add + rho_dot * channel.ping_jitter_s * (2.0 * u_jitter - 1.0)
     return add, lost

@@ -506,7 +506,9 @@ class ClosedLoop:
         s = self.setup
         model, reports = self.config.model, s.plan.reports
         y = reading_noise(model, reports, dict(self.config.noise), dr.readings)
-        corrupt_ranges(model, y, reports, self.config.channel, dr.channel, s.rho_epochs)
+        corrupt_ranges(
+            model, y, reports, self.config.channel, dr.channel, s.rho_epochs, s.rho_dot_epochs
+        )
         return y
 
     def _finish_filters(self) -> None:

@@ -184,7 +184,15 @@ class PathSetup:
             gate_nis=config.gate_nis,
         )
         #: the path's nominal range at the epochs (the channel's loss growing with range)
-        self.rho_epochs = np.linalg.norm(traj.p[plan.epochs] - self.ctx.beacons, axis=1)
+        rel = traj.p[plan.epochs] - self.ctx.beacons
+        self.rho_epochs = np.linalg.norm(rel, axis=1)
+        #: and its range rate (the channel's ping jitter); a moving beacon's velocity included
+        vb = np.zeros_like(rel)
+        if self.ctx.beacons.shape[0] > 1 and plan.epochs.size > 1:
+            vb = np.gradient(self.ctx.beacons, traj.t[plan.epochs], axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rd = np.einsum("ki,ki->k", rel, traj.v[plan.epochs] - vb) / self.rho_epochs
+        self.rho_dot_epochs = np.where(self.rho_epochs > 0, rd, 0.0)
         #: the beacon at every sample (the truth's closest approach); one row if it is fixed
         self.sample_beacons = sample_beacons(model, config.beacon_path, traj.t)
         self.filters = {name: make_filter(name, config, self.cov, pn) for name in names}

@@ -377,6 +377,7 @@ def _run_batch(job: PathSetup, chunk, run_start: int, draws: list[tuple[RunDraws
                 channel=job.config.channel,
                 cdraws=dr.channel,
                 rho=job.rho_epochs,
+                rho_dot=job.rho_dot_epochs,
             )
         )
         truths.append(nav_of(model, x[plan.rec_pt]))

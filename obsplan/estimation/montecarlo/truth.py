@@ -36,7 +36,8 @@ key                         draws, in order
 ``(r, 3, i)``               dropout of sensor ``SENSORS[i]``: ``reports`` uniforms (if it drops;
                             the range's also when the channel loses pings)
 ``(r, 4)``                  the acoustic channel (:mod:`obsplan.estimation.channel`, not ideal):
-                            ``reports`` uniforms of multipath, then ``reports`` of the excess
+                            ``reports`` uniforms of multipath, then ``reports`` of the excess,
+                            then ``reports`` of the ping's time
 ==========================  ===================================================================
 
 The channel's draws do not depend on the path, so every path compared sees the same lost and
@@ -374,7 +375,7 @@ def reading_draws(
 
 def channel_draws(
     model: VehicleModel, reports: np.ndarray, channel: Channel, seed: int, run: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+) -> tuple[np.ndarray, ...] | None:
     """Run ``run``'s uniforms of the acoustic channel at its range reports (module docstring).
 
     Parameters
@@ -393,15 +394,15 @@ def channel_draws(
     Returns
     -------
     tuple of ndarray, shape (K,) each, or None
-        The uniforms of loss, multipath and excess at the ``K`` range reports; None for an ideal
-        channel.
+        The uniforms of loss, multipath, excess and the ping's time at the ``K`` range reports;
+        None for an ideal channel.
     """
     if channel.is_ideal:
         return None
     k = int(np.count_nonzero(reports[:, list(model.output_slices).index("range")]))
     u_drop = run_rng(seed, run, STREAM_DROPOUT, "range").random(k)
     g = run_rng(seed, run, STREAM_CHANNEL)
-    return u_drop, g.random(k), g.random(k)
+    return u_drop, g.random(k), g.random(k), g.random(k)
 
 
 def corrupt_ranges(
@@ -409,8 +410,9 @@ def corrupt_ranges(
     y: np.ndarray,
     reports: np.ndarray,
     channel: Channel,
-    cdraws: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+    cdraws: tuple[np.ndarray, ...] | None,
     rho: np.ndarray | None,
+    rho_dot: np.ndarray | None = None,
 ) -> None:
     """Add the channel's bias and late arrivals to the range column of ``y`` and lose its pings
     (NaN), in place; the scale ``1 + s`` multiplies the clean range where it is computed.
@@ -429,13 +431,25 @@ def corrupt_ranges(
         From :func:`channel_draws` (None: ideal, nothing changes).
     rho : ndarray, shape (E,) or None
         The path's nominal range at the epochs [m] (for a loss growing with range).
+    rho_dot : ndarray, shape (E,) or None, optional
+        The path's nominal range rate at the epochs [m/s] (for the ping jitter).
     """
     if cdraws is None:
         return
     i = list(model.output_slices).index("range")
     col = model.output_slices["range"].start
     rows = np.flatnonzero(reports[:, i])
-    add, lost = channel_errors(channel, rows, *cdraws, None if rho is None else rho[rows])
+    u_drop, u_out, u_excess, u_jitter = cdraws
+    add, lost = channel_errors(
+        channel,
+        rows,
+        u_drop,
+        u_out,
+        u_excess,
+        u_jitter,
+        None if rho is None else rho[rows],
+        None if rho_dot is None else rho_dot[rows],
+    )
     y[rows, col] += add
     y[rows[lost], col] = np.nan
 
@@ -448,8 +462,9 @@ def noisy_readings(
     draws: list[tuple[np.ndarray, np.ndarray | None]],
     beacons: np.ndarray | None = None,
     channel: Channel | None = None,
-    cdraws: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    cdraws: tuple[np.ndarray, ...] | None = None,
     rho: np.ndarray | None = None,
+    rho_dot: np.ndarray | None = None,
 ) -> np.ndarray:
     """Readings at the epochs: (E, output_dim), NaN where a sensor does not report (or drops).
 
@@ -478,6 +493,8 @@ def noisy_readings(
         The run's channel uniforms (:func:`channel_draws`).
     rho : ndarray, shape (E,), optional
         The path's nominal range at the epochs [m].
+    rho_dot : ndarray, shape (E,), optional
+        The path's nominal range rate at the epochs [m/s].
 
     Returns
     -------
@@ -488,7 +505,7 @@ def noisy_readings(
     y = reading_noise(model, reports, noise, draws)
     if channel is not None and cdraws is not None:
         clean[:, model.output_slices["range"]] *= 1.0 + channel.sound_speed_scale
-        corrupt_ranges(model, y, reports, channel, cdraws, rho)
+        corrupt_ranges(model, y, reports, channel, cdraws, rho, rho_dot)
     return clean + y
 
 

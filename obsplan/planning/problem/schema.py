@@ -808,6 +808,14 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "default 0.",
         ),
         FieldSpec(
+            "channel_ping_jitter",
+            "float",
+            _NONE,
+            "s",
+            "A ping leaves up to this much before or after its stamp (uniform), unknown to the "
+            "filters: a range error of the range rate times it; default 0.",
+        ),
+        FieldSpec(
             "gate",
             "float-or-str",
             "auto",

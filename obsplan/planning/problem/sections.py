@@ -175,6 +175,7 @@ CHANNEL_KEYS: dict[str, str] = {
     "channel_outlier_excess": "outlier_excess_m",
     "channel_sound_speed_scale": "sound_speed_scale",
     "channel_clock_offset": "clock_offset_s",
+    "channel_ping_jitter": "ping_jitter_s",
 }
 
 
@@ -209,6 +210,7 @@ class ValidationSpec:
     channel_outlier_excess: tuple[float, float] | None = None
     channel_sound_speed_scale: float | None = None
     channel_clock_offset: float | None = None
+    channel_ping_jitter: float | None = None
     gate: float | str = "auto"
     scale_state: str = "auto"
 
