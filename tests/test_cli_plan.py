@@ -61,7 +61,7 @@ def test_a_small_plan_writes_plan_report_and_figures(default_run, capsys):
         assert set(m) >= {"min_eig", "log_det", "condition", "kf_final_pos_std"}
     assert rep["validation"]["mode"] == "closed-loop"  # the default
     for name, v in rep["validation"].items():
-        if name == "mode":
+        if name in ("mode", "channel"):
             continue
         assert {"rmse_pos", "final_pos_err", "nees_mean"} <= set(v["ekf"]) & set(v["kf"])
         truth = v["truth"]
@@ -102,7 +102,7 @@ def test_verdict_in_words_and_in_the_report(tmp_path, capsys):
     text = capsys.readouterr().out
     rep = _strict_json(out / "report.json")
     verdict = rep["verdict"]
-    assert set(verdict["baselines"]) == set(rep["validation"]) - {"planned", "mode"}
+    assert set(verdict["baselines"]) == set(rep["validation"]) - {"planned", "mode", "channel"}
     for comps in verdict["baselines"].values():
         assert {"ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos"} <= set(comps)
         for c in comps.values():

@@ -401,6 +401,43 @@ def parse_beacon(text: str | None, dim: int) -> tuple[float, ...] | None:
     return values
 
 
+def add_channel_argument(p: argparse.ArgumentParser) -> None:
+    """``--channel NAME``: the acoustic channel of the truth's ranges, a preset of
+    :data:`~obsplan.estimation.channel.CHANNEL_PRESETS` (checked by the verb, which reads it with
+    :func:`channel_error`); it overrides ``validation.channel``.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The verb's parser.
+    """
+    p.add_argument(
+        "--channel",
+        metavar="NAME",
+        default=None,
+        help="the acoustic channel the truth's ranges go through, unknown to the filters: "
+        '"ideal" (Gaussian ranges) or "at-sea" (multipath outliers, lost pings, a sound-speed '
+        "error); overrides validation.channel (default ideal)",
+    )
+
+
+def channel_error(exc: Exception) -> InputError:
+    """The error of a bad ``--channel``: the message of ``exc`` after its field name, on the
+    option.
+
+    Parameters
+    ----------
+    exc : Exception
+        The error of the channel's check (``validation.channel: ...`` or ``channel: ...``).
+
+    Returns
+    -------
+    InputError
+        ``--channel: <message>``.
+    """
+    return InputError(f"--channel: {str(exc).split(': ', 1)[-1]}")
+
+
 def add_beacon_path_argument(p: argparse.ArgumentParser) -> None:
     """``--beacon-path B.csv``: a moving beacon along a trajectory (read by
     :func:`resolve_beacon_path`).

@@ -6,9 +6,9 @@ import argparse
 import sys
 from dataclasses import replace
 
-from obsplan.cli.common import OutputDir
+from obsplan.cli.common import OutputDir, add_channel_argument, channel_error
 from obsplan.core import budget
-from obsplan.core.errors import InputError
+from obsplan.core.errors import InputError, ProblemError
 from obsplan.planning.beacon import plan_beacon
 from obsplan.planning.plan import check_beacon_plannable, plan, plan_moving_beacon
 from obsplan.planning.problem.definition import PlanningProblem
@@ -77,6 +77,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="also validate with receding-horizon replanning: every EVERY s (a multiple of the "
         "planning step) each run re-solves from its estimate (report.json key 'replan')",
     )
+    add_channel_argument(p)
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--verbose", action="store_true", help="show IPOPT's output")
     return p
@@ -103,6 +104,11 @@ def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningP
     if args.max_runs is not None and not args.no_validate:
         fix = "a longer validation.dt"
         budget.check_monte_carlo(args.max_runs, samples, pb.dim, "--max-runs", fix)
+    if args.channel is not None:
+        try:
+            pb = pb.with_changes(validation={"channel": args.channel})
+        except ProblemError as exc:
+            raise channel_error(exc) from None
     if args.replan is not None:
         if args.no_validate:
             raise InputError("--replan runs inside the validation: drop --no-validate")

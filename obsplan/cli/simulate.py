@@ -22,8 +22,10 @@ from obsplan.cli.common import (
     Applies,
     OutputDir,
     add_beacon_path_argument,
+    add_channel_argument,
     add_output_arguments,
     add_vehicle_arguments,
+    channel_error,
     check_applies,
     check_seed,
     given_fact,
@@ -32,7 +34,8 @@ from obsplan.cli.common import (
     resolve_beacon_path,
 )
 from obsplan.core import budget
-from obsplan.core.errors import InputError
+from obsplan.core.errors import ConfigError, InputError, ProblemError
+from obsplan.estimation.channel import Channel, channel_preset
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE, EstimationConfig
 from obsplan.estimation.montecarlo.guidance import NAVIGATION_FILTERS, Guidance, TruthLimits
 from obsplan.estimation.montecarlo.simulate import (
@@ -205,6 +208,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         default=None,
         help="closed loop: the vehicle's speed bound [m/s] (default none)",
     )
+    add_channel_argument(p)
     p.add_argument("--json", action="store_true", help="print the results as JSON")
     add_output_arguments(p, "figures", None)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -315,6 +319,11 @@ def _problem_mode(args: argparse.Namespace, traj):
         pb = replace(pb, validation=replace(pb.validation, mode="open-loop"))
     if args.navigation is not None:
         pb = replace(pb, validation=replace(pb.validation, navigation=args.navigation))
+    if args.channel is not None:
+        try:
+            pb = pb.with_changes(validation={"channel": args.channel})
+        except ProblemError as exc:
+            raise channel_error(exc) from None
     return pb
 
 
@@ -461,6 +470,7 @@ def run(args: argparse.Namespace) -> int:
                 "init_error": _init_error(args.init_error or "sample"),
                 "process_noise": not args.no_process_noise,
                 "beacon_path": path,
+                "channel": _channel(args.channel),
             }
             if args.paper_noise:
                 cfg = EstimationConfig.paper(model, 1.0 / sample_rate(fine), **common)
@@ -495,6 +505,14 @@ def run(args: argparse.Namespace) -> int:
         )
         return 1
     return 0
+
+
+def _channel(name: str | None) -> Channel:
+    """The ``--channel`` preset (ideal when not given)."""
+    try:
+        return channel_preset(name or "ideal")
+    except ConfigError as exc:
+        raise channel_error(exc) from None
 
 
 def _progress(args: argparse.Namespace) -> bool:

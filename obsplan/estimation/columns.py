@@ -15,7 +15,14 @@ COL_NEES, COL_SE_VEL, COL_VAR_VEL, COL_AXES = 0, 1, 2, 3
 INFO_FINAL_POS, INFO_FINAL_VEL, INFO_FINAL_STD, INFO_LAST_ABOVE = 0, 1, 2, 3
 INFO_NONFINITE, INFO_FLAGGED, INFO_FLAG_TIME, INFO_NIS = 4, 5, 6, 7
 INFO_RMSE_POS, INFO_RMSE_LINES = 8, 9
-N_INFO = 10
+#: Ranges the filter used, rejected by its innovation gate, and its re-acquisitions (per run;
+#: the kernels' gate counters ``rg`` (N_GATE, R) in this order, then the run of rejections).
+INFO_RANGES_USED, INFO_RANGES_REJECTED, INFO_REACQUIRED = 10, 11, 12
+N_INFO = 13
+#: Rows of the kernels' gate counters copied to the per-run info.
+N_GATE = 3
+#: Row of the kernels' gate counters holding the current run of consecutive rejections.
+GATE_RUN = 3
 #: Per-run truth metrics of the kernels (see :class:`TruthStats`): closest and farthest range
 #: squared [m²], ``Σ |p - p_ref|²`` over samples [m²], last ``|p - p_ref|²`` [m²], max ``|p'|²``
 #: [m²/s²] (squares: one root per run at the end, not one per sample), max distance outside the

@@ -59,6 +59,13 @@ import numpy as np
 from obsplan.core.csvtable import COLUMN_LIMITS
 from obsplan.core.errors import ConfigError
 from obsplan.core.textfiles import check_magnitude
+from obsplan.estimation.channel import (
+    CHANNEL_PRESETS,
+    SCALE_PRIOR_STD,
+    Channel,
+    default_gate,
+    gate_nis,
+)
 from obsplan.estimation.kalman import integrated_noise
 from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import SENSOR_ALIASES, SENSORS, VehicleModel
@@ -319,6 +326,21 @@ class EstimationConfig:
         filters and the posterior CRB range to it; the path must cover every trajectory it is
         used on and have the model's dimension (:mod:`obsplan.estimation.epochs`, "A moving
         beacon"). None (default): the model's fixed beacon.
+    channel : Channel, optional
+        The acoustic channel the truth's ranges go through (:mod:`obsplan.estimation.channel`);
+        the filters do not know it. Default the ideal channel (Gaussian ranges). Its loss
+        probability is the range's ``dropout``: give it in one place (a channel with a dropout
+        and ``dropout["range"]`` is an error).
+    gate : float, "auto" or "off", optional
+        The filters' innovation gate on the ranges: a confidence in (0, 1) of the chi-square
+        quantile of one degree of freedom, ``"off"`` (or 1), or ``"auto"`` (default: on at
+        :data:`~obsplan.estimation.channel.GATE_PROBABILITY` when the channel has outliers,
+        off otherwise; :func:`~obsplan.estimation.channel.default_gate`).
+    scale_state : "auto", "on" or "off", optional
+        A range-scale state in the EKF and the Gaussian sum (a sound-speed error estimated,
+        prior std :data:`~obsplan.estimation.channel.SCALE_PRIOR_STD`): ``"auto"`` (default)
+        adds it when the channel is not ideal (ranges at sea have an unknown sound speed), never
+        on the ideal channel (whose numbers stay those of before).
 
     Instances pickle (the model is rebuilt from its parameters), so they can be shipped to worker
     processes.
@@ -343,6 +365,9 @@ class EstimationConfig:
     current_noise: float = 0.0
     ekf_update: EkfUpdate = "first-order"
     beacon_path: BeaconPath | None = None
+    channel: Channel = CHANNEL_PRESETS["ideal"]
+    gate: float | str = "auto"
+    scale_state: str = "auto"
 
     def __reduce__(self):
         # the model may hold CasADi symbols (not picklable) and the mappings are read-only
@@ -367,6 +392,9 @@ class EstimationConfig:
                 "current_noise",
                 "ekf_update",
                 "beacon_path",
+                "channel",
+                "gate",
+                "scale_state",
             )
         }
         for f in ("rates_hz", "noise", "dropout"):
@@ -406,6 +434,7 @@ class EstimationConfig:
         object.__setattr__(self, "noise", MappingProxyType(full_noise))
         object.__setattr__(self, "dropout", MappingProxyType(drop))
         _check_beacon_path(model, self.beacon_path)
+        self._check_channel(drop)
 
         mx = model.state_dim
         mz = augmented_model(model).state_dim
@@ -471,6 +500,48 @@ class EstimationConfig:
                     f"monitor_window_s must be a duration >= 0 s (or None for 10 % of the run), "
                     f"got {self.monitor_window_s!r}"
                 )
+
+    def _check_channel(self, drop: Mapping[str, float]) -> None:
+        if not isinstance(self.channel, Channel):
+            raise ConfigError("channel must be a Channel (obsplan.estimation.channel)")
+        if self.channel.dropout > 0 and "range" in drop:
+            raise ConfigError(
+                "dropout['range'] and the channel's dropout are the same loss of pings: give one"
+            )
+        if self.scale_state not in ("auto", "on", "off"):
+            raise ConfigError(
+                f"scale_state must be 'auto', 'on' or 'off', got {self.scale_state!r}"
+            )
+        g = self.gate
+        if isinstance(g, str):
+            if g not in ("auto", "off"):
+                raise ConfigError(
+                    f"gate must be a confidence in (0, 1], 'auto' or 'off', got {g!r}"
+                )
+        elif isinstance(g, bool) or not (0.0 < float(g) <= 1.0):
+            raise ConfigError(f"gate must be a confidence in (0, 1], 'auto' or 'off', got {g!r}")
+        else:
+            object.__setattr__(self, "gate", float(g))
+
+    @property
+    def scale_prior_std(self) -> float | None:
+        """The prior std of the filters' range-scale state, None without one."""
+        on = self.scale_state == "on" or (self.scale_state == "auto" and not self.channel.is_ideal)
+        return SCALE_PRIOR_STD if on else None
+
+    @property
+    def gate_probability(self) -> float | None:
+        """The confidence of the filters' range gate, None when there is none."""
+        if self.gate == "auto":
+            return default_gate(self.channel)
+        if self.gate == "off" or float(self.gate) >= 1.0:
+            return None
+        return float(self.gate)
+
+    @property
+    def gate_nis(self) -> float:
+        """The NIS threshold of the range gate (``inf``: no gate)."""
+        return gate_nis(self.gate_probability)
 
     def _check_process_noise(self) -> None:
         per_step = self.q_ekf is not None or self.q_kf is not None
@@ -633,6 +704,10 @@ class EstimationConfig:
             ),
             "current_noise": float(self.current_noise),
         }
+        if not self.channel.is_ideal or self.gate_probability is not None:
+            out["channel"] = self.channel.to_dict()
+            out["gate"] = self.gate_probability
+            out["scale_state"] = self.scale_prior_std is not None
         if self.beacon_path is not None:
             out["beacon_motion"] = "path"
             out["beacon_path_span_s"] = [self.beacon_path.start, self.beacon_path.end]

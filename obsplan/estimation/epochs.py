@@ -42,6 +42,7 @@ its results are those of the model's beacon, bit for bit.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -461,6 +462,9 @@ class RunContext:
     beacons : (E, n) or (1, n), optional
         The beacon each epoch's range is taken to [m] (:func:`epoch_beacons`); one row: a fixed
         beacon; default the origin.
+    gate_nis : float, optional
+        The filters' innovation gate on the ranges: the largest NIS of a range used
+        (:mod:`obsplan.estimation.channel`); default ``inf``, no gate.
     """
 
     plan: EpochPlan
@@ -471,6 +475,7 @@ class RunContext:
     window_s: float
     rec_w: np.ndarray | None = None
     beacons: np.ndarray | None = None
+    gate_nis: float = math.inf
 
     def __post_init__(self) -> None:
         if self.rec_w is None:

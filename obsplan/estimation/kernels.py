@@ -54,6 +54,7 @@ import numba as nb
 import numpy as np
 
 from obsplan.estimation import jitcache
+from obsplan.estimation.channel import REACQUIRE_AFTER
 from obsplan.estimation.columns import (
     COL_AXES,
     COL_NEES,
@@ -67,8 +68,10 @@ from obsplan.estimation.columns import (
     INFO_LAST_ABOVE,
     INFO_NIS,
     INFO_NONFINITE,
+    INFO_RANGES_USED,
     INFO_RMSE_LINES,
     INFO_RMSE_POS,
+    N_GATE,
     TM_AREA_OUT,
     TM_CLOSEST,
     TM_DEPTH_OUT,
@@ -496,6 +499,89 @@ def linear_updates(X, P, Y, e, lin, iw, ws, G):
             update_rows(X, P, iw, ws, nnz)
 
 
+@inline
+def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg):
+    """The innovation gate on a range row of every run, before its update (with ``gate =
+    inf`` it only counts).
+
+    Per run, the range is used when the smallest NIS ``ν²/s`` of its members (one: the EKF, the
+    KF; a Gaussian sum's components: the range fits some branch) is at most ``gate``; else it is
+    rejected (its members' validity set to 0), unless the run has rejected
+    :data:`~obsplan.estimation.channel.REACQUIRE_AFTER` ranges in a row: then it re-acquires
+    (the replay's rule, :mod:`obsplan.estimation.replay.smoother`): each member whose NIS is
+    above the gate gets the isotropic position variance ``(ν²/gate - s)/|h_p|²`` that puts it on
+    the gate, and the range is used.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' priors (``P`` widened in place on re-acquisition).
+    iw : ndarray of int, shape (m,)
+        State indices of the row's non-zero entries (the first ``nnz``; the first ``npos`` of
+        them the position).
+    ws : ndarray
+        Workspace: the row's values, innovations, variances and validity (module docstring).
+    nnz, npos : int
+        Non-zero entries of the row; those on the position.
+    G : int
+        Members per run.
+    gate : float
+        The largest NIS of a range used (``inf``: no gate).
+    rg : ndarray, shape (4, R)
+        Per run: ranges used, rejected, re-acquisitions, the current run of rejections.
+    """
+    B = X.shape[1]
+    for g in range(B // G):
+        b0 = g * G
+        seen = False
+        best = math.inf
+        for c in range(G):
+            b = b0 + c
+            if ws[WS_SC, SC_OK, b] == 0.0:
+                continue
+            seen = True
+            if gate < math.inf:
+                hph = 0.0
+                for t in range(nnz):
+                    acc = 0.0
+                    for u in range(nnz):
+                        acc += P[iw[t], iw[u], b] * ws[WS_VAL, u, b]
+                    hph += ws[WS_VAL, t, b] * acc
+                s = hph + ws[WS_SC, SC_R, b]
+                ws[WS_SC, SC_S, b] = s  # scratch until update_rows sets it
+                nu = ws[WS_SC, SC_NU, b]
+                best = min(best, nu * nu / s)
+        if not seen:
+            continue
+        if not best > gate:
+            rg[0, g] += 1.0
+            rg[3, g] = 0.0
+        elif rg[3, g] >= REACQUIRE_AFTER:
+            for c in range(G):
+                b = b0 + c
+                if ws[WS_SC, SC_OK, b] == 0.0:
+                    continue
+                nu, s = ws[WS_SC, SC_NU, b], ws[WS_SC, SC_S, b]
+                hh = 0.0
+                for t in range(npos):
+                    hh += ws[WS_VAL, t, b] * ws[WS_VAL, t, b]
+                if nu * nu > gate * s and hh > 0.0:
+                    d = (nu * nu / gate - s) / hh
+                    for t in range(npos):
+                        P[iw[t], iw[t], b] += d
+            rg[0, g] += 1.0
+            rg[2, g] += 1.0
+            rg[3, g] = 0.0
+        else:
+            for c in range(G):
+                b = b0 + c
+                ws[WS_SC, SC_OK, b] = 0.0
+                ws[WS_SC, SC_NU, b] = 0.0
+                ws[WS_SC, SC_R, b] = 1.0
+            rg[1, g] += 1.0
+            rg[3, g] += 1.0
+
+
 # ----------------------------------------------------------------------------- statistics
 @inline
 def nees(nw, n2):
@@ -867,7 +953,7 @@ def record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm
 
 # ----------------------------------------------------------------------------- EKF
 @inline
-def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
+def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
     """The range row of every member, linearised at its prior; returns whether any reports.
 
     ``second``: the Gaussian second-order update (Jazwinski 1970, sec. 9.3; Bar-Shalom, Li and
@@ -901,6 +987,10 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
         The Gaussian second-order update.
     var_r : float
         Variance of the range noise [m²].
+    ks : int
+        Index of the range-scale state ``k`` (-1: none): the row predicts ``k ρ`` (``½ k² ρ²``
+        half-squared), its entry on ``k`` is ``ρ`` (``k ρ²``) in position ``n`` of the row, and
+        the row on ``p`` and the second-order terms carry ``k`` (``k²``).
 
     Returns
     -------
@@ -912,6 +1002,8 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
     eb = e if beacon.shape[0] > 1 else 0
     for i in range(n):
         iw[i] = i
+    if ks >= 0:
+        iw[n] = ks
     for b in range(B):
         rm = Y[e, 0, b // G]
         ok = math.isfinite(rm)
@@ -956,16 +1048,83 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
                     uw += ws[WS_VAL, i, b] * wi
                 nu -= 0.5 * (trp - uw) / rho
                 r += 0.5 * (trp2 - 2.0 * ww + uw * uw) / (rho * rho)
-        ws[WS_SC, SC_NU, b] = nu if ok else 0.0
-        ws[WS_SC, SC_R, b] = r if ok else 1.0
+        if ks >= 0 and ok:
+            scale_row(X, P, ws, n, b, ks, half_sq, rm, rho2, var_r, nu, r)
+        else:
+            ws[WS_SC, SC_NU, b] = nu if ok else 0.0
+            ws[WS_SC, SC_R, b] = r if ok else 1.0
         ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
         any_ok = any_ok or ok
     return any_ok
 
 
+@inline
+def scale_row(X, P, ws, n, b, ks, half_sq, rm, rho2, var_r, nu, r):
+    """Member ``b``'s range row with the range-scale state ``k = X[ks, b]``, from the row
+    without it (``ws[WS_VAL, :n, b]``, innovation ``nu`` and variance ``r`` of ``k = 1``).
+
+    Range form: prediction ``k ρ`` and row ``(k u, ρ)``; the second-order terms (``nu - rm +
+    ρ``, ``r - var_r``) scale by ``k``, ``k²``. Half-squared: prediction ``½ k² ρ²``, row
+    ``(k² (p - b), k ρ²)``, terms by ``k²``, ``k⁴``.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' priors.
+    ws : ndarray
+        Workspace: the row (updated), innovation and variance (set).
+    n, b, ks : int
+        Spatial dimension, member, index of the scale state.
+    half_sq : bool
+        The half-squared range form.
+    rm, rho2, var_r : float
+        The reading [m], ``ρ²`` at the prior [m²], the range noise variance [m²].
+    nu, r : float
+        The innovation and variance of the row without the scale.
+    """
+    k = X[ks, b]
+    if half_sq:
+        base = 0.5 * rm * rm - 0.5 * var_r - 0.5 * rho2
+        r0 = rm * rm * var_r + 0.5 * var_r * var_r
+        k2 = k * k
+        nu_s = 0.5 * rm * rm - 0.5 * var_r - 0.5 * k2 * rho2 + k2 * (nu - base)
+        r_s = r0 + k2 * k2 * (r - r0)
+        for i in range(n):
+            ws[WS_VAL, i, b] *= k2
+        ws[WS_VAL, n, b] = k * rho2
+    else:
+        rho = math.sqrt(rho2)
+        nu_s = rm - k * rho + k * (nu - rm + rho)
+        r_s = var_r + k * k * (r - var_r)
+        for i in range(n):
+            ws[WS_VAL, i, b] *= k
+        ws[WS_VAL, n, b] = rho
+    ws[WS_SC, SC_NU, b] = nu_s
+    ws[WS_SC, SC_R, b] = r_s
+
+
 @jit
 def ekf_measure(
-    X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt
+    X,
+    P,
+    Y,
+    e,
+    lw,
+    w,
+    G,
+    iw,
+    ws,
+    n,
+    beacon,
+    half_sq,
+    second,
+    var_r,
+    lin,
+    run_nis,
+    run_cnt,
+    gate,
+    rg,
+    ks,
 ):
     """The EKF's updates at epoch ``e`` (range row, then the linear rows) of every member, and
     their NIS: per run, or for a Gaussian sum (``G > 1``) the mixture's with the prior weights,
@@ -993,15 +1152,23 @@ def ekf_measure(
         The linear output rows.
     run_nis, run_cnt : ndarray, shape (R,)
         Each run's sum of normalised innovations squared and their number, added to.
+    gate : float
+        The innovation gate on the ranges (:func:`gate_rows`; ``inf``: none).
+    rg : ndarray, shape (4, R)
+        Each run's gate counters (:func:`gate_rows`).
+    ks : int
+        Index of the range-scale state (-1: none; :func:`ekf_range_row`).
     """
     B = X.shape[1]
     R = B // G
+    nnz = n + 1 if ks >= 0 else n
     for b in range(B):
         ws[WS_SC, SC_NIS, b] = 0.0
         ws[WS_SC, SC_CNT, b] = 0.0
         ws[WS_SC, SC_LL, b] = 0.0
-    if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r):
-        update_rows(X, P, iw, ws, n)
+    if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
+        gate_rows(X, P, iw, ws, nnz, n, G, gate, rg)
+        update_rows(X, P, iw, ws, nnz)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, lin, iw, ws, G)
     if G == 1:
@@ -1092,6 +1259,7 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
     buf = np.zeros((R, rec_base.shape[0], COL_AXES + 2 * n))
     run_nis = np.zeros(R)
     run_cnt = np.zeros(R)
+    rg = np.zeros((N_GATE + 1, R))
     var_r = sig_r * sig_r
     # typed int64 from the start: a literal 0 makes numba compile record_batch a second time
     # for the Literal[int] it sees before the loop's increment widens the type
@@ -1109,13 +1277,34 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
             if corr:
                 correct_inputs(X, ce, e, tab[e, TAB_T], n, G)
         ekf_measure(
-            X, P, Y, e, lw, w, G, iw, ws, n, beacon, half_sq, second, var_r, lin, run_nis, run_cnt
+            X,
+            P,
+            Y,
+            e,
+            lw,
+            w,
+            G,
+            iw,
+            ws,
+            n,
+            beacon,
+            half_sq,
+            second,
+            var_r,
+            lin,
+            run_nis,
+            run_cnt,
+            mdl.gate,
+            rg,
+            mdl.ks,
         )
         while ri < n_rec and rec_base[ri] == e:
             record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)
             ri += 1
     for g in range(R):
         finish_run(buf[g], t_rec, thr, bound, window, run_nis[g], run_cnt[g], sums, info[g], rec_w)
+        for j in range(N_GATE):
+            info[g, INFO_RANGES_USED + j] = rg[j, g]
 
 
 # ----------------------------------------------------------------------------- augmented KF
@@ -1273,7 +1462,7 @@ def kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp):
 
 
 @inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
-def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
+def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
     """The augmented KF's updates at epoch ``e`` (the linear range row ``ȳ``, then the linear
     rows) of every run, and their NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``).
 
@@ -1295,6 +1484,8 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
         The runs' input corrections (empty: open loop).
     run_nis, run_cnt : ndarray, shape (R,)
         Each run's sum of normalised innovations squared and their number, added to.
+    rg : ndarray, shape (4, R)
+        Each run's gate counters (:func:`gate_rows`, with the gate ``mdl.gate``).
     """
     n, ep_d, ce, y0, var0 = mdl.n, mdl.ep_d, cor.ce, anc.y0, anc.var0
     var_r = mdl.sig_r * mdl.sig_r
@@ -1328,6 +1519,7 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt):
             ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
             any_ok = any_ok or ok
         if any_ok:
+            gate_rows(X, P, iw, ws, n + 1, n, 1, mdl.gate, rg)
             update_rows(X, P, iw, ws, n + 1)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, mdl.lin, iw, ws, 1)
@@ -1374,6 +1566,7 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     buf = np.zeros((B, rec_base.shape[0], COL_AXES + 2 * n))
     run_nis = np.zeros(B)
     run_cnt = np.zeros(B)
+    rg = np.zeros((N_GATE + 1, B))
     ri = np.int64(0)  # int64, not Literal[int] (as in ekf_batch)
     n_rec = rec_base.shape[0]
     one = np.int64(1)  # the KF is one member per run; a literal 1 would compile record_batch anew
@@ -1381,7 +1574,7 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
     for e in range(E):
         if e > 0:
             kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp)
-        kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt)
+        kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg)
         if moving:  # a record based at epoch e predicts r with ν: absolute at b_e (kf_relative)
             for i in range(n):
                 nw[NW_OFF, i] = mdl.beacon[e, i]
@@ -1401,3 +1594,5 @@ def kf_batch(Z0, P0, Y, mdl, anc, rcd, out, cor):
             info[g],
             rcd.rec_w,
         )
+        for j in range(N_GATE):
+            info[g, INFO_RANGES_USED + j] = rg[j, g]

@@ -44,6 +44,7 @@ from obsplan.planning.missions.check import MissionCheck
 from obsplan.planning.missions.schedule import mission_schedule, planner_schedule
 from obsplan.planning.objectives.evaluate import PathMetrics
 from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.validation_setup import channel_dict
 from obsplan.planning.replan import ReplanResult
 from obsplan.planning.solver.margins import KeepoutReport
 from obsplan.planning.solver.solve import SolveResult
@@ -170,8 +171,9 @@ class ValidationResult:
         return out
 
     def validation_dict(self) -> dict:
-        """``report.json``'s ``validation``: ``mode`` (``"closed-loop"`` or ``"open-loop"``)
-        and one entry per validated path (empty when no validation was run).
+        """``report.json``'s ``validation``: ``mode`` (``"closed-loop"`` or ``"open-loop"``),
+        ``channel`` (:func:`channel_dict`) and one entry per validated path (empty when no
+        validation was run).
 
         Returns
         -------
@@ -182,6 +184,7 @@ class ValidationResult:
             return {}
         return {
             "mode": self.problem.validation.mode,
+            "channel": channel_dict(self.problem),
             **{k: v.to_dict() for k, v in self.validation.items()},
         }
 

@@ -50,6 +50,10 @@ class FilterRun:
         Members per run.
     epoch : int
         The epoch the state is at; ``updated`` whether its readings are applied.
+    run_nis, run_cnt : (R,)
+        Each run's sum of normalised innovations squared and their number.
+    rg : (4, R)
+        Each run's range gate counters (:func:`obsplan.estimation.kernels.gate_rows`).
     parts : dict
         The kernels' bundles and work arrays (filter-specific).
     """
@@ -65,6 +69,7 @@ class FilterRun:
     updated: bool = False
     run_nis: np.ndarray | None = None
     run_cnt: np.ndarray | None = None
+    rg: np.ndarray | None = None
 
 
 class Filter(ABC):

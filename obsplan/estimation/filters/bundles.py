@@ -24,8 +24,9 @@ from obsplan.model.vehicle import VehicleModel
 #: ``tr``, the linear output rows ``lin``, the dimension ``n``, current ``cur``, the beacon of each
 #: epoch's range ``beacon`` (E, n) (one row (1, n): a fixed beacon),
 #: range form ``half_sq``, the second-order range update ``second`` and the range noise
-#: ``sig_r`` [m].
-EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig_r")
+#: ``sig_r`` [m], the innovation gate on the ranges ``gate`` (the largest NIS used; ``inf``:
+#: none) and the index ``ks`` of the range-scale state (-1: none).
+EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig_r gate ks")
 
 #: What the augmented KF predicts and updates with: as :data:`EkfModel` plus the segments'
 #: Gauss rules ``rule``, the input displacement and rate at the epochs ``ep_d`` (E, 2n), the
@@ -33,7 +34,7 @@ EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig
 #: ``couple`` and ``inflate`` (``y0_mode="inflate"``). With a moving beacon ``tab`` and ``ep_d``
 #: are the relative motion's (:func:`kf_relative`).
 KfModel = namedtuple(
-    "KfModel", "tab rule ep_d qt qk qdiag couple tr lin n cur beacon sig_r inflate"
+    "KfModel", "tab rule ep_d qt qk qdiag couple tr lin n cur beacon sig_r inflate gate"
 )
 
 #: The KF's anchors per run: ``y0`` (R,) and their variances ``var0`` (R,).
@@ -83,6 +84,8 @@ def ekf_model(model: VehicleModel, ctx: RunContext, filt) -> EkfModel:
         half_sq=model.range_form == "half-squared",
         second=bool(filt.second_order),
         sig_r=float(filt.noise["range"]),
+        gate=float(ctx.gate_nis),
+        ks=int(filt.scale_index),
     )
 
 
@@ -124,6 +127,7 @@ def kf_model(model: VehicleModel, ctx: RunContext, filt) -> KfModel:
         beacon=ctx.beacons,
         sig_r=float(filt.noise["range"]),
         inflate=filt.y0_mode == "inflate",
+        gate=float(ctx.gate_nis),
     )
 
 

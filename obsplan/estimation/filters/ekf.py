@@ -35,6 +35,31 @@ from obsplan.estimation.filters.base import Filter, FilterRun, register
 from obsplan.model.vehicle import VehicleModel
 
 
+def pad_scale(a: np.ndarray, var: float | None) -> np.ndarray:
+    """``a`` (m, m) with a last row and column for the range-scale state, zero but for the
+    diagonal ``var``; ``a`` itself when ``var`` is None.
+
+    Parameters
+    ----------
+    a : ndarray, shape (m, m)
+        A covariance (or noise term) of the kinematic state.
+    var : float or None
+        The scale's entry.
+
+    Returns
+    -------
+    ndarray, shape (m + 1, m + 1) or (m, m)
+        The padded matrix.
+    """
+    if var is None:
+        return a
+    m = a.shape[0]
+    out = np.zeros((m + 1, m + 1))
+    out[:m, :m] = a
+    out[m, m] = var
+    return out
+
+
 @register
 class ExtendedKalmanFilter(Filter):
     """EKF of one vehicle model with per-step process noise ``q`` and sensor noises.
@@ -51,6 +76,10 @@ class ExtendedKalmanFilter(Filter):
         Measurement standard deviation per sensor (range [m] on ``r``, DVL [m/s], depth [m]).
     second_order : bool, optional
         The Gaussian second-order range update (module docstring); default the first-order.
+    scale_std : float or None, optional
+        With a value, the state gets a last entry ``k``, the range scale (``1 + s`` of a
+        sound-speed error), constant, with prior ``N(1, scale_std²)``: the range row predicts
+        ``k |p - b|`` (``½ k² |p - b|²`` half-squared). None (default): no scale state.
     """
 
     name = "ekf"
@@ -63,15 +92,22 @@ class ExtendedKalmanFilter(Filter):
         p0: np.ndarray,
         noise: dict[str, float],
         second_order: bool = False,
+        scale_std: float | None = None,
     ) -> None:
         self.model = model
         self.second_order = bool(second_order)
-        self.p0 = np.array(p0, dtype=float)
         n, m = model.dim, model.state_dim
-        self.state_dim = m
+        self.scale_std = None if scale_std is None else float(scale_std)
+        #: the index of the range-scale state, -1 without one
+        self.scale_index = -1 if scale_std is None else m
+        var = None if scale_std is None else float(scale_std) ** 2
+        self.p0 = pad_scale(np.array(p0, dtype=float), var)
+        self.state_dim = m + (scale_std is not None)
         self.noise = dict(noise)
         self.q = np.asarray(q, float)
-        self.q_terms = kalman.composed_noise_terms(self.q, n, model.current)
+        terms = kalman.composed_noise_terms(self.q, n, model.current)
+        zero = None if var is None else 0.0  # the scale is constant: no process noise
+        self.q_terms = np.ascontiguousarray(np.stack([pad_scale(t, zero) for t in terms]))
         self.q_nav = kalman.nav_noise(self.q, n, model.current)
         self.transition = kalman.Transition.build(kalman.kinematic_entries(n, model.current))
         self.rows = kalman.linear_rows(model, self.noise, 0.0)
@@ -99,7 +135,8 @@ class ExtendedKalmanFilter(Filter):
             The filter.
         """
         second = config.ekf_update == "second-order"
-        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), second)
+        scale = config.scale_prior_std
+        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), second, scale)
 
     def start(
         self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
@@ -123,7 +160,10 @@ class ExtendedKalmanFilter(Filter):
         P0 : ndarray, shape (state_dim, state_dim)
             Initial covariance (the filter's ``p0``).
         """
-        return np.array(xhat0, dtype=float), self.p0.copy()
+        x0 = np.array(xhat0, dtype=float)
+        if self.scale_index >= 0:
+            x0 = np.append(x0, 1.0)
+        return x0, self.p0.copy()
 
     def run(self, batch: RunBatch, record: RunRecord) -> None:
         """Filter ``batch`` over its epochs and add the runs' statistics to ``record``.
@@ -222,6 +262,7 @@ class ExtendedKalmanFilter(Filter):
             parts=parts,
             run_nis=np.zeros(R),
             run_cnt=np.zeros(R),
+            rg=np.zeros((4, R)),
         )
 
     def predict(self, run: FilterRun) -> None:
@@ -274,5 +315,8 @@ class ExtendedKalmanFilter(Filter):
             mdl.lin,
             run.run_nis,
             run.run_cnt,
+            mdl.gate,
+            run.rg,
+            mdl.ks,
         )
         run.updated = True

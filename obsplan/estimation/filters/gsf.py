@@ -37,7 +37,7 @@ from obsplan.core.errors import ConfigError
 from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.config import EstimationConfig, ProcessNoise
 from obsplan.estimation.filters.base import Filter, FilterRun, register
-from obsplan.estimation.filters.ekf import ExtendedKalmanFilter
+from obsplan.estimation.filters.ekf import ExtendedKalmanFilter, pad_scale
 from obsplan.model.vehicle import VehicleModel
 
 #: Points per velocity axis and component std (whitened) by dimension: 25 components in 2D,
@@ -115,6 +115,8 @@ class GaussianSumFilter(Filter):
         ``(points per velocity axis, component std)``; default :data:`DEFAULT_SPLIT`.
     second_order : bool, optional
         The components' range update (as for the EKF).
+    scale_std : float or None, optional
+        The components' range-scale state (as for the EKF; not split).
     """
 
     name = "gsf"
@@ -128,10 +130,11 @@ class GaussianSumFilter(Filter):
         noise: dict[str, float],
         split: tuple[int, float] | None = None,
         second_order: bool = False,
+        scale_std: float | None = None,
     ) -> None:
-        self.ekf = ExtendedKalmanFilter(model, q, p0, noise, second_order)
+        self.ekf = ExtendedKalmanFilter(model, q, p0, noise, second_order, scale_std)
         self.model = model
-        self.state_dim = model.state_dim
+        self.state_dim = self.ekf.state_dim
         k, s = DEFAULT_SPLIT[model.dim] if split is None else split
         n = model.dim
         w1, mu = split_1d(int(k), float(s))
@@ -144,7 +147,11 @@ class GaussianSumFilter(Filter):
         self.offsets = np.array(offsets)
         self.log_weights = np.log(np.array(weights))
         shrink = 0.0 if len(w1) == 1 else 1.0 - s * s
-        self.component_cov = np.asarray(p0, float) - shrink * (D @ D.T)
+        cov = np.asarray(p0, float) - shrink * (D @ D.T)
+        if scale_std is not None:  # the split is over the velocity: the scale is not split
+            self.offsets = np.hstack([self.offsets, np.zeros((self.offsets.shape[0], 1))])
+            cov = pad_scale(cov, float(scale_std) ** 2)
+        self.component_cov = cov
 
     @classmethod
     def from_config(
@@ -168,7 +175,8 @@ class GaussianSumFilter(Filter):
             The filter.
         """
         second = config.ekf_update == "second-order"
-        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), None, second)
+        noise, scale = dict(config.noise), config.scale_prior_std
+        return cls(config.model, pn.q_ekf, cov["p0_ekf"], noise, None, second, scale)
 
     @property
     def components(self) -> int:
@@ -198,7 +206,10 @@ class GaussianSumFilter(Filter):
             Their log weights.
         """
         C = self.components
-        X0 = np.asarray(xhat0, float)[None, :] + self.offsets
+        x0 = np.asarray(xhat0, float)
+        if self.ekf.scale_index >= 0:
+            x0 = np.append(x0, 1.0)
+        X0 = x0[None, :] + self.offsets
         P0 = np.ascontiguousarray(
             np.broadcast_to(self.component_cov, (C, *self.component_cov.shape))
         )

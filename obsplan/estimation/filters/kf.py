@@ -333,6 +333,7 @@ class AugmentedKalmanFilter(Filter):
             parts=parts,
             run_nis=np.zeros(B),
             run_cnt=np.zeros(B),
+            rg=np.zeros((4, B)),
         )
 
     def predict(self, run: FilterRun) -> None:
@@ -379,5 +380,6 @@ class AugmentedKalmanFilter(Filter):
             p["cor"],
             run.run_nis,
             run.run_cnt,
+            run.rg,
         )
         run.updated = True

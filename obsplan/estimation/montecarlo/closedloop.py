@@ -39,7 +39,7 @@ from obsplan.core.errors import ConfigError
 from obsplan.estimation import kalman
 from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.bounds.crlb import CRLBResult, posterior_crlb
-from obsplan.estimation.columns import COL_AXES
+from obsplan.estimation.columns import COL_AXES, INFO_RANGES_USED, N_GATE
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.epochs import segment_table
 from obsplan.estimation.filters.ekf import ExtendedKalmanFilter
@@ -55,7 +55,12 @@ from obsplan.estimation.montecarlo.runs import (
     start_of,
 )
 from obsplan.estimation.montecarlo.stats import TruthStats, empty_metrics
-from obsplan.estimation.montecarlo.truth import STREAM_PROCESS, reading_noise, run_rng
+from obsplan.estimation.montecarlo.truth import (
+    STREAM_PROCESS,
+    corrupt_ranges,
+    reading_noise,
+    run_rng,
+)
 from obsplan.trajectory.sampled import Trajectory
 
 #: Samples advanced per kernel call: bounds the process-noise normals held at once.
@@ -68,11 +73,11 @@ GRID_RTOL = 1e-9
 NavPath = namedtuple(
     "NavPath",
     "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon beacon_s n cur half_sq second "
-    "sig_r L expo scaled box has_box alim G",
+    "sig_r L expo scaled box has_box alim G rscale gate ks",
 )
 NavGains = namedtuple("NavGains", "kp kd amax vmax kv truth")
 NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
-NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt tm xb ex ex_run")
+NavIO = namedtuple("NavIO", "Yn Y ce cr rec buf run_nis run_cnt rg tm xb ex ex_run")
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,7 +207,7 @@ class ClosedLoop:
         lim = self.limits or TruthLimits()
         return NavPath(
             h=np.ascontiguousarray(self.traj.dt),
-            xplan=np.ascontiguousarray(s.states),
+            xplan=self._xplan(),
             nuplan=np.ascontiguousarray(self.traj.v),
             uplan=np.ascontiguousarray(self.traj.u),
             ep_of=ep_of,
@@ -227,7 +232,18 @@ class ClosedLoop:
             has_box=bool(np.any(np.isfinite(s.box))),
             alim=lim.accel_bounds(model.dim),
             G=self.members,
+            rscale=1.0 + self.config.channel.sound_speed_scale,
+            gate=s.ctx.gate_nis,
+            ks=int(f.scale_index),
         )
+
+    def _xplan(self) -> np.ndarray:
+        """The plan's states in the navigation filter's state: with a range-scale state its
+        nominal value 1 appended (the estimate is the plan plus the offset ``d``)."""
+        s = self.setup.states
+        if self.nav_filter.scale_index >= 0:
+            s = np.hstack([s, np.ones((s.shape[0], 1))])
+        return np.ascontiguousarray(s)
 
     def _gains_bundle(self):
         g, n = self.guidance, self.config.model.dim
@@ -245,16 +261,20 @@ class ClosedLoop:
         x0 = s.states[0]
         err0 = np.stack([dr.err0 for dr in self._draws], axis=1)
         G = self.members
+        mf = self.nav_filter.state_dim  # m, or m + 1 with a range-scale state
+        if mf > m:  # the scale starts at its nominal 1: no offset
+            err0 = np.vstack([err0, np.zeros((mf - m, R))])
+            x0 = np.append(x0, np.ones(mf - m))
         if self.nav_mixture is None:
             X0 = x0[:, None] + err0
-            P0 = np.repeat(np.asarray(s.cov["p0_ekf"], float)[:, :, None], R, axis=2)
+            P0 = np.repeat(np.asarray(self.nav_filter.p0, float)[:, :, None], R, axis=2)
             lw0 = np.zeros(R)
         else:  # the members of run b are columns b G .. b G + G - 1 (the kernels' layout)
-            starts = [self.nav_mixture.start(x0 + dr.err0) for dr in self._draws]
+            starts = [self.nav_mixture.start(x0[:m] + dr.err0) for dr in self._draws]
             X0 = np.concatenate([a[0] for a in starts], axis=0).T
             P0 = np.concatenate([a[1] for a in starts], axis=0).transpose(1, 2, 0)
             lw0 = np.concatenate([a[2] for a in starts])
-        ws, iw, nw = kernels.workspaces(m, R * G, n, np.zeros(n), self.nav_filter.q_nav)
+        ws, iw, nw = kernels.workspaces(mf, R * G, n, np.zeros(n), self.nav_filter.q_nav)
         st = NavState(
             pos=np.zeros(4, dtype=np.int64),
             X=np.ascontiguousarray(X0),
@@ -262,13 +282,13 @@ class ClosedLoop:
             c=np.zeros((2 * n, R)),
             d=np.ascontiguousarray(err0),
             dl=np.zeros((m, R)),
-            Q=np.zeros((m, m, R * G)),
+            Q=np.zeros((mf, mf, R * G)),
             Sp=-np.ones(3),
             ws=ws,
             iw=iw,
             nw=nw,
-            xm=np.empty(m),
-            Pm=np.empty((m, m)),
+            xm=np.empty(mf),
+            Pm=np.empty((mf, mf)),
             lw=lw0,
             w=np.ones(R * G),
             sc=np.ones(m),
@@ -278,11 +298,7 @@ class ClosedLoop:
             sat=np.zeros(R),
             vl=np.full(R, np.inf),
         )
-        noise = dict(self.config.noise)
-        Yn = np.stack(
-            [reading_noise(model, s.plan.reports, noise, dr.readings) for dr in self._draws],
-            axis=2,
-        )
+        Yn = np.stack([self._reading_noise(dr) for dr in self._draws], axis=2)
         ex_run = int(np.flatnonzero(self.run_ids == 0)[0]) if 0 in self.run_ids else -1
         io = NavIO(
             Yn=np.ascontiguousarray(Yn),
@@ -293,6 +309,7 @@ class ClosedLoop:
             buf=np.zeros((R, Nr, COL_AXES + 2 * n)),
             run_nis=np.zeros(R),
             run_cnt=np.zeros(R),
+            rg=np.zeros((N_GATE + 1, R)),
             tm=empty_metrics(R),
             xb=np.zeros((R, METRIC_SPAN, 3 * n)),
             ex=np.zeros((2, Nr, 2 * n)) if ex_run >= 0 else s.ctx.no_example,
@@ -416,33 +433,35 @@ class ClosedLoop:
         c[: 2 * n] = st.c
         xplan = s.states[k][:, None]
         P = np.moveaxis(st.P, 2, 0).copy()
+        mf = st.X.shape[0]  # the filter's state: m, or m + 1 with a range-scale state
         G = self.members
         if G > 1:  # each run's mixture covariance about its mean (the members' spread included)
             R = st.c.shape[1]
             lw = st.lw.reshape(R, G)
             w = np.exp(lw - lw.max(axis=1, keepdims=True))
             w /= w.sum(axis=1, keepdims=True)
-            X = st.X.T.reshape(R, G, m)
+            X = st.X.T.reshape(R, G, mf)
             dev = X - np.einsum("rg,rgi->ri", w, X)[:, None, :]
             P = np.einsum(
-                "rg,rgij->rij", w, P.reshape(R, G, m, m) + dev[..., :, None] * dev[..., None, :]
+                "rg,rgij->rij", w, P.reshape(R, G, mf, mf) + dev[..., :, None] * dev[..., None, :]
             )
+        P = P[:, :m, :m]  # the kinematic state (the scale is not the vehicle's)
         ke = int(s.plan.epochs[e_last])
         if k > ke:  # the prior, predicted from the last epoch (exact)
             seg = segment_table(self.traj, np.array([ke]), np.array([k]), False, s.noise.continuous)
             S0, S1, S2 = seg.sums[0]
-            q = self.nav_filter.q_terms
+            q = self.nav_filter.q_terms[:, :m, :m]
             F = self.nav_filter.transition.matrix(m, float(seg.T[0]))
             P = F @ P @ F.T + (S0 * q[0] + S1 * q[1] + S2 * q[2])
         return ClosedLoopState(
             t=self.t,
             k=k,
             runs=self.run_ids.copy(),
-            estimate=(xplan + c + st.d).T.copy(),
+            estimate=(xplan + c + st.d[:m]).T.copy(),
             covariance=kalman.symmetrize(P),
             truth=(xplan + c + st.dl).T.copy(),
             c=st.c.T.copy(),
-            d=st.d.T.copy(),
+            d=st.d[:m].T.copy(),
         )
 
     def result(self, crlb: CRLBResult | None = None) -> MonteCarloResult:
@@ -481,6 +500,17 @@ class ClosedLoop:
         )
         return self._result
 
+    def _reading_noise(self, dr) -> np.ndarray:
+        """Run ``dr``'s reading noise at the epochs, with the channel's bias, late arrivals and
+        lost pings (the clean range, scaled, is added in the loop)."""
+        s = self.setup
+        model, reports = self.config.model, s.plan.reports
+        y = reading_noise(model, reports, dict(self.config.noise), dr.readings)
+        corrupt_ranges(
+            model, y, reports, self.config.channel, dr.channel, s.rho_epochs, s.rho_dot_epochs
+        )
+        return y
+
     def _finish_filters(self) -> None:
         from obsplan.estimation import kernels
 
@@ -501,6 +531,7 @@ class ClosedLoop:
                     s.info[nav][b],
                     ctx.rec_w,
                 )
+                s.info[nav][b, INFO_RANGES_USED : INFO_RANGES_USED + N_GATE] = io.rg[:N_GATE, b]
             if io.ex_run >= 0:
                 s.hist[nav] = io.ex
         x0 = s.states[0]

@@ -108,7 +108,7 @@ def nav_measure(pt, gn, st, io, k, e):
         for i in range(n):
             rel = pt.xplan[k, i] + st.c[i, b] + st.dl[i, b] - pt.beacon[eb, i]
             rho2 += rel * rel
-        Y[e, 0, b] = math.sqrt(rho2) + io.Yn[e, 0, b]
+        Y[e, 0, b] = math.sqrt(rho2) * pt.rscale + io.Yn[e, 0, b]  # rscale: the sound speed
         for o in range(1, Y.shape[1]):  # the EKF's linear rows are the clean readings
             val = pt.lin[o, 4]
             for t in range(int(pt.lin[o, 0])):
@@ -133,6 +133,9 @@ def nav_measure(pt, gn, st, io, k, e):
         pt.lin,
         io.run_nis,
         io.run_cnt,
+        pt.gate,
+        io.rg,
+        pt.ks,
     )
     for g in range(R):  # the estimate's offset: its mixture's mean (one member: w = 1 exactly)
         mixture_weights(st.lw, st.w, g, G)

@@ -105,6 +105,27 @@ class MonteCarloResult:
             raise ConfigError(f"filter {name!r} was not run; pass filters=(..., {name!r})")
         return s
 
+    def filter_dict(self, name: str) -> dict | None:
+        """Filter ``name``'s statistics (:meth:`FilterStats.to_dict`) with its ``lost_runs``:
+        runs whose final position error exceeds
+        :data:`~obsplan.estimation.channel.LOST_FACTOR` times the posterior CRB's final
+        position std; None for a filter not run.
+
+        Parameters
+        ----------
+        name : str
+            The filter.
+
+        Returns
+        -------
+        dict or None
+            JSON-ready statistics.
+        """
+        s = (self.filters or {}).get(name)
+        if s is None:
+            return None
+        return {**s.to_dict(), "lost_runs": s.lost_runs(self.crlb_final_pos_std)}
+
     def to_dict(self) -> dict:
         """The stable keys of ``obsplan simulate --json``, then extras.
 
@@ -121,8 +142,8 @@ class MonteCarloResult:
         out = {
             "runs": int(self.runs),
             "seed": int(self.seed),
-            "ekf": None if self.ekf is None else self.ekf.to_dict(),
-            "kf": None if self.kf is None else self.kf.to_dict(),
+            "ekf": self.filter_dict("ekf"),
+            "kf": self.filter_dict("kf"),
             "crlb_final_pos_std": crlb if np.isfinite(crlb) else None,
             "duration_s": float(self.crlb.t[-1] - self.crlb.t[0]),
             "samples": int(self.t.size),
@@ -134,9 +155,9 @@ class MonteCarloResult:
             "guidance": None if self.guidance is None else self.guidance.to_dict(),
             "truth": None if self.truth is None else self.truth.to_dict(),
         }
-        for name, s in (self.filters or {}).items():
+        for name in self.filters or {}:
             if name not in ("ekf", "kf"):
-                out[name] = s.to_dict()
+                out[name] = self.filter_dict(name)
         return out
 
     def filter_stats(self) -> dict[str, FilterStats]:

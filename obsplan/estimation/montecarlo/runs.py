@@ -34,7 +34,13 @@ from obsplan.estimation.montecarlo.stats import (
     MONITOR_WINDOW_FRACTION,
     chi2_quantile,
 )
-from obsplan.estimation.montecarlo.truth import STREAM_INIT, reading_draws, run_rng, truth_factor
+from obsplan.estimation.montecarlo.truth import (
+    STREAM_INIT,
+    channel_draws,
+    reading_draws,
+    run_rng,
+    truth_factor,
+)
 from obsplan.estimation.schedule import make_schedule, sample_rate
 
 #: The estimators the Monte Carlo can run, by name: their one-line descriptions
@@ -175,7 +181,18 @@ class PathSetup:
             beacons=epoch_beacons(
                 model, config.beacon_path, traj.t[plan.epochs], traj.p[plan.epochs]
             ),
+            gate_nis=config.gate_nis,
         )
+        #: the path's nominal range at the epochs (the channel's loss growing with range)
+        rel = traj.p[plan.epochs] - self.ctx.beacons
+        self.rho_epochs = np.linalg.norm(rel, axis=1)
+        #: and its range rate (the channel's ping jitter); a moving beacon's velocity included
+        vb = np.zeros_like(rel)
+        if self.ctx.beacons.shape[0] > 1 and plan.epochs.size > 1:
+            vb = np.gradient(self.ctx.beacons, traj.t[plan.epochs], axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rd = np.einsum("ki,ki->k", rel, traj.v[plan.epochs] - vb) / self.rho_epochs
+        self.rho_dot_epochs = np.where(self.rho_epochs > 0, rd, 0.0)
         #: the beacon at every sample (the truth's closest approach); one row if it is fixed
         self.sample_beacons = sample_beacons(model, config.beacon_path, traj.t)
         self.filters = {name: make_filter(name, config, self.cov, pn) for name in names}
@@ -216,12 +233,16 @@ class RunDraws:
         Error of the KF's extras ``(p0ᵀν0, |ν0|²)`` (``init_error="sample"`` only).
     readings : list
         Per sensor, the noise normals and dropout mask (:func:`truth.reading_draws`).
+    channel : tuple of ndarray or None
+        The acoustic channel's uniforms at the range reports (:func:`truth.channel_draws`);
+        None for the ideal channel.
     """
 
     run: int
     err0: np.ndarray
     extra_err: np.ndarray | None
     readings: list
+    channel: tuple | None = None
 
 
 def draw_run(setup: PathSetup, seed: int, run: int) -> RunDraws:
@@ -251,7 +272,8 @@ def draw_run(setup: PathSetup, seed: int, run: int) -> RunDraws:
     else:
         err0 = np.asarray(config.init_error, float)
     rd = reading_draws(model, setup.plan.reports, dict(config.dropout), seed, run)
-    return RunDraws(run=run, err0=err0, extra_err=extra_err, readings=rd)
+    cd = channel_draws(model, setup.plan.reports, config.channel, seed, run)
+    return RunDraws(run=run, err0=err0, extra_err=extra_err, readings=rd, channel=cd)
 
 
 def start_of(model, x0: np.ndarray, draws: RunDraws, r0: float, beacon0=None):

@@ -366,7 +366,20 @@ def _run_batch(job: PathSetup, chunk, run_start: int, draws: list[tuple[RunDraws
     for dr, delta in draws:
         x = job.nominal + delta
         bs = job.ctx.beacons
-        Ys.append(noisy_readings(model, x[plan.epoch_pt], plan.reports, noise, dr.readings, bs))
+        Ys.append(
+            noisy_readings(
+                model,
+                x[plan.epoch_pt],
+                plan.reports,
+                noise,
+                dr.readings,
+                bs,
+                channel=job.config.channel,
+                cdraws=dr.channel,
+                rho=job.rho_epochs,
+                rho_dot=job.rho_dot_epochs,
+            )
+        )
         truths.append(nav_of(model, x[plan.rec_pt]))
         starts.append(start_of(model, x[0], dr, Ys[-1][0, 0], bs[0]))
     Y = np.stack(Ys, axis=2)

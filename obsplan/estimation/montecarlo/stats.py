@@ -34,6 +34,7 @@ import numpy as np
 from scipy.special import chdtri
 
 from obsplan.core.errors import ConfigError
+from obsplan.estimation.channel import LOST_FACTOR
 from obsplan.estimation.columns import (
     COL_AXES,
     COL_NEES,
@@ -47,6 +48,9 @@ from obsplan.estimation.columns import (
     INFO_LAST_ABOVE,
     INFO_NIS,
     INFO_NONFINITE,
+    INFO_RANGES_REJECTED,
+    INFO_RANGES_USED,
+    INFO_REACQUIRED,
     INFO_RMSE_LINES,
     INFO_RMSE_POS,
     N_TM,
@@ -340,6 +344,9 @@ class FilterStats:
         Mean over runs and updates of the normalised innovation squared (1 if consistent).
     unflagged, flagged : GroupStats
         The statistics over the runs the monitor did not flag, and over those it flagged.
+    ranges_used_runs, ranges_rejected_runs, reacquired_runs : ndarray, shape (runs,)
+        Each run's ranges the filter used, those its innovation gate rejected, and its
+        re-acquisitions (:mod:`obsplan.estimation.channel`).
     sums : StatsSums
         The sufficient statistics everything above is computed from (for exact merging).
     """
@@ -371,7 +378,27 @@ class FilterStats:
     nis_mean: float
     unflagged: GroupStats
     flagged: GroupStats
+    ranges_used_runs: np.ndarray
+    ranges_rejected_runs: np.ndarray
+    reacquired_runs: np.ndarray
     sums: StatsSums
+
+    def lost_runs(self, bound: float) -> int:
+        """Runs whose final position error exceeds
+        :data:`~obsplan.estimation.channel.LOST_FACTOR` times ``bound`` (or is not finite).
+
+        Parameters
+        ----------
+        bound : float
+            The final position bound [m] (the posterior CRB's std of the path).
+
+        Returns
+        -------
+        int
+            The number of lost runs.
+        """
+        err = self.final_pos_err_runs
+        return int(np.sum(~(err <= LOST_FACTOR * float(bound))))
 
     @classmethod
     def from_sums(cls, s: StatsSums, t: np.ndarray, threshold: float) -> FilterStats:
@@ -430,6 +457,9 @@ class FilterStats:
             nis_mean=float(np.nanmean(info[:, INFO_NIS])) if R else float("nan"),
             unflagged=_group(s.sums[0], info[~flag], 2 * n, t, threshold),
             flagged=_group(s.sums[1], info[flag], 2 * n, t, threshold),
+            ranges_used_runs=info[:, INFO_RANGES_USED].copy(),
+            ranges_rejected_runs=info[:, INFO_RANGES_REJECTED].copy(),
+            reacquired_runs=info[:, INFO_REACQUIRED].copy(),
             sums=s,
         )
 
@@ -440,7 +470,8 @@ class FilterStats:
         -------
         dict
             Scalar statistics (None where not finite) and the ``unflagged`` and ``flagged``
-            groups (:meth:`GroupStats.to_dict`).
+            groups (:meth:`GroupStats.to_dict`); ``ranges_used``, ``ranges_rejected`` and
+            ``reacquisitions`` are means per run.
         """
         return {
             "final_pos_err": _num(self.final_pos_err),
@@ -460,7 +491,14 @@ class FilterStats:
             "rmse_pos_lines": _rms(self.rmse_pos_lines_runs),
             "unflagged": self.unflagged.to_dict(),
             "flagged": self.flagged.to_dict(),
+            "ranges_used": _num(_mean(self.ranges_used_runs)),
+            "ranges_rejected": _num(_mean(self.ranges_rejected_runs)),
+            "reacquisitions": _num(_mean(self.reacquired_runs)),
         }
+
+
+def _mean(x: np.ndarray) -> float:
+    return float(np.mean(x)) if x.size else float("nan")
 
 
 @dataclass(frozen=True, eq=False)

@@ -33,8 +33,16 @@ key                         draws, in order
                             step ``k`` (drawn in one call, or in consecutive blocks of rows: the
                             same numbers)
 ``(r, 2, i)``               noise of sensor ``SENSORS[i]``: ``(reports, width)`` normals
-``(r, 3, i)``               dropout of sensor ``SENSORS[i]``: ``reports`` uniforms (if it drops)
+``(r, 3, i)``               dropout of sensor ``SENSORS[i]``: ``reports`` uniforms (if it drops;
+                            the range's also when the channel loses pings)
+``(r, 4)``                  the acoustic channel (:mod:`obsplan.estimation.channel`, not ideal):
+                            ``reports`` uniforms of multipath, then ``reports`` of the excess,
+                            then ``reports`` of the ping's time
 ==========================  ===================================================================
+
+The channel's draws do not depend on the path, so every path compared sees the same lost and
+late pings (a loss that grows with range compares the same uniforms with each path's own
+probability).
 
 where ``reports`` counts the samples at which the sensor reports (in time order) and ``width`` is
 its number of outputs. The steps are drawn for all samples at once and summed by a compiled
@@ -45,11 +53,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from obsplan.estimation.channel import Channel, channel_errors
 from obsplan.estimation.montecarlo.stats import empty_metrics
 from obsplan.model.vehicle import SENSORS, VehicleModel
 from obsplan.trajectory.sampled import Trajectory
 
-STREAM_INIT, STREAM_PROCESS, STREAM_NOISE, STREAM_DROPOUT = 0, 1, 2, 3
+STREAM_INIT, STREAM_PROCESS, STREAM_NOISE, STREAM_DROPOUT, STREAM_CHANNEL = 0, 1, 2, 3, 4
 
 
 def run_rng(seed: int, run: int, purpose: int, sensor: str | None = None) -> np.random.Generator:
@@ -364,6 +373,87 @@ def reading_draws(
     return out
 
 
+def channel_draws(
+    model: VehicleModel, reports: np.ndarray, channel: Channel, seed: int, run: int
+) -> tuple[np.ndarray, ...] | None:
+    """Run ``run``'s uniforms of the acoustic channel at its range reports (module docstring).
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model (the range is its first sensor).
+    reports : ndarray of bool, shape (E, sensors)
+        Which sensor reports at each epoch.
+    channel : Channel
+        The channel; an ideal one draws nothing.
+    seed : int
+        The Monte Carlo's seed.
+    run : int
+        Run index.
+
+    Returns
+    -------
+    tuple of ndarray, shape (K,) each, or None
+        The uniforms of loss, multipath, excess and the ping's time at the ``K`` range reports;
+        None for an ideal channel.
+    """
+    if channel.is_ideal:
+        return None
+    k = int(np.count_nonzero(reports[:, list(model.output_slices).index("range")]))
+    u_drop = run_rng(seed, run, STREAM_DROPOUT, "range").random(k)
+    g = run_rng(seed, run, STREAM_CHANNEL)
+    return u_drop, g.random(k), g.random(k), g.random(k)
+
+
+def corrupt_ranges(
+    model: VehicleModel,
+    y: np.ndarray,
+    reports: np.ndarray,
+    channel: Channel,
+    cdraws: tuple[np.ndarray, ...] | None,
+    rho: np.ndarray | None,
+    rho_dot: np.ndarray | None = None,
+) -> None:
+    """Add the channel's bias and late arrivals to the range column of ``y`` and lose its pings
+    (NaN), in place; the scale ``1 + s`` multiplies the clean range where it is computed.
+
+    Parameters
+    ----------
+    model : VehicleModel
+        The vehicle model.
+    y : ndarray, shape (E, output_dim)
+        Reading noise (or readings) at the epochs, changed in place.
+    reports : ndarray of bool, shape (E, sensors)
+        Which sensor reports at each epoch.
+    channel : Channel
+        The channel.
+    cdraws : tuple of ndarray or None
+        From :func:`channel_draws` (None: ideal, nothing changes).
+    rho : ndarray, shape (E,) or None
+        The path's nominal range at the epochs [m] (for a loss growing with range).
+    rho_dot : ndarray, shape (E,) or None, optional
+        The path's nominal range rate at the epochs [m/s] (for the ping jitter).
+    """
+    if cdraws is None:
+        return
+    i = list(model.output_slices).index("range")
+    col = model.output_slices["range"].start
+    rows = np.flatnonzero(reports[:, i])
+    u_drop, u_out, u_excess, u_jitter = cdraws
+    add, lost = channel_errors(
+        channel,
+        rows,
+        u_drop,
+        u_out,
+        u_excess,
+        u_jitter,
+        None if rho is None else rho[rows],
+        None if rho_dot is None else rho_dot[rows],
+    )
+    y[rows, col] += add
+    y[rows[lost], col] = np.nan
+
+
 def noisy_readings(
     model: VehicleModel,
     x_epochs: np.ndarray,
@@ -371,6 +461,10 @@ def noisy_readings(
     noise: dict[str, float],
     draws: list[tuple[np.ndarray, np.ndarray | None]],
     beacons: np.ndarray | None = None,
+    channel: Channel | None = None,
+    cdraws: tuple[np.ndarray, ...] | None = None,
+    rho: np.ndarray | None = None,
+    rho_dot: np.ndarray | None = None,
 ) -> np.ndarray:
     """Readings at the epochs: (E, output_dim), NaN where a sensor does not report (or drops).
 
@@ -392,6 +486,15 @@ def noisy_readings(
     beacons : ndarray, shape (E, n) or (1, n), optional
         The beacon of each epoch's range [m] (a moving beacon,
         :func:`~obsplan.estimation.epochs.epoch_beacons`); None: the model's.
+    channel : Channel, optional
+        The acoustic channel (None: ideal): its scale ``1 + s`` multiplies the clean range, its
+        bias, late arrivals and lost pings are applied (:func:`corrupt_ranges`).
+    cdraws : tuple of ndarray, optional
+        The run's channel uniforms (:func:`channel_draws`).
+    rho : ndarray, shape (E,), optional
+        The path's nominal range at the epochs [m].
+    rho_dot : ndarray, shape (E,), optional
+        The path's nominal range rate at the epochs [m/s].
 
     Returns
     -------
@@ -399,7 +502,11 @@ def noisy_readings(
         The device readings (range [m], DVL [m/s], depth [m]); NaN where none.
     """
     clean = clean_readings(model, x_epochs, beacons)
-    return clean + reading_noise(model, reports, noise, draws)
+    y = reading_noise(model, reports, noise, draws)
+    if channel is not None and cdraws is not None:
+        clean[:, model.output_slices["range"]] *= 1.0 + channel.sound_speed_scale
+        corrupt_ranges(model, y, reports, channel, cdraws, rho, rho_dot)
+    return clean + y
 
 
 def reading_noise(

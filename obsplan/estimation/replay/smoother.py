@@ -55,6 +55,7 @@ from scipy.stats import chi2
 from obsplan.core.budget import check_log_rows
 from obsplan.core.errors import InputError
 from obsplan.estimation import kalman
+from obsplan.estimation.channel import GATE_PROBABILITY, REACQUIRE_AFTER
 from obsplan.estimation.config import CURRENT_PRIOR_STD
 from obsplan.estimation.filters import linear
 from obsplan.estimation.replay.log import MissionLog
@@ -63,10 +64,6 @@ from obsplan.estimation.sensors import OutputModel, output_model, to_outputs
 from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import VehicleModel
 
-#: Confidence of the innovation gate (module docstring: why 0.999).
-GATE_PROBABILITY = 0.999
-#: Consecutive rejected ranges after which the filter re-acquires (module docstring).
-REACQUIRE_AFTER = 5
 #: Default range noise [m]: a sound-speed error of ~0.1 % at hundreds of metres plus timing.
 DEFAULT_RANGE_STD = 1.0
 #: Default DVL noise [m/s] (a typical 300-600 kHz DVL at survey speed).

@@ -24,6 +24,7 @@ import numpy as np
 
 from obsplan.core import budget
 from obsplan.core.errors import ConfigError, InputError, ProblemError, field_error
+from obsplan.estimation.channel import CHANNEL_PRESETS, channel_preset
 from obsplan.estimation.config import EKF_UPDATES
 from obsplan.estimation.montecarlo.guidance import NAVIGATION_FILTERS
 from obsplan.model.vehicle import VehicleModel, parse_sensors
@@ -48,7 +49,7 @@ from obsplan.planning.problem.schema import (
     TIMED_OBJECTIVES,
     VALIDATION_MODES,
 )
-from obsplan.planning.problem.sections import ProblemData
+from obsplan.planning.problem.sections import CHANNEL_KEYS, ProblemData, ValidationSpec
 from obsplan.trajectory.sampled import Trajectory, read_csv, resample
 
 P = TypeVar("P", bound=ProblemData)
@@ -598,8 +599,32 @@ def _check_windows(pb: ProblemData) -> None:
             raise field_error(f"objective.{name}", f"must be a positive length in s, got {val!r}")
 
 
+def _check_channel(val: ValidationSpec) -> None:
+    """``validation.channel``, its ``channel_*`` fields and ``gate``: errors name the field."""
+    if val.channel not in CHANNEL_PRESETS:
+        names = ", ".join(CHANNEL_PRESETS)
+        raise field_error("validation.channel", f"must be one of {names}, got {val.channel!r}")
+    for key, name in CHANNEL_KEYS.items():
+        v = getattr(val, key)
+        if v is not None:
+            try:
+                channel_preset("ideal", **{name: v})
+            except ConfigError as exc:
+                raise field_error(f"validation.{key}", str(exc).split(" ", 2)[-1]) from None
+    if val.scale_state not in ("auto", "on", "off"):
+        raise field_error(
+            "validation.scale_state", f'must be "auto", "on" or "off", got {val.scale_state!r}'
+        )
+    g = val.gate
+    if isinstance(g, str) and g not in ("auto", "off") or not isinstance(g, str) and not 0 < g < 1:
+        raise field_error(
+            "validation.gate", f'must be a confidence in (0, 1), "auto" or "off", got {g!r}'
+        )
+
+
 def _check_validation(pb: ProblemData) -> None:
     hor, val = pb.horizon, pb.validation
+    _check_channel(val)
     if val.runs < 1:
         raise field_error("validation.runs", f"must be at least 1, got {val.runs}")
     for name in (

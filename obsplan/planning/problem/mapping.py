@@ -47,6 +47,7 @@ from obsplan.planning.problem.schema import (
     FieldSpec,
 )
 from obsplan.planning.problem.sections import (
+    CHANNEL_KEYS,
     Area,
     BeaconMotion,
     Horizon,
@@ -562,7 +563,7 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
             if (v := getattr(obj, f)) is not None
         },
         "scales": {"length_m": pb.scales.length_m, "time_s": pb.scales.time_s},
-        "validation": {f: getattr(val, f) for f in val.__dataclass_fields__},
+        "validation": _validation_to_dict(val),
     }
     if veh.path is not None:
         out["vehicle"]["path"] = veh.path
@@ -595,6 +596,20 @@ def _beacon_to_dict(pb: ProblemData) -> dict[str, Any]:
         out["area"] = {"x": list(bm.area.x), "y": list(bm.area.y)}
     if bm.max_range is not None:
         out["max_range"] = bm.max_range
+    return out
+
+
+def _validation_to_dict(val: ValidationSpec) -> dict[str, Any]:
+    """The ``[validation]`` table; the channel's fields only where they differ from their
+    defaults, so that a problem written before the channel existed keeps its mapping (and a
+    sweep its task ids)."""
+    out: dict[str, Any] = {}
+    for f in val.__dataclass_fields__:
+        v = getattr(val, f)
+        new_field = f in ("channel", "gate", "scale_state") or f in CHANNEL_KEYS
+        if new_field and v == getattr(ValidationSpec, f):
+            continue
+        out[f] = list(v) if isinstance(v, tuple) else v
     return out
 
 

@@ -839,6 +839,88 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "Robustness row: the range noise is range_std times this (the world the plan "
             "meets; the filters are configured for it, as for the stress prior).",
         ),
+        FieldSpec(
+            "channel",
+            "str",
+            "ideal",
+            "-",
+            'The acoustic channel the truth\'s ranges go through, unknown to the filters: "ideal" '
+            '(Gaussian ranges) or "at-sea" (10 % multipath outliers late by 2-30 m, 20 % of '
+            "pings lost, a 1 % sound-speed scale error; the problem's own range_rate). The "
+            'channel_* fields change one fault of the preset (docs/validation.md, "The '
+            'acoustic channel").',
+        ),
+        FieldSpec(
+            "channel_dropout",
+            "float",
+            _NONE,
+            "-",
+            "Probability that a ping is lost, in [0, 1); default the preset's.",
+        ),
+        FieldSpec(
+            "channel_dropout_range",
+            "float",
+            _NONE,
+            "m",
+            "Range beyond which the loss probability grows linearly, to 1 at twice this range; "
+            "default none (no growth).",
+        ),
+        FieldSpec(
+            "channel_outlier_fraction",
+            "float",
+            _NONE,
+            "-",
+            "Probability that a range is a late multipath arrival, in [0, 1); default the "
+            "preset's.",
+        ),
+        FieldSpec(
+            "channel_outlier_excess",
+            "range",
+            _NONE,
+            "m",
+            "[min, max] of the excess path of a late arrival (uniform, >= 0); default [2, 30].",
+        ),
+        FieldSpec(
+            "channel_sound_speed_scale",
+            "float",
+            _NONE,
+            "-",
+            "Relative sound-speed error s: every range is multiplied by 1 + s; default the "
+            "preset's.",
+        ),
+        FieldSpec(
+            "channel_clock_offset",
+            "float",
+            _NONE,
+            "s",
+            "Clock offset between beacon and vehicle: a range bias of 1500 m/s times it; "
+            "default 0.",
+        ),
+        FieldSpec(
+            "channel_ping_jitter",
+            "float",
+            _NONE,
+            "s",
+            "A ping leaves up to this much before or after its stamp (uniform), unknown to the "
+            "filters: a range error of the range rate times it; default 0.",
+        ),
+        FieldSpec(
+            "gate",
+            "float-or-str",
+            "auto",
+            "-",
+            "The filters' innovation gate on the ranges (chi-square, 1 dof; re-acquisition "
+            'after 5 rejections in a row): a confidence in (0, 1), "off", or "auto" (0.999 '
+            "when the channel has outliers, off otherwise).",
+        ),
+        FieldSpec(
+            "scale_state",
+            "str",
+            "auto",
+            "-",
+            "A range-scale state (a sound-speed error, prior std 2 %) in the EKF and the "
+            'Gaussian sum: "on", "off", or "auto" (on when the channel is not ideal).',
+        ),
     ),
 }
 

@@ -12,6 +12,7 @@ from functools import cached_property
 
 import numpy as np
 
+from obsplan.estimation.channel import Channel, channel_preset
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
 from obsplan.model.beacon import BeaconPath, BeaconVehicle, read_beacon_path
 from obsplan.model.frames import GeodeticOrigin
@@ -193,6 +194,19 @@ class ObjectiveSpec:
         return kind.default_tol
 
 
+#: ``validation.channel_*`` fields -> the :class:`~obsplan.estimation.channel.Channel` field
+#: each sets.
+CHANNEL_KEYS: dict[str, str] = {
+    "channel_dropout": "dropout",
+    "channel_dropout_range": "dropout_range_m",
+    "channel_outlier_fraction": "outlier_fraction",
+    "channel_outlier_excess": "outlier_excess_m",
+    "channel_sound_speed_scale": "sound_speed_scale",
+    "channel_clock_offset": "clock_offset_s",
+    "channel_ping_jitter": "ping_jitter_s",
+}
+
+
 @dataclass(frozen=True)
 class ValidationSpec:
     """Monte Carlo validation settings: runs, seed, filter step [s], rates [Hz], noises, prior,
@@ -217,6 +231,34 @@ class ValidationSpec:
     max_runs: int = 400
     stress_prior: float = 1.0
     stress_range_noise: float = 1.0
+    channel: str = "ideal"
+    channel_dropout: float | None = None
+    channel_dropout_range: float | None = None
+    channel_outlier_fraction: float | None = None
+    channel_outlier_excess: tuple[float, float] | None = None
+    channel_sound_speed_scale: float | None = None
+    channel_clock_offset: float | None = None
+    channel_ping_jitter: float | None = None
+    gate: float | str = "auto"
+    scale_state: str = "auto"
+
+    def channel_model(self) -> Channel:
+        """The acoustic channel of the validation: the preset ``channel`` with the
+        ``channel_*`` fields that are given.
+
+        Returns
+        -------
+        Channel
+            The channel (:mod:`obsplan.estimation.channel`).
+
+        Raises
+        ------
+        ConfigError
+            For an unknown preset or a field out of range.
+        """
+        return channel_preset(
+            self.channel, **{CHANNEL_KEYS[k]: getattr(self, k) for k in CHANNEL_KEYS}
+        )
 
 
 @dataclass(frozen=True)

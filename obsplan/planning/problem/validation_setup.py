@@ -36,8 +36,10 @@ def estimation_config(
     ``vehicle.current_velocity``, and the process noise of ``validation.process_noise_model``:
     ``"physical"``, the white acceleration noise ``accel_noise`` [m/s²/√Hz] (exact for any
     ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``; the EKF's
-    range update ``validation.ekf_update``. Used by the validation and by the planning
-    objectives.
+    range update ``validation.ekf_update``; the acoustic channel of the truth
+    (``validation.channel`` and its ``channel_*`` fields), the filters' range gate
+    (``validation.gate``) and range-scale state (``validation.scale_state``). Used by the
+    validation and by the planning objectives (which read none of the last three).
 
     A moving beacon: ``beacon_path``, or the known path of ``beacon.motion = "path"``
     (:attr:`~obsplan.planning.problem.sections.ProblemData.beacon_path`), becomes the
@@ -96,8 +98,39 @@ def estimation_config(
         p0_kf=cov["p0_kf"],
         ekf_update=val.ekf_update,  # type: ignore[arg-type]
         beacon_path=path,
+        channel=val.channel_model(),
+        gate=val.gate,
+        scale_state=val.scale_state,
         **noise_model,
     )
+
+
+def channel_dict(pb: PlanningProblem) -> dict:
+    """``report.json``'s ``validation.channel``: the acoustic channel of the validation's truth
+    (its ``name`` and fields, :meth:`Channel.to_dict
+    <obsplan.estimation.channel.Channel.to_dict>`), the filters' range ``gate`` (its
+    confidence; None: no gate) and whether they carry a range-scale state (``scale_state``).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem: its ``[validation]`` section.
+
+    Returns
+    -------
+    dict
+        JSON-ready.
+    """
+    val = pb.validation
+    channel = val.channel_model()
+    cfg = EstimationConfig(
+        model=pb.model, channel=channel, gate=val.gate, scale_state=val.scale_state
+    )
+    return {
+        **channel.to_dict(),
+        "gate": cfg.gate_probability,
+        "scale_state": cfg.scale_prior_std is not None,
+    }
 
 
 def confidence_quantile(confidence: float) -> float:

@@ -71,16 +71,16 @@ class PathValidation:
         out = {
             "mode": r.mode,
             "truth": None if r.truth is None else r.truth.to_dict(),
-            "ekf": None if r.ekf is None else r.ekf.to_dict(),
-            "kf": None if r.kf is None else r.kf.to_dict(),
+            "ekf": r.filter_dict("ekf"),
+            "kf": r.filter_dict("kf"),
             "crlb_final_pos_std": crlb if np.isfinite(crlb) else None,
             "runs": int(r.runs),
             "seed": int(r.seed),
             "samples": int(r.t.size),
         }
-        for name, s in (r.filters or {}).items():
+        for name in r.filters or {}:
             if name not in out:
-                out[name] = s.to_dict()
+                out[name] = r.filter_dict(name)
         return out
 
 

@@ -1,0 +1,340 @@
+"""The acoustic channel (:mod:`obsplan.estimation.channel`): its draws, the truth's corrupted
+ranges, the filters' innovation gate, the problem file's fields and the command line."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import binom, chi2
+
+from obsplan import EstimationConfig, make_model, monte_carlo
+from obsplan.cli import main
+from obsplan.core.errors import ConfigError, ProblemError
+from obsplan.estimation.channel import (
+    CHANNEL_PRESETS,
+    GATE_PROBABILITY,
+    SCALE_PRIOR_STD,
+    SOUND_SPEED,
+    Channel,
+    channel_errors,
+    channel_preset,
+    gate_nis,
+)
+from obsplan.estimation.montecarlo.truth import channel_draws, noisy_readings, reading_draws
+from obsplan.planning.problem.parse import load_problem
+from obsplan.planning.problem.validation_setup import channel_dict
+from obsplan.trajectory import generators as gen
+from obsplan.trajectory.sampled import write_csv
+
+#: Two-sided confidence of the binomial checks of the channel's fractions: a correct draw fails
+#: one in 1e6 (the draws are seeded, so a failure is a bug, never bad luck on a rerun).
+BINOM_CONF = 1.0 - 1e-6
+
+
+def _binom_ok(k: int, n: int, p: float) -> bool:
+    lo, hi = binom.interval(BINOM_CONF, n, p)
+    return lo <= k <= hi
+
+
+def test_presets_and_fields():
+    ideal, sea = CHANNEL_PRESETS["ideal"], CHANNEL_PRESETS["at-sea"]
+    assert ideal.is_ideal and not ideal.has_outliers
+    assert (sea.dropout, sea.outlier_fraction, sea.sound_speed_scale) == (0.2, 0.1, 0.01)
+    assert sea.outlier_excess_m == (2.0, 30.0) and sea.clock_offset_s == 0.0
+    c = channel_preset("at-sea", clock_offset_s=1e-3)
+    assert c.name == "custom" and c.range_bias_m == pytest.approx(SOUND_SPEED * 1e-3)
+    assert channel_preset("at-sea", dropout=0.2).name == "at-sea"  # unchanged: still the preset
+    with pytest.raises(ConfigError, match="unknown channel 'sea'"):
+        channel_preset("sea")
+    with pytest.raises(ConfigError, match="outlier_fraction"):
+        Channel(outlier_fraction=1.0)
+    with pytest.raises(ConfigError, match="outlier_excess_m"):
+        Channel(outlier_excess_m=(5.0, 1.0))
+    assert gate_nis(None) == math.inf and gate_nis(GATE_PROBABILITY) == pytest.approx(
+        chi2.ppf(0.999, 1)
+    )
+
+
+def test_loss_grows_with_range_beyond_the_stated_range():
+    c = Channel(dropout=0.1, dropout_range_m=100.0)
+    p = c.drop_probability(np.array([50.0, 100.0, 150.0, 200.0, 400.0]))
+    np.testing.assert_allclose(p, [0.1, 0.1, 0.55, 1.0, 1.0])
+
+
+def test_channel_fractions_and_anchor():
+    """Outliers and losses at their stated rates (binomial interval), excesses inside their
+    range, the anchor (row 0) never lost nor late."""
+    c = CHANNEL_PRESETS["at-sea"]
+    rng = np.random.default_rng(1)
+    K = 20000
+    rows = np.arange(K)
+    u = [rng.random(K) for _ in range(4)]
+    add, lost = channel_errors(c, rows, *u, None)
+    late = add > 0
+    assert not lost[0] and add[0] == 0.0
+    assert _binom_ok(int(lost[1:].sum()), K - 1, c.dropout)
+    assert _binom_ok(int(late[1:].sum()), K - 1, c.outlier_fraction)
+    assert np.all((add[late] >= 2.0) & (add[late] <= 30.0))
+    # the excess is uniform on [2, 30]: its mean within 4 standard errors
+    se = 28.0 / math.sqrt(12 * late.sum())
+    assert abs(add[late].mean() - 16.0) < 4 * se
+
+
+def _truth_readings(channel):
+    model = make_model(2, "range")
+    reports = np.ones((400, 1), bool)
+    x = np.column_stack([np.linspace(10, 60, 400), np.full(400, 20.0), np.zeros((400, 2))])
+    draws = reading_draws(model, reports, {}, 3, 7)
+    cd = channel_draws(model, reports, channel, 3, 7)
+    y = noisy_readings(model, x, reports, {"range": 0.1}, draws, channel=channel, cdraws=cd)
+    ideal = noisy_readings(model, x, reports, {"range": 0.1}, draws)
+    return x, y[:, 0], ideal[:, 0], cd
+
+
+def test_scale_and_bias_are_applied_and_noise_is_shared():
+    c = Channel(sound_speed_scale=0.01, clock_offset_s=2e-3)
+    x, y, ideal, _ = _truth_readings(c)
+    rho = np.hypot(x[:, 0], x[:, 1])
+    # the same Gaussian noise; the range scaled by 1.01 and biased by c dt = 3 m
+    np.testing.assert_allclose(y - ideal, 0.01 * rho + 3.0, rtol=0, atol=1e-9)
+
+
+def test_ping_jitter_is_the_range_rate_times_the_timing_error():
+    """A ping ``δ`` late, uniform in [-j, j]: the range error is ``ρ̇ δ``, so at a range rate of
+    2 m/s and j = 0.5 s the errors fill [-1, 1] m (the sample's extremes within 2 % of the
+    ends over 4000 draws) with mean 0 (4 standard errors), and nothing at ``ρ̇ = 0``."""
+    c = Channel(ping_jitter_s=0.5)
+    rng = np.random.default_rng(3)
+    K = 4000
+    u = [rng.random(K) for _ in range(4)]
+    rows = np.arange(1, K + 1)
+    add, lost = channel_errors(c, rows, *u, None, np.full(K, 2.0))
+    assert not lost.any()
+    assert -1.0 <= add.min() < -0.98 and 0.98 < add.max() <= 1.0
+    assert abs(add.mean()) < 4 * (2.0 / math.sqrt(12 * K))
+    add0, _ = channel_errors(c, rows, *u, None, np.zeros(K))
+    assert np.all(add0 == 0.0)
+
+
+def test_ideal_channel_draws_nothing_and_changes_nothing():
+    x, y, ideal, cd = _truth_readings(CHANNEL_PRESETS["ideal"])
+    assert cd is None
+    np.testing.assert_array_equal(y, ideal)
+
+
+def test_config_keeps_one_dropout_and_checks_the_gate():
+    model = make_model(2, "range")
+    with pytest.raises(ConfigError, match="same loss"):
+        EstimationConfig(model, dropout={"range": 0.1}, channel=CHANNEL_PRESETS["at-sea"])
+    with pytest.raises(ConfigError, match="gate"):
+        EstimationConfig(model, gate="on")
+    cfg = EstimationConfig(model, channel=CHANNEL_PRESETS["at-sea"])
+    assert cfg.gate_probability == GATE_PROBABILITY  # auto: on with outliers
+    assert EstimationConfig(model).gate_nis == math.inf  # auto: off on the ideal channel
+    assert EstimationConfig(model, channel=CHANNEL_PRESETS["at-sea"], gate="off").gate_nis == (
+        math.inf
+    )
+
+
+# ----------------------------------------------------------------------------- Monte Carlo
+TRAJ = gen.circle(30.0, 1.5, 60.0).sample(0.1)
+RUNS = 24
+
+
+def _mc(channel: str, gate="auto", filters=("ekf", "kf", "gsf"), guidance=None):
+    cfg = EstimationConfig(
+        make_model(2, "range"),
+        rates_hz={"range": 1.0},
+        channel=channel_preset(channel),
+        gate=gate,
+    )
+    return monte_carlo(TRAJ, cfg, runs=RUNS, seed=5, filters=filters, guidance=guidance)
+
+
+@pytest.fixture(scope="module")
+def runs():
+    return {
+        "ideal": _mc("ideal"),
+        "ideal-gated": _mc("ideal", gate=GATE_PROBABILITY),
+        "sea": _mc("at-sea"),
+        "sea-off": _mc("at-sea", gate="off"),
+    }
+
+
+def test_counts_of_used_and_rejected_ranges(runs):
+    epochs = 61  # a range a second over 60 s, the anchor included
+    for name in ("ekf", "gsf"):
+        d = runs["ideal"].to_dict()[name]
+        assert d["ranges_used"] == epochs and d["ranges_rejected"] == 0
+    assert runs["ideal"].to_dict()["kf"]["ranges_used"] == epochs - 1  # the anchor is y0
+    sea = runs["sea"].stats("ekf")
+    off = runs["sea-off"].stats("ekf")
+    # without a gate every range that arrives is used; the gate's used + rejected is the same
+    total = sea.ranges_used_runs + sea.ranges_rejected_runs
+    np.testing.assert_array_equal(off.ranges_used_runs, total)
+    arrived = int(off.ranges_used_runs.sum()) - RUNS  # the anchor is never lost
+    assert _binom_ok(RUNS * (epochs - 1) - arrived, RUNS * (epochs - 1), 0.2)
+    # the gate rejects about the late arrivals: 10 % of those that arrive, within the binomial
+    # interval (a few good ranges at 0.1 % and a late arrival within the gate move it little)
+    assert _binom_ok(int(sea.ranges_rejected_runs.sum()), arrived, 0.1)
+
+
+def test_the_gated_filters_survive_where_the_ungated_are_lost(runs):
+    bound = runs["ideal"].crlb_final_pos_std
+    for name in ("ekf", "gsf"):
+        sea, off = runs["sea"].filter_dict(name), runs["sea-off"].filter_dict(name)
+        assert off["lost_runs"] > RUNS // 2, (name, off)
+        assert sea["lost_runs"] == 0, (name, sea)
+        assert sea["rmse_pos"] < off["rmse_pos"] / 10
+    assert bound > 0
+
+
+def test_scale_state_estimates_the_sound_speed_error():
+    """With the 1 % scale error alone, the EKF without a scale state ends biased and
+    inconsistent; with it (the at-sea default) the bias is gone and the filter consistent."""
+    traj = gen.circle(30.0, 1.5, 120.0).sample(0.1)
+    model = make_model(2, "range")
+
+    def run(channel, scale_state):
+        cfg = EstimationConfig(
+            model, rates_hz={"range": 1.0}, channel=channel, scale_state=scale_state
+        )
+        return monte_carlo(traj, cfg, runs=RUNS, seed=2, filters=("ekf", "gsf"))
+
+    scale = Channel(sound_speed_scale=0.01)
+    ideal = run(CHANNEL_PRESETS["ideal"], "auto").stats("ekf")
+    off = run(scale, "off").stats("ekf")
+    on = run(scale, "auto").stats("ekf")
+    assert EstimationConfig(model, channel=scale).scale_prior_std == SCALE_PRIOR_STD
+    # unestimated, 1 % of a 30 m range is a 0.3 m bias against a final bound of ~0.1 m
+    assert off.final_pos_err > 3 * ideal.final_pos_err and off.nees_mean > 10
+    # estimated: the bias is gone (a third of the unestimated error; the scale costs some
+    # information, so not the ideal's error: its own std grows with it), and the filter is as
+    # consistent as on Gaussian ranges (the first-order EKF's time-averaged NEES carries its
+    # start-up transient on either channel; 25 % for the spread of 24 runs)
+    assert on.final_pos_err < off.final_pos_err / 3
+    assert on.final_pos_err < 2 * on.final_pos_std
+    assert on.nees_mean < 1.25 * ideal.nees_mean
+
+
+def test_scale_state_in_the_filter_and_its_estimate():
+    from obsplan.estimation.filters.ekf import ExtendedKalmanFilter
+
+    cfg = EstimationConfig(make_model(2, "range"), channel=Channel(sound_speed_scale=0.01))
+    cov = cfg.covariances(0.1)
+    f = ExtendedKalmanFilter.from_config(cfg, cov, cfg.process_noise_model(0.1))
+    assert f.state_dim == 5 and f.scale_index == 4
+    x0, P0 = f.start(np.zeros(4))
+    assert x0[4] == 1.0 and P0[4, 4] == pytest.approx(SCALE_PRIOR_STD**2)
+    assert np.all(P0[4, :4] == 0) and np.all(f.q_terms[:, 4, :] == 0)
+
+
+def test_gate_on_gaussian_ranges_changes_little(runs):
+    """With Gaussian ranges the 0.999 gate rejects about 0.1 % of them; the default (off) keeps
+    every number of the ungated filters."""
+    gated = runs["ideal-gated"].stats("ekf")
+    n = int(gated.ranges_used_runs.sum() + gated.ranges_rejected_runs.sum())
+    # a filter's NIS is only chi-square once converged: allow the binomial interval at 1 %
+    assert int(gated.ranges_rejected_runs.sum()) <= binom.ppf(BINOM_CONF, n, 0.01)
+
+
+def test_ideal_channel_is_the_config_without_a_channel():
+    """The default (ideal, gate auto = off) gives exactly the numbers of a config that never
+    heard of the channel: the same draws, the same arithmetic."""
+    base = monte_carlo(
+        TRAJ,
+        EstimationConfig(make_model(2, "range"), rates_hz={"range": 1.0}),
+        runs=6,
+        seed=5,
+        filters=("ekf", "kf", "gsf"),
+    )
+    ideal = _mc("ideal")
+    for name in ("ekf", "kf", "gsf"):
+        a, b = base.stats(name), ideal.stats(name)
+        np.testing.assert_array_equal(a.final_pos_err_runs, b.final_pos_err_runs[:6])
+        np.testing.assert_array_equal(a.rmse_pos_runs, b.rmse_pos_runs[:6])
+
+
+def test_closed_loop_sees_the_same_channel(runs):
+    from obsplan.estimation.montecarlo.guidance import Guidance
+
+    g = Guidance.from_limits((0.05, 0.05), None, 1.0)
+    res = _mc("at-sea", filters=("ekf", "gsf"), guidance=g)
+    open_loop = runs["sea"].stats("ekf")
+    d = res.stats("ekf")
+    # the lost pings are the same draws whichever loop flies the path
+    np.testing.assert_array_equal(
+        d.ranges_used_runs + d.ranges_rejected_runs,
+        open_loop.ranges_used_runs + open_loop.ranges_rejected_runs,
+    )
+    assert res.filter_dict("gsf")["lost_runs"] == 0
+
+
+# ----------------------------------------------------------------------------- problem, CLI
+def test_problem_fields_and_errors():
+    pb = load_problem()
+    assert pb.validation.channel == "ideal"
+    assert "channel" not in pb.to_dict()["validation"]  # defaults stay out of the mapping
+    sea = pb.with_changes(validation={"channel": "at-sea", "channel_outlier_excess": [1, 5]})
+    d = channel_dict(sea)
+    assert d["name"] == "custom" and d["outlier_excess_m"] == [1.0, 5.0] and d["gate"] == 0.999
+    assert channel_dict(pb)["gate"] is None and channel_dict(pb)["scale_state"] is False
+    assert d["scale_state"] is True
+    for change, field in (
+        ({"channel": "sea"}, "validation.channel"),
+        ({"channel_dropout": 1.5}, "validation.channel_dropout"),
+        ({"channel_ping_jitter": -1.0}, "validation.channel_ping_jitter"),
+        ({"gate": "on"}, "validation.gate"),
+        ({"scale_state": "yes"}, "validation.scale_state"),
+        ({"channel_typo": 1}, "validation.channel_typo"),
+    ):
+        with pytest.raises(ProblemError, match=field):
+            pb.with_changes(validation=change)
+
+
+@pytest.fixture(scope="module")
+def csv_2d(tmp_path_factory):
+    path = tmp_path_factory.mktemp("traj") / "circle.csv"
+    write_csv(gen.circle(30.0, 1.5, 30.0).sample(0.1), path)
+    return path
+
+
+def test_cli_simulate_channel(csv_2d, capsys):
+    args = ["simulate", str(csv_2d), "--runs", "3", "--json", "--quiet", "--rates", "range=1"]
+    assert main([*args, "--channel", "at-sea"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["config"]["channel"]["name"] == "at-sea" and d["config"]["gate"] == 0.999
+    for name in ("ekf", "kf"):
+        assert {"ranges_used", "ranges_rejected", "lost_runs"} <= set(d[name])
+    assert main([*args, "--channel", "sea"]) == 2
+    assert "--channel" in capsys.readouterr().err
+
+
+def test_cli_plan_bad_channel_exit_2(capsys):
+    assert main(["plan", "--channel", "sea", "--no-validate", "--out", "/nonexistent/x"]) == 2
+    err = capsys.readouterr().err
+    assert "--channel" in err and "at-sea" in err
+
+
+def test_cli_plan_at_sea_report_keys(tmp_path, capsys):
+    from obsplan.planning.problem.parse import LOCALISE_PROBLEM
+
+    out = tmp_path / "run"
+    small = ["--steps", "20", "--starts", "1", "--runs", "4", "--max-runs", "4", "--quiet"]
+    args = ["plan", str(LOCALISE_PROBLEM), "--out", str(out), *small, "--channel", "at-sea"]
+    assert main(args) == 0
+    rep = json.loads((out / "report.json").read_text())
+    ch = rep["validation"]["channel"]
+    assert ch["name"] == "at-sea" and ch["gate"] == GATE_PROBABILITY and ch["scale_state"]
+    assert rep["problem_file"]["validation"]["channel"] == "at-sea"
+    for path, v in rep["validation"].items():
+        if path in ("mode", "channel"):
+            continue
+        for name in ("ekf", "kf"):
+            d = v[name]
+            assert {"ranges_used", "ranges_rejected", "lost_runs"} <= set(d), (path, name)
+            assert 0 <= d["lost_runs"] <= v["runs"]
+            assert d["ranges_used"] > 0 and d["ranges_rejected"] >= 0
