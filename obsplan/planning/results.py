@@ -674,6 +674,9 @@ class BeaconPlanResult:
     planned_breaks : str
         The craft's limits the planned path breaks, in words (empty: none;
         :func:`~obsplan.planning.baselines.beacon.craft_limit_breaks`).
+    planning_s : float
+        Time [s] the flow took to plan: the baselines, the planner and the bounds (not the
+        validation); NaN when not measured.
     """
 
     problem: PlanningProblem
@@ -685,6 +688,7 @@ class BeaconPlanResult:
     lines: bool
     wall_s: float
     planned_breaks: str = ""
+    planning_s: float = math.nan
 
     @property
     def success(self) -> bool:
@@ -766,6 +770,7 @@ class BeaconPlanResult:
                 "status": str(s.status),
                 "iterations": int(s.iterations),
                 "wall_s": float(s.wall_s),
+                "planning_s": None if not math.isfinite(self.planning_s) else self.planning_s,
                 "objective": obj,
             },
             "metrics": {k: b.to_dict() for k, b in self.bounds.items()},
