@@ -10,7 +10,12 @@ keeps the best converged one:
   horizontal bounding box) at a third and at two thirds of the box's half-diagonal, spiralling
   out from the start at half the craft's speed, at 90 % of the angular rate its speed and
   acceleration allow;
-* the caller's ``guesses`` (e.g. the beacon baselines).
+* the caller's ``guesses`` (e.g. the beacon baselines, which include a circle at its best
+  radius: with guesses the circle starts are left out unless ``circles=True``).
+
+A start that fits onto the same path as an earlier one (within :data:`PATH_TOLERANCE_M` at every
+node; e.g. the ``beacon-fixed`` baseline is holding station) is not solved again: IPOPT would end
+where it did, and the start's entry says so.
 
 Each start is first *fitted* onto the limits: the nearest path of the craft's dynamics (least
 squares on the node positions, the limits as constraints, IPOPT with the exact Hessian), so every
