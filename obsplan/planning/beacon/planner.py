@@ -89,6 +89,9 @@ class BeaconStart:
         The objective [m²] of the start once fitted onto the limits.
     reason : str
         Why it did not converge, in words ("" when it did).
+    same_as : str
+        The earlier start this one fitted onto, whose outcome it shares: not solved again (""
+        when solved).
     """
 
     label: str
@@ -99,6 +102,7 @@ class BeaconStart:
     objective: float | None
     initial_objective: float | None
     reason: str
+    same_as: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,6 +177,8 @@ class BeaconPlan:
             obj = "-" if s.objective is None else f"{s.objective:.4g}"
             ini = "-" if s.initial_objective is None else f"{s.initial_objective:.4g}"
             why = f": {s.reason}" if s.reason else ""
+            if s.same_as:
+                why += f" (the same start as {s.same_as!r} once fitted: not solved again)"
             lines.append(f"  {s.label}: {s.status}, {obj} m^2 (start {ini}){why}")
         return "\n".join(lines)
 
@@ -556,7 +562,7 @@ def plan_beacon(
                 outcomes[same],
                 label=label,
                 wall_s=time.perf_counter() - t0,
-                reason=f"the same start as {outcomes[same].label!r} once fitted: not re-solved",
+                same_as=outcomes[same].label,
             )
             x = xs[same]
         else:
