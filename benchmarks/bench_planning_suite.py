@@ -28,6 +28,18 @@ e.g. ``--set objective.kind=pcrb-position --set objective.mode=final`` plans eve
 its final bound. ``--markdown FILE`` also writes the table and its summary as the Markdown page
 the documentation includes (``docs/results/suite.md``): the site's suite numbers are this
 script's output, not copied by hand.
+
+A problem whose beacon is planned (``beacon.motion = "planned"``, the ASV problems) is planned
+and validated by ``obsplan plan``'s flow for it (:func:`~obsplan.planning.plan
+.plan_moving_beacon`): the vehicle flies the same path with every beacon, so its row has no
+ratios; its circle column is ``beacon-circle``, its true closest approach is the vehicle's to
+the planned craft, and a paragraph under the table gives the planned beacon's verdicts on the
+EKF's RMSE over the lines and its final error against every beacon baseline (``--truth-runs``
+does not apply to it). ``--update-rows FILE`` puts the rows of the problems run into a page an
+earlier ``--markdown`` wrote, in place (a problem's row replaced, a new one after the shipped
+problems' rows), keeps the other rows and the summary as they were (its medians and counts are
+of the earlier run's rows) and says under the first line which command wrote the new rows: e.g.
+the ASV rows without re-running the whole suite.
 """
 
 from __future__ import annotations
@@ -45,7 +57,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from obsplan.planning import load_problem  # noqa: E402
-from obsplan.planning.plan import plan  # noqa: E402
+from obsplan.planning.beacon import plan_beacon  # noqa: E402
+from obsplan.planning.plan import plan, plan_moving_beacon  # noqa: E402
 from obsplan.planning.problem.parse import problem_from_dict, problem_to_dict  # noqa: E402
 from obsplan.planning.validation.validate import validate_paths  # noqa: E402
 from obsplan.planning.validation.verdict import metric_value  # noqa: E402
@@ -54,6 +67,9 @@ from obsplan.sweeps.spec import parse_path, set_fields  # noqa: E402
 #: The verdicts shown against these baselines, on these metrics.
 VERDICT_BASELINES = ("lawnmower", "circle")
 VERDICT_METRICS = ("ekf.rmse_pos", "ekf.final_pos_err", "kf.rmse_pos", "kf.final_pos_err")
+
+#: The planned beacon's verdicts against each beacon baseline (a moving-beacon problem's row).
+BEACON_METRICS = ("ekf.rmse_pos_lines", "ekf.final_pos_err")
 
 #: (column, verdict metric key) of the ratios reported.
 RATIOS = (
@@ -108,6 +124,8 @@ def run_one(
         pb = replace(pb, validation=replace(pb.validation, mode="open-loop"))
     if ekf_update:
         pb = replace(pb, validation=replace(pb.validation, ekf_update=ekf_update))
+    if pb.beacon_motion.moving:
+        return beacon_row(path, pb, runs, max_runs)
     t0 = time.perf_counter()
     res = plan(pb, runs=runs, max_runs=max_runs)
     wall = time.perf_counter() - t0
@@ -173,6 +191,60 @@ def run_one(
     return row
 
 
+def beacon_row(path: Path, pb, runs: int | None, max_runs: int | None) -> dict:
+    """The row of a problem whose beacon is planned (``obsplan plan``'s flow for it,
+    :func:`~obsplan.planning.plan.plan_moving_beacon`): the vehicle flies the same path with
+    every beacon, so the ratio columns (planned / lawn-mower) do not apply; the verdicts are the
+    planned beacon's against each beacon baseline (``beacon_verdicts``), ``beacon-circle`` in the
+    circle's column; the true closest approach is the vehicle's to the planned beacon."""
+    t0 = time.perf_counter()
+    res = plan_moving_beacon(pb, plan_beacon, runs=runs, max_runs=max_runs)
+    wall = time.perf_counter() - t0
+    truth = res.validation["planned"].result.truth
+    comps = res.verdict.comparisons
+    verdicts = {
+        b: {
+            k: {"outcome": c[k].outcome, "ratio": c[k].ratio, "ci": c[k].ci}
+            for k in (*BEACON_METRICS, *VERDICT_METRICS)
+            if k in c
+        }
+        for b, c in comps.items()
+    }
+    return {
+        "problem": str(path.relative_to(ROOT) if path.is_relative_to(ROOT) else path),
+        "objective": "planned beacon (pcrb lines + final)",
+        "status": res.solve.status,
+        "success": bool(res.success),
+        "solve_s": res.planning_s,
+        "wall_s": wall,
+        "closest_m": None,
+        "beats_all": res.verdict.beats_all,
+        "not_fitted": [],
+        "lawnmower": {},
+        "best": {},
+        "mode": pb.validation.mode,
+        "runs": int(res.validation["planned"].result.runs),
+        "true_closest_m": truth.closest_range_m,
+        # None where the distance is not checked on the true paths (3D: a horizontal distance)
+        "runs_inside_min_range": (
+            truth.runs_inside_min_range if truth.limits and truth.limits.min_range else None
+        ),
+        "any_violation_fraction": truth.any_violation_fraction,
+        "violation_fraction": truth.violation_fraction,
+        "verdicts": {"circle": {k: verdicts["beacon-circle"][k] for k in VERDICT_METRICS}},
+        "beacon_verdicts": verdicts,
+        "notes": list(res.verdict.notes),
+    }
+
+
+def beacon_letters(r: dict) -> str:
+    """``beacon-fixed BB, beacon-circle Bt, ...``: EKF RMSE over the lines and EKF final."""
+    return ", ".join(
+        f"{b} " + "".join(_letter_of(d[k]) if k in d else "-" for k in BEACON_METRICS)
+        for b, d in r["beacon_verdicts"].items()
+    )
+
+
 #: Number words of the page's sentences ("the twenty suite rows").
 WORDS = (
     "zero one two three four five six seven eight nine ten eleven twelve thirteen fourteen "
@@ -197,6 +269,83 @@ def letters_of(r: dict) -> str:
     )
 
 
+def _name(r: dict) -> str:
+    return r["problem"].removeprefix("obsplan/").removeprefix("problems/")
+
+
+def table_row(r: dict) -> str:
+    """One row of the Markdown table."""
+    lm = r["lawnmower"]
+    t = r.get("truth_runs") or {}
+    closest = _cell(t.get("closest_range_m", r.get("true_closest_m")))
+    inside = t.get("runs_inside_min_range", r.get("runs_inside_min_range"))
+    breaks = r.get("any_violation_fraction")
+    cells = [
+        f"`{_name(r)}`", r["objective"], r["status"], f"{r['solve_s']:.0f}",
+        *(_cell(lm.get(k)) for _, k in RATIOS),
+        "-" if r["runs"] is None else str(r["runs"]), closest,
+        "-" if inside is None else str(inside),
+        "-" if breaks is None else f"{100 * breaks:.0f} %", letters_of(r),
+    ]  # fmt: skip
+    return "| " + " | ".join(cells) + " |"
+
+
+def beacon_sentences(rows: list[dict]) -> list[str]:
+    """A paragraph on the rows of planned beacons: their verdicts against every beacon
+    baseline (none without such rows)."""
+    said = [f"`{_name(r)}` {beacon_letters(r)}" for r in rows if "beacon_verdicts" in r]
+    if not said:
+        return []
+    return [
+        f"{BEACON_PARAGRAPH} the vehicle flies its lawn-mower with every beacon, so the ratio "
+        "columns do not apply; the circle's column is `beacon-circle`, the true closest "
+        "approach (a range) and the runs inside `min_range` are the vehicle's to the planned "
+        "craft over the validation's runs (not flown alone; `min_range` is the craft's "
+        "`min_distance`, checked in 2D only: `-` in 3D), and the planned beacon's verdicts on "
+        "the EKF's RMSE over the survey lines and its final error against each beacon "
+        "baseline are: " + "; ".join(said) + ".",
+        "",
+    ]
+
+
+#: How the paragraph on planned beacons begins (found again by ``--update-rows``).
+BEACON_PARAGRAPH = 'Planned beacons (`beacon.motion = "planned"`):'
+
+
+def update_page(text: str, rows: list[dict], command: str, wall_s: float) -> str:
+    """``text`` (a page :func:`markdown_page` wrote) with the rows of ``rows`` replaced, or
+    inserted after the shipped problems' rows, and a line saying which command wrote them; the
+    other rows and the summary are left as the earlier command wrote them (the summary's
+    counts and medians are of its own rows), the planned beacons' paragraph rewritten."""
+    lines = text.rstrip("\n").split("\n")
+    new = {f"| `{_name(r)}` |": table_row(r) for r in rows}
+    out, inserted = [], set()
+    for line in lines:
+        if line.startswith(BEACON_PARAGRAPH):
+            continue
+        key = next((k for k in new if line.startswith(k)), None)
+        if key is not None:
+            out.append(new[key])
+            inserted.add(key)
+            continue
+        if line.startswith("| `suite/") and not inserted >= set(new):
+            out += [new[k] for k in new if k not in inserted]
+            inserted |= set(new)
+        out.append(line)
+    missing = [new[k] for k in new if k not in inserted]
+    if missing:
+        raise SystemExit("--update-rows: the page has no table to put the rows in")
+    names = ", ".join(f"`{_name(r)}`" for r in rows)
+    note = (
+        f"Rows of {names} by `{command}` ({wall_s / 60:.0f} min wall); the other rows and the "
+        "summary by the command above."
+    )
+    out = [x for x in out if not x.startswith(f"Rows of {names} by ")]
+    out.insert(1, note)
+    everything = [r for r in rows if "beacon_verdicts" in r]
+    return "\n".join(out).rstrip("\n") + "\n\n" + "\n".join(beacon_sentences(everything))
+
+
 def markdown_page(rows: list[dict], command: str, wall_s: float) -> str:
     """The suite table and its summary as Markdown (the page ``docs/results/suite.md``
     includes)."""
@@ -212,20 +361,7 @@ def markdown_page(rows: list[dict], command: str, wall_s: float) -> str:
         "|---|---|---|" + "---:|" * (len(head) - 4) + "---|",
     ]
     for r in rows:
-        name = r["problem"].removeprefix("obsplan/").removeprefix("problems/")
-        lm = r["lawnmower"]
-        t = r.get("truth_runs") or {}
-        closest = _cell(t.get("closest_range_m", r.get("true_closest_m")))
-        inside = t.get("runs_inside_min_range", r.get("runs_inside_min_range"))
-        breaks = r.get("any_violation_fraction")
-        cells = [
-            f"`{name}`", r["objective"], r["status"], f"{r['solve_s']:.0f}",
-            *(_cell(lm.get(k)) for _, k in RATIOS),
-            "-" if r["runs"] is None else str(r["runs"]), closest,
-            "-" if inside is None else str(inside),
-            "-" if breaks is None else f"{100 * breaks:.0f} %", letters_of(r),
-        ]  # fmt: skip
-        out.append("| " + " | ".join(cells) + " |")
+        out.append(table_row(r))
     suite = [r for r in rows if "/suite/" in r["problem"]] or rows
     med = []
     for col, key in RATIOS[:4]:
@@ -254,6 +390,7 @@ def markdown_page(rows: list[dict], command: str, wall_s: float) -> str:
         + (f" ({', '.join(worse)})" if worse else "")
         + ".",
         "",
+        *beacon_sentences(rows),
     ]
     return "\n".join(out)
 
@@ -291,6 +428,12 @@ def main(argv: list[str] | None = None) -> int:
         "--markdown",
         metavar="FILE",
         help="also write the table and its summary as Markdown (the docs' suite page)",
+    )
+    ap.add_argument(
+        "--update-rows",
+        metavar="FILE",
+        help="replace (or add) the rows of the problems run in FILE, a page --markdown wrote, "
+        "keeping its other rows and its summary, and say which command wrote them",
     )
     ap.add_argument(
         "--objective",
@@ -352,7 +495,8 @@ def main(argv: list[str] | None = None) -> int:
         truth = "    -        -   -     -"
         if r["runs"] is not None:
             truth = (
-                f"{r['runs']:5d} {r['true_closest_m']:8.2f} {r['runs_inside_min_range']:3d} "
+                f"{r['runs']:5d} {r['true_closest_m']:8.2f} "
+                f"{'-' if r['runs_inside_min_range'] is None else r['runs_inside_min_range']:>3} "
                 f"{100 * r['any_violation_fraction']:4.0f}%"
             )
         print(
@@ -362,6 +506,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         for note in r["notes"]:  # an EKF lost on the plan, a diagnostic objective
             print(f"    {note}", flush=True)
+        if "beacon_verdicts" in r:  # EKF RMSE over the lines and final, per beacon baseline
+            print(f"    {beacon_letters(r)}", flush=True)
         if "truth_runs" in r:
             tb = r["truth_runs"]
             print(
@@ -409,15 +555,28 @@ def main(argv: list[str] | None = None) -> int:
             if r["runs"] is None
             else {"runs": r["runs"], "runs_inside_min_range": r["runs_inside_min_range"]}
         )
-        if t is not None and t["runs_inside_min_range"] <= 0.001 * t["runs"]:
+        inside = None if t is None else t["runs_inside_min_range"]
+        if inside is not None and inside <= 0.001 * t["runs"]:
             kept.append(r)
     print(f"plan's true path outside min_range in >= 99.9 % of runs: {len(kept)} of {len(rows)}")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=2) + "\n")
-    if args.markdown:
-        command = "python benchmarks/bench_planning_suite.py " + " ".join(
-            a for a in (argv if argv is not None else sys.argv[1:])
+    command = "python benchmarks/bench_planning_suite.py " + " ".join(
+        a for a in (argv if argv is not None else sys.argv[1:])
+    )
+    if args.update_rows:
+        page = Path(args.update_rows)
+        page.write_text(
+            update_page(
+                page.read_text(encoding="utf-8"),
+                rows,
+                command.strip(),
+                time.perf_counter() - t_start,
+            ),
+            encoding="utf-8",
         )
+        print(f"updated {args.update_rows}")
+    if args.markdown:
         Path(args.markdown).write_text(
             markdown_page(rows, command.strip(), time.perf_counter() - t_start), encoding="utf-8"
         )

@@ -136,6 +136,8 @@ def test_the_flow_validates_a_beacon_path_against_every_baseline(tmp_path):
     ]
     assert len(same) == 1 and report["verdict"]["outcomes"][same[0]] == "ties"
     assert report["solver"]["success"] is True and report["beacon"]["motion"] == "planned"
+    # the flow's planning time (not the validation's) is reported beside the planner's
+    assert 0 < report["solver"]["planning_s"] < result.wall_s
     assert np.array_equal(read_csv(tmp_path / "out" / "plan.csv").p, result.vehicle.p)
     back = read_beacon_path(tmp_path / "out" / "beacon.csv", 2)
     assert np.array_equal(back.positions, result.solve.positions)

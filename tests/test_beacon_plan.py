@@ -267,3 +267,52 @@ def test_a_start_that_stops_says_why_and_the_plan_is_not_a_success():
     for s in plan.starts:
         assert not s.success and "iteration limit" in s.reason
     assert "NOT converged" in plan.summary()
+
+
+def test_circle_starts_only_without_guesses_and_a_repeated_start_is_not_re_solved():
+    # a few iterations suffice: what is checked is which starts run, not where they end
+    traj = survey(2, dt=1.0, legs=1)
+    c, cfg = craft(), config()
+    alone = plan_beacon(traj, c, cfg, max_iter=3)
+    assert [s.label for s in alone.starts][0] == "hold"
+    assert sum(s.label.startswith("circle-") for s in alone.starts) == 4
+    # the caller's guesses (the flow's baselines include a circle) replace the circle starts;
+    # one of them holds the start, which once fitted is the "hold" start itself
+    holding = BeaconPath.fixed(c.start.tolist(), traj.t[0], traj.t[-1])
+    guided = plan_beacon(
+        traj,
+        c,
+        cfg,
+        max_iter=3,
+        guesses=[holding, circling(traj, 60.0, True, 2)],
+        guess_labels=["still", "round"],
+    )
+    labels = [s.label for s in guided.starts]
+    assert labels == ["hold", "still", "round"]
+    hold, still, rnd = guided.starts
+    assert still.same_as == "hold" and hold.same_as == "" and rnd.same_as == ""
+    assert (still.objective, still.iterations, still.status, still.reason) == (
+        hold.objective,
+        hold.iterations,
+        hold.status,
+        hold.reason,
+    )
+    assert rnd.initial_objective != hold.initial_objective
+    assert "the same start as 'hold'" in guided.summary()
+    # circles=True still adds them to the guesses
+    both = plan_beacon(traj, c, cfg, max_iter=3, guesses=[holding], circles=True)
+    assert sum(s.label.startswith("circle-") for s in both.starts) == 4
+
+
+def test_the_objective_is_the_mean_term_plus_the_final_term():
+    traj = survey(2, dt=1.0, legs=1)
+    rec = range_recursion(traj, config())
+    B = rec.positions.T + np.array([[30.0], [40.0]])
+    w = np.linspace(0.0, 1.0, rec.count)
+    mean, final = rec.terms(B, w)
+    post, nxt = rec.traces(B)
+    # the trapezoid over each gap, weighted, and the variance at the path's end
+    expected = sum(wk * 0.5 * (a + b) for wk, a, b in zip(w, post, nxt, strict=True)) / w.sum()
+    assert mean == pytest.approx(expected, rel=1e-12)  # the same sums in another order
+    assert final == nxt[-1]
+    assert rec.objective(B, w) == pytest.approx(mean + final, rel=1e-15)

@@ -182,3 +182,40 @@ def test_ctrl_c_while_exporting_leaves_no_partial_file(tmp_path, capsys, monkeyp
     assert main(["export", str(plan), "--waypoints", str(tmp_path / "wp.csv")]) == 130
     assert "interrupted" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.csv"]
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_export_a_planned_beacons_csv(tmp_path, capsys, dim):
+    # a craft's path of piecewise-constant accelerations, written as obsplan plan writes
+    # beacon.csv (samples at every change of acceleration and between): export reads the
+    # accelerations back from the velocities and its waypoints lie on the path
+    from obsplan.model.beacon import write_beacon_csv
+
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 200.0, 81)
+    a = np.zeros((t.size, dim))
+    a[:, :2] = rng.uniform(-0.1, 0.1, (t.size, 2))
+    craft = Trajectory.from_inputs(t, np.array([10.0, -5.0, 0.0][:dim]), np.zeros(dim), a)
+    beacon = write_beacon_csv(tmp_path / "beacon.csv", craft.t, craft.p, craft.v)
+    wp_csv = tmp_path / "wp.csv"
+    # every 7 s: most waypoints fall between samples, where the accelerations read back matter
+    args = ["export", str(beacon), "--waypoints", str(wp_csv), "--every", "7"]
+    assert main(args) == 0
+    assert "warning" not in capsys.readouterr().err  # the accelerations reproduce the samples
+    wp = read_waypoints_csv(wp_csv)
+    axes = ("x", "y", "z")[:dim]
+    # waypoints are samples of the exact path: to round-off of the CSV's 17 digits
+    np.testing.assert_allclose(
+        np.column_stack([wp[c] for c in axes]), position_at(craft, wp["t"]), atol=1e-9
+    )
+    # and the QGC mission of the craft (at the surface in 2D: --depth defaults to 0)
+    mission = tmp_path / "craft.plan"
+    assert main(["export", str(beacon), "--qgc", str(mission), "--origin", "43.0,5.0"]) == 0
+    assert read_qgc_plan(mission)["latitude"].size > 0
+
+
+def test_export_refuses_a_beacon_csv_without_velocities(tmp_path, capsys):
+    path = tmp_path / "beacon.csv"
+    path.write_text("t,bx,by\n0,0,0\n10,1,1\n")
+    assert main(["export", str(path), "--waypoints", str(tmp_path / "wp.csv")]) == 2
+    assert "vbx" in capsys.readouterr().err

@@ -45,18 +45,30 @@ def _rows() -> dict[str, list[str]]:
 def _shipped() -> dict[str, Path]:
     files = {p.name: p for p in sorted((ROOT / "problems").glob("*.toml"))}
     files |= {f"suite/{p.name}": p for p in sorted((ROOT / "problems/suite").glob("*.toml"))}
-    # the benchmark plans a fixed beacon's problems (obsplan.plan); a problem whose beacon moves
-    # (the ASV problems) is planned by plan_moving_beacon and has no row until the benchmark
-    # runs it
-    return {k: p for k, p in files.items() if not load_problem(p).beacon_motion.moving}
+    return files
 
 
 def test_every_shipped_problem_has_one_row_naming_its_objective():
     rows, files = _rows(), _shipped()
     assert sorted(rows) == sorted(files)
     for name, path in files.items():
+        pb = load_problem(path)
+        if pb.beacon_motion.moving:  # planned by plan_moving_beacon, for the beacon's bound
+            assert rows[name][1].startswith("planned beacon"), name
+            continue
         # "pcrb-position/average-and-final": the kind, then the time mode of a timed objective
-        assert rows[name][1].split("/")[0] == load_problem(path).objective.kind, name
+        assert rows[name][1].split("/")[0] == pb.objective.kind, name
+
+
+def test_the_planned_beacons_rows_say_their_verdicts_and_who_wrote_them():
+    """Rows put in by --update-rows: the command that wrote them is said, and the paragraph
+    gives each planned beacon's verdicts against every beacon baseline."""
+    table = (RESULTS / "generated" / "suite-table.md").read_text(encoding="utf-8")
+    moving = [n for n, p in _shipped().items() if load_problem(p).beacon_motion.moving]
+    para = next(x for x in table.splitlines() if x.startswith("Planned beacons"))
+    for name in moving:
+        assert f"`{name}` beacon-fixed " in para, name
+        assert any(x.startswith("Rows of ") and f"`{name}`" in x for x in table.splitlines())
 
 
 def test_the_section_counts_the_suite_as_it_is():

@@ -546,7 +546,7 @@ def resolve_beacon(args: argparse.Namespace, dim: int):
 
 
 # ------------------------------------------------------------------------------ inputs
-def read_trajectory(path: str, verb: str) -> Trajectory:
+def read_trajectory(path: str, verb: str, beacon: bool = False) -> Trajectory:
     """Read a trajectory CSV, or fit a position-only track on the fly (said on stderr).
 
     A consistency warning is printed as one line, not a traceback.
@@ -558,6 +558,9 @@ def read_trajectory(path: str, verb: str) -> Trajectory:
         track (``t,px,py[,pz]``).
     verb : str
         The verb reading it, for the messages on stderr (``"analyze"``).
+    beacon : bool, optional
+        Also read a planned beacon's ``beacon.csv`` (``t,bx,by[,bz],vbx,vby[,vbz]``) as the
+        craft's trajectory (:func:`obsplan.io.tracks.beacon_trajectory_from_table`).
 
     Returns
     -------
@@ -577,7 +580,7 @@ def read_trajectory(path: str, verb: str) -> Trajectory:
     check_file_rows(path, "the trajectory")  # a huge file is refused before it is read
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", InconsistentTrajectoryWarning)
-        traj, fit = load_trajectory(path, check=True)
+        traj, fit = load_trajectory(path, check=True, beacon=beacon)
     for w in caught:
         if issubclass(w.category, InconsistentTrajectoryWarning):
             print(f"obsplan {verb}: warning: {w.message}", file=sys.stderr)

@@ -1,4 +1,7 @@
-"""``obsplan export PLAN.csv --waypoints WP.csv [--qgc MISSION.plan]``: flyable waypoints."""
+"""``obsplan export PLAN.csv --waypoints WP.csv [--qgc MISSION.plan]``: flyable waypoints.
+
+``PLAN.csv`` is the vehicle's ``plan.csv`` or the planned beacon's ``beacon.csv`` (its craft's
+path: an ASV or a ship flies the waypoints too)."""
 
 from __future__ import annotations
 
@@ -43,7 +46,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "export",
         help="waypoints (metric or geodetic) and a QGroundControl mission from a plan",
         description=(
-            "Turn a planned trajectory CSV into waypoints for an autopilot that flies straight "
+            "Turn a planned trajectory CSV (or the beacon.csv of a planned beacon: its craft's "
+            "path) into waypoints for an autopilot that flies straight "
             "legs: a waypoint CSV (time, position, speed, and the exact tracking error of each "
             "leg) and/or a QGroundControl .plan mission for MAVLink (ArduSub) vehicles. "
             "Geodetic output needs the origin of the plan's north-east-down frame: --origin, or "
@@ -51,7 +55,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
             "geodetic problem). See docs/export.md."
         ),
     )
-    p.add_argument("plan", metavar="PLAN.csv", help="trajectory CSV (e.g. DIR/plan.csv)")
+    p.add_argument(
+        "plan",
+        metavar="PLAN.csv",
+        help="trajectory CSV (e.g. DIR/plan.csv), or a planned beacon's DIR/beacon.csv",
+    )
     p.add_argument("--waypoints", metavar="WP.csv", default=None, help="waypoint CSV to write")
     p.add_argument("--qgc", metavar="MISSION.plan", default=None, help="QGroundControl plan")
     space = p.add_mutually_exclusive_group()
@@ -176,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
     radius = DEFAULT_ACCEPTANCE_M if args.acceptance_radius is None else args.acceptance_radius
     if not (math.isfinite(radius) and radius > 0):
         raise InputError(f"--acceptance-radius {radius:g}: must be a positive number of metres")
-    traj = read_trajectory(args.plan, "export")
+    traj = read_trajectory(args.plan, "export", beacon=True)
     if args.depth is not None and traj.dim == 3:
         raise InputError(
             f"--depth: {args.plan} is a 3D plan, whose mission flies its own depths (pz); "

@@ -988,8 +988,58 @@ def _refine(nodes, y, w, sv, n, q_ref, s_ref):
     return q.reshape(n, -1)[np.arange(n), best], s.reshape(n, -1)[np.arange(n), best]
 
 
+def beacon_trajectory_from_table(table: CsvTable, check: bool = True) -> Trajectory:
+    """The path of the craft carrying a planned beacon, from its ``beacon.csv`` (``t,bx,by[,bz],
+    vbx,vby[,vbz]``, :func:`~obsplan.model.beacon.write_beacon_csv`), as a trajectory.
+
+    The craft holds a constant acceleration between samples (the planner samples its path at
+    every node where the acceleration changes), so the acceleration on ``[t_k, t_{k+1})`` is
+    ``(v_{k+1} - v_k) / (t_{k+1} - t_k)`` exactly; the last sample repeats the one before.
+
+    Parameters
+    ----------
+    table : CsvTable
+        The CSV read as text cells.
+    check : bool, optional
+        Warn if those accelerations do not reproduce the positions
+        (:meth:`~obsplan.trajectory.sampled.Trajectory.check_consistency`): a file that is not
+        a path of piecewise-constant accelerations sampled at their changes.
+
+    Returns
+    -------
+    Trajectory
+        Positions ``b``, velocities ``vb`` and the accelerations between samples.
+
+    Raises
+    ------
+    TrajectoryFormatError
+        A missing column (the velocities too), a bad cell, fewer than 2 rows or times that do not
+        increase.
+    """
+    dim = 3 if "bz" in table.columns else 2
+    cols = ["t"] + [f"b{a}" for a in "xyz"[:dim]] + [f"vb{a}" for a in "xyz"[:dim]]
+    missing = [c for c in cols if c not in table.columns]
+    if missing:
+        raise TrajectoryFormatError(
+            f"{table.path}: missing column(s) {', '.join(missing)}; a beacon path to export needs "
+            f"{','.join(cols)} (the beacon.csv of `obsplan plan`)"
+        )
+    data = table.numbers(cols)
+    if data.shape[0] < 2:
+        raise TrajectoryFormatError(
+            f"{table.path}: needs at least 2 data rows, found {data.shape[0]}"
+        )
+    t, b, v = data[:, 0], data[:, 1 : 1 + dim], data[:, 1 + dim :]
+    check_samples(t, {"positions": b, "velocities": v}, f"{table.path}: beacon path")
+    u = np.diff(v, axis=0) / np.diff(t)[:, None]
+    traj = Trajectory(t, b, v, np.vstack([u, u[-1:]]))
+    if check:
+        traj.check_consistency(source=str(table.path))
+    return traj
+
+
 def load_trajectory(
-    path: str | Path, *, check: bool = True, **fit_options: Any
+    path: str | Path, *, check: bool = True, beacon: bool = False, **fit_options: Any
 ) -> tuple[Trajectory, TrackFit | None]:
     """A trajectory CSV as it is, or a position-only track CSV fitted on the fly.
 
@@ -1005,6 +1055,9 @@ def load_trajectory(
     check : bool, optional
         Warn if a trajectory CSV's inputs do not reproduce its samples
         (:meth:`~obsplan.trajectory.sampled.Trajectory.check_consistency`).
+    beacon : bool, optional
+        Also read a planned beacon's ``beacon.csv`` (a ``bx`` column;
+        :func:`beacon_trajectory_from_table`), for tools that fly the craft's path.
     **fit_options
         Keyword arguments of :func:`fit_track` (``position_std``, ``grid``...), for a track.
 
@@ -1023,6 +1076,8 @@ def load_trajectory(
         For a track that cannot be fitted.
     """
     table = read_table(path, "t,px,py,vx,vy,ux,uy (or a track: t,px,py)")
+    if beacon and "bx" in table.columns:
+        return beacon_trajectory_from_table(table, check=check), None
     if any(c in table.columns for c in ("ux", "uy", "uz")):
         return trajectory_from_table(table, check=check), None
     if not table.has("t", "px", "py"):

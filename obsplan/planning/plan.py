@@ -380,6 +380,7 @@ def plan_moving_beacon(
     )
     beacons = {"planned": solve.path, **{k: b.path for k, b in bls.items()}}
     bounds = {k: _bound(fine, replace(config, beacon_path=b), mask) for k, b in beacons.items()}
+    planning_s = time.perf_counter() - t0
     validation = {}
     if validate:
         validation = validate_until_decided(
@@ -401,6 +402,7 @@ def plan_moving_beacon(
         lines=on_lines,
         wall_s=time.perf_counter() - t0,
         planned_breaks=craft_limit_breaks(solve.path, solve.velocities, craft, fine),
+        planning_s=planning_s,
     )
 
 

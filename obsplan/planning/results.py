@@ -19,7 +19,7 @@ from __future__ import annotations
 import html
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -651,6 +651,43 @@ class BeaconBound:
         }
 
 
+def truth_distance_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
+    """A sentence per beacon path whose Monte Carlo's true vehicle paths broke the distance
+    limits between the craft and the vehicle (``min_range`` and ``max_range`` of
+    :func:`~obsplan.planning.problem.validation_setup.truth_limits`): the nominal paths keep
+    them, the true ones stray from them by the estimation and tracking errors.
+
+    Parameters
+    ----------
+    validation : Mapping of str to PathValidation
+        Every beacon path's validation.
+
+    Returns
+    -------
+    tuple of str
+        The sentences, in the order of ``validation`` (none when no run broke them).
+    """
+    words = {
+        "min_range": "came closer than the craft's min_distance",
+        "max_range": "went beyond the largest range",
+    }
+    out = []
+    for name, val in validation.items():
+        tr = val.result.truth
+        if tr is None or tr.limits is None:
+            continue
+        viol, excess = tr.violations(), tr.worst_excess
+        said = [
+            f"{words[k]} ({getattr(tr.limits, k):g} m) on {int(np.sum(viol[k]))} of {tr.runs} "
+            f"runs (by up to {excess.get(k, 0.0):.2g} m)"
+            for k in words
+            if k in viol and np.any(viol[k])
+        ]
+        if said:
+            out.append(f"with the {name} beacon the vehicle's true path " + " and ".join(said))
+    return tuple(out)
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class BeaconPlanResult:
     """What ``obsplan plan`` reports for a planned beacon serving a vehicle on a given path.
@@ -677,6 +714,9 @@ class BeaconPlanResult:
     planned_breaks : str
         The craft's limits the planned path breaks, in words (empty: none;
         :func:`~obsplan.planning.baselines.beacon.craft_limit_breaks`).
+    planning_s : float
+        Time [s] the flow took to plan: the baselines, the planner and the bounds (not the
+        validation); NaN when not measured.
     """
 
     problem: PlanningProblem
@@ -688,6 +728,7 @@ class BeaconPlanResult:
     lines: bool
     wall_s: float
     planned_breaks: str = ""
+    planning_s: float = math.nan
 
     @property
     def success(self) -> bool:
@@ -720,6 +761,7 @@ class BeaconPlanResult:
         )
         if self.planned_breaks:
             notes = (f"the planned beacon breaks the craft's limits: {self.planned_breaks}", *notes)
+        notes = (*notes, *truth_distance_notes(self.validation))
         return verdict(self.validation, {}, notes, lines=self.lines)
 
     def outcomes(self) -> dict[str, str]:
@@ -769,6 +811,7 @@ class BeaconPlanResult:
                 "status": str(s.status),
                 "iterations": int(s.iterations),
                 "wall_s": float(s.wall_s),
+                "planning_s": None if not math.isfinite(self.planning_s) else self.planning_s,
                 "objective": obj,
             },
             "metrics": {k: b.to_dict() for k, b in self.bounds.items()},

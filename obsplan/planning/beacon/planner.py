@@ -10,7 +10,12 @@ keeps the best converged one:
   horizontal bounding box) at a third and at two thirds of the box's half-diagonal, spiralling
   out from the start at half the craft's speed, at 90 % of the angular rate its speed and
   acceleration allow;
-* the caller's ``guesses`` (e.g. the beacon baselines).
+* the caller's ``guesses`` (e.g. the beacon baselines, which include a circle at its best
+  radius: with guesses the circle starts are left out unless ``circles=True``).
+
+A start that fits onto the same path as an earlier one (within :data:`PATH_TOLERANCE_M` at every
+node; e.g. the ``beacon-fixed`` baseline is holding station) is not solved again: IPOPT would end
+where it did, and the start's entry says so.
 
 Each start is first *fitted* onto the limits: the nearest path of the craft's dynamics (least
 squares on the node positions, the limits as constraints, IPOPT with the exact Hessian), so every
@@ -29,7 +34,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -84,6 +89,9 @@ class BeaconStart:
         The objective [m²] of the start once fitted onto the limits.
     reason : str
         Why it did not converge, in words ("" when it did).
+    same_as : str
+        The earlier start this one fitted onto, whose outcome it shares: not solved again (""
+        when solved).
     """
 
     label: str
@@ -94,6 +102,7 @@ class BeaconStart:
     objective: float | None
     initial_objective: float | None
     reason: str
+    same_as: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,6 +177,8 @@ class BeaconPlan:
             obj = "-" if s.objective is None else f"{s.objective:.4g}"
             ini = "-" if s.initial_objective is None else f"{s.initial_objective:.4g}"
             why = f": {s.reason}" if s.reason else ""
+            if s.same_as:
+                why += f" (the same start as {s.same_as!r} once fitted: not solved again)"
             lines.append(f"  {s.label}: {s.status}, {obj} m^2 (start {ini}){why}")
         return "\n".join(lines)
 
@@ -400,9 +411,10 @@ def beacon_objective(
     return float(rec.objective(rec.beacons_on_path(path), _weights(weights, rec.count)))
 
 
-def _solve_start(nlp: _Nlp, label: str, path: BeaconPath) -> tuple[BeaconStart, np.ndarray]:
+def _solve_start(
+    nlp: _Nlp, label: str, x0: np.ndarray, fitted: bool
+) -> tuple[BeaconStart, np.ndarray]:
     t0 = time.perf_counter()
-    x0, fitted = _fit(nlp.grid, nlp.fit, path, (nlp.lbx, nlp.ubx, nlp.lbg, nlp.ubg))
     initial = float(nlp.objective(x0))
     ref = initial if math.isfinite(initial) and initial > 0 else 1.0
     sol, stats, err = _call(
@@ -474,7 +486,7 @@ def plan_beacon(
     check_dt: float = CHECK_DT,
     tol: float = SOLVER_TOL,
     max_iter: int = MAX_ITER,
-    circles: bool = True,
+    circles: bool | None = None,
 ) -> BeaconPlan:
     """Plan the craft carrying the beacon for a vehicle flying ``vehicle`` (module docstring).
 
@@ -505,8 +517,10 @@ def plan_beacon(
         IPOPT's ``tol`` on the objective relative to holding station.
     max_iter : int, optional
         IPOPT's iteration limit per start.
-    circles : bool, optional
-        Include the circle starts (default); False: holding station and ``guesses`` only.
+    circles : bool or None, optional
+        Include the circle starts; False: holding station and ``guesses`` only; None (default):
+        the circles only when there are no ``guesses`` (a caller's guesses, the beacon baselines,
+        include a circle at its best radius, which the circle starts would only repeat).
 
     Returns
     -------
@@ -531,12 +545,29 @@ def plan_beacon(
     grid = craft_grid(vehicle, craft, step, check_dt)
     rec = range_recursion(vehicle, config)
     w = _weights(weights, rec.count)
+    if circles is None:
+        circles = len(guesses) == 0
     starts = _start_paths(vehicle, craft, guesses, guess_labels, circles)
     nlp = _build(grid, rec, w, tol, max_iter)
     outcomes: list[BeaconStart] = []
     xs: list[np.ndarray] = []
+    fits: list[np.ndarray] = []
     for i, (label, path) in enumerate(starts):
-        outcome, x = _solve_start(nlp, label, path)
+        t0 = time.perf_counter()
+        x0, fitted = _fit(nlp.grid, nlp.fit, path, (nlp.lbx, nlp.ubx, nlp.lbg, nlp.ubg))
+        same = _same_start(nlp.grid, x0, fits)
+        fits.append(x0)
+        if same is not None:  # IPOPT is deterministic: the same start ends where it did
+            outcome = replace(
+                outcomes[same],
+                label=label,
+                wall_s=time.perf_counter() - t0,
+                same_as=outcomes[same].label,
+            )
+            x = xs[same]
+        else:
+            outcome, x = _solve_start(nlp, label, x0, fitted)
+            outcome = replace(outcome, wall_s=time.perf_counter() - t0)
         outcomes.append(outcome)
         xs.append(x)
         if callback is not None:
@@ -585,6 +616,18 @@ def _start_paths(
         path.check_covers(t0, tf, f"guess {label!r}")
         out.append((str(label), path))
     return out
+
+
+def _same_start(grid: CraftGrid, x0: np.ndarray, fits: list[np.ndarray]) -> int | None:
+    """The first earlier fitted start whose node positions are all within
+    :data:`PATH_TOLERANCE_M` of ``x0``'s (None if none is)."""
+    pos = x0.reshape(6, grid.N, order="F")[2:4] * grid.L
+    for i, other in enumerate(fits):
+        if np.max(np.abs(other.reshape(6, grid.N, order="F")[2:4] * grid.L - pos)) <= (
+            PATH_TOLERANCE_M
+        ):
+            return i
+    return None
 
 
 def _pick(nlp: _Nlp, outcomes: list[BeaconStart], xs: list[np.ndarray]) -> int:

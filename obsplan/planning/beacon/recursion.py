@@ -232,10 +232,29 @@ class RangeRecursion:
         float or casadi.SX
             The objective [m²].
         """
+        mean, final = self.terms(B, weights)
+        return mean + final
+
+    def terms(self, B, weights: np.ndarray):
+        """The two terms of ``J``: the weighted mean of the per-epoch values and the final
+        position variance [m²].
+
+        Parameters
+        ----------
+        B : ndarray or casadi.SX, shape (n, E)
+            Beacon positions at the range epochs [m].
+        weights : ndarray, shape (E,)
+            Weight of each range epoch, ``>= 0`` with a positive sum.
+
+        Returns
+        -------
+        mean, final : float or casadi.SX
+            ``Σ w_k e_k / Σ w_k`` and ``tr P_pp(t_f)`` [m²].
+        """
         post, nxt = self.traces(B)
         w = np.asarray(weights, float) / float(np.sum(weights))
         mean = sum(0.5 * wk * (a + b) for wk, a, b in zip(w, post, nxt, strict=True) if wk > 0)
-        return mean + nxt[-1]
+        return mean, nxt[-1]
 
     def beacons_on_path(self, path: BeaconPath) -> np.ndarray:
         """The positions ``B`` (n, E) a known beacon path gives the ranges (at transmission,

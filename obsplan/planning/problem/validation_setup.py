@@ -189,6 +189,14 @@ def truth_limits(pb: PlanningProblem) -> TruthLimits:
     """The problem's limits that every run's *true* path is checked against: acceleration,
     speed, area, depth band, ``min_range`` (0: none) and ``max_range``, strictly.
 
+    With a planned beacon (``beacon.motion = "planned"``, where ``limits.min_range`` and
+    ``limits.max_range`` are refused) the distances are those of its craft to the vehicle,
+    measured to the beacon where it is at each sample: ``max_range`` is the craft's (a range);
+    ``min_range`` is the craft's ``min_distance`` in 2D, where the horizontal distance is the
+    range. In 3D it is not checked on the true paths (the kernels measure the range, and a
+    range above ``min_distance`` says nothing of the horizontal distance): the nominal paths'
+    check (:func:`~obsplan.planning.baselines.beacon.craft_limit_breaks`) stands alone.
+
     Parameters
     ----------
     pb : PlanningProblem
@@ -201,13 +209,19 @@ def truth_limits(pb: PlanningProblem) -> TruthLimits:
     """
     lim = pb.limits
     area = None if lim.area is None else (lim.area.x, lim.area.y)
+    min_range = lim.min_range if lim.min_range > 0 else None
+    max_range = lim.max_range
+    craft = pb.beacon_vehicle
+    if craft is not None:
+        min_range = craft.min_distance if pb.dim == 2 and craft.min_distance > 0 else None
+        max_range = craft.max_range
     return TruthLimits(
         accel=lim.accel,
         speed=lim.speed,
         area=area,
         depth=lim.depth,
-        min_range=lim.min_range if lim.min_range > 0 else None,
-        max_range=lim.max_range,
+        min_range=min_range,
+        max_range=max_range,
     )
 
 

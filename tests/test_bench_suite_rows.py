@@ -1,0 +1,78 @@
+"""benchmarks/bench_planning_suite.py: a planned beacon's row, and rows updated in place in the
+page an earlier run wrote (the other rows and the summary kept, the command that wrote the new
+rows said)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_planning_suite.py"
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("bench_planning_suite", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _fixed_row(name: str, ratio: float) -> dict:
+    d = {"outcome": "better", "ratio": ratio, "ci": (0.5, 0.9)}
+    return {
+        "problem": f"obsplan/problems/{name}",
+        "objective": "pcrb-position/average-and-final",
+        "status": "Solve_Succeeded",
+        "success": True,
+        "solve_s": 5.0,
+        "lawnmower": {k: ratio for _, k in _bench().RATIOS},
+        "runs": 50,
+        "true_closest_m": 6.0,
+        "runs_inside_min_range": 0,
+        "any_violation_fraction": 0.0,
+        "beats_all": True,
+        "verdicts": {"lawnmower": {k: d for k in _bench().VERDICT_METRICS}},
+    }
+
+
+def _beacon_row(name: str) -> dict:
+    bench = _bench()
+    win = {"outcome": "better", "ratio": 0.6, "ci": (0.5, 0.7)}
+    tie = {"outcome": "tie", "ratio": 0.97, "ci": (0.9, 1.05)}
+    verdicts = {
+        "beacon-fixed": {k: win for k in bench.BEACON_METRICS},
+        "beacon-circle": {bench.BEACON_METRICS[0]: win, bench.BEACON_METRICS[1]: tie},
+    }
+    row = _fixed_row(name, 0.0)
+    row.update(
+        objective="planned beacon (pcrb lines + final)",
+        lawnmower={},
+        beacon_verdicts=verdicts,
+        verdicts={"circle": {k: win for k in bench.VERDICT_METRICS}},
+    )
+    return row
+
+
+def test_rows_are_replaced_or_added_and_the_rest_is_kept():
+    bench = _bench()
+    fixed = [_fixed_row("a.toml", 0.5), _fixed_row("suite/b.toml", 0.4)]
+    page = bench.markdown_page(fixed, "python benchmarks/bench_planning_suite.py X", 600.0)
+    new = [_beacon_row("asv.toml"), _fixed_row("a.toml", 0.3)]
+    out = bench.update_page(page, new, "python benchmarks/bench_planning_suite.py Y", 60.0)
+    lines = out.splitlines()
+    assert lines[0] == page.splitlines()[0]  # the earlier command's line stays
+    assert lines[1].startswith("Rows of `asv.toml`, `a.toml` by `python benchmarks/")
+    rows = [x for x in lines if x.startswith("| `")]
+    # a.toml replaced in place, the new row before the suite's, the suite's row untouched
+    assert [r.split("|")[1].strip() for r in rows] == ["`a.toml`", "`asv.toml`", "`suite/b.toml`"]
+    assert rows[0] == bench.table_row(new[1]) and "0.30" in rows[0]
+    assert rows[2] in page.splitlines()
+    # the summary of the earlier run is kept; the planned beacons' paragraph is added
+    summary = next(x for x in page.splitlines() if x.startswith("Medians over"))
+    assert summary in lines
+    para = next(x for x in lines if x.startswith(bench.BEACON_PARAGRAPH))
+    assert "`asv.toml` beacon-fixed BB, beacon-circle Bt" in para
+    # updating again replaces the paragraph and the note instead of repeating them
+    again = bench.update_page(out, new, "python benchmarks/bench_planning_suite.py Y", 60.0)
+    assert sum(x.startswith(bench.BEACON_PARAGRAPH) for x in again.splitlines()) == 1
+    assert sum(x.startswith("Rows of `asv.toml`") for x in again.splitlines()) == 1
