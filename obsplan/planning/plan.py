@@ -62,6 +62,11 @@ def plan(
 ) -> PlanResult:
     """Solve a planning problem and compare the plan with the baselines.
 
+    The beacon is fixed, or on a known path (``beacon.motion = "path"``, objective
+    ``pcrb-position``, ``KNOWN_PATH_OBJECTIVES``): the vehicle is then planned knowing where
+    the beacon will be (:class:`~obsplan.planning.transcription.grid.Grid`), and the plan and
+    every baseline are validated with the beacon on its path.
+
     Parameters
     ----------
     problem : PlanningProblem or str or Path or None, default None
