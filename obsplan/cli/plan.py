@@ -143,8 +143,9 @@ def run(args: argparse.Namespace) -> int:
     """
     # validate the problem and the output folder before any work
     pb = _apply_overrides(load_problem(args.problem), args)
-    if pb.beacon_motion.moving:
+    if pb.beacon_motion.motion == "planned":
         return _run_moving_beacon(pb, args)
+    check_beacon_plannable(pb)  # a known beacon path: what is not built is refused before output
     out = OutputDir(args.out, args.force, inputs=[args.problem or DEFAULT_PROBLEM], verb="plan")
     with out:  # Ctrl-C or an error: no output folder, an old one untouched
         result = plan(

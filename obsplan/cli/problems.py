@@ -5,7 +5,8 @@ writes a copy to edit.
 
 The files are package data (:data:`~obsplan.planning.problem.parse.PROBLEMS_DIR`), so every
 install has them; ``obsplan plan NAME`` plans one by name. A copied sweep's relative ``base``
-(``"../localise.toml"``) is rewritten to the shipped file it names, so the copy runs anywhere.
+(``"../localise.toml"``) and a problem's relative ``path = "..."`` naming a shipped file (a known
+beacon path's CSV) are rewritten to the shipped file they name, so the copy runs anywhere.
 """
 
 from __future__ import annotations
@@ -19,8 +20,8 @@ from obsplan.core.errors import InputError
 from obsplan.core.textfiles import read_text, read_toml
 from obsplan.planning.problem.parse import PROBLEMS_DIR, shipped_file, shipped_files
 
-#: A sweep file's ``base = "..."`` line (the path is relative to the sweep file).
-_BASE = re.compile(r'^(base\s*=\s*)"([^"]+)"', re.M)
+#: A sweep file's ``base = "..."`` line, or a problem's ``path = "..."`` (relative to the file).
+_BASE = re.compile(r'^((?:base|path)\s*=\s*)"([^"]+)"', re.M)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
@@ -79,7 +80,7 @@ def describe(path: Path) -> tuple[str, str]:
 
 def copied_text(path: Path) -> str:
     """The text of shipped ``path`` as a copy elsewhere needs it: a sweep's relative ``base``
-    made absolute (the shipped problem it names).
+    and a problem's relative ``path`` made absolute (the shipped file they name).
 
     Parameters
     ----------
@@ -89,14 +90,15 @@ def copied_text(path: Path) -> str:
     Returns
     -------
     str
-        Its text, every relative ``base = "..."`` line replaced by the absolute path of the file
-        it names; the rest unchanged.
+        Its text, every relative ``base = "..."`` or ``path = "..."`` line naming a shipped file
+        replaced by that file's absolute path (``path = "lawnmower"`` names none: kept); the
+        rest unchanged.
     """
     text = read_text(path, "a shipped problem file")
 
     def absolute(m: re.Match[str]) -> str:
         base = Path(m.group(2))
-        if base.is_absolute():
+        if base.is_absolute() or not (path.parent / base).is_file():
             return m.group(0)
         return f'{m.group(1)}"{(path.parent / base).resolve().as_posix()}"'
 

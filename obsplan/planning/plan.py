@@ -28,6 +28,7 @@ from obsplan.planning.baselines.vehicle import Baseline, baselines, unfitted_bas
 from obsplan.planning.beacon import range_epoch_times
 from obsplan.planning.missions.check import mission_check
 from obsplan.planning.objectives.evaluate import path_metrics
+from obsplan.planning.objectives.robust import is_robust
 from obsplan.planning.problem.checks import vehicle_path
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.parse import load_problem
@@ -60,6 +61,11 @@ def plan(
     replan: float | None = None,
 ) -> PlanResult:
     """Solve a planning problem and compare the plan with the baselines.
+
+    The beacon is fixed, or on a known path (``beacon.motion = "path"``, objective
+    ``pcrb-position``, ``KNOWN_PATH_OBJECTIVES``): the vehicle is then planned knowing where
+    the beacon will be (:class:`~obsplan.planning.transcription.grid.Grid`), and the plan and
+    every baseline are validated with the beacon on its path.
 
     Parameters
     ----------
@@ -117,6 +123,10 @@ def plan(
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
     _fixed_only(pb, "plan")
+    if replan is not None and pb.beacon_motion.moving:
+        raise field_error(
+            "beacon.motion", '"path": replanning with a moving beacon is not built yet; no replan'
+        )
     if replan is not None:
         if not validate:
             raise ProblemError(
@@ -213,10 +223,12 @@ def validate(
 
 
 def _fixed_only(pb: PlanningProblem, verb: str) -> None:
-    """Refuse a moving beacon in :func:`plan` / :func:`validate` (their metrics and baselines
-    are a fixed beacon's), pointing to what handles it."""
+    """Refuse a planned beacon in :func:`plan` / :func:`validate` (they plan and validate the
+    vehicle, for a fixed beacon or one on a known path), pointing to what handles it."""
     if pb.beacon_motion.moving:
         check_beacon_plannable(pb)
+        if pb.beacon_motion.motion == "path":
+            return
         raise field_error(
             "beacon.motion",
             f'"{pb.beacon_motion.motion}": {verb}() is for a fixed beacon; a beacon planned for '
@@ -240,6 +252,12 @@ class BeaconPlanner(Protocol):
     ) -> BeaconSolve: ...
 
 
+#: The objectives a vehicle is planned with for a beacon on a known path: those that see only
+#: the positions relative to the beacon at the range epochs (the grid's sample operator takes
+#: the beacon where it is then).
+KNOWN_PATH_OBJECTIVES: tuple[str, ...] = ("pcrb-position",)
+
+
 def check_beacon_plannable(pb: PlanningProblem) -> None:
     """Refuse a moving-beacon problem ``obsplan plan`` cannot plan yet, saying what it can.
 
@@ -251,8 +269,9 @@ def check_beacon_plannable(pb: PlanningProblem) -> None:
     Raises
     ------
     ProblemError
-        ``beacon.motion = "path"`` (planning the vehicle for a known beacon path), or
-        ``"planned"`` without ``vehicle.path`` (planning both jointly).
+        ``beacon.motion = "path"`` with an objective other than ``pcrb-position`` (the others
+        see the relative velocity or input, or a fixed beacon's KF, and are not built for a
+        moving beacon), or ``"planned"`` without ``vehicle.path`` (planning both jointly).
     """
     bm = pb.beacon_motion
     supported = (
@@ -260,12 +279,20 @@ def check_beacon_plannable(pb: PlanningProblem) -> None:
         '"lawnmower"): the beacon planned for the vehicle flying that path, or a fixed beacon'
     )
     if bm.motion == "path":
-        raise field_error(
-            "beacon.motion",
-            '"path": planning the vehicle for a known beacon path is not built yet; '
-            f"{supported}. To validate a path with that beacon: obsplan simulate TRAJ.csv "
-            "--problem FILE",
-        )
+        if pb.objective.kind not in KNOWN_PATH_OBJECTIVES:
+            raise field_error(
+                "objective.kind",
+                f'"{pb.objective.kind}" is not built for a beacon on a known path '
+                f'(beacon.motion = "path"); supported: '
+                f"{', '.join(KNOWN_PATH_OBJECTIVES)}",
+            )
+        if is_robust(pb):
+            raise field_error(
+                "objective.robust_prior",
+                "robust planning is not built for a beacon on a known path (beacon.motion = "
+                '"path"); remove objective.robust_prior and objective.robust_range_noise',
+            )
+        return
     if bm.motion == "planned" and pb.vehicle.path is None:
         raise field_error(
             "vehicle.path",

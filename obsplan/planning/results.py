@@ -357,6 +357,10 @@ class ValidationResult:
             "path": lambda ax=None: plot_paths(paths, pb, ax=ax),
             "gramian": lambda ax=None: plot_gramian_eigs(paths, pb, ax=ax),
         }
+        ship = pb.beacon_path
+        if ship is not None:  # the vehicle and the beacon on its known path, range links
+            flown = next(iter(paths.values()))
+            out = {"path": lambda ax=None: plot_beacon_paths(flown, {"beacon": ship}, pb, ax=ax)}
         if self.validation:
             val = self.validation
             out["filters"] = lambda ax=None: plot_filter_errors(val, ax=ax, problem=pb.name)
@@ -404,7 +408,9 @@ class ValidationResult:
     # ------------------------------------------------------------------------------- files
     def write_files(self, folder: str | Path) -> list[Path]:
         """Write ``plan.csv`` (when there is a path), ``report.json`` and the figures into
-        ``folder``, as ``obsplan plan`` does (no protection of what is there: :meth:`save`).
+        ``folder``, as ``obsplan plan`` does (no protection of what is there: :meth:`save`);
+        with a beacon on a known path, ``beacon.csv`` too (``t,bx,by[,bz],vbx,vby[,vbz]``: the
+        path at the plan's samples, its velocity that of the segment starting there).
 
         With a geodetic problem (an ``[origin]``) ``plan-geodetic.csv`` has the path as time,
         latitude, longitude[, depth] and speed.
@@ -429,6 +435,12 @@ class ValidationResult:
                 written.append(
                     write_geodetic_samples(self.trajectory, pb.origin, out / "plan-geodetic.csv")
                 )
+        ship = pb.beacon_path
+        if ship is not None and self.trajectory is not None:  # the known path on the plan's grid
+            t = self.trajectory.t
+            written.append(
+                write_beacon_csv(out / "beacon.csv", t, ship.position(t), ship.velocity(t))
+            )
         report = out / "report.json"
         report.write_text(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
         written.append(report)

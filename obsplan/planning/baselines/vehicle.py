@@ -40,7 +40,7 @@ from obsplan.planning.missions.check import mission_check
 from obsplan.planning.missions.lawnmower import mission_lawnmower, planner_lawnmower
 from obsplan.planning.missions.schedule import planner_schedule
 from obsplan.planning.problem.definition import PlanningProblem
-from obsplan.planning.problem.feasibility import check_limits, range_extremes
+from obsplan.planning.problem.feasibility import beacon_of, check_limits, range_extremes
 from obsplan.planning.problem.sections import Area
 from obsplan.planning.tuning import cache_per_tuning, tuning
 from obsplan.trajectory import generators
@@ -132,7 +132,7 @@ def _violation_words(traj: Trajectory, pb: PlanningProblem) -> str:
     lim = pb.limits
     parts = []
     if chk.range > 0:
-        near, far = range_extremes(traj, pb.beacon)
+        near, far = range_extremes(traj, beacon_of(pb))
         if near < lim.min_range:
             parts.append(
                 f"passes {near:.3g} m from the beacon (limits.min_range = {lim.min_range:g} m)"
@@ -247,7 +247,7 @@ def circle_baseline(pb: PlanningProblem) -> Baseline | None:
 
 
 def _circle(pb: PlanningProblem) -> Baseline:
-    b = np.asarray(pb.beacon, float)
+    b = pb.beacon_start
     rel = (pb.p0 - b)[:2]
     rho = float(np.linalg.norm(rel))
     if rho < 1e-6:
@@ -306,7 +306,7 @@ def straight_baseline(pb: PlanningProblem) -> Baseline:
     BaselineUnfit
         If the line breaks a limit (the message names it).
     """
-    b = np.asarray(pb.beacon, float)
+    b = pb.beacon_start
     v0 = pb.v0
     s0 = float(np.linalg.norm(v0))
     if s0 > 0:

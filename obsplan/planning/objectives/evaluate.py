@@ -28,7 +28,12 @@ from obsplan.planning.objectives.gramian import gramian_metrics
 from obsplan.planning.objectives.linearisation import linearisation_stress
 from obsplan.planning.objectives.registry import objective_of
 from obsplan.planning.problem.definition import PlanningProblem
-from obsplan.planning.problem.feasibility import LimitCheck, check_limits, range_extremes
+from obsplan.planning.problem.feasibility import (
+    LimitCheck,
+    beacon_of,
+    check_limits,
+    range_extremes,
+)
 from obsplan.planning.problem.schema import MINIMISED
 from obsplan.trajectory.sampled import Trajectory
 
@@ -161,8 +166,10 @@ def path_metrics(traj: Trajectory, pb: PlanningProblem) -> PathMetrics:
     """
     min_eig, log_det, cond = gramian_metrics(traj, pb)
     pcrb_mean, pcrb_final = covariance_stds(traj, pb, "pcrb-position")
-    kf_mean, kf_final = covariance_stds(traj, pb, "kf-position-std")
-    near, far = range_extremes(traj, pb.beacon)
+    kf_mean, kf_final = None, None
+    if pb.beacon_path is None:  # the planning KF's recursion is a fixed beacon's
+        kf_mean, kf_final = covariance_stds(traj, pb, "kf-position-std")
+    near, far = range_extremes(traj, beacon_of(pb))
     return PathMetrics(
         min_eig=min_eig,
         log_det=log_det,

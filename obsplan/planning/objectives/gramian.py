@@ -20,6 +20,8 @@ rank test of :mod:`obsplan.observability.scaling`, never read from the lifting v
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import casadi as ca
 import numpy as np
 
@@ -126,7 +128,12 @@ def gramian_metrics(traj: Trajectory, pb: PlanningProblem) -> tuple[float, float
     condition : float
         Its condition number.
     """
-    G = gramian(traj, pb.model, pb.scales)
+    path = pb.beacon_path
+    if path is None:
+        G = gramian(traj, pb.model, pb.scales)
+    else:  # the known path's Gramian, the model's beacon at the origin as it wants
+        model = replace(pb.model, beacon=(0.0,) * pb.dim)
+        G = gramian(traj, model, pb.scales, beacon_path=path)
     if numerical_rank(G) < G.shape[0]:
         return 0.0, float("-inf"), float("inf")
     return psd_metrics(G)

@@ -77,11 +77,11 @@ def check_values(pb: ProblemData) -> None:
     _check_vehicle(pb)
     _check_motion(pb)
     _check_horizon(pb)
+    _check_beacon_motion(pb)  # a known path is read before the start is checked against it
     _check_range_and_speed_limits(pb)
     _check_objective(pb)
     _check_validation(pb)
     _check_budget(pb)
-    _check_beacon_motion(pb)
     if pb.objective.mode in LINE_MODES and (pb.mission is None or not pb.mission.lines):
         raise field_error(
             "objective.mode",
@@ -793,7 +793,7 @@ def _check_range_and_speed_limits(pb: ProblemData) -> None:
             "limits.keepout_confidence",
             f"must be a probability in [0, 1) such as 0.999 (0 disables the margins), got {c!r}",
         )
-    r0 = check_start_clear(pb.p0, pb.beacon, lim.min_range)
+    r0 = check_start_clear(pb.p0, pb.beacon_start, lim.min_range)
     tau, a = _margins(pb)
     s0 = float(np.linalg.norm(pb.v0))
     need = lim.min_range + s0 * tau + 0.5 * a * tau**2 if lim.min_range > 0 else 0.0

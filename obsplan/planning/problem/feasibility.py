@@ -11,8 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from obsplan.model.beacon import BeaconPath
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.tuning import tuning
+from obsplan.trajectory.relative import relative_trajectory
 from obsplan.trajectory.sampled import Trajectory
 
 
@@ -153,8 +155,10 @@ def range_extremes(traj: Trajectory, beacon) -> tuple[float, float]:
     ----------
     traj : Trajectory
         The path (exact quadratics between its samples).
-    beacon : array_like, shape (n,)
-        Beacon position ``b`` [m].
+    beacon : array_like, shape (n,), or BeaconPath
+        Beacon position ``b`` [m], or its known path ``b(t)`` (then the distance to where it
+        is at each time, exact on the relative path of
+        :func:`~obsplan.trajectory.relative.relative_trajectory`).
 
     Returns
     -------
@@ -163,10 +167,31 @@ def range_extremes(traj: Trajectory, beacon) -> tuple[float, float]:
     far : float
         Greatest distance to the beacon [m].
     """
+    if isinstance(beacon, BeaconPath):
+        traj, _ = relative_trajectory(traj, beacon, "beacon.path")
+        beacon = np.zeros(traj.dim)
     rel = traj.p - np.asarray(beacon, float)
     c = np.stack([rel[:-1], traj.v[:-1], 0.5 * traj.u[:-1]])
     lo, hi = _interval_extremes(c, traj.dt)
     return float(np.sqrt(max(lo.min(), 0.0))), float(np.sqrt(hi.max()))
+
+
+def beacon_of(pb: PlanningProblem) -> np.ndarray | BeaconPath:
+    """The beacon the vehicle's distance limits are to: its known path when it moves on one
+    (``beacon.motion = "path"``), else its position.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    ndarray, shape (n,), or BeaconPath
+        What :func:`range_extremes` takes.
+    """
+    path = pb.beacon_path
+    return np.asarray(pb.beacon, float) if path is None else path
 
 
 def min_water_speed(traj: Trajectory, current: np.ndarray) -> float:
@@ -225,7 +250,7 @@ def check_limits(traj: Trajectory, pb: PlanningProblem) -> LimitCheck:
     lim = pb.limits
     rng = 0.0
     if lim.min_range > 0 or lim.max_range is not None:
-        near, far = range_extremes(traj, pb.beacon)
+        near, far = range_extremes(traj, beacon_of(pb))
         rng = max(rng, lim.min_range - near)
         if lim.max_range is not None:
             rng = max(rng, far - lim.max_range)

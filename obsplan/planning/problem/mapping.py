@@ -416,7 +416,7 @@ def sections_from_dict(data: Mapping[str, Any], name: str = "") -> dict[str, Any
             "is the path the vehicle flies while a moving beacon is planned; with a fixed "
             "beacon the vehicle is planned: remove it (or set beacon.motion)",
         )
-    if motion.moving:
+    if motion.motion == "planned":
         lim = _moving_beacon_limits(data, lim)
     return dict(
         name=s["problem"]["name"] or name,
@@ -496,7 +496,8 @@ def _beacon_motion(data: Mapping[str, Any], vals: dict[str, Any]) -> BeaconMotio
 
 
 def _moving_beacon_limits(data: Mapping[str, Any], lim: dict[str, Any]) -> dict[str, Any]:
-    """The limits of a problem with a moving beacon: the distance limits to the beacon are the
+    """The limits of a problem with a planned beacon (on a known path, ``limits.min_range`` and
+    ``max_range`` are to where the beacon is at each time): the distance limits are the
     craft's (``beacon.min_distance``, ``beacon.max_range``), ``limits.min_range`` is 0."""
     given = data.get("limits", {})
     for key, instead in (("min_range", "min_distance"), ("max_range", "max_range")):
@@ -528,7 +529,7 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
         ``{section: {field: value}}``: TOML's types only (bool, int, float, str, lists, tables).
     """
     veh, lim, hor, obj, val = pb.vehicle, pb.limits, pb.horizon, pb.objective, pb.validation
-    moving = pb.beacon_motion.moving
+    planned = pb.beacon_motion.motion == "planned"
     limits: dict[str, Any] = {
         "accel": list(lim.accel),
         "speed": lim.speed,
@@ -536,7 +537,7 @@ def problem_to_dict(pb: ProblemData) -> dict[str, Any]:
         "min_speed": lim.min_speed,
         "keepout_confidence": lim.keepout_confidence,
     }
-    if moving:  # the craft's limits replace them (beacon.min_distance, beacon.max_range)
+    if planned:  # the craft's limits replace them (beacon.min_distance, beacon.max_range)
         del limits["min_range"]
     if lim.depth is not None:
         limits["depth"] = list(lim.depth)

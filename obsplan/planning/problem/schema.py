@@ -320,7 +320,7 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             0.0,
             "m",
             'motion = "planned": least horizontal distance from the craft to the vehicle '
-            "(collision, surfacing); replaces limits.min_range for a moving beacon. 0 disables "
+            "(collision, surfacing); replaces limits.min_range for a planned beacon. 0 disables "
             "it.",
         ),
     ),
@@ -367,7 +367,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             5.0,
             "m",
             "Minimum distance |p-b| to the beacon on the whole continuous path (mooring, "
-            "transducer blanking); 0 disables it. The start must respect it.",
+            "transducer blanking), to where it is at each time on a known beacon path; 0 "
+            "disables it. The start must respect it.",
         ),
         FieldSpec(
             "max_range",

@@ -317,6 +317,13 @@ class ProblemData:
             return None
         return read_beacon_path(bm.path, self.dim, where="beacon.path")
 
+    @property
+    def beacon_start(self) -> np.ndarray:
+        """Where the beacon is at ``t = 0`` [m], shape ``(n,)``: ``beacon.position``, or the
+        start of its known path (``beacon.motion = "path"``)."""
+        path = self.beacon_path
+        return np.asarray(self.beacon, float) if path is None else path.position(0.0)[0]
+
     @cached_property
     def beacon_vehicle(self) -> BeaconVehicle | None:
         """The craft of ``beacon.motion = "planned"`` (start ``beacon.position``), else None.

@@ -38,7 +38,12 @@ from obsplan.planning.transcription.blocks import (
     PartBuilder,
     VariableBlock,
 )
-from obsplan.planning.transcription.grid import Grid, dynamics_residual, midpoints
+from obsplan.planning.transcription.grid import (
+    Grid,
+    distance_times,
+    dynamics_residual,
+    midpoints,
+)
 from obsplan.planning.transcription.guesses import reference_path
 from obsplan.planning.transcription.mission import mission_part
 from obsplan.planning.tuning import tuning
@@ -238,6 +243,8 @@ def path_constraints(grid: Grid, pb: PlanningProblem, Wsym) -> list[ConstraintBl
     _, p, v = grid.si_nodes(Wsym)
     pm, vm = midpoints(grid, Wsym)
     pts_p = ca.horzcat(p[:, 1:], pm)
+    if grid.beacon_path is not None:  # relative to the beacon where it is at each point
+        pts_p = pts_p - ca.DM(grid.beacon_offset(distance_times(grid)))
     pts_v = ca.horzcat(v[:, 1:], vm)
     tau = grid.h / 4.0
     a_norm = float(np.linalg.norm(grid.a))

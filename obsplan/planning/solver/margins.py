@@ -80,7 +80,7 @@ from obsplan.planning.objectives.estimator import CovarianceObjective, covarianc
 from obsplan.planning.objectives.evaluate import objective_value
 from obsplan.planning.objectives.robust import condition_problems, is_robust
 from obsplan.planning.problem.definition import PlanningProblem
-from obsplan.planning.problem.feasibility import check_limits, range_extremes
+from obsplan.planning.problem.feasibility import beacon_of, check_limits, range_extremes
 from obsplan.planning.problem.validation_setup import (
     confidence_quantile,
     estimation_config,
@@ -89,7 +89,7 @@ from obsplan.planning.problem.validation_setup import (
 from obsplan.planning.solver.formulation import Formulation, build_formulation
 from obsplan.planning.solver.solve import SolveResult, solve
 from obsplan.planning.solver.starts import StartOutcome, run_start, start_context
-from obsplan.planning.transcription.grid import Grid
+from obsplan.planning.transcription.grid import Grid, distance_times
 from obsplan.planning.tuning import cache_per_tuning, tuning
 from obsplan.trajectory.sampled import Trajectory
 
@@ -484,11 +484,14 @@ class KeepoutMargins:
 
 def _range_points(grid: Grid, traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
     """Times (2N,) and positions relative to the beacon (2N, n) of the distance constraints."""
-    t = grid.times
     h = grid.h
     rel = traj.p - grid.beacon
     mid = rel[:-1] + traj.v[:-1] * (h / 2) + 0.5 * traj.u[:-1] * (h / 2) ** 2
-    return np.concatenate([t[1:], t[:-1] + h / 2]), np.vstack([rel[1:], mid])
+    s = distance_times(grid)
+    pts = np.vstack([rel[1:], mid])
+    if grid.beacon_path is not None:  # relative to the beacon where it is at each point
+        pts = pts - grid.beacon_offset(s).T
+    return s, pts
 
 
 def _process_intensity(pb: PlanningProblem) -> float:
@@ -1037,7 +1040,7 @@ def _report(
         max_box_margin_m=float(np.max(margins.box, initial=0.0)),
         max_accel_reserve=float(np.max(margins.accel_reserve, initial=0.0)),
         max_speed_margin_mps=float(np.max(margins.speed, initial=0.0)),
-        planned_closest_range_m=range_extremes(path, pb.beacon)[0],
+        planned_closest_range_m=range_extremes(path, beacon_of(pb))[0],
         wall_s=time.perf_counter() - t0,
         note=note,
     )

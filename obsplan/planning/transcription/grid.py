@@ -5,7 +5,8 @@ Decision variables
 ``W`` of shape ``(3n, N)``, column ``k`` = ``(U_k, P_{k+1}, V_{k+1})`` (stage ordering, so the KKT
 matrix is banded); the start node is fixed. The variables are in *intrinsic* units of the
 problem, not the user's: ``U = u / a`` (per-axis bound, so ``|U_i| <= 1``), ``V = v / v_max``
-(``|V| <= 1``) and ``P = (p - b) / L_p`` with ``L_p = max(|p_0 - b|, v_max T_f / 4)``. Every
+(``|V| <= 1``) and ``P = (p - b) / L_p`` with ``L_p = max(|p_0 - b|, v_max T_f / 4)``, ``b`` the
+beacon (its start ``b(0)`` when it moves on a known path). Every
 constraint is written in those units, so the conditioning IPOPT sees does not depend on the
 problem's size, its units or its metric ``[scales]``.
 
@@ -13,6 +14,13 @@ Between nodes the path is the exact quadratic of the double integrator under the
 :meth:`Grid.sample_operator` gives positions and velocities at any times as an affine map of
 ``vec(W)``, :func:`dynamics_residual` the exact zero-order-hold steps, :func:`midpoints` the
 interval midpoints.
+
+A beacon on a known path ``b(t)`` (``beacon.motion = "path"``): the decision variables stay
+relative to its start ``b0 = b(0)``, so the dynamics are the vehicle's own double integrator;
+what needs the position relative to the beacon at a time ``s`` subtracts the known offset
+``b(s) - b0`` (:meth:`Grid.beacon_offset`): :meth:`Grid.sample_operator`'s constant, and the
+distance limits at the nodes and midpoints. ``si_nodes`` and ``midpoints`` stay relative to
+``b0``.
 """
 
 from __future__ import annotations
@@ -23,6 +31,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
+from obsplan.model.beacon import BeaconPath
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.trajectory.sampled import Trajectory
 
@@ -43,7 +52,9 @@ class Grid:
     a: np.ndarray  # per-axis input bound [m/s^2] = unit of U
     v_max: float  # speed bound [m/s] = unit of V
     Lp: float  # unit of P [m]
-    beacon: np.ndarray  # [m]
+    beacon: np.ndarray  # [m]; a moving beacon's start b(0)
+    #: The beacon's known path (None: fixed at ``beacon``).
+    beacon_path: BeaconPath | None = None
 
     @classmethod
     def from_problem(cls, pb: PlanningProblem) -> Grid:
@@ -58,9 +69,11 @@ class Grid:
         Returns
         -------
         Grid
-            With ``Lp = max(|p0 - b|, v_max T / 4, 1e-3)`` [m].
+            With ``Lp = max(|p0 - b|, v_max T / 4, 1e-3)`` [m] (``b`` the beacon's start
+            ``b(0)`` when it moves on a known path, which the grid then keeps).
         """
-        b = np.asarray(pb.beacon, float)
+        path = pb.beacon_path
+        b = pb.beacon_start
         p0 = pb.p0 - b
         T = pb.horizon.duration
         v_max = pb.limits.speed
@@ -74,7 +87,26 @@ class Grid:
             v_max=v_max,
             Lp=max(float(np.linalg.norm(p0)), v_max * T / 4.0, 1e-3),
             beacon=b,
+            beacon_path=path,
         )
+
+    def beacon_offset(self, s: np.ndarray) -> np.ndarray:
+        """The beacon's displacement from its start, ``b(s) - b(0)`` [m], shape ``(n, J)``.
+
+        Parameters
+        ----------
+        s : ndarray, shape (J,)
+            Times [s] from the start, in ``[0, N h]``.
+
+        Returns
+        -------
+        ndarray, shape (n, J)
+            Zeros for a fixed beacon.
+        """
+        s = np.atleast_1d(np.asarray(s, float))
+        if self.beacon_path is None:
+            return np.zeros((self.n, s.size))
+        return (self.beacon_path.position(s) - self.beacon).T
 
     @property
     def times(self) -> np.ndarray:
@@ -144,7 +176,8 @@ class Grid:
         u : ndarray or casadi expression, shape (n, N)
             Inputs [m/s²].
         p : ndarray or casadi expression, shape (n, N + 1)
-            Positions relative to the beacon [m], the fixed start first.
+            Positions relative to the beacon (its start ``b(0)`` when it moves) [m], the fixed
+            start first.
         v : ndarray or casadi expression, shape (n, N + 1)
             Velocities [m/s], the fixed start first.
         """
@@ -165,7 +198,8 @@ class Grid:
     ) -> tuple[sp.csc_matrix, np.ndarray, sp.csc_matrix, np.ndarray]:
         """Affine maps from ``vec(W)`` (column-major) to positions and velocities at times ``s``.
 
-        Returns ``(Mp, cp, Mv, cv)`` with ``p(s) - b = reshape(Mp w + cp, (n, J))`` [m] and
+        Returns ``(Mp, cp, Mv, cv)`` with ``p(s) - b(s) = reshape(Mp w + cp, (n, J))`` [m] (the
+        beacon at ``s`` when it moves on a known path: its offset is in ``cp``) and
         ``v(s) = reshape(Mv w + cv, (n, J))`` [m/s] (the exact quadratic between nodes).
 
         Parameters
@@ -178,7 +212,8 @@ class Grid:
         Mp : scipy.sparse.csc_matrix, shape (n J, 3 n N)
             Positions' linear part [m per intrinsic unit].
         cp : ndarray, shape (n, J)
-            Positions' constant part (the fixed start's contribution) [m].
+            Positions' constant part (the fixed start's contribution, less the moving beacon's
+            offset ``b(s) - b(0)``) [m].
         Mv : scipy.sparse.csc_matrix, shape (n J, 3 n N)
             Velocities' linear part [m/s per intrinsic unit].
         cv : ndarray, shape (n, J)
@@ -223,6 +258,8 @@ class Grid:
         Mv = sp.csc_matrix(
             (np.concatenate(vals_v), (np.concatenate(rows_v), np.concatenate(cols_v))), shape
         )
+        if self.beacon_path is not None:
+            cp = cp - self.beacon_offset(s)
         return Mp, cp, Mv, cv
 
 
@@ -274,6 +311,24 @@ def dynamics_residual(grid: Grid, W):
     return ca.vertcat(rp, rv)
 
 
+def distance_times(grid: Grid) -> np.ndarray:
+    """The times [s] of the distance limits' points: nodes ``1..N``, then the ``N`` interval
+    midpoints.
+
+    Parameters
+    ----------
+    grid : Grid
+        The planning grid.
+
+    Returns
+    -------
+    ndarray, shape (2N,)
+        ``t_1..t_N``, then ``t_0 + h/2 .. t_{N-1} + h/2``.
+    """
+    t = grid.times
+    return np.concatenate([t[1:], t[:-1] + grid.h / 2])
+
+
 def midpoints(grid: Grid, W):
     """SI ``(p - b, v)`` at the interval midpoints, each ``(n, N)``.
 
@@ -287,7 +342,8 @@ def midpoints(grid: Grid, W):
     Returns
     -------
     p : ndarray or casadi expression, shape (n, N)
-        Positions relative to the beacon [m] at ``t_k + h / 2``.
+        Positions relative to the beacon (its start ``b(0)`` when it moves) [m] at
+        ``t_k + h / 2``.
     v : ndarray or casadi expression, shape (n, N)
         Velocities [m/s] there.
     """

@@ -355,7 +355,8 @@ def _point_blocks(pb, grid: Grid, W, p, v) -> list[ConstraintBlock]:
             times = np.clip(times, win[:, 0], win[:, 1])
         Mp, cp, _, _ = grid.sample_operator(times)
         pts = apply_operator(Mp, cp, ca.vec(W), grid.n)
-        goal = ca.DM((np.array(m.waypoints) - grid.beacon).T)
+        # pts are relative to the beacon at the passing times
+        goal = ca.DM((np.array(m.waypoints) - grid.beacon).T - grid.beacon_offset(times))
         g = ca.sum1((pts - goal) ** 2).T / m.radius**2
         J = times.size
         out.append(ConstraintBlock("waypoints", g, np.full(J, -np.inf), np.ones(J)))
