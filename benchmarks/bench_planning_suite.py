@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import statistics
 import sys
 import time
@@ -124,7 +125,7 @@ def run_one(
         pb = replace(pb, validation=replace(pb.validation, mode="open-loop"))
     if ekf_update:
         pb = replace(pb, validation=replace(pb.validation, ekf_update=ekf_update))
-    if pb.beacon_motion.moving:
+    if pb.beacon_motion.motion == "planned":
         return beacon_row(path, pb, runs, max_runs)
     t0 = time.perf_counter()
     res = plan(pb, runs=runs, max_runs=max_runs)
@@ -319,9 +320,12 @@ def update_page(text: str, rows: list[dict], command: str, wall_s: float) -> str
     counts and medians are of its own rows), the planned beacons' paragraph rewritten."""
     lines = text.rstrip("\n").split("\n")
     new = {f"| `{_name(r)}` |": table_row(r) for r in rows}
-    out, inserted = [], set()
+    everything = [r for r in rows if "beacon_verdicts" in r]
+    out, inserted, kept = [], set(), []
     for line in lines:
         if line.startswith(BEACON_PARAGRAPH):
+            if not everything:  # no planned beacon re-run: its verdicts stay those of before
+                kept = [line, ""]
             continue
         key = next((k for k in new if line.startswith(k)), None)
         if key is not None:
@@ -340,10 +344,16 @@ def update_page(text: str, rows: list[dict], command: str, wall_s: float) -> str
         f"Rows of {names} by `{command}` ({wall_s / 60:.0f} min wall); the other rows and the "
         "summary by the command above."
     )
-    out = [x for x in out if not x.startswith(f"Rows of {names} by ")]
+    ran = {f"`{_name(r)}`" for r in rows}
+    out = [x for x in out if not (x.startswith("Rows of ") and _row_names(x) <= ran)]
     out.insert(1, note)
-    everything = [r for r in rows if "beacon_verdicts" in r]
-    return "\n".join(out).rstrip("\n") + "\n\n" + "\n".join(beacon_sentences(everything))
+    tail = beacon_sentences(everything) if everything else kept
+    return "\n".join(out).rstrip("\n") + "\n\n" + "\n".join(tail)
+
+
+def _row_names(note: str) -> set[str]:
+    """The problems a ``Rows of ... by`` line names (a later run of all of them supersedes it)."""
+    return set(re.findall(r"`[^`]+\.toml`", note.split(" by ", 1)[0]))
 
 
 def markdown_page(rows: list[dict], command: str, wall_s: float) -> str:

@@ -20,6 +20,8 @@ from obsplan import load_problem, plan
 from obsplan.cli import main
 from obsplan.core.errors import ProblemError
 from obsplan.model.beacon import read_beacon_path
+from obsplan.planning.beacon import plan_beacon
+from obsplan.planning.plan import plan_moving_beacon
 from obsplan.planning.problem.feasibility import range_extremes
 from obsplan.planning.problem.parse import shipped_file
 from obsplan.planning.problem.schema import OBJECTIVE_KINDS
@@ -169,3 +171,9 @@ def test_the_shipped_ship_track_reads_its_csv_beside_it_and_a_copy_runs_anywhere
     copy.parent.mkdir()
     assert main(["problems", "copy", "ship-track", str(copy)]) == 0
     assert np.array_equal(load_problem(copy).beacon_path.positions, pb.beacon_path.positions)
+
+
+def test_the_planned_beacon_flow_refuses_a_known_path_naming_the_motion():
+    pb = load_problem(shipped_file("ship-track.toml"))
+    with pytest.raises(ProblemError, match=r'beacon\.motion.*"path".*obsplan\.plan'):
+        plan_moving_beacon(pb, plan_beacon)

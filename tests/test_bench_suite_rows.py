@@ -76,3 +76,23 @@ def test_rows_are_replaced_or_added_and_the_rest_is_kept():
     again = bench.update_page(out, new, "python benchmarks/bench_planning_suite.py Y", 60.0)
     assert sum(x.startswith(bench.BEACON_PARAGRAPH) for x in again.splitlines()) == 1
     assert sum(x.startswith("Rows of `asv.toml`") for x in again.splitlines()) == 1
+
+
+def test_a_later_update_keeps_what_it_did_not_rerun_and_drops_what_it_superseded():
+    bench = _bench()
+    fixed = [_fixed_row("a.toml", 0.5), _fixed_row("suite/b.toml", 0.4)]
+    page = bench.markdown_page(fixed, "python bench X", 600.0)
+    with_beacon = bench.update_page(page, [_beacon_row("asv.toml")], "python bench Y", 60.0)
+    # a fixed-beacon row alone re-run: the planned beacon's paragraph (not re-run) stays
+    ship = bench.update_page(with_beacon, [_fixed_row("ship.toml", 0.4)], "python bench Z", 60.0)
+    para = [x for x in ship.splitlines() if x.startswith(bench.BEACON_PARAGRAPH)]
+    assert len(para) == 1 and "`asv.toml` beacon-fixed BB" in para[0]
+    assert any(x.startswith("Rows of `asv.toml` by `python bench Y`") for x in ship.splitlines())
+    # both re-run by one command: its line replaces the two it supersedes
+    both = [_beacon_row("asv.toml"), _fixed_row("ship.toml", 0.4)]
+    last = bench.update_page(ship, both, "python bench W", 60.0)
+    notes = [x for x in last.splitlines() if x.startswith("Rows of ")]
+    assert notes == [
+        "Rows of `asv.toml`, `ship.toml` by `python bench W` (1 min wall); the other rows and "
+        "the summary by the command above."
+    ]

@@ -379,11 +379,16 @@ def plan_moving_beacon(
     """
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
-    if not pb.beacon_motion.moving:
-        raise field_error("beacon.motion", '"fixed": plan it with obsplan.plan')
+    if pb.beacon_motion.motion != "planned":
+        raise field_error(
+            "beacon.motion",
+            f'"{pb.beacon_motion.motion}": the beacon is not planned; plan the vehicle with '
+            "obsplan.plan",
+        )
     check_beacon_plannable(pb)
     craft = pb.beacon_vehicle
-    assert craft is not None
+    if craft is None:  # a planned beacon always has its craft (sections.ProblemData)
+        raise field_error("beacon.speed", "missing: the craft's limits of a planned beacon")
     vehicle = vehicle_trajectory(pb)
     fine = resample(vehicle, pb.validation.dt)
     chk = mission_check(vehicle, pb.mission_context)
