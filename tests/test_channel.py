@@ -26,6 +26,7 @@ from obsplan.estimation.channel import (
 from obsplan.estimation.montecarlo.truth import channel_draws, noisy_readings, reading_draws
 from obsplan.planning.problem.parse import load_problem
 from obsplan.planning.problem.validation_setup import channel_dict
+from obsplan.planning.results import channel_lines
 from obsplan.trajectory import generators as gen
 from obsplan.trajectory.sampled import write_csv
 
@@ -326,7 +327,13 @@ def test_cli_plan_at_sea_report_keys(tmp_path, capsys):
     small = ["--steps", "20", "--starts", "1", "--runs", "4", "--max-runs", "4", "--quiet"]
     args = ["plan", str(LOCALISE_PROBLEM), "--out", str(out), *small, "--channel", "at-sea"]
     assert main(args) == 0
+    printed = capsys.readouterr().out
     rep = json.loads((out / "report.json").read_text())
+    # the terminal says which channel and, per path and filter, the report's counts
+    assert "channel at-sea: 10 % late arrivals (+2-30 m), 20 % pings lost" in printed
+    ekf = rep["validation"]["planned"]["ekf"]
+    said = f"ekf {ekf['ranges_used']:.0f} / {ekf['ranges_rejected']:.0f}, lost {ekf['lost_runs']}"
+    assert f"  planned: {said};" in printed
     ch = rep["validation"]["channel"]
     assert ch["name"] == "at-sea" and ch["gate"] == GATE_PROBABILITY and ch["scale_state"]
     assert rep["problem_file"]["validation"]["channel"] == "at-sea"
@@ -338,3 +345,14 @@ def test_cli_plan_at_sea_report_keys(tmp_path, capsys):
             assert {"ranges_used", "ranges_rejected", "lost_runs"} <= set(d), (path, name)
             assert 0 <= d["lost_runs"] <= v["runs"]
             assert d["ranges_used"] > 0 and d["ranges_rejected"] >= 0
+
+
+def test_the_channel_in_words_and_no_channel_line_under_the_ideal_channel():
+    assert CHANNEL_PRESETS["ideal"].describe() == "no fault"
+    words = channel_preset("at-sea", clock_offset_s=2e-3, dropout_range_m=500.0).describe()
+    assert words == (
+        "10 % late arrivals (+2-30 m), 20 % pings lost, more beyond 500 m, sound speed +1 %, "
+        "clock offset 0.002 s (+3 m)"
+    )
+    # the ideal channel prints nothing (and reads no validation)
+    assert channel_lines(load_problem(), {"planned": None}) == []

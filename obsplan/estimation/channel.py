@@ -181,6 +181,34 @@ class Channel:
             and self.ping_jitter_s == 0.0
         )
 
+    def describe(self) -> str:
+        """The channel's faults in words, for a report line.
+
+        Returns
+        -------
+        str
+            E.g. ``"10 % late arrivals (+2-30 m), 20 % pings lost, sound speed +1 %"``;
+            ``"no fault"`` for the ideal channel.
+        """
+        said = []
+        if self.outlier_fraction:
+            lo, hi = self.outlier_excess_m
+            said.append(f"{100 * self.outlier_fraction:g} % late arrivals (+{lo:g}-{hi:g} m)")
+        if self.dropout:
+            grows = (
+                f", more beyond {self.dropout_range_m:g} m"
+                if math.isfinite(self.dropout_range_m)
+                else ""
+            )
+            said.append(f"{100 * self.dropout:g} % pings lost{grows}")
+        if self.sound_speed_scale:
+            said.append(f"sound speed {100 * self.sound_speed_scale:+g} %")
+        if self.clock_offset_s:
+            said.append(f"clock offset {self.clock_offset_s:g} s ({self.range_bias_m:+g} m)")
+        if self.ping_jitter_s:
+            said.append(f"ping jitter {self.ping_jitter_s:g} s")
+        return ", ".join(said) or "no fault"
+
     def to_dict(self) -> dict:
         """JSON-ready fields (``report.json`` ``validation.channel``).
 

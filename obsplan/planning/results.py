@@ -29,6 +29,7 @@ from matplotlib.figure import Figure
 
 from obsplan.core.errors import ConfigError
 from obsplan.core.outputs import OutputDir
+from obsplan.estimation.channel import LOST_FACTOR
 from obsplan.model.beacon import BeaconPath, write_beacon_csv
 from obsplan.planning.baselines.beacon import BeaconBaseline
 from obsplan.planning.baselines.vehicle import Baseline
@@ -298,6 +299,7 @@ class ValidationResult:
                 broken = "" if v.result.truth is None else v.result.truth.breaks_words()
                 if broken:
                     lines.append(f"  {name}: the true path breaks {broken} of the runs")
+            lines += channel_lines(self.problem, self.validation)
         return "\n".join(lines)
 
     def summary(self) -> str:
@@ -575,6 +577,46 @@ class PlanResult(ValidationResult):
 
     def _verdict_word(self) -> str:
         return f"{self.solve.status}, {super()._verdict_word()}"
+
+
+def channel_lines(pb: PlanningProblem, validation: Mapping[str, PathValidation]) -> list[str]:
+    """Under a channel with faults: the channel in words and, per path, each filter's ranges
+    used and rejected (means per run) and its lost runs (``report.json``'s keys); nothing
+    under the ideal channel.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem (its ``validation.channel``).
+    validation : mapping of str to PathValidation
+        The validated paths.
+
+    Returns
+    -------
+    list of str
+        Lines for the terminal.
+    """
+    channel = pb.validation.channel_model()
+    if channel.is_ideal or not validation:
+        return []
+    info = channel_dict(pb)
+    gate = "no gate" if info["gate"] is None else f"gate at {info['gate']:g}"
+    scale = ", a range-scale state" if info["scale_state"] else ""
+    lines = [
+        f"channel {channel.name}: {channel.describe()}, unknown to the filters ({gate}{scale}); "
+        "per run, ranges used / rejected, and runs lost (final error > "
+        f"{LOST_FACTOR:g}x the bound):"
+    ]
+    for name, v in validation.items():
+        cells = []
+        for f in v.result.filters or {}:
+            d = v.result.filter_dict(f) or {}
+            cells.append(
+                f"{f} {_fmt(d.get('ranges_used'), '.0f')} / "
+                f"{_fmt(d.get('ranges_rejected'), '.0f')}, lost {d.get('lost_runs')}"
+            )
+        lines.append(f"  {name}: " + "; ".join(cells))
+    return lines
 
 
 def _schedule_dict(pb: PlanningProblem) -> dict | None:
@@ -889,6 +931,7 @@ class BeaconPlanResult:
                 outcomes.get(name, "-"),
             ]
             rows.append(_text_row(cells, widths))
+        rows += channel_lines(self.problem, self.validation)
         return "\n".join(rows)
 
     def summary(self) -> str:
