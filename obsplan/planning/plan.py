@@ -41,7 +41,7 @@ from obsplan.planning.results import (
     PlanResult,
     ValidationResult,
 )
-from obsplan.planning.solver.margins import solve_with_keepout
+from obsplan.planning.solver.margins import craft_distance_margins, solve_with_keepout
 from obsplan.planning.validation.stress import stress_active, stress_validate
 from obsplan.planning.validation.validate import PathValidation
 from obsplan.planning.validation.verdict import ekf_diverges, validate_until_decided
@@ -237,6 +237,7 @@ class BeaconPlanner(Protocol):
         weights: np.ndarray | None = None,
         guesses: Sequence[BeaconPath] = (),
         guess_labels: Sequence[str] | None = None,
+        truth_margins: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     ) -> BeaconSolve: ...
 
 
@@ -378,6 +379,7 @@ def plan_moving_beacon(
         guesses=[b.path for b in bls.values()],
         guess_labels=list(bls),
     )
+    solve, margin = _keep_craft_out(pb, planner, fine, craft, config, weights, solve)
     beacons = {"planned": solve.path, **{k: b.path for k, b in bls.items()}}
     bounds = {k: _bound(fine, replace(config, beacon_path=b), mask) for k, b in beacons.items()}
     planning_s = time.perf_counter() - t0
@@ -403,7 +405,43 @@ def plan_moving_beacon(
         wall_s=time.perf_counter() - t0,
         planned_breaks=craft_limit_breaks(solve.path, solve.velocities, craft, fine),
         planning_s=planning_s,
+        distance_margin_m=margin,
     )
+
+
+def _keep_craft_out(
+    pb: PlanningProblem,
+    planner: BeaconPlanner,
+    fine: Trajectory,
+    craft: BeaconVehicle,
+    config: EstimationConfig,
+    weights: np.ndarray | None,
+    nominal: BeaconSolve,
+) -> tuple[BeaconSolve, float]:
+    """The craft re-planned warm from ``nominal`` so that its distance limits hold against the
+    vehicle's *true* path at ``limits.keepout_confidence``: the fixed beacon's rule (a margin from
+    the closed loop's predicted deviation, then a re-solve), with the vehicle's CRB computed with
+    the nominal craft's beacon (the re-planned craft moves the CRB little: it keeps the same
+    objective). Returns the plan kept (the nominal one when the re-solve fails or no margin is
+    needed) and the largest margin on ``min_distance`` [m] (0: none)."""
+    if craft.min_distance <= 0 and craft.max_range is None:
+        return nominal, 0.0
+    with_craft = replace(config, beacon_path=nominal.path)
+    m = craft_distance_margins(posterior_crlb(fine, with_craft), pb, with_craft)
+    if m.k == 0:
+        return nominal, 0.0
+    again = planner(
+        fine,
+        craft,
+        config,
+        weights=weights,
+        guesses=[nominal.path],
+        guess_labels=["nominal + truth margins"],
+        truth_margins=(m.t, m.horizontal, m.range),
+    )
+    if not again.success:
+        return nominal, 0.0
+    return again, float(np.max(m.horizontal, initial=0.0))
 
 
 def _survey_centre(pb: PlanningProblem) -> np.ndarray | None:
