@@ -11,7 +11,7 @@ from obsplan.model.beacon import BeaconPath
 from obsplan.planning.beacon import plan_beacon
 from obsplan.planning.beacon.craft import CHECK_DT, position_at
 from obsplan.planning.beacon.planner import PATH_TOLERANCE_M
-from obsplan.planning.plan import vehicle_trajectory
+from obsplan.planning.plan import measured_excess, vehicle_trajectory
 from obsplan.planning.problem.parse import load_problem
 from obsplan.planning.problem.validation_setup import (
     confidence_quantile,
@@ -57,6 +57,15 @@ def test_true_paths_that_come_too_close_to_the_craft_are_said():
     notes = truth_distance_notes(val)
     assert len(notes) == 1 and notes[0].startswith("with the near beacon")
     assert "min_distance (10 m) on 2 of 2 runs" in notes[0]
+    # the flow's second round widens the margin by what the runs measured: the worst excess of
+    # the near beacon's runs, nothing for the far one or without a stated confidence
+    near_tr = val["near"].result.truth
+    assert measured_excess(val["near"], pb) == pytest.approx(near_tr.worst_excess["min_range"])
+    # 6 m in on the nominal path; the runs stray less than 2 m from it
+    assert measured_excess(val["near"], pb) > 4.0
+    assert measured_excess(val["far"], pb) == 0.0
+    off = pb.with_changes(limits={"keepout_confidence": 0.0})
+    assert measured_excess(val["near"], off) == 0.0
 
 
 def _margins(pb):
