@@ -107,8 +107,11 @@ class _GivenPath:
     objective: float | None = None
 
 
-def _best_baseline(vehicle, craft, config, *, weights=None, guesses=(), guess_labels=None):
-    """Not a planner: the guess with the lowest bound (the flow's path is what is tested)."""
+def _best_baseline(
+    vehicle, craft, config, *, weights=None, guesses=(), guess_labels=None, truth_margins=None
+):
+    """Not a planner: the guess with the lowest bound (the flow's path is what is tested; the
+    re-solve with the truth margins returns its one guess, the path it was given)."""
     scores = [bound_score(vehicle, g, config) for g in guesses]
     g = guesses[int(np.argmin(scores))]
     v = np.vstack([g.segment_velocities, g.segment_velocities[-1:]])

@@ -771,6 +771,10 @@ class BeaconPlanResult:
     planning_s : float
         Time [s] the flow took to plan: the baselines, the planner and the bounds (not the
         validation); NaN when not measured.
+    distance_margin_m : float
+        The largest margin [m] the planned craft keeps beyond ``min_distance`` from the vehicle's
+        nominal path so that its true path keeps it at ``limits.keepout_confidence``
+        (:func:`~obsplan.planning.solver.margins.craft_distance_margins`); 0: none kept.
     """
 
     problem: PlanningProblem
@@ -783,6 +787,7 @@ class BeaconPlanResult:
     wall_s: float
     planned_breaks: str = ""
     planning_s: float = math.nan
+    distance_margin_m: float = 0.0
 
     @property
     def success(self) -> bool:
@@ -882,6 +887,7 @@ class BeaconPlanResult:
                     "area": None if craft.area is None else craft.area.tolist(),
                     "max_range": craft.max_range,
                     "min_distance": craft.min_distance,
+                    "distance_margin_m": self.distance_margin_m,
                 },
                 "paths": {
                     "planned": {"description": "planned", "breaks": self.planned_breaks},

@@ -94,8 +94,10 @@ class CraftGrid:
         Check times of the distance limits [s].
     check_p : ndarray, shape (C, n)
         The vehicle there [m].
-    min_margin, range_margin : float
-        Tightening of the minimum horizontal distance and of the maximum range [m].
+    min_margin, range_margin : ndarray, shape (C,)
+        Tightening of the minimum horizontal distance and of the maximum range at each check
+        point [m]: the check spacing's, plus the margin for the vehicle's true path when given
+        (:func:`craft_grid`).
     """
 
     craft: BeaconVehicle
@@ -103,8 +105,8 @@ class CraftGrid:
     L: float
     check_t: np.ndarray
     check_p: np.ndarray
-    min_margin: float
-    range_margin: float
+    min_margin: np.ndarray
+    range_margin: np.ndarray
 
     @property
     def N(self) -> int:
@@ -261,18 +263,18 @@ class CraftGrid:
             lo.append(-math.inf)
             hi.append(1.0)
         nodes_si = (a, b, v)
-        for te, pe in zip(self.check_t, self.check_p, strict=True):
+        for i, (te, pe) in enumerate(zip(self.check_t, self.check_p, strict=True)):
             k = self.interval(float(te))
             bxy = self.state(nodes_si, k, float(te - self.nodes[k]))[0]
             dxy = ca.sumsqr(ca.DM(pe[:2]) - bxy)
             if c.min_distance > 0:
-                d = c.min_distance + self.min_margin
+                d = c.min_distance + float(self.min_margin[i])
                 g.append(dxy / d**2)
                 lo.append(1.0)
                 hi.append(math.inf)
             if c.max_range is not None:
                 dz = float(pe[2] - c.start[2]) if c.dim == 3 else 0.0
-                r = c.max_range - self.range_margin
+                r = c.max_range - float(self.range_margin[i])
                 g.append((dxy + dz**2) / r**2)
                 lo.append(-math.inf)
                 hi.append(1.0)
@@ -390,7 +392,11 @@ def _norm(x):
 
 
 def craft_grid(
-    vehicle: Trajectory, craft: BeaconVehicle, step: float, check_dt: float = CHECK_DT
+    vehicle: Trajectory,
+    craft: BeaconVehicle,
+    step: float,
+    check_dt: float = CHECK_DT,
+    truth_margins: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> CraftGrid:
     """The :class:`CraftGrid` of a craft serving ``vehicle`` with planning step ``step`` [s].
 
@@ -404,6 +410,10 @@ def craft_grid(
         Planning step [s], > 0.
     check_dt : float, optional
         Spacing of the check points of the distance limits [s] (module docstring).
+    truth_margins : tuple of three ndarray (M,), optional
+        Times [s] and the margins [m] the vehicle's *true* path needs on ``min_distance`` and on
+        ``max_range`` there (:func:`~obsplan.planning.solver.margins.craft_distance_margins`),
+        interpolated linearly at the check points and added to the check spacing's; None: none.
 
     Returns
     -------
@@ -435,12 +445,16 @@ def craft_grid(
     vmax_h = float(np.max(np.linalg.norm(vehicle.v[:, :2], axis=1)))
     vmax = float(np.max(np.linalg.norm(vehicle.v, axis=1)))
     dt_c = (tf - t0) / C
-    min_margin = 0.5 * dt_c * (vmax_h + craft.speed)
-    range_margin = 0.5 * dt_c * (vmax + craft.speed)
-    if craft.max_range is not None and range_margin >= craft.max_range:
+    min_margin = np.full(check_t.size, 0.5 * dt_c * (vmax_h + craft.speed))
+    range_margin = np.full(check_t.size, 0.5 * dt_c * (vmax + craft.speed))
+    if truth_margins is not None:
+        mt, mh, mr = (np.asarray(a, float) for a in truth_margins)
+        min_margin += np.interp(check_t, mt, mh)
+        range_margin += np.interp(check_t, mt, mr)
+    if craft.max_range is not None and np.max(range_margin) >= craft.max_range:
         raise InputError(
             f"beacon vehicle max_range {craft.max_range} m is within the check margin "
-            f"{range_margin:.3g} m; lower check_dt"
+            f"{np.max(range_margin):.3g} m; lower check_dt, or limits.keepout_confidence"
         )
     return CraftGrid(
         craft=craft,

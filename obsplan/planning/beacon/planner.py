@@ -487,6 +487,7 @@ def plan_beacon(
     tol: float = SOLVER_TOL,
     max_iter: int = MAX_ITER,
     circles: bool | None = None,
+    truth_margins: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> BeaconPlan:
     """Plan the craft carrying the beacon for a vehicle flying ``vehicle`` (module docstring).
 
@@ -521,6 +522,10 @@ def plan_beacon(
         Include the circle starts; False: holding station and ``guesses`` only; None (default):
         the circles only when there are no ``guesses`` (a caller's guesses, the beacon baselines,
         include a circle at its best radius, which the circle starts would only repeat).
+    truth_margins : tuple of three ndarray (M,), optional
+        Times [s] and the margins [m] on ``min_distance`` and ``max_range`` that keep the limits
+        against the vehicle's true path (:func:`~obsplan.planning.beacon.craft.craft_grid`);
+        None: the limits are kept on its nominal path only.
 
     Returns
     -------
@@ -542,7 +547,7 @@ def plan_beacon(
             f"config.model is {config.model.dim}D but the vehicle's path is {vehicle.dim}D"
         )
     step = _default_step(vehicle, config) if step is None else float(step)
-    grid = craft_grid(vehicle, craft, step, check_dt)
+    grid = craft_grid(vehicle, craft, step, check_dt, truth_margins)
     rec = range_recursion(vehicle, config)
     w = _weights(weights, rec.count)
     if circles is None:

@@ -73,8 +73,10 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
+from obsplan.estimation.bounds.crlb import CRLBResult
 from obsplan.estimation.bounds.loop_covariance import LoopCovariance, loop_covariance
 from obsplan.estimation.bounds.riccati import run_recursion
+from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.montecarlo.guidance import SPEED_RESERVE_CAP, Guidance
 from obsplan.planning.objectives.estimator import CovarianceObjective, covariance_objective
 from obsplan.planning.objectives.evaluate import objective_value
@@ -494,13 +496,98 @@ def _range_points(grid: Grid, traj: Trajectory) -> tuple[np.ndarray, np.ndarray]
     return s, pts
 
 
-def _process_intensity(pb: PlanningProblem) -> float:
+def _process_intensity(pb: PlanningProblem, config: EstimationConfig | None = None) -> float:
     """White-acceleration PSD ``q`` [m²/s³] of the validation's process noise, per axis: the
-    velocity variance it adds per filter step over the step (exact for the physical noise)."""
+    velocity variance it adds per filter step over the step (exact for the physical noise);
+    ``config`` the validation's configuration when ``pb``'s beacon needs a path to give one."""
     dt = pb.validation.dt
-    q_step = np.asarray(estimation_config(pb).covariances(dt)["q_ekf"], float)
+    cfg = estimation_config(pb) if config is None else config
+    q_step = np.asarray(cfg.covariances(dt)["q_ekf"], float)
     n = pb.dim
     return float(np.max(np.diag(q_step)[n : 2 * n]) / dt)
+
+
+#: Times at which :func:`craft_distance_margins` evaluates the bound (interpolated between).
+MARGIN_TIMES = 400
+
+
+@dataclass(frozen=True)
+class CraftMargins:
+    """Margins on a beacon craft's distance limits to the vehicle, kept by the vehicle's *true*
+    path (a planned beacon, :func:`craft_distance_margins`).
+
+    Attributes
+    ----------
+    t : ndarray (M,)
+        Times [s] of the vehicle's samples.
+    horizontal : ndarray (M,)
+        Margin on ``min_distance`` (horizontal) at each time [m].
+    range : ndarray (M,)
+        Margin on ``max_range`` at each time [m].
+    confidence, k : float
+        ``limits.keepout_confidence`` and its normal quantile (0: no margins).
+    """
+
+    t: np.ndarray
+    horizontal: np.ndarray
+    range: np.ndarray
+    confidence: float
+    k: float
+
+
+def craft_distance_margins(
+    crb: CRLBResult, pb: PlanningProblem, config: EstimationConfig
+) -> CraftMargins:
+    """Margins ``k (B(t) + σ_w)`` (module docstring) on a beacon craft's distance limits, from the
+    vehicle's posterior CRB along its path with that craft's beacon.
+
+    The rule of the fixed beacon's ``min_range`` and ``max_range``, with the same guidance (the
+    law flown at sea), ``k`` and process noise; two differences. The direction from the vehicle to
+    the craft is not known before the craft is planned, so the std in every direction is bounded
+    by ``sqrt(tr P)`` (of the horizontal block for ``min_distance``, of the whole position block
+    for ``max_range``): at most ``sqrt(2)`` (``sqrt(3)``) times the std along the radial
+    direction. And the CRB is the one at the vehicle's samples (``crb``), not at the planning
+    epochs.
+
+    Parameters
+    ----------
+    crb : CRLBResult
+        The vehicle's posterior CRB along its path with the craft's beacon.
+    pb : PlanningProblem
+        The problem: ``limits.keepout_confidence``, the limits (the guidance's gains) and the
+        validation's process noise.
+    config : EstimationConfig
+        The validation's configuration with the craft's beacon (its process noise).
+
+    Returns
+    -------
+    CraftMargins
+        The margins [m] at the CRB's times; zeros when ``limits.keepout_confidence`` is 0.
+    """
+    conf = float(pb.limits.keepout_confidence)
+    k = confidence_quantile(conf)
+    t = np.asarray(crb.t, float)
+    if k == 0:
+        zero = np.zeros(t.size)
+        return CraftMargins(t, zero, zero.copy(), conf, 0.0)
+    guidance = validation_guidance(pb, at_sea=True)
+    assert guidance is not None  # at_sea: never None
+    loop = LoopResponse.of(guidance)
+    q = _process_intensity(pb, config)
+    var_p = np.asarray(crb.pos_std_axes_t, float) ** 2
+    # the velocity's per-axis split is not in the CRB's result: its trace on every axis bounds it
+    var_v = np.asarray(crb.vel_std_t, float) ** 2
+    eye = np.eye(var_p.shape[1])
+    # the bound at a few hundred times, each the larger of its own and its neighbours' (B is
+    # smooth on the loop's time constant, which is longer than these gaps on a survey)
+    at = np.unique(np.linspace(0, t.size - 1, min(t.size, MARGIN_TIMES)).round().astype(int))
+    out = []
+    for var in (var_p[:, :2].sum(axis=1), var_p.sum(axis=1)):
+        cov = PathCovariance(time=t, pos=var[:, None, None] * eye, vel=var_v[:, None, None] * eye)
+        m = k * deviation_bound(cov, loop, q, t[at][:, None], np.repeat(eye[:1], at.size, 0))
+        m = np.maximum(m, np.maximum(np.r_[m[1:], m[-1]], np.r_[m[0], m[:-1]]))
+        out.append(np.interp(t, t[at], m))
+    return CraftMargins(t, out[0], out[1], conf, k)
 
 
 def _box_axes(pb: PlanningProblem) -> list[tuple[int, tuple[float, float]]]:
