@@ -53,7 +53,7 @@ def test_every_shipped_problem_has_one_row_naming_its_objective():
     assert sorted(rows) == sorted(files)
     for name, path in files.items():
         pb = load_problem(path)
-        if pb.beacon_motion.moving:  # planned by plan_moving_beacon, for the beacon's bound
+        if pb.beacon_motion.motion == "planned":  # plan_moving_beacon: the beacon's bound
             assert rows[name][1].startswith("planned beacon"), name
             continue
         # "pcrb-position/average-and-final": the kind, then the time mode of a timed objective
