@@ -64,7 +64,7 @@ def test_the_planned_beacons_rows_say_their_verdicts_and_who_wrote_them():
     """Rows put in by --update-rows: the command that wrote them is said, and the paragraph
     gives each planned beacon's verdicts against every beacon baseline."""
     table = (RESULTS / "generated" / "suite-table.md").read_text(encoding="utf-8")
-    moving = [n for n, p in _shipped().items() if load_problem(p).beacon_motion.moving]
+    moving = [n for n, p in _shipped().items() if load_problem(p).beacon_motion.motion == "planned"]
     para = next(x for x in table.splitlines() if x.startswith("Planned beacons"))
     for name in moving:
         assert f"`{name}` beacon-fixed " in para, name
