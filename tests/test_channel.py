@@ -429,3 +429,31 @@ def test_sparse_pings_at_sea_lose_no_run():
     # 3x: a 20-run estimate of a ratio whose 100-run value the benchmark reports; before the
     # late-arrival-aware update a single lost run made it 10-20x
     assert ratio < 3.0, ratio
+
+
+def test_gate_is_one_sided_for_range_rows():
+    """With the late-arrival model a range far shorter than predicted is used at once (a
+    re-acquisition: multipath never shortens a range), one as far longer is rejected; without
+    it (the KF's rows) both are rejected."""
+    nis = gate_nis(GATE_PROBABILITY)
+
+    def gate(nu, late):
+        X = np.zeros((2, 1))
+        P = np.eye(2)[:, :, None].copy()
+        ws, iw, _ = kernels.workspaces(2, 1, 1, np.zeros(1), np.zeros((2, 2)))
+        iw[0], iw[1] = 0, 1
+        ws[kernels.WS_VAL, 0, 0] = 1.0
+        ws[kernels.WS_SC, kernels.SC_NU, 0] = nu
+        ws[kernels.WS_SC, kernels.SC_R, 0] = 0.01
+        ws[kernels.WS_SC, kernels.SC_OK, 0] = 1.0
+        ws[kernels.WS_SC, kernels.SC_LATE, 0] = 30.0
+        rg = np.zeros((4, 1))
+        kernels.gate_rows(X, P, iw, ws, 1, 1, 1, nis, rg, late)
+        return rg[:3, 0].tolist(), ws[kernels.WS_SC, kernels.SC_OK, 0], P[0, 0, 0]
+
+    far = 2.0 * math.sqrt(nis * 1.01)  # NIS 4x the gate
+    (used, rej, reacq), ok, p00 = gate(-far, True)
+    assert (used, rej, reacq, ok) == (1, 0, 1, 1.0)
+    assert (far**2 / (p00 + 0.01)) == pytest.approx(nis)  # widened onto the gate
+    assert gate(far, True)[:2] == ([0, 1, 0], 0.0)
+    assert gate(-far, False)[:2] == ([0, 1, 0], 0.0)

@@ -53,12 +53,13 @@ The innovation gate
 The filters of the Monte Carlo can gate ranges by their normalised innovation squared
 ``NIS = ν²/s`` at the chi-square quantile of one degree of freedom at a confidence
 (:data:`GATE_PROBABILITY`, the replay's: :mod:`obsplan.estimation.replay.smoother` explains the
-choice) and re-acquire after :data:`REACQUIRE_AFTER` consecutive rejections: a run of rejections
-says the prior covariance is too small, so the whole covariance (position, velocity, the scale
-state) is scaled by the factor ``λ = (ν² - r)/(hᵀ P h)`` that makes the next range's NIS one
-(the maximum-likelihood scale of the prior given that innovation; an isotropic widening of the
-position alone, the replay's rule, left a wrong velocity in place to drive the filter off again
-between sparse pings), and that range is used. Inside the gate the
+choice) and re-acquire after :data:`REACQUIRE_AFTER` consecutive rejections (the next range is
+used after widening the position prior isotropically so that its NIS is on the gate). The gate
+of the EKF and the Gaussian sum (range rows) is one-sided: multipath only ever lengthens a
+range, so a range *shorter* than the filter predicts by more than the gate cannot be a late
+arrival; it says the filter is wrong, and the filter re-acquires on it at once instead of
+rejecting it (with sparse pings, five rejected ranges are a minute or more in which a wrong
+state drifts on). Inside the gate the
 EKF and the Gaussian sum (range form) weigh each range by a late-arrival-aware likelihood: a
 reading is either the Gaussian range (prior ``1 - ε``) or a late arrival (prior ``ε``,
 :data:`LATE_PRIOR`) whose excess is uniform on ``[0, L]`` (:data:`LATE_MAX_M`), so that its
@@ -89,7 +90,7 @@ from obsplan.core.errors import ConfigError
 SOUND_SPEED = 1500.0
 #: Confidence of the innovation gate (:mod:`obsplan.estimation.replay.smoother`: why 0.999).
 GATE_PROBABILITY = 0.999
-#: Consecutive rejected ranges after which a filter re-acquires (the replay's count).
+#: Consecutive rejected ranges after which a filter re-acquires (the replay's rule).
 REACQUIRE_AFTER = 5
 #: A run is *lost* when its final position error exceeds this many times the bound (the
 #: posterior CRB's final position std of the path).

@@ -563,16 +563,18 @@ def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg, late):
     Per run, the range is used when the smallest NIS ``ν²/s`` of its members (one: the EKF, the
     KF; a Gaussian sum's components: the range fits some branch) is at most ``gate``; else it is
     rejected (its members' validity set to 0), unless the run has rejected
-    :data:`~obsplan.estimation.channel.REACQUIRE_AFTER` ranges in a row: then it re-acquires
-    (:mod:`obsplan.estimation.channel`): each member whose NIS is above one has its whole
-    covariance scaled by ``λ = (ν² - r)/(s - r)``, which puts the NIS at one, and the range is
-    used (with its full weight). A range used without re-acquisition gets the late-arrival
+    :data:`~obsplan.estimation.channel.REACQUIRE_AFTER` ranges in a row, or (``late``) the
+    range is shorter than every member predicts (a late arrival is never short: the filter is
+    wrong, not the range): then it re-acquires (the replay's widening,
+    :mod:`obsplan.estimation.replay.smoother`): each member whose NIS is above the gate gets the
+    isotropic position variance ``(ν²/gate - s)/|h_p|²`` that puts it on the gate, and the range
+    is used with its full weight. A range used without re-acquisition gets the late-arrival
     weight of :func:`late_weight` when ``late``.
 
     Parameters
     ----------
     X, P : ndarray, shapes (m, B), (m, m, B)
-        The members' priors (``P`` scaled in place on re-acquisition).
+        The members' priors (``P`` widened in place on re-acquisition).
     iw : ndarray of int, shape (m,)
         State indices of the row's non-zero entries (the first ``nnz``; the first ``npos`` of
         them the position).
@@ -587,14 +589,15 @@ def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg, late):
     rg : ndarray, shape (4, R)
         Per run: ranges used, rejected, re-acquisitions, the current run of rejections.
     late : bool
-        The late-arrival-aware update of a range used (:func:`late_weight`, with each member's
-        extent ``ws[WS_SC, SC_LATE]`` set by the row; not on re-acquisition, which trusts its
-        range).
+        The late-arrival-aware gate: a range shorter than predicted is never rejected, and a
+        range used gets the weight of :func:`late_weight` (with each member's extent
+        ``ws[WS_SC, SC_LATE]`` set by the row; not on re-acquisition, which trusts its range).
     """
-    m, B = X.shape
+    B = X.shape[1]
     for g in range(B // G):
         b0 = g * G
         seen = False
+        short = True  # every member predicts a longer range than the reading
         best = math.inf
         for c in range(G):
             b = b0 + c
@@ -612,6 +615,7 @@ def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg, late):
                 ws[WS_SC, SC_S, b] = s  # scratch until update_rows sets it
                 nu = ws[WS_SC, SC_NU, b]
                 best = min(best, nu * nu / s)
+                short = short and nu < 0.0
         if not seen:
             continue
         if not best > gate:
@@ -625,17 +629,19 @@ def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg, late):
                         beta, llr = late_weight(ws[WS_SC, SC_NU, b], ws[WS_SC, SC_S, b], ext)
                         ws[WS_SC, SC_BETA, b] = beta
                         ws[WS_SC, SC_LLR, b] = llr
-        elif rg[3, g] >= REACQUIRE_AFTER:
+        elif rg[3, g] >= REACQUIRE_AFTER or (late and short):
             for c in range(G):
                 b = b0 + c
                 if ws[WS_SC, SC_OK, b] == 0.0:
                     continue
-                nu, s, r = ws[WS_SC, SC_NU, b], ws[WS_SC, SC_S, b], ws[WS_SC, SC_R, b]
-                if nu * nu > s and s > r:
-                    lam = (nu * nu - r) / (s - r)
-                    for i in range(m):
-                        for j in range(m):
-                            P[i, j, b] *= lam
+                nu, s = ws[WS_SC, SC_NU, b], ws[WS_SC, SC_S, b]
+                hh = 0.0
+                for t in range(npos):
+                    hh += ws[WS_VAL, t, b] * ws[WS_VAL, t, b]
+                if nu * nu > gate * s and hh > 0.0:
+                    d = (nu * nu / gate - s) / hh
+                    for t in range(npos):
+                        P[iw[t], iw[t], b] += d
             rg[0, g] += 1.0
             rg[2, g] += 1.0
             rg[3, g] = 0.0
