@@ -54,7 +54,23 @@ The filters of the Monte Carlo can gate ranges by their normalised innovation sq
 ``NIS = ν²/s`` at the chi-square quantile of one degree of freedom at a confidence
 (:data:`GATE_PROBABILITY`, the replay's: :mod:`obsplan.estimation.replay.smoother` explains the
 choice) and re-acquire after :data:`REACQUIRE_AFTER` consecutive rejections (the next range is
-used after widening the position prior isotropically so that its NIS is on the gate). By default
+used after widening the position prior isotropically so that its NIS is on the gate). The gate
+of the EKF and the Gaussian sum (range rows) is one-sided: multipath only ever lengthens a
+range, so a range *shorter* than the filter predicts by more than the gate cannot be a late
+arrival; it says the filter is wrong, and the filter re-acquires on it at once instead of
+rejecting it (with sparse pings, five rejected ranges are a minute or more in which a wrong
+state drifts on). Inside the gate the
+EKF and the Gaussian sum (range form) weigh each range by a late-arrival-aware likelihood: a
+reading is either the Gaussian range (prior ``1 - ε``) or a late arrival (prior ``ε``,
+:data:`LATE_PRIOR`) whose excess is uniform on ``[0, L]`` (:data:`LATE_MAX_M`), so that its
+innovation's density is ``ℓ(ν) = (Φ(ν/√s) - Φ((ν - L)/√s)) / L``. The posterior probability
+that the range is the direct one, ``β = (1-ε) N(ν; 0, s) / ((1-ε) N(ν; 0, s) + ε ℓ(ν))``, is
+one-sided: a short range (``ν < 0``) cannot be late and keeps ``β ≈ 1``, a long one of a few
+``√s`` falls to ``β ≈ 0``. The update is the moment-matched mixture of "update" and "no update"
+(the probabilistic data association update with one reading, Bar-Shalom, Daum and Huang 2009):
+``x += β K ν``, ``P -= β K s Kᵀ - β(1-β) (K ν)(K ν)ᵀ``, which keeps the covariance honest
+about a range it cannot tell from a late one (a hard gate would instead trust it fully or drop
+it); a Gaussian sum's components are weighted by the same two-component likelihood. By default
 (:func:`default_gate`) the gate is on when the channel has outliers and off otherwise: with
 Gaussian ranges a gate only throws away valid information, and the ideal channel's numbers stay
 those of before.
@@ -83,6 +99,12 @@ LOST_FACTOR = 10.0
 #: a sound speed known to ±30 m/s of 1500 m/s (the spread of sea water's from 0 to 30 °C at a
 #: given salinity is about 60 m/s) is known to 2 %.
 SCALE_PRIOR_STD = 0.02
+#: The filters' model of late arrivals (the late-arrival-aware update, module docstring): the prior
+#: probability that a range is a multipath arrival and the largest excess [m] they expect, the
+#: multipath statistics stated for the at-sea preset (its sources, module docstring). The
+#: filters never read the truth's channel: these are their own assumptions.
+LATE_PRIOR = 0.1
+LATE_MAX_M = 30.0
 #: Largest excess of a late arrival [m] accepted: beyond it a "range" is not the beacon's.
 MAX_EXCESS_M = 1e5
 #: Largest clock offset [s] accepted.

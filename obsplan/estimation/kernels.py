@@ -36,7 +36,10 @@ Packed layouts
 * segment / record tables (rows), float: ``T, S0, S1, S2, τ_a, dp (n), dv (n)``
   (:data:`TAB_T` ...), then for records the true ``(p, p')`` (2n);
 * ``ws`` (5, ·, B): ``b, k, w, val`` (per state, per member), then per member the scalars
-  ``ν, r, ok, s, gain, Σ NIS, count, Σ log-likelihood`` and the transition's coefficients;
+  ``ν, r, ok, s, gain, Σ NIS, count, Σ log-likelihood``, the weight ``β`` of the next update
+  (1 but for a range the late-arrival model doubts, :func:`late_weight`) and its
+  log-likelihood's correction, the extent of a late arrival in the row's units, then the
+  transition's coefficients;
 * ``nw`` (5 + 6n, 2n): rows ``mean, e, y, off, corr`` then ``C`` (2n rows), ``L`` (2n),
   ``q_nav`` (2n);
 * input corrections (closed loop, :mod:`obsplan.estimation.montecarlo.closedloop`): ``ce`` (E, 2n,
@@ -54,7 +57,7 @@ import numba as nb
 import numpy as np
 
 from obsplan.estimation import jitcache
-from obsplan.estimation.channel import REACQUIRE_AFTER
+from obsplan.estimation.channel import LATE_MAX_M, LATE_PRIOR, REACQUIRE_AFTER
 from obsplan.estimation.columns import (
     COL_AXES,
     COL_NEES,
@@ -90,7 +93,8 @@ inline = nb.njit(cache=True, nogil=True, inline="always")
 
 TAB_T, TAB_S0, TAB_S1, TAB_S2, TAB_TAU, TAB_G = 0, 1, 2, 3, 4, 5
 WS_B, WS_K, WS_W, WS_VAL, WS_SC = 0, 1, 2, 3, 4
-SC_NU, SC_R, SC_OK, SC_S, SC_G, SC_NIS, SC_CNT, SC_LL, SC_COEF = 0, 1, 2, 3, 4, 5, 6, 7, 8
+SC_NU, SC_R, SC_OK, SC_S, SC_G, SC_NIS, SC_CNT, SC_LL = 0, 1, 2, 3, 4, 5, 6, 7
+SC_BETA, SC_LLR, SC_LATE, SC_COEF = 8, 9, 10, 11
 NW_MEAN, NW_E, NW_Y, NW_OFF, NW_CORR, NW_C = 0, 1, 2, 3, 4, 5
 
 
@@ -410,7 +414,13 @@ def update_rows(X, P, iw, ws, nnz):
 
     Per member: innovation, variance and validity (0/1) in ``ws[WS_SC, SC_NU/SC_R/SC_OK]``; an
     invalid member gets a zero gain (exactly unchanged). Adds the NIS, count and
-    log-likelihood of the innovation to ``ws[WS_SC, SC_NIS/SC_CNT/SC_LL]``.
+    log-likelihood of the innovation to ``ws[WS_SC, SC_NIS/SC_CNT/SC_LL]``. With a weight
+    ``β = ws[WS_SC, SC_BETA] < 1`` (:func:`late_weight`) the update is the moment-matched
+    mixture of the update and none: ``x += β K ν``, ``P -= c K s Kᵀ`` with
+    ``c = β - β(1-β) ν²/s``, written in the Joseph-like form ``P - (K' wᵀ + w K'ᵀ)`` with
+    ``K' = c' K``, ``c' = 1 - sqrt(1 - c)`` (so that ``2c' - c'² = c``; ``β = 1``: ``c' = 1``,
+    the ordinary update, exactly). The weight and its log-likelihood correction
+    (``SC_LLR``) are reset to 1 and 0.
 
     Parameters
     ----------
@@ -442,13 +452,22 @@ def update_rows(X, P, iw, ws, nnz):
         ws[WS_SC, SC_NIS, b] += ok * nu * nu / s
         ws[WS_SC, SC_CNT, b] += ok
         ws[WS_SC, SC_LL, b] -= ok * 0.5 * (nu * nu / s + math.log(s))
+        ws[WS_SC, SC_LL, b] += ok * ws[WS_SC, SC_LLR, b]
         ws[WS_SC, SC_G, b] = ok / s
+        beta = ws[WS_SC, SC_BETA, b]
+        c = beta - beta * (1.0 - beta) * nu * nu / s
+        ws[WS_SC, SC_LLR, b] = 1.0 - math.sqrt(1.0 - c)  # c', in the spent slot
+        ws[WS_SC, SC_BETA, b] = beta * nu  # the state's step is K β ν
     for i in range(m):
         for b in range(B):
             k = ws[WS_B, i, b] * ws[WS_SC, SC_G, b]
+            X[i, b] += k * ws[WS_SC, SC_BETA, b]
+            k = k * ws[WS_SC, SC_LLR, b]
             ws[WS_K, i, b] = k
-            X[i, b] += k * ws[WS_SC, SC_NU, b]
             ws[WS_W, i, b] = ws[WS_B, i, b] - 0.5 * ws[WS_SC, SC_S, b] * k  # w = b - s k / 2
+    for b in range(B):
+        ws[WS_SC, SC_BETA, b] = 1.0
+        ws[WS_SC, SC_LLR, b] = 0.0
     for i in range(m):
         for j in range(i, m):
             for b in range(B):
@@ -500,17 +519,57 @@ def linear_updates(X, P, Y, e, lin, iw, ws, G):
 
 
 @inline
-def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg):
+def late_weight(nu, s, late):
+    """The posterior probability ``β`` that a range is the direct arrival, and the log ratio of
+    its two-component likelihood to the Gaussian one (:mod:`obsplan.estimation.channel`, the
+    late-arrival-aware update).
+
+    Parameters
+    ----------
+    nu : float
+        The innovation [m] (reading minus prediction).
+    s : float
+        Its predicted variance [m²].
+    late : float
+        The extent of a late arrival's innovation: the largest excess ``L`` [m] (the prior is
+        :data:`~obsplan.estimation.channel.LATE_PRIOR`) of the range, ``r L`` of the
+        half-squared form at the reading ``r`` (``½(r̂ + e)² - ½ r̂² ≈ r e``; the excess's
+        uniform density is taken as uniform in the row's units).
+
+    Returns
+    -------
+    beta : float
+        ``(1-ε) N(ν; 0, s) / ((1-ε) N(ν; 0, s) + ε ℓ(ν))``, ``ℓ(ν) = (Φ(ν/√s) - Φ((ν-L)/√s))/L``.
+    llr : float
+        ``log((1-ε) N + ε ℓ) - log N`` (the Gaussian log-likelihood plus it is the mixture's).
+    """
+    sd = math.sqrt(s)
+    z = nu / sd
+    gauss = math.exp(-0.5 * z * z) / (math.sqrt(2.0 * math.pi) * sd)
+    tail = 0.5 * (math.erfc(-z / math.sqrt(2.0)) - math.erfc(-(nu - late) / (sd * math.sqrt(2.0))))
+    direct = (1.0 - LATE_PRIOR) * gauss
+    mix = direct + LATE_PRIOR * tail / late
+    if not mix > 0.0:  # both densities underflow far below the prediction: a direct range
+        return 1.0, 0.0
+    llr = math.log(mix) + 0.5 * z * z + math.log(math.sqrt(2.0 * math.pi) * sd)
+    return direct / mix, llr
+
+
+@inline
+def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg, late):
     """The innovation gate on a range row of every run, before its update (with ``gate =
     inf`` it only counts).
 
     Per run, the range is used when the smallest NIS ``ν²/s`` of its members (one: the EKF, the
     KF; a Gaussian sum's components: the range fits some branch) is at most ``gate``; else it is
     rejected (its members' validity set to 0), unless the run has rejected
-    :data:`~obsplan.estimation.channel.REACQUIRE_AFTER` ranges in a row: then it re-acquires
-    (the replay's rule, :mod:`obsplan.estimation.replay.smoother`): each member whose NIS is
-    above the gate gets the isotropic position variance ``(ν²/gate - s)/|h_p|²`` that puts it on
-    the gate, and the range is used.
+    :data:`~obsplan.estimation.channel.REACQUIRE_AFTER` ranges in a row, or (``late``) the
+    range is shorter than every member predicts (a late arrival is never short: the filter is
+    wrong, not the range): then it re-acquires (the replay's widening,
+    :mod:`obsplan.estimation.replay.smoother`): each member whose NIS is above the gate gets the
+    isotropic position variance ``(ν²/gate - s)/|h_p|²`` that puts it on the gate, and the range
+    is used with its full weight. A range used without re-acquisition gets the late-arrival
+    weight of :func:`late_weight` when ``late``.
 
     Parameters
     ----------
@@ -529,11 +588,16 @@ def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg):
         The largest NIS of a range used (``inf``: no gate).
     rg : ndarray, shape (4, R)
         Per run: ranges used, rejected, re-acquisitions, the current run of rejections.
+    late : bool
+        The late-arrival-aware gate: a range shorter than predicted is never rejected, and a
+        range used gets the weight of :func:`late_weight` (with each member's extent
+        ``ws[WS_SC, SC_LATE]`` set by the row; not on re-acquisition, which trusts its range).
     """
     B = X.shape[1]
     for g in range(B // G):
         b0 = g * G
         seen = False
+        short = True  # every member predicts a longer range than the reading
         best = math.inf
         for c in range(G):
             b = b0 + c
@@ -551,12 +615,21 @@ def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg):
                 ws[WS_SC, SC_S, b] = s  # scratch until update_rows sets it
                 nu = ws[WS_SC, SC_NU, b]
                 best = min(best, nu * nu / s)
+                short = short and nu < 0.0
         if not seen:
             continue
         if not best > gate:
             rg[0, g] += 1.0
             rg[3, g] = 0.0
-        elif rg[3, g] >= REACQUIRE_AFTER:
+            if late and gate < math.inf:
+                for c in range(G):
+                    b = b0 + c
+                    if ws[WS_SC, SC_OK, b] != 0.0:
+                        ext = ws[WS_SC, SC_LATE, b]
+                        beta, llr = late_weight(ws[WS_SC, SC_NU, b], ws[WS_SC, SC_S, b], ext)
+                        ws[WS_SC, SC_BETA, b] = beta
+                        ws[WS_SC, SC_LLR, b] = llr
+        elif rg[3, g] >= REACQUIRE_AFTER or (late and short):
             for c in range(G):
                 b = b0 + c
                 if ws[WS_SC, SC_OK, b] == 0.0:
@@ -844,6 +917,7 @@ def workspaces(m, B, n, nw_off, qz):
         Navigation work array.
     """
     ws = np.zeros((WS_SC + 1, max(m, SC_COEF + 2 * m), B))
+    ws[WS_SC, SC_BETA] = 1.0
     iw = np.zeros(m, dtype=np.int64)
     nw = np.zeros((NW_C + 6 * n, 2 * n))
     for i in range(n):
@@ -1054,6 +1128,7 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
             ws[WS_SC, SC_NU, b] = nu if ok else 0.0
             ws[WS_SC, SC_R, b] = r if ok else 1.0
         ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
+        ws[WS_SC, SC_LATE, b] = LATE_MAX_M * rm if half_sq and ok else LATE_MAX_M
         any_ok = any_ok or ok
     return any_ok
 
@@ -1167,7 +1242,7 @@ def ekf_measure(
         ws[WS_SC, SC_CNT, b] = 0.0
         ws[WS_SC, SC_LL, b] = 0.0
     if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
-        gate_rows(X, P, iw, ws, nnz, n, G, gate, rg)
+        gate_rows(X, P, iw, ws, nnz, n, G, gate, rg, True)
         update_rows(X, P, iw, ws, nnz)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, lin, iw, ws, G)
@@ -1519,7 +1594,7 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
             ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
             any_ok = any_ok or ok
         if any_ok:
-            gate_rows(X, P, iw, ws, n + 1, n, 1, mdl.gate, rg)
+            gate_rows(X, P, iw, ws, n + 1, n, 1, mdl.gate, rg, False)
             update_rows(X, P, iw, ws, n + 1)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, mdl.lin, iw, ws, 1)
