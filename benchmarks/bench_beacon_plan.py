@@ -2,7 +2,7 @@
 
     python benchmarks/bench_beacon_plan.py [--runs N] [--seed S] [--sigma M] [--cases NAMES]
 
-The issue's scenario: the vehicle flies a 4-line lawn-mower (200 m lines, 50 m apart, 1 m/s,
+The scenario: the vehicle flies a 4-line lawn-mower (200 m lines, 50 m apart, 1 m/s,
 about 1,036 s, sampled every 0.5 s), a range every 10 s of noise ``--sigma`` (0.3 m); the craft
 starts from rest at the survey's centre, ``|v| <= 2`` m/s, ``|a_i| <= 0.2`` m/s², at least 5 m
 horizontally from the vehicle, within 400 m of it. Cases: 2D and 3D (vehicle 50 m down, craft at

@@ -27,7 +27,7 @@ the EKF, the KF and the Gaussian sum (final error over 10x the path's posterior-
 :data:`obsplan.estimation.channel.LOST_FACTOR`), the EKF's ranges used and rejected per run,
 its time-averaged NEES of ``(p, p')`` (dof ``2n``) with the fraction of record times whose
 run-averaged NEES is inside the 95 % band, and the EKF RMSE's ratio to the ideal channel's.
-Acceptance (issue 47): in the at-sea preset the gated EKF's RMSE within 1.5x the ideal's, and no
+The aim it checks: in the at-sea preset the gated EKF's RMSE within 1.5x the ideal's, and no
 more lost runs than with the ideal channel.
 """
 

@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from obsplan.io.tracks import Track, _kalman, _nodes, _rts, fit_track
-from obsplan.io.waypoints import position_at, waypoints_from_trajectory
-from obsplan.trajectory.sampled import Trajectory
+from obsplan.io.waypoints import waypoints_from_trajectory
+from obsplan.trajectory.sampled import Trajectory, position_at
 
 
 def plan_like(duration: float = 600.0) -> Trajectory:

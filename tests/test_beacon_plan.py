@@ -23,11 +23,11 @@ from obsplan.planning.beacon import (
     plan_beacon,
     range_epoch_times,
 )
-from obsplan.planning.beacon.craft import position_at
 from obsplan.planning.beacon.planner import PATH_TOLERANCE_M
 from obsplan.planning.beacon.recursion import range_recursion
 from obsplan.planning.solver.ipopt import SUCCESS_STATUS
 from obsplan.trajectory.generators import lawnmower
+from obsplan.trajectory.sampled import position_at
 
 PING_S = 10.0
 CRAFT_LIMITS = {"speed": 2.0, "accel": 0.2, "min_distance": 5.0, "max_range": 400.0}
@@ -35,7 +35,7 @@ AREA = [[-100.0, 300.0], [-100.0, 250.0]]
 
 
 def survey(dim: int = 2, dt: float = 1.0, legs: int = 4, depth: float = -50.0):
-    """The issue's lawn-mower: legs of 200 m, 50 m apart, at 1 m/s (3D: at ``depth``)."""
+    """A survey lawn-mower: legs of 200 m, 50 m apart, at 1 m/s (3D: at ``depth``)."""
     return lawnmower((0.0, 0.0), 200.0, 50.0, legs, 1.0, z=depth if dim == 3 else None).sample(dt)
 
 
@@ -205,7 +205,7 @@ def test_objective_on_the_sampled_path_is_the_planned_one(planned):
 
 @pytest.mark.slow
 def test_planned_beacon_beats_holding_and_the_best_circle(planned):
-    # the issue's prototype: 0.63-0.79x the best circle in EKF RMSE. On the bound, against
+    # the optimised craft must beat the usual paths on the bound it optimises: against
     # circles of 30-120 m both ways, each fitted onto the craft's limits from its start
     traj, cfg, c, plan = planned
     hold = BeaconPath.fixed(c.start.tolist(), traj.t[0], traj.t[-1])

@@ -9,7 +9,7 @@ import pytest
 from obsplan.estimation.bounds.crlb import posterior_crlb
 from obsplan.model.beacon import BeaconPath
 from obsplan.planning.beacon import plan_beacon
-from obsplan.planning.beacon.craft import CHECK_DT, position_at
+from obsplan.planning.beacon.craft import CHECK_DT
 from obsplan.planning.beacon.planner import PATH_TOLERANCE_M
 from obsplan.planning.plan import measured_excess, vehicle_trajectory
 from obsplan.planning.problem.parse import load_problem
@@ -21,7 +21,7 @@ from obsplan.planning.problem.validation_setup import (
 from obsplan.planning.results import truth_distance_notes
 from obsplan.planning.solver.margins import craft_distance_margins
 from obsplan.planning.validation.validate import validate_paths
-from obsplan.trajectory.sampled import resample
+from obsplan.trajectory.sampled import position_at, resample
 
 
 def test_a_planned_beacons_truth_limits_are_its_crafts():

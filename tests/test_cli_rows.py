@@ -620,8 +620,27 @@ def test_row31_cache_state_and_folder(tmp_path, monkeypatch):
     monkeypatch.delenv("NUMBA_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     if sys.platform.startswith("linux"):
-        want = tmp_path / "xdg" / "obsplan" / "numba"
+        want = tmp_path / "xdg" / "obsplan" / "numba" / jitcache.kernel_fingerprint()
         assert jitcache.configure() == want and want.is_dir()
         assert os.environ["NUMBA_CACHE_DIR"] == str(want) == numba.config.CACHE_DIR
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
     assert jitcache.configure() == tmp_path / "mine"  # the user's choice is kept
+
+
+def test_kernel_cache_folder_changes_with_any_source_the_kernels_inline(tmp_path, monkeypatch):
+    """numba checks only the defining file's time stamp; a change in a file a kernel inlines
+    from (a callee, a constant) must still lead to a fresh cache folder."""
+    from obsplan.estimation import jitcache
+
+    copy = tmp_path / "estimation"
+    shutil.copytree(jitcache.HERE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(jitcache, "HERE", copy)
+    before = jitcache.kernel_fingerprint()
+    assert jitcache.kernel_fingerprint() == before  # a pure function of the sources
+    channel = copy / "channel.py"  # constants the kernels compile in (LATE_PRIOR, ...)
+    channel.write_text(channel.read_text() + "\n# changed\n")
+    changed = jitcache.kernel_fingerprint()
+    assert changed != before
+    guidance = copy / "montecarlo" / "guidance.py"
+    guidance.write_text(guidance.read_text() + "\n# changed\n")
+    assert jitcache.kernel_fingerprint() not in (before, changed)

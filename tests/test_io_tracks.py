@@ -28,7 +28,7 @@ def known_plan() -> Trajectory:
 def noisy_positions(traj: Trajectory, seed: int, drop: float = 0.0, jitter: float = 0.0):
     """1 Hz positions of ``traj`` with 5 cm noise; optionally dropped samples and jittered
     (irregular) times, the exact positions at the jittered times."""
-    from obsplan.io.waypoints import position_at
+    from obsplan.trajectory.sampled import position_at
 
     rng = np.random.default_rng(seed)
     t = np.arange(traj.t[0], traj.t[-1] + 1e-9, 1.0)

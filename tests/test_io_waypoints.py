@@ -11,14 +11,13 @@ from obsplan.cli import main
 from obsplan.core.errors import InputError
 from obsplan.io.waypoints import (
     leg_errors,
-    position_at,
     read_qgc_plan,
     read_waypoints_csv,
     waypoints_from_trajectory,
     write_waypoints_csv,
 )
 from obsplan.trajectory import generators as gen
-from obsplan.trajectory.sampled import Trajectory, write_csv
+from obsplan.trajectory.sampled import Trajectory, position_at, write_csv
 
 
 def random_plan(seed: int = 0, dim: int = 2) -> Trajectory:

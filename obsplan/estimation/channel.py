@@ -41,12 +41,12 @@ Presets (:data:`CHANNEL_PRESETS`)
     error, no clock offset. Sources: the channel simulated for field work with a single ranging
     surface vehicle by Masmitja et al. (range-only target tracking with an ASV; their simulator
     ``imasmitja/RLforUTracking`` scales ranges by 1.01 and drops 20 % of the pings); the
-    multipath rate and excess are those measured with an independent EKF in obsplan's issue 47
-    ("10 % multipath outliers (+2...30 m)"): late arrivals of metres to tens of metres in shallow
-    water. A clock offset is zero in the preset because one-way-travel-time modems synchronise
-    their clocks (a residual offset is a user field, ``channel_clock_offset``); so is the ping
-    jitter, because a modem stamps its ranges with the time they were taken (``channel_ping_jitter``
-    models a modem that does not).
+    multipath rate and excess are the late arrivals of metres to tens of metres that shallow-water
+    one-way-travel-time ranging sees (a longer path than the direct one; docs/validation.md, "The
+    acoustic channel", gives the table of sources). A clock offset is zero in the preset because
+    one-way-travel-time modems synchronise their clocks (a residual offset is a user field,
+    ``channel_clock_offset``); so is the ping jitter, because a modem stamps its ranges with the
+    time they were taken (``channel_ping_jitter`` models a modem that does not).
 
 The innovation gate
 -------------------

@@ -7,10 +7,19 @@ bar. :func:`configure` points numba's cache at a per-user cache folder when the 
 chosen one (``NUMBA_CACHE_DIR``), so that the cache is written even when the package sits in a
 read-only ``site-packages``, and is shared by every process of the user (Dask workers included);
 :func:`compile_note` is the progress bar's label while the kernels compile.
+
+That folder is named by :func:`kernel_fingerprint`, a hash of the estimation modules' sources.
+numba's cache checks only the time stamp of the file a kernel is defined in, but a compiled kernel
+also holds what it inlined from other files: the kernels it calls (``loop_kernels`` calls
+``kernels``) and module constants (the channel's, the column layout). A cache written before such
+a file changed would be loaded unchanged and run stale code against new callers — after an
+upgrade, or an edit of a source checkout. A fingerprint of every source that kernels can reach
+sends each version of them to its own folder.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import sys
 from pathlib import Path
@@ -44,10 +53,26 @@ def user_cache_dir() -> Path:
     return Path(base) / "obsplan" / "numba"
 
 
+def kernel_fingerprint() -> str:
+    """A hash of every source the kernels can inline: the modules of ``obsplan.estimation`` and
+    of its ``montecarlo`` room (module docstring: why numba's own check is not enough).
+
+    Returns
+    -------
+    str
+        16 hexadecimal digits; changes when any of those files changes.
+    """
+    digest = hashlib.sha256()
+    for path in sorted([*HERE.glob("*.py"), *(HERE / "montecarlo").glob("*.py")]):
+        digest.update(path.relative_to(HERE).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def configure() -> Path | None:
-    """Set ``NUMBA_CACHE_DIR`` to :func:`user_cache_dir` unless it is set already; returns the
-    cache folder in use, or None when no user folder can be written (numba then keeps its own
-    choice: beside the sources, or its user-wide fallback).
+    """Set ``NUMBA_CACHE_DIR`` to :func:`user_cache_dir` ``/`` :func:`kernel_fingerprint` unless it
+    is set already; returns the cache folder in use, or None when no user folder can be written
+    (numba then keeps its own choice: beside the sources, or its user-wide fallback).
 
     Returns
     -------
@@ -58,7 +83,7 @@ def configure() -> Path | None:
     chosen = os.environ.get("NUMBA_CACHE_DIR")
     if chosen:
         return Path(chosen)
-    folder = user_cache_dir()
+    folder = user_cache_dir() / kernel_fingerprint()
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError:  # a read-only home (some containers): leave numba's default

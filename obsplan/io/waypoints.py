@@ -38,7 +38,7 @@ from obsplan.core.csvtable import read_table, write_table
 from obsplan.core.errors import InputError, TrajectoryFormatError
 from obsplan.core.textfiles import read_json
 from obsplan.model.frames import local_to_geodetic
-from obsplan.trajectory.sampled import Trajectory, grid_times
+from obsplan.trajectory.sampled import Trajectory, grid_times, position_at
 
 #: MAVLink MAV_CMD_NAV_WAYPOINT, MAV_CMD_DO_CHANGE_SPEED.
 NAV_WAYPOINT = 16
@@ -188,27 +188,6 @@ def leg_errors(traj: Trajectory, ta: float, tb: float) -> tuple[float, float]:
                 q = (r0 - s0 * e, vk - s1 * e, hk - s2 * e)
             cross = max(cross, _max_sq(*q, x0, x1))
     return math.sqrt(cross), math.sqrt(sched)
-
-
-def position_at(traj: Trajectory, times: np.ndarray) -> np.ndarray:
-    """Exact positions of the piecewise-quadratic path at ``times`` [s], shape (len, n).
-
-    Parameters
-    ----------
-    traj : Trajectory
-        The path; ``u[k]`` is held on ``[t_k, t_{k+1})`` and the last hold extends beyond the end.
-    times : ndarray, shape (M,)
-        Times [s].
-
-    Returns
-    -------
-    ndarray, shape (M, n)
-        Positions [m].
-    """
-    times = np.asarray(times, float)
-    k = np.clip(np.searchsorted(traj.t, times, side="right") - 1, 0, traj.t.size - 1)
-    tau = (times - traj.t[k])[:, None]
-    return traj.p[k] + traj.v[k] * tau + 0.5 * traj.u[k] * tau**2
 
 
 def _arc_length(traj: Trajectory, per_interval: int = 16) -> tuple[np.ndarray, np.ndarray]:

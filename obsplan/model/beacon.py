@@ -5,19 +5,19 @@ Only the motion of the vehicle *relative* to the beacon enters the range: with `
 ``b(t)`` from samples ``(t_j, b_j)``, ``j = 0..M-1``, and the derivatives of ``b`` the two
 observability tests need, in two deliberate forms:
 
-* **The path itself is piecewise linear** (:meth:`BeaconPath.position`): the issue's
-  ``"interpolated linearly"``. Its velocity (:meth:`BeaconPath.velocity`) is constant on each
-  segment ``[t_j, t_{j+1})`` (right-continuous at the knots, as held inputs are) and its
-  acceleration is zero between knots and impulsive at them. The augmented Gramian uses exactly
-  this path: on the union of the trajectory's samples and the beacon's knots the relative motion is
-  that of a held input, so the Gramian's closed form stays exact, and the impulses appear as jumps
-  of the relative velocity (:mod:`obsplan.trajectory.relative`); no ``b''`` is needed.
-* **The LWO rank test is local**: it reads ``b'`` and ``b''`` at an instant. The impulses of a
+* **The path itself is piecewise linear** (:meth:`BeaconPath.position`): a log's samples
+  interpolated linearly, nothing assumed between them. Its velocity (:meth:`BeaconPath.velocity`) is
+  constant on each segment ``[t_j, t_{j+1})`` (right-continuous at the knots, as held inputs are)
+  and its acceleration is zero between knots and impulsive at them. The augmented Gramian uses
+  exactly this path: on the union of the trajectory's samples and the beacon's knots the relative
+  motion is that of a held input, so the Gramian's closed form stays exact, and the impulses appear
+  as jumps of the relative velocity (:mod:`obsplan.trajectory.relative`); no ``b''`` is needed. *
+  **The LWO rank test is local**: it reads ``b'`` and ``b''`` at an instant. The impulses of a
   piecewise-linear path are invisible there (between knots ``b'' = 0``), so a log sampling a
   circling ship would look, to the LWO test, like a beacon that never accelerates. The test uses
   instead the derivatives of the smooth path that the samples are taken from, estimated by the
-  three-point divided differences of :meth:`BeaconPath.derivative_estimates` (exact on
-  constant-velocity and constant-acceleration legs; second order in the knot spacing elsewhere).
+  three-point divided differences of :meth:`BeaconPath.derivative_estimates` (exact on constant-
+  velocity and constant-acceleration legs; second order in the knot spacing elsewhere).
 
 A fixed beacon is the constant path (:meth:`BeaconPath.fixed`): velocity and acceleration are
 then exactly zero. A path must cover the interval it is used on (:meth:`BeaconPath.check_covers`):

@@ -443,9 +443,7 @@ class ValidationResult:
             written.append(
                 write_beacon_csv(out / "beacon.csv", t, ship.position(t), ship.velocity(t))
             )
-        report = out / "report.json"
-        report.write_text(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
-        written.append(report)
+        written.append(_write_report(out, self.to_dict()))
         for kind, make in self._figures().items():  # one at a time: drawn, saved, closed
             written.append(save_figure(make(), out / FIGURES[kind]))
         return written
@@ -474,11 +472,7 @@ class ValidationResult:
         InputError
             A non-empty folder without ``force``, or one that is not an obsplan output.
         """
-        out = OutputDir(folder, force, option="folder", verb="plan", force_option="force=True")
-        with out:  # an error or Ctrl-C while writing: no folder, an old one untouched
-            written = [out.final(p) for p in self.write_files(out.stage())]
-            out.commit()
-        return written
+        return _save_whole(folder, force, self.write_files)
 
 
 @dataclass(frozen=True, eq=False, repr=False, kw_only=True)
@@ -577,6 +571,26 @@ class PlanResult(ValidationResult):
 
     def _verdict_word(self) -> str:
         return f"{self.solve.status}, {super()._verdict_word()}"
+
+
+def _write_report(out: Path, report: dict) -> Path:
+    """``out/report.json``: strict JSON (a NaN is a bug, not a number), indented."""
+    path = out / "report.json"
+    path.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
+    return path
+
+
+def _save_whole(
+    folder: str | Path, force: bool, write_files: Callable[[Path], list[Path]]
+) -> list[Path]:
+    """``write_files`` into ``folder`` whole or not at all, as the command line's ``--out``
+    (:class:`~obsplan.core.outputs.OutputDir`): an error or Ctrl-C while writing leaves no
+    folder, or an old one untouched."""
+    out = OutputDir(folder, force, option="folder", verb="plan", force_option="force=True")
+    with out:
+        written = [out.final(p) for p in write_files(out.stage())]
+        out.commit()
+    return written
 
 
 def channel_lines(pb: PlanningProblem, validation: Mapping[str, PathValidation]) -> list[str]:
@@ -991,9 +1005,7 @@ class BeaconPlanResult:
             write_csv(self.vehicle, out / "plan.csv"),
             write_beacon_csv(out / "beacon.csv", s.times, s.positions, s.velocities),
         ]
-        report = out / "report.json"
-        report.write_text(json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n")
-        written.append(report)
+        written.append(_write_report(out, self.to_dict()))
         fig = plot_beacon_paths(self.vehicle, self.beacons(), self.problem)
         written.append(save_figure(fig, out / FIGURES["path"]))
         if self.validation:
@@ -1017,8 +1029,4 @@ class BeaconPlanResult:
         list of Path
             The files written, at their final place.
         """
-        out = OutputDir(folder, force, option="folder", verb="plan", force_option="force=True")
-        with out:
-            written = [out.final(p) for p in self.write_files(out.stage())]
-            out.commit()
-        return written
+        return _save_whole(folder, force, self.write_files)

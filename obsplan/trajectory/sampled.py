@@ -648,3 +648,24 @@ def resample(traj: Trajectory, dt: float, name: str = "validation.dt") -> Trajec
     t = traj.t[0] + np.concatenate([[0.0], np.cumsum(np.repeat(traj.dt / k, k))])
     t[-1] = traj.t[-1]
     return Trajectory.from_inputs(t, traj.p[0], traj.v[0], u)
+
+
+def position_at(traj: Trajectory, times: np.ndarray) -> np.ndarray:
+    """Exact positions of the piecewise-quadratic path at ``times`` [s], shape (len, n).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        The path; ``u[k]`` is held on ``[t_k, t_{k+1})`` and the last hold extends beyond the end.
+    times : ndarray, shape (M,)
+        Times [s].
+
+    Returns
+    -------
+    ndarray, shape (M, n)
+        Positions [m].
+    """
+    times = np.asarray(times, float)
+    k = np.clip(np.searchsorted(traj.t, times, side="right") - 1, 0, traj.t.size - 1)
+    tau = (times - traj.t[k])[:, None]
+    return traj.p[k] + traj.v[k] * tau + 0.5 * traj.u[k] * tau**2

@@ -64,7 +64,8 @@ BEACON_BASELINES: tuple[str, ...] = (
     "beacon-greedy",
     "beacon-orbit",
 )
-#: ``beacon-trail``'s distance behind the vehicle [m] (the issue's operators' setting).
+#: ``beacon-trail``'s distance behind the vehicle [m]: far enough for a support craft to keep
+#: clear of the vehicle's track, close enough to keep the acoustic link short.
 TRAIL_OFFSET_M = 50.0
 #: ``beacon-orbit``'s radius in 3D: this times the vertical separation (the rule of thumb).
 ORBIT_VERTICAL_FACTOR = 1.5

@@ -51,31 +51,10 @@ import numpy as np
 from obsplan.core.errors import InputError
 from obsplan.estimation.epochs import SOUND_SPEED, TRANSMIT_ITERATIONS
 from obsplan.model.beacon import BeaconPath, BeaconVehicle
-from obsplan.trajectory.sampled import Trajectory
+from obsplan.trajectory.sampled import Trajectory, position_at
 
 #: Default spacing of the check points of the distance limits [s] (module docstring).
 CHECK_DT = 2.0
-
-
-def position_at(traj: Trajectory, times: np.ndarray) -> np.ndarray:
-    """Exact positions of the vehicle's held-input path at ``times`` [s], shape (M, n).
-
-    Parameters
-    ----------
-    traj : Trajectory
-        The path; ``u[k]`` is held on ``[t_k, t_{k+1})``.
-    times : ndarray, shape (M,)
-        Times [s] within the path.
-
-    Returns
-    -------
-    ndarray, shape (M, n)
-        Positions [m].
-    """
-    times = np.asarray(times, float)
-    k = np.clip(np.searchsorted(traj.t, times, side="right") - 1, 0, traj.t.size - 1)
-    tau = (times - traj.t[k])[:, None]
-    return traj.p[k] + traj.v[k] * tau + 0.5 * traj.u[k] * tau**2
 
 
 @dataclass(frozen=True, eq=False)
