@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from obsplan.cli import main
-from obsplan.core import budget
+from obsplan.core import budget, interrupts
 from obsplan.core.atomic import dead_leftovers, staging_dir
 from obsplan.core.outputs import MARKER, write_marker
 from obsplan.trajectory import generators as gen
@@ -380,3 +380,7 @@ def test_a_signal_after_a_file_was_written_undoes_it(tmp_path, monkeypatch):
     wp.unlink()
     assert main(argv) == 143
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]
+    # the call reported its signal: nothing of it is left to interrupt the caller's later work
+    # (a script, a notebook, the next test in the same process)
+    assert interrupts.pending() is None
+    interrupts.check()

@@ -137,7 +137,10 @@ def install() -> dict[Any, Any] | None:
 
 
 def uninstall(previous: dict[Any, Any] | None) -> None:
-    """Put back the handlers :func:`install` replaced (a library caller's own, e.g. pytest's).
+    """Put back the handlers :func:`install` replaced (a library caller's own, e.g. pytest's),
+    and forget a received signal: the caller that installed them has reported it (its exit
+    code), and a signal left pending would interrupt the library caller's later work at its
+    next :func:`check`.
 
     Parameters
     ----------
@@ -147,6 +150,7 @@ def uninstall(previous: dict[Any, Any] | None) -> None:
     global _installed
     if previous is None or threading.current_thread() is not threading.main_thread():
         return
+    reset()
     for s, h in previous.items():
         signal.signal(s, h)  # type: ignore[arg-type]
     if sys.unraisablehook is _unraisablehook:
