@@ -475,3 +475,64 @@ def test_gate_is_one_sided_for_range_rows():
     assert (far**2 / (p00 + 0.01)) == pytest.approx(nis)  # widened onto the gate
     assert gate(far, True)[:2] == ([0, 1, 0], 0.0)
     assert gate(-far, False)[:2] == ([0, 1, 0], 0.0)
+
+
+# ------------------------------------------------------------- the planner's expected information
+def test_arrival_probability_is_the_loss_model_rounded_at_its_corners():
+    """The planner's arrival probability: ``1 - dropout`` without growth; with growth, numpy and
+    CasADi agree, and away from the two corners it is ``1 - drop_probability`` to within the
+    floor (the rounding is 2 % of the range wide: 5 widths from a corner it is below 1e-3)."""
+    import casadi as ca
+
+    from obsplan.estimation.channel import ARRIVAL_FLOOR, ARRIVAL_SMOOTH
+
+    flat = Channel(dropout=0.2)
+    assert flat.arrival_probability(np.ones((2, 3))) == pytest.approx(0.8)
+    ch = Channel(dropout=0.2, dropout_range_m=100.0)
+    r = np.linspace(1.0, 300.0, 600)
+    rel = np.vstack([r, np.zeros_like(r)])
+    q = ch.arrival_probability(rel)[0]
+    X = ca.SX.sym("x", 2, r.size)
+    f = ca.Function("q", [X], [ch.arrival_probability(X)])
+    np.testing.assert_allclose(np.asarray(f(rel)).ravel(), q, rtol=1e-12, atol=1e-15)
+    rr = np.sqrt(r**2 + 1.0)  # the regularised range the model sees
+    far = (np.abs(rr - 100.0) > 5 * ARRIVAL_SMOOTH * 100) & (
+        np.abs(rr - 200) > 5 * ARRIVAL_SMOOTH * 100
+    )
+    exact = 1.0 - ch.drop_probability(rr)
+    np.testing.assert_allclose(q[far], exact[far] + ARRIVAL_FLOOR, atol=1e-3)
+    # falls with range, floored (to rounding)
+    assert np.all(np.diff(q) <= 1e-15) and q.min() >= ARRIVAL_FLOOR * (1 - 1e-12)
+    ideal = Channel()
+    rho = np.ones((1, 3))
+    assert ideal.expected_variance(rho, rel[:, :3]) is rho  # the ideal channel: untouched
+
+
+def test_expected_information_of_a_dropout_is_a_noisier_range():
+    """With a loss that does not grow with range, the posterior CRB on the expected information
+    is exactly the one of ranges ``σ/√(1 - dropout)`` (the same number on any path); the KF's
+    lies between the lossless one and that; both are larger than the lossless channel's."""
+    from obsplan.planning.baselines.vehicle import baselines
+    from obsplan.planning.objectives.estimator import covariance_value
+
+    pb = load_problem(ROOT / "problems" / "localise.toml")
+    lossy = pb.with_changes(validation={"channel_dropout": 0.36})
+    noisy = pb.with_changes(validation={"range_std": pb.validation.range_std / 0.8})
+    for kind in ("pcrb-position", "kf-position-std"):
+        # the final std in metres: the relative modes are 1 on their reference path by design
+        obj = {"kind": kind, "mode": "final"}
+        if kind == "kf-position-std":
+            obj["pcrb_weight"] = 0.0  # the KF's std alone (joined, both are relative)
+        a = lossy.with_changes(objective=obj)
+        b = noisy.with_changes(objective=obj)
+        c = pb.with_changes(objective=obj)
+        for name in ("lawnmower", "circle"):
+            tr = baselines(c)[name].trajectory
+            va, vb, vc = covariance_value(tr, a), covariance_value(tr, b), covariance_value(tr, c)
+            if kind == "pcrb-position":
+                assert va == pytest.approx(vb, rel=1e-9), name
+            else:
+                # the KF's range variance r²σ² + σ⁴/2 over q is below the one of σ/√q
+                # (r²σ²/q + σ⁴/(2q²)): its expected information lies between the two
+                assert va < vb, name
+            assert va > vc * (1 + 1e-3), (kind, name)  # fewer pings: a larger std

@@ -160,6 +160,22 @@ def test_summary_has_the_table_and_the_verdict_words(checked):
         assert line in text
 
 
+def test_summary_says_the_stress_channel_and_its_counts(small_problem):
+    """With ``validation.stress_channel`` the summary's robustness row names the channel, its
+    faults and, per path, the ranges used and rejected and the runs lost in it; report.json
+    carries the channel."""
+    pb = small_problem.with_changes(validation={"stress_channel": "at-sea"})
+    path = baselines(pb)["lawnmower"].trajectory
+    res = obsplan.validate(path, pb)
+    text = res.summary()
+    head = "robustness (prior x1, range noise x1, channel at-sea (10 % late arrivals"
+    assert head in text and "not replanned):" in text
+    rows = text[text.index(head) :].splitlines()
+    assert any(r.strip().startswith("lawnmower: ekf ") and ", lost " in r for r in rows), text
+    assert "channel at-sea" not in text[: text.index(head)]  # the nominal rows: ideal channel
+    assert res.to_dict()["robustness"]["channel"]["name"] == "at-sea"
+
+
 def test_validate_flies_the_path_as_plan_does(checked, small_problem):
     assert checked.trajectory is not None
     assert set(checked.validation) == {"planned", *checked.baselines}

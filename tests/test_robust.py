@@ -124,6 +124,42 @@ def test_stress_validation_is_the_validation_of_the_scaled_problem(short_problem
     assert rob.validation["circle"].result.ekf.rmse_pos > nominal["circle"].result.ekf.rmse_pos
 
 
+def test_stress_channel_row_is_the_validation_in_that_channel(short_problem):
+    """``validation.stress_channel`` re-validates every path with its ranges through the channel:
+    the same numbers as validating the problem whose channel it is, pings lost and ranges
+    rejected counted, the channel named in the report and the summary."""
+    val = replace(short_problem.validation, stress_channel="at-sea")
+    pb = replace(short_problem, validation=val)
+    assert stress_active(pb)
+    paths = {k: b.trajectory for k, b in baselines(pb).items() if k in ("lawnmower", "circle")}
+    rob = stress_validate(paths, pb, runs=3)
+    at_sea = replace(short_problem, validation=replace(short_problem.validation, channel="at-sea"))
+    direct = validate_paths(paths, at_sea, runs=3)
+    nominal = validate_paths(paths, pb, runs=3)
+    for k in paths:
+        a, b = rob.validation[k].result, direct[k].result
+        assert a.ekf.rmse_pos == b.ekf.rmse_pos and a.ekf.final_pos_err == b.ekf.final_pos_err
+        used = a.filter_dict("ekf")["ranges_used"]
+        assert used < nominal[k].result.filter_dict("ekf")["ranges_used"]  # 20 % of pings lost
+    d = rob.to_dict()
+    assert d["channel"]["name"] == "at-sea" and d["channel"]["dropout"] == 0.2
+    assert "channel at-sea" in rob.condition
+    # the nominal problem is left as it was: no channel in its validation
+    assert pb.validation.channel_model().is_ideal
+
+
+def test_stress_channel_must_be_a_preset():
+    data = problem_to_dict(load_problem(LOCALISE_PROBLEM))
+    bad = {**data, "validation": {**data["validation"], "stress_channel": "stormy"}}
+    with pytest.raises(ProblemError, match="validation.stress_channel"):
+        problem_from_dict(bad)
+    good = {**data, "validation": {**data["validation"], "stress_channel": "at-sea"}}
+    pb = problem_from_dict(good)
+    assert pb.validation.stress_channel == "at-sea"
+    assert problem_from_dict(problem_to_dict(pb)).validation.stress_channel == "at-sea"
+    assert "stress_channel" not in problem_to_dict(load_problem(LOCALISE_PROBLEM))["validation"]
+
+
 def test_a_robust_plan_keeps_its_limits_in_every_condition(short_problem, lawnmower):
     """The keep-out margins of a robust problem are the largest over its conditions, each with
     that condition's prior and range noise and the vehicle's own (nominal) guidance: wider

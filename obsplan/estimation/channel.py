@@ -81,6 +81,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields, replace
 
+import casadi as ca
 import numpy as np
 from scipy.stats import chi2
 
@@ -109,6 +110,15 @@ LATE_MAX_M = 30.0
 MAX_EXCESS_M = 1e5
 #: Largest clock offset [s] accepted.
 MAX_CLOCK_OFFSET_S = 10.0
+#: The planner's model of a loss growing with range (:meth:`Channel.arrival_probability`) rounds
+#: the two corners of the truth's linear growth over this fraction of ``dropout_range_m``: IPOPT
+#: needs a twice-differentiable objective, and 2 % of the range moves the expected information
+#: by at most 1 % of a ping's.
+ARRIVAL_SMOOTH = 0.02
+#: Smallest arrival probability the planner's expected information takes: beyond twice
+#: ``dropout_range_m`` every ping is lost, and the floor keeps the range variance it divides
+#: finite (a thousandth of a ping's information is none for any recursion).
+ARRIVAL_FLOOR = 1e-3
 
 
 @dataclass(frozen=True)
@@ -266,6 +276,71 @@ class Channel:
             grow = np.clip(rho / self.dropout_range_m - 1.0, 0.0, 1.0)
             p = p + (1.0 - p) * grow
         return p
+
+    @property
+    def loses_pings(self) -> bool:
+        """Whether some pings are lost (a dropout, or a loss growing with range)."""
+        return self.dropout > 0.0 or math.isfinite(self.dropout_range_m)
+
+    def arrival_probability(self, rel):
+        """The probability that a ping arrives, for the planner's expected information.
+
+        A range that arrives with probability ``q`` carries in expectation ``q`` times the
+        information ``h hᵀ / R`` of one that always does (the Fisher information of a reading
+        present with a probability that does not depend on the state): a recursion on the
+        expected information divides the range variance by ``q``. ``q = 1 -``
+        :meth:`drop_probability`, with the growth's corners at ``dropout_range_m`` and twice it
+        rounded over :data:`ARRIVAL_SMOOTH` of that range and floored at :data:`ARRIVAL_FLOOR`.
+
+        Parameters
+        ----------
+        rel : ndarray or casadi.SX/MX, shape (n, J)
+            Positions relative to the beacon [m], one column per range epoch.
+
+        Returns
+        -------
+        float or ndarray or casadi expression, shape (1, J)
+            ``q`` per epoch; a float ``1 - dropout`` when the loss does not grow with range.
+        """
+        q0 = 1.0 - self.dropout
+        if not math.isfinite(self.dropout_range_m):
+            return q0
+        w = ARRIVAL_SMOOTH
+        # 1 m² under the root keeps the range differentiable at the beacon
+        if isinstance(rel, np.ndarray):
+            r = np.sqrt(np.sum(rel**2, axis=0, keepdims=True) + 1.0)
+            x = r / self.dropout_range_m - 1.0
+            grow = w * (np.logaddexp(0.0, x / w) - np.logaddexp(0.0, (x - 1.0) / w))
+        else:
+            r = ca.sqrt(ca.sum1(rel**2) + 1.0)
+            x = r / self.dropout_range_m - 1.0
+
+            def softplus(z):
+                return ca.fmax(z, 0.0) + ca.log1p(ca.exp(-ca.fabs(z)))
+
+            grow = w * (softplus(x / w) - softplus((x - 1.0) / w))
+        return q0 * (1.0 - grow) + ARRIVAL_FLOOR
+
+    def expected_variance(self, rho, rel):
+        """The range variances ``rho`` of a recursion on the expected information: divided by
+        :meth:`arrival_probability`; ``rho`` itself when the channel loses no ping (the ideal
+        channel's numbers unchanged).
+
+        Parameters
+        ----------
+        rho : ndarray or casadi expression, shape (1, J)
+            The range variances at the epochs (in the recursion's units).
+        rel : ndarray or casadi expression, shape (n, J)
+            The positions relative to the beacon there [m].
+
+        Returns
+        -------
+        ndarray or casadi expression, shape (1, J)
+            The variances of the expected information.
+        """
+        if not self.loses_pings:
+            return rho
+        return rho / self.arrival_probability(rel)
 
 
 #: The named channels (module docstring).

@@ -50,7 +50,7 @@ from obsplan.planning.replan import ReplanResult
 from obsplan.planning.solver.margins import KeepoutReport
 from obsplan.planning.solver.solve import SolveResult
 from obsplan.planning.tuning import tuning
-from obsplan.planning.validation.stress import Robustness
+from obsplan.planning.validation.stress import Robustness, stress_problem
 from obsplan.planning.validation.validate import PathValidation
 from obsplan.planning.validation.verdict import (
     Verdict,
@@ -314,10 +314,10 @@ class ValidationResult:
         lines = [self.table(), *self.verdict.summary()]
         if self.robustness is not None:
             r = self.robustness
-            lines.append(
-                f"robustness (prior x{r.prior:g}, range noise x{r.range_noise:g}, not replanned):"
-            )
+            lines.append(f"robustness ({r.condition}, not replanned):")
             lines += [f"  {line}" for line in r.verdict.summary()]
+            spb = stress_problem(self.problem)
+            lines += [f"  {line}" for line in channel_lines(spb, r.validation)]
         return "\n".join(lines)
 
     def _headline(self) -> str:

@@ -55,6 +55,7 @@ import numpy as np
 from obsplan.core.errors import ConfigError
 from obsplan.estimation.bounds.crlb import pcrb_model_of, range_information
 from obsplan.estimation.bounds.riccati import RecursionModel, faulhaber, make_epochs
+from obsplan.estimation.channel import CHANNEL_PRESETS, Channel
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.epochs import epoch_beacons, nominal_states
 from obsplan.estimation.schedule import make_schedule, sample_rate
@@ -165,6 +166,9 @@ class RangeRecursion:
         including the updates at the path's last sample).
     model : VehicleModel
         The vehicle model.
+    channel : Channel
+        The acoustic channel: a recursion on the expected information of pings it loses
+        (:meth:`~obsplan.estimation.channel.Channel.expected_variance`).
     """
 
     times: np.ndarray
@@ -174,6 +178,7 @@ class RangeRecursion:
     after: tuple[Element, ...]
     gaps: tuple[Element, ...]
     model: VehicleModel
+    channel: Channel = CHANNEL_PRESETS["ideal"]
 
     @property
     def n(self) -> int:
@@ -203,6 +208,7 @@ class RangeRecursion:
         """
         rel = self.positions.T - B
         h, rho = range_information(rel, self.sigma)
+        rho = self.channel.expected_variance(rho, rel)
         n = self.n
         P = self.P0 if isinstance(B, np.ndarray) else ca.DM(self.P0)
         post, nxt = [], []
@@ -337,4 +343,5 @@ def range_recursion(vehicle: Trajectory, config: EstimationConfig) -> RangeRecur
         after=tuple(after),
         gaps=tuple(gaps),
         model=model,
+        channel=config.channel,
     )

@@ -233,11 +233,13 @@ def pcrb_objective(pb: PlanningProblem) -> CovarianceObjective:
     Mp, cp, _, _ = grid.sample_operator(s)
     sigma = cfg.noise["range"]
     n = model.dim
+    channel = pb.validation.channel_model()
 
     def rows(grid: Grid, W):
         w = W.reshape(-1, order="F") if isinstance(W, np.ndarray) else ca.vec(W)
         rel = apply_operator(Mp, cp, w, n)
-        return range_information(rel, sigma)
+        h, rho = range_information(rel, sigma)
+        return h, channel.expected_variance(rho, rel)
 
     return CovarianceObjective(rec, epochs, cov["p0_ekf"], epochs.mask, 1.0, rows, _lines(pb))
 
@@ -421,10 +423,12 @@ def _kf_range_rows(pb: PlanningProblem, s: np.ndarray, sigma: float, extra: floa
     d_off = (grid.p0[:, None] + grid.v0[:, None] * s[None, :]) / L  # d = p - p0 - ν0 τ (eq. 15)
     sig_s = sigma / L
     ones = np.ones((1, s.size))
+    channel = pb.validation.channel_model()
 
     def rows(grid: Grid, W):
         w = W.reshape(-1, order="F") if isinstance(W, np.ndarray) else ca.vec(W)
-        rel = apply_operator(Mp, cp, w, n) / L
+        rel_m = apply_operator(Mp, cp, w, n)
+        rel = rel_m / L
         d = rel - d_off
         if isinstance(W, np.ndarray):
             hh = np.vstack([d, ones])
@@ -432,7 +436,7 @@ def _kf_range_rows(pb: PlanningProblem, s: np.ndarray, sigma: float, extra: floa
         else:
             hh = ca.vertcat(d, ca.DM(ones))
             rho = ca.sum1(rel**2) * sig_s**2 + 0.5 * sig_s**4 + extra
-        return hh, rho
+        return hh, channel.expected_variance(rho, rel_m)
 
     return rows
 

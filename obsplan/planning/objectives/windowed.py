@@ -283,6 +283,12 @@ def sensor_information(pb: PlanningProblem) -> SensorInformation:
     """The validation's rates and noises (``[validation]``) and, for the criteria of
     :data:`START_RANGE_CRITERIA`, the start's range.
 
+    The range rate is the rate of the pings that arrive, ``range_rate (1 - dropout)`` of the
+    validation's channel: the expected information of a lost ping is none. (A loss growing with
+    range is the estimator objectives' alone,
+    :meth:`~obsplan.estimation.channel.Channel.expected_variance`: these weights are per window,
+    not per ping.)
+
     Parameters
     ----------
     pb : PlanningProblem
@@ -299,8 +305,9 @@ def sensor_information(pb: PlanningProblem) -> SensorInformation:
     start_range = CRITERIA.get(pb.objective.kind) in START_RANGE_CRITERIA
     if start_range and pb.objective.resolved_system == "augmented":
         r0 = float(np.linalg.norm(pb.p0 - np.asarray(pb.beacon)))
+    arriving = v.range_rate * (1.0 - v.channel_model().dropout)
     return SensorInformation(
-        v.range_rate, v.range_std, v.dvl_rate, v.dvl_std, v.depth_rate, v.depth_std, r0
+        arriving, v.range_std, v.dvl_rate, v.dvl_std, v.depth_rate, v.depth_std, r0
     )
 
 

@@ -604,6 +604,12 @@ def _check_channel(val: ValidationSpec) -> None:
     if val.channel not in CHANNEL_PRESETS:
         names = ", ".join(CHANNEL_PRESETS)
         raise field_error("validation.channel", f"must be one of {names}, got {val.channel!r}")
+    if val.stress_channel is not None and val.stress_channel not in CHANNEL_PRESETS:
+        names = ", ".join(CHANNEL_PRESETS)
+        raise field_error(
+            "validation.stress_channel",
+            f"must be one of {names} (or left out: no channel row), got {val.stress_channel!r}",
+        )
     for key, name in CHANNEL_KEYS.items():
         v = getattr(val, key)
         if v is not None:

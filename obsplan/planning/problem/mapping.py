@@ -607,7 +607,7 @@ def _validation_to_dict(val: ValidationSpec) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in val.__dataclass_fields__:
         v = getattr(val, f)
-        new_field = f in ("channel", "gate", "scale_state") or f in CHANNEL_KEYS
+        new_field = f in ("channel", "gate", "scale_state", "stress_channel") or f in CHANNEL_KEYS
         if new_field and v == getattr(ValidationSpec, f):
             continue
         out[f] = list(v) if isinstance(v, tuple) else v

@@ -841,6 +841,16 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "meets; the filters are configured for it, as for the stress prior).",
         ),
         FieldSpec(
+            "stress_channel",
+            "str",
+            _NONE,
+            "-",
+            "Robustness row: every path re-validated, without replanning, with its ranges "
+            'through this acoustic channel ("ideal" or "at-sea", with the channel_* fields as '
+            "for `channel`; the gate and the scale state follow it as for `channel`). Default "
+            "none (the row's channel is `channel`).",
+        ),
+        FieldSpec(
             "channel",
             "str",
             "ideal",

@@ -7,7 +7,7 @@ package holds its checked form, :class:`~obsplan.planning.problem.definition.Pla
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -231,6 +231,7 @@ class ValidationSpec:
     max_runs: int = 400
     stress_prior: float = 1.0
     stress_range_noise: float = 1.0
+    stress_channel: str | None = None
     channel: str = "ideal"
     channel_dropout: float | None = None
     channel_dropout_range: float | None = None
@@ -259,6 +260,24 @@ class ValidationSpec:
         return channel_preset(
             self.channel, **{CHANNEL_KEYS[k]: getattr(self, k) for k in CHANNEL_KEYS}
         )
+
+    def stress_channel_model(self) -> Channel | None:
+        """The channel of the robustness row: the preset ``stress_channel`` with the
+        ``channel_*`` fields that are given (as :meth:`channel_model`), None without one.
+
+        Returns
+        -------
+        Channel or None
+            The channel, or None when ``stress_channel`` is not set.
+
+        Raises
+        ------
+        ConfigError
+            For an unknown preset or a field out of range.
+        """
+        if self.stress_channel is None:
+            return None
+        return replace(self, channel=self.stress_channel).channel_model()
 
 
 @dataclass(frozen=True)
