@@ -555,6 +555,44 @@ def late_weight(nu, s, late):
     return direct / mix, llr
 
 
+#: The innovation gate's actions (:func:`gate_action`).
+GATE_USE, GATE_REACQUIRE, GATE_REJECT = 0, 1, 2
+
+
+@inline
+def gate_action(nis, gate, run, reacquire_after, short):
+    """The innovation gate's rule for one range: the Monte Carlo's filters (:func:`gate_rows`)
+    and the replay's (:mod:`obsplan.estimation.replay.smoother`) both decide by it.
+
+    Parameters
+    ----------
+    nis : float
+        The range's normalised innovation squared ``ν²/s`` (the smallest over a Gaussian sum's
+        components).
+    gate : float
+        The largest NIS of a range used (``inf``: no gate).
+    run : float
+        Ranges rejected in a row before this one.
+    reacquire_after : int
+        Rejections in a row after which the filter re-acquires
+        (:data:`~obsplan.estimation.channel.REACQUIRE_AFTER`); 0: never.
+    short : bool
+        The late-arrival-aware rule and the range shorter than predicted: a late arrival is
+        never short, so the filter is wrong, not the range, and re-acquires on it at once.
+
+    Returns
+    -------
+    int
+        :data:`GATE_USE` (NIS within the gate), :data:`GATE_REACQUIRE` (widen the position
+        prior to put the range on the gate, then use it) or :data:`GATE_REJECT`.
+    """
+    if not nis > gate:
+        return GATE_USE
+    if reacquire_after > 0 and (run >= reacquire_after or short):
+        return GATE_REACQUIRE
+    return GATE_REJECT
+
+
 @inline
 def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg, late):
     """The innovation gate on a range row of every run, before its update (with ``gate =
@@ -618,7 +656,8 @@ def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg, late):
                 short = short and nu < 0.0
         if not seen:
             continue
-        if not best > gate:
+        act = gate_action(best, gate, rg[3, g], REACQUIRE_AFTER, late and short)
+        if act == GATE_USE:
             rg[0, g] += 1.0
             rg[3, g] = 0.0
             if late and gate < math.inf:
@@ -629,7 +668,7 @@ def gate_rows(X, P, iw, ws, nnz, npos, G, gate, rg, late):
                         beta, llr = late_weight(ws[WS_SC, SC_NU, b], ws[WS_SC, SC_S, b], ext)
                         ws[WS_SC, SC_BETA, b] = beta
                         ws[WS_SC, SC_LLR, b] = llr
-        elif rg[3, g] >= REACQUIRE_AFTER or (late and short):
+        elif act == GATE_REACQUIRE:
             for c in range(G):
                 b = b0 + c
                 if ws[WS_SC, SC_OK, b] == 0.0:

@@ -24,6 +24,19 @@ one), while a range off by more than 3.3 innovation standard deviations, the lat
 multipath (too long by metres to tens of metres), is rejected. A looser 0.99 gate (6.63) would
 throw away ten times more good ranges; a tighter one lets more multipath through.
 
+**One rule with the Monte Carlo's filters.** The decision is
+:func:`obsplan.estimation.kernels.gate_action`, the one the Monte Carlo's EKF and Gaussian sum
+take, with their late-arrival-aware form (:mod:`obsplan.estimation.channel`, "The innovation
+gate"): multipath only ever lengthens a range, so a range *shorter* than predicted beyond the
+gate says the filter is wrong, and the filter re-acquires on it at once (below) instead of
+rejecting it; and a range inside the gate is weighed by
+:func:`~obsplan.estimation.kernels.late_weight`, the posterior probability ``β`` that it is the
+direct arrival and not a late one (prior 0.1, excess up to 30 m): the update is the
+moment-matched mixture of "updated" and "not updated", ``x += β K ν`` and ``P = β P⁺ + (1-β) P⁻
++ β(1-β) (K ν)(K ν)ᵀ`` (``P⁺`` the Joseph update), so a doubtful long range moves the track
+little and the covariance says so. Without a gate (``gate_probability = 1``) every range is used
+with its full weight.
+
 **Re-acquisition.** A gate can also lock the filter out: after a long dropout, or from a bad
 initial guess, every range looks like an outlier and the filter dead-reckons on silently. After
 :data:`REACQUIRE_AFTER` = 5 consecutive rejections the filter is declared lost: an isotropic
@@ -55,9 +68,10 @@ from scipy.stats import chi2
 from obsplan.core.budget import check_log_rows
 from obsplan.core.errors import InputError
 from obsplan.estimation import kalman
-from obsplan.estimation.channel import GATE_PROBABILITY, REACQUIRE_AFTER
+from obsplan.estimation.channel import GATE_PROBABILITY, LATE_MAX_M, REACQUIRE_AFTER
 from obsplan.estimation.config import CURRENT_PRIOR_STD
 from obsplan.estimation.filters import linear
+from obsplan.estimation.kernels import GATE_REACQUIRE, GATE_USE, gate_action, late_weight
 from obsplan.estimation.replay.log import MissionLog
 from obsplan.estimation.replay.result import ReplayResult
 from obsplan.estimation.sensors import OutputModel, output_model, to_outputs
@@ -265,7 +279,7 @@ def _coordinates(value: tuple[float, ...], n: int, option: str, source: str) -> 
 
 
 def joseph_update(
-    x: np.ndarray, P: np.ndarray, h: np.ndarray, nu: float, r: float
+    x: np.ndarray, P: np.ndarray, h: np.ndarray, nu: float, r: float, beta: float = 1.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """A scalar update in the Joseph form, ``P⁺ = (I - k hᵀ) P (I - k hᵀ)ᵀ + r k kᵀ``, symmetrised.
 
@@ -281,19 +295,28 @@ def joseph_update(
         Innovation (reading minus prediction), in the reading's unit.
     r : float
         Variance of the reading (and any second-order term).
+    beta : float, optional
+        Probability that the reading is the one modelled (the late-arrival weight, module
+        docstring); 1: the ordinary update.
 
     Returns
     -------
     x : ndarray, shape (m,)
         Posterior mean.
     P : ndarray, shape (m, m)
-        Posterior covariance, symmetric and positive semi-definite (Joseph form).
+        Posterior covariance, symmetric and positive semi-definite (Joseph form; with
+        ``beta < 1`` the moment-matched mixture of it and the prior).
     """
     b = P @ h
     s = float(h @ b) + r
     k = b / s
     A = np.eye(x.size) - np.outer(k, h)
-    return x + k * nu, kalman.symmetrize(A @ P @ A.T + r * np.outer(k, k))
+    P_upd = kalman.symmetrize(A @ P @ A.T + r * np.outer(k, k))
+    if beta == 1.0:
+        return x + k * nu, P_upd
+    step = k * nu
+    mixed = beta * P_upd + (1.0 - beta) * P + beta * (1.0 - beta) * np.outer(step, step)
+    return x + beta * step, kalman.symmetrize(mixed)
 
 
 @dataclass
@@ -304,17 +327,24 @@ class _Gate:
     reacquire_after: int | None
     run: int = 0
 
-    def judge(self, nu: float, s: float, hPh: float, r: float) -> tuple[bool, float]:
-        """``(use, inflation)``: use the range, after widening the prior so that ``hᵀ P h`` grows
-        by the factor ``inflation`` (>= 1; 1: no re-acquisition)."""
-        if nu * nu <= self.nis_max * s:
+    def judge(
+        self, nu: float, s: float, hPh: float, r: float, late: float
+    ) -> tuple[bool, float, float]:
+        """``(use, inflation, beta)``: use the range, after widening the prior so that ``hᵀ P h``
+        grows by the factor ``inflation`` (>= 1; 1: no re-acquisition), with the late-arrival
+        weight ``beta`` (1 without a gate or on re-acquisition); the rule is
+        :func:`~obsplan.estimation.kernels.gate_action` (module docstring). ``late``: the
+        extent of a late arrival's innovation in the reading's unit."""
+        act = gate_action(nu * nu / s, self.nis_max, self.run, self.reacquire_after or 0, nu < 0)
+        if act == GATE_USE:
             self.run = 0
-            return True, 1.0
-        if self.reacquire_after is not None and self.run >= self.reacquire_after and hPh > 0:
+            beta = late_weight(nu, s, late)[0] if math.isfinite(self.nis_max) else 1.0
+            return True, 1.0, beta
+        if act == GATE_REACQUIRE:
             self.run = 0
-            return True, max(1.0, (nu * nu / self.nis_max - r) / hPh)
+            return True, max(1.0, (nu * nu / self.nis_max - r) / hPh) if hPh > 0 else 1.0, 1.0
         self.run += 1
-        return False, 1.0
+        return False, 1.0, 1.0
 
 
 def _range_row(
@@ -409,7 +439,8 @@ def _filter(log, config, model, om, beacons, x, P, Y, V) -> dict[str, np.ndarray
             b = beacons[k]
             nu, h, r, hPh = _range_row(om, x, P, b, Y[k, 0], V[k, 0], config.second_order)
             s = hPh + r
-            use, alpha = gate.judge(nu, s, hPh, r)
+            # the half-squared reading's late extent: ½(r + e)² - ½r² ≈ r e (as the kernels')
+            use, alpha, beta = gate.judge(nu, s, hPh, r, LATE_MAX_M * float(log.ranges[k]))
             rec["residual"][j] = log.ranges[k] - float(np.linalg.norm(x[:n] - b))
             rec["nis"][j] = nu * nu / s
             rec["used"][j], rec["inflation"][j] = use, alpha
@@ -419,7 +450,7 @@ def _filter(log, config, model, om, beacons, x, P, Y, V) -> dict[str, np.ndarray
                 nu, h, r, hPh = _range_row(om, x, P, b, Y[k, 0], V[k, 0], config.second_order)
             xp[k], Pp[k] = x, P
             if use:
-                x, P = joseph_update(x, P, h, nu, r)
+                x, P = joseph_update(x, P, h, nu, r, beta)
             j += 1
         else:
             xp[k], Pp[k] = x, P
