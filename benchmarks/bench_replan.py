@@ -36,6 +36,10 @@ learned the condition exactly would re-solve; the one-shot plan stays the proble
 ``--clairvoyant`` re-solves from each run's true state instead of its estimate (``replan_from=
 "truth"``, which no vehicle can do): the most that re-solving from a better-known state could buy
 in that world, the bound for any replanner that re-solves the same objective.
+``--channel NAME`` sends every run's ranges (steps 2-4) through that acoustic channel
+(``validation.channel``, e.g. ``at-sea``: pings lost, late and scaled, the filters gated with
+the scale state), again with the problem file's plan and replanner unless ``--told``: the
+receding horizon measured where the world departs from the plan.
 """
 
 from __future__ import annotations
@@ -136,16 +140,23 @@ def main() -> int:
         help="with --stress: the replanner is built for the stressed world (module docstring)",
     )
     ap.add_argument(
+        "--channel",
+        default=None,
+        help="fly the runs' ranges through this acoustic channel (module docstring)",
+    )
+    ap.add_argument(
         "--clairvoyant",
         action="store_true",
         help="re-solve from each run's true state, not its estimate (module docstring)",
     )
     args = ap.parse_args()
-    if args.told and tuple(args.stress) == (1.0, 1.0):
-        ap.error("--told needs --stress PRIOR RANGE (a world other than the problem file's)")
+    if args.told and tuple(args.stress) == (1.0, 1.0) and args.channel is None:
+        ap.error("--told needs --stress PRIOR RANGE or --channel (a world other than the file's)")
     path = args.problem or median_suite_problem()
     pb = load_problem(path)
     world = scaled_problem(pb, *args.stress) if tuple(args.stress) != (1.0, 1.0) else pb
+    if args.channel is not None:
+        world = world.with_changes(validation={"channel": args.channel})
     print(
         f"problem {path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}: "
         f"{pb.dim}D {'+'.join(pb.vehicle.sensors)}, {pb.horizon.duration:g} s, "
@@ -154,10 +165,12 @@ def main() -> int:
         f"on {os.cpu_count()} cores"
     )
     if world is not pb:
+        channel = world.validation.channel_model()
         print(
-            f"stress: the runs fly with the prior std x{args.stress[0]:g} and the range std "
-            f"x{args.stress[1]:g}; the plan is the problem file's, the replanner "
-            + ("is built for the stressed world" if args.told else "the problem file's")
+            f"stress: the runs fly with the prior std x{args.stress[0]:g}, the range std "
+            f"x{args.stress[1]:g} and the channel {channel.name} ({channel.describe()}); the "
+            "plan is the problem file's, the replanner "
+            + ("is built for that world" if args.told else "the problem file's")
         )
     if args.clairvoyant:
         print("clairvoyant: every re-solve starts from the run's true state (no vehicle can)")
