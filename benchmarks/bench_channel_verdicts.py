@@ -5,7 +5,8 @@ Run (minutes per problem on one core):
 
     MPLBACKEND=Agg python benchmarks/bench_channel_verdicts.py [FILE ...] [--json out.json]
 
-Without files: every problem of ``problems/*.toml`` with a fixed beacon. For each, ``plan(pb)``
+Without files: every problem of ``problems/*.toml`` whose vehicle is planned (a fixed beacon or
+one on a known path; a planned beacon's problems are ``plan_moving_beacon``'s). For each, ``plan(pb)``
 (the ideal channel) and ``plan(pb.with_changes(validation={"channel": "at-sea"}))`` (what
 ``obsplan plan --channel at-sea`` runs: planned on the expected information of the pings that
 arrive, validated through the channel with the gate and scale state it turns on), each
@@ -65,7 +66,7 @@ def main() -> None:
     files = args.files or [
         f
         for f in sorted((ROOT / "problems").glob("*.toml"))
-        if not load_problem(f).beacon_motion.moving
+        if load_problem(f).beacon_motion.motion != "planned"
     ]
     rows = []
     for f in files:
