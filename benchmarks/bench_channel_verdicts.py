@@ -6,9 +6,10 @@ Run (minutes per problem on one core):
     MPLBACKEND=Agg python benchmarks/bench_channel_verdicts.py [FILE ...] [--json out.json]
 
 Without files: every problem of ``problems/*.toml`` whose vehicle is planned (a fixed beacon or
-one on a known path; a planned beacon's problems are ``plan_moving_beacon``'s). For each, ``plan(pb)``
-(the ideal channel) and ``plan(pb.with_changes(validation={"channel": "at-sea"}))`` (what
-``obsplan plan --channel at-sea`` runs: planned on the expected information of the pings that
+one on a known path; a planned beacon's problems are ``plan_moving_beacon``'s). For each,
+``plan(pb)`` (the ideal channel) and
+``plan(pb.with_changes(validation={"channel": "at-sea"}))`` (what ``obsplan plan --channel at-sea``
+runs: planned on the expected information of the pings that
 arrive, validated through the channel with the gate and scale state it turns on), each
 validated in batches until every verdict is decided or ``validation.max_runs`` is reached.
 Per problem and channel it prints the plan's EKF RMSE and EKF final error against the
