@@ -127,7 +127,8 @@ def test_the_flow_validates_a_beacon_path_against_every_baseline(tmp_path):
     assert {f.name for f in files} >= {"plan.csv", "beacon.csv", "report.json", "path.png"}
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert set(report["verdict"]["baselines"]) == set(BEACON_BASELINES)
-    assert set(report["validation"]) == {"mode", "planned", *BEACON_BASELINES}
+    assert set(report["validation"]) == {"mode", "channel", "planned", *BEACON_BASELINES}
+    assert report["validation"]["channel"]["name"] == "ideal"
     for name in BEACON_BASELINES:
         assert "ekf.rmse_pos_lines" in report["verdict"]["baselines"][name]
         assert report["verdict"]["outcomes"][name] in ("beats", "ties", "loses")
@@ -138,6 +139,7 @@ def test_the_flow_validates_a_beacon_path_against_every_baseline(tmp_path):
         if np.array_equal(result.baselines[n].path.positions, result.solve.positions)
     ]
     assert len(same) == 1 and report["verdict"]["outcomes"][same[0]] == "ties"
+
     assert report["solver"]["success"] is True and report["beacon"]["motion"] == "planned"
     # the flow's planning time (not the validation's) is reported beside the planner's
     assert 0 < report["solver"]["planning_s"] < result.wall_s
@@ -207,3 +209,15 @@ def test_obsplan_plan_refuses_joint_planning_before_any_output(tmp_path, capsys)
     assert main(["plan", str(path), "--out", str(tmp_path / "o")]) == 2
     assert "jointly is not built yet" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_beacon_plans_report_names_its_channel():
+    """At sea the beacon's report says the channel (``validation.channel``, the interface of
+    the fixed beacon's) and every filter its rejected ranges."""
+    pb = load_problem("asv-survey").with_changes(
+        validation={"runs": 4, "max_runs": 4, "channel": "at-sea"}
+    )
+    report = plan_moving_beacon(pb, _best_baseline).to_dict()
+    ch = report["validation"]["channel"]
+    assert ch["name"] == "at-sea" and ch["gate"] == 0.999 and ch["scale_state"] is True
+    assert report["validation"]["planned"]["ekf"]["ranges_rejected"] > 0

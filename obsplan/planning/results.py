@@ -181,13 +181,7 @@ class ValidationResult:
         dict
             ``{"mode": ..., <path>: <its Monte Carlo's dict>, ...}``, or ``{}``; JSON-serialisable.
         """
-        if not self.validation:
-            return {}
-        return {
-            "mode": self.problem.validation.mode,
-            "channel": channel_dict(self.problem),
-            **{k: v.to_dict() for k, v in self.validation.items()},
-        }
+        return validation_report(self.problem, self.validation)
 
     def to_dict(self) -> dict:
         """The keys of ``report.json`` that a validation fills: ``metrics``, ``validation``,
@@ -593,6 +587,33 @@ def _save_whole(
     return written
 
 
+def validation_report(pb: PlanningProblem, validation: Mapping[str, PathValidation]) -> dict:
+    """``report.json``'s ``validation`` of a vehicle's or a beacon's plan: ``mode``
+    (``"closed-loop"`` or ``"open-loop"``), ``channel``
+    (:func:`~obsplan.planning.problem.validation_setup.channel_dict`) and one entry per
+    validated path.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem (its ``[validation]``).
+    validation : mapping of str to PathValidation
+        The validated paths.
+
+    Returns
+    -------
+    dict
+        JSON-serialisable; empty when no validation was run.
+    """
+    if not validation:
+        return {}
+    return {
+        "mode": pb.validation.mode,
+        "channel": channel_dict(pb),
+        **{k: v.to_dict() for k, v in validation.items()},
+    }
+
+
 def channel_lines(pb: PlanningProblem, validation: Mapping[str, PathValidation]) -> list[str]:
     """Under a channel with faults: the channel in words and, per path, each filter's ranges
     used and rejected (means per run) and its lost runs (``report.json``'s keys); nothing
@@ -872,12 +893,7 @@ class BeaconPlanResult:
         obj = None if s.objective is None or not math.isfinite(s.objective) else s.objective
         craft = pb.beacon_vehicle
         assert craft is not None
-        val = {}
-        if self.validation:
-            val = {
-                "mode": pb.validation.mode,
-                **{k: v.to_dict() for k, v in self.validation.items()},
-            }
+        val = validation_report(pb, self.validation)
         return {
             "solver": {
                 "success": bool(s.success),
