@@ -186,6 +186,53 @@ class CsvTable:
                 data[i, j] = val
         return data
 
+    def samples(self, names: Sequence[str], where: str, needs: str, hint: str = "") -> np.ndarray:
+        """The named columns of a path sampled in time (the first, ``t``, strictly increasing):
+        the one check of trajectory, beacon-path and beacon.csv files.
+
+        Parameters
+        ----------
+        names : sequence of str
+            Column names, lower-case, ``t`` first.
+        where : str
+            What the messages start with (the file, or the field naming it).
+        needs : str
+            The end of the missing-column message: what the header must contain.
+        hint : str, optional
+            Said right after the missing columns (e.g. ``" (the trajectory is 3D)"``).
+
+        Returns
+        -------
+        ndarray, shape (rows, len(names))
+            The cells as floats (:meth:`numbers`).
+
+        Raises
+        ------
+        TrajectoryFormatError
+            A missing column, a bad cell, fewer than 2 rows or a time that does not strictly
+            increase (its row named).
+        """
+        missing = [c for c in names if c not in self.columns]
+        if missing:
+            raise TrajectoryFormatError(
+                f"{where}: missing column(s) {', '.join(missing)}{hint}; {needs}"
+            )
+        data = self.numbers(names)
+        if data.shape[0] < 2:
+            raise TrajectoryFormatError(
+                f"{where}: needs at least 2 data rows, found {data.shape[0]}"
+            )
+        t = data[:, 0]
+        bad = np.flatnonzero(np.diff(t) <= 0)
+        if bad.size:
+            k = int(bad[0])
+            raise TrajectoryFormatError(
+                f"{where}: row {self.lines[k + 1]}, column 't': time {float(t[k + 1])!r} does "
+                f"not increase (row {self.lines[k]} has {float(t[k])!r}); times must be strictly "
+                "increasing"
+            )
+        return data
+
 
 def read_table(path: str | Path, example_header: str) -> CsvTable:
     """Read a CSV with a header row; ``example_header`` is shown in hints (e.g. ``t,px,py``).

@@ -290,7 +290,8 @@ class Channel:
         present with a probability that does not depend on the state): a recursion on the
         expected information divides the range variance by ``q``. ``q = 1 -``
         :meth:`drop_probability`, with the growth's corners at ``dropout_range_m`` and twice it
-        rounded over :data:`ARRIVAL_SMOOTH` of that range and floored at :data:`ARRIVAL_FLOOR`.
+        rounded over :data:`ARRIVAL_SMOOTH` of that range, falling from ``1 - dropout`` to
+        :data:`ARRIVAL_FLOOR` instead of 0.
 
         Parameters
         ----------
@@ -319,7 +320,7 @@ class Channel:
                 return ca.fmax(z, 0.0) + ca.log1p(ca.exp(-ca.fabs(z)))
 
             grow = w * (softplus(x / w) - softplus((x - 1.0) / w))
-        return q0 * (1.0 - grow) + ARRIVAL_FLOOR
+        return ARRIVAL_FLOOR + (q0 - ARRIVAL_FLOOR) * (1.0 - grow)
 
     def expected_variance(self, rho, rel):
         """The range variances ``rho`` of a recursion on the expected information: divided by

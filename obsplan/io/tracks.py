@@ -1018,19 +1018,9 @@ def beacon_trajectory_from_table(table: CsvTable, check: bool = True) -> Traject
     """
     dim = 3 if "bz" in table.columns else 2
     cols = ["t"] + [f"b{a}" for a in "xyz"[:dim]] + [f"vb{a}" for a in "xyz"[:dim]]
-    missing = [c for c in cols if c not in table.columns]
-    if missing:
-        raise TrajectoryFormatError(
-            f"{table.path}: missing column(s) {', '.join(missing)}; a beacon path to export needs "
-            f"{','.join(cols)} (the beacon.csv of `obsplan plan`)"
-        )
-    data = table.numbers(cols)
-    if data.shape[0] < 2:
-        raise TrajectoryFormatError(
-            f"{table.path}: needs at least 2 data rows, found {data.shape[0]}"
-        )
+    needs = f"a beacon path to export needs {','.join(cols)} (the beacon.csv of `obsplan plan`)"
+    data = table.samples(cols, str(table.path), needs)
     t, b, v = data[:, 0], data[:, 1 : 1 + dim], data[:, 1 + dim :]
-    check_samples(t, {"positions": b, "velocities": v}, f"{table.path}: beacon path")
     u = np.diff(v, axis=0) / np.diff(t)[:, None]
     traj = Trajectory(t, b, v, np.vstack([u, u[-1:]]))
     if check:

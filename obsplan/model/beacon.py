@@ -373,25 +373,9 @@ def read_beacon_path(
             "the bz column (2D columns: t,bx,by)"
         )
     cols = beacon_columns(dim)
-    missing = [c for c in cols if c not in table.columns]
-    if missing:
-        hint = " (the trajectory is 3D)" if dim == 3 else ""
-        raise TrajectoryFormatError(
-            f"{where}: missing column(s) {', '.join(missing)}{hint}; the header must contain "
-            f"{','.join(cols)}"
-        )
-    data = table.numbers(cols)
-    if data.shape[0] < 2:
-        raise TrajectoryFormatError(f"{where}: needs at least 2 data rows, found {data.shape[0]}")
+    hint = " (the trajectory is 3D)" if dim == 3 else ""
+    data = table.samples(cols, where, f"the header must contain {','.join(cols)}", hint)
     t = data[:, 0]
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if bad.size:
-        k = int(bad[0])
-        raise TrajectoryFormatError(
-            f"{where}: row {table.lines[k + 1]}, column 't': time {float(t[k + 1])!r} does not "
-            f"increase (row {table.lines[k]} has {float(t[k])!r}); times must be strictly "
-            "increasing"
-        )
     return BeaconPath(times=t, positions=data[:, 1:])
 
 

@@ -585,24 +585,8 @@ def trajectory_from_table(table: CsvTable, check: bool = True) -> Trajectory:
     path = table.path
     dim = trajectory_dim(table.columns, path)
     cols = csv_columns(dim)
-    missing = [c for c in cols if c not in table.columns]
-    if missing:
-        raise TrajectoryFormatError(
-            f"{path}: missing column(s) {', '.join(missing)}; the header must contain "
-            f"{','.join(cols)}"
-        )
-    data = table.numbers(cols)
-    if data.shape[0] < 2:
-        raise TrajectoryFormatError(f"{path}: needs at least 2 data rows, found {data.shape[0]}")
+    data = table.samples(cols, str(path), f"the header must contain {','.join(cols)}")
     t = data[:, 0]
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if bad.size:
-        k = int(bad[0])
-        lines = table.lines
-        raise TrajectoryFormatError(
-            f"{path}: row {lines[k + 1]}, column 't': time {float(t[k + 1])!r} does not increase "
-            f"(row {lines[k]} has {float(t[k])!r}); times must be strictly increasing"
-        )
     n = dim
     traj = Trajectory(
         t=t, p=data[:, 1 : 1 + n], v=data[:, 1 + n : 1 + 2 * n], u=data[:, 1 + 2 * n :]

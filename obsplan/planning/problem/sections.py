@@ -7,7 +7,7 @@ package holds its checked form, :class:`~obsplan.planning.problem.definition.Pla
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -260,24 +260,6 @@ class ValidationSpec:
         return channel_preset(
             self.channel, **{CHANNEL_KEYS[k]: getattr(self, k) for k in CHANNEL_KEYS}
         )
-
-    def stress_channel_model(self) -> Channel | None:
-        """The channel of the robustness row: the preset ``stress_channel`` with the
-        ``channel_*`` fields that are given (as :meth:`channel_model`), None without one.
-
-        Returns
-        -------
-        Channel or None
-            The channel, or None when ``stress_channel`` is not set.
-
-        Raises
-        ------
-        ConfigError
-            For an unknown preset or a field out of range.
-        """
-        if self.stress_channel is None:
-            return None
-        return replace(self, channel=self.stress_channel).channel_model()
 
 
 @dataclass(frozen=True)

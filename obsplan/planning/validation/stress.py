@@ -124,9 +124,10 @@ def stress_validate(
     Robustness
         Every path's validation under the condition (same runs and seed as the nominal one).
     """
-    val = pb.validation
-    res = validate_paths(paths, stress_problem(pb), runs=runs, progress=progress)
-    return Robustness(val.stress_prior, val.stress_range_noise, res, val.stress_channel_model())
+    val, spb = pb.validation, stress_problem(pb)
+    res = validate_paths(paths, spb, runs=runs, progress=progress)
+    channel = None if val.stress_channel is None else spb.validation.channel_model()
+    return Robustness(val.stress_prior, val.stress_range_noise, res, channel)
 
 
 def stress_problem(pb: PlanningProblem) -> PlanningProblem:
