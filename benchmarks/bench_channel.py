@@ -20,7 +20,11 @@ pings) with
 * ``at-sea, no gate``: the same ranges, ``validation.gate = "off"``;
 * ``at-sea, no scale state``: the same ranges, ``validation.scale_state = "off"``;
 * ``at-sea, no scale error``: the preset without its sound-speed error (gated): what the
-  outliers and lost pings alone cost.
+  outliers and lost pings alone cost;
+* ``at-sea, no outliers`` and ``at-sea, no lost pings``: the preset without its multipath or
+  without its lost pings, and ``ideal, scale state``: Gaussian ranges to filters with the
+  range-scale state, what the state alone costs (``--channels`` picks these; they are not in
+  the default set).
 
 Per path and channel it prints the EKF's position RMSE and mean final error, the lost runs of
 the EKF, the KF and the Gaussian sum (final error over 10x the path's posterior-CRB final std,
@@ -53,13 +57,18 @@ CHANNELS = {
     "at-sea, no gate": {"channel": "at-sea", "gate": "off"},
     "at-sea, no scale state": {"channel": "at-sea", "scale_state": "off"},
     "at-sea, no scale error": {"channel": "at-sea", "channel_sound_speed_scale": 0.0},
+    "at-sea, no outliers": {"channel": "at-sea", "channel_outlier_fraction": 0.0},
+    "at-sea, no lost pings": {"channel": "at-sea", "channel_dropout": 0.0},
+    "ideal, scale state": {"scale_state": "on"},
 }
+#: Channels run only when ``--channels`` names them (diagnostics of one component's cost).
+OPTIONAL = ("at-sea, no outliers", "at-sea, no lost pings", "ideal, scale state")
 #: The acceptance's bound on the at-sea EKF RMSE relative to the ideal's.
 RMSE_RATIO = 1.5
 FILTERS = ("ekf", "kf", "gsf")
 
 
-def _rows(path: Path, runs: int) -> list[dict]:
+def _rows(path: Path, runs: int, channels: list[str]) -> list[dict]:
     pb = load_problem(path)
     res = plan(pb, validate=False)
     paths = {"planned": res.trajectory}
@@ -67,7 +76,8 @@ def _rows(path: Path, runs: int) -> list[dict]:
         paths["lawnmower"] = res.baselines["lawnmower"].trajectory
     out = []
     ideal: dict[str, float] = {}
-    for label, change in CHANNELS.items():
+    for label in channels:
+        change = CHANNELS[label]
         pbc = pb.with_changes(validation=change) if change else pb
         vals = validate_paths(paths, pbc, runs=runs, filters=FILTERS)
         for name, v in vals.items():
@@ -138,7 +148,15 @@ def main() -> None:
     ap.add_argument("files", nargs="*", type=Path)
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument(
+        "--channels",
+        nargs="+",
+        choices=list(CHANNELS),
+        default=[c for c in CHANNELS if c not in OPTIONAL],
+        help="the channels compared (default all; 'ideal' is always run first)",
+    )
     args = ap.parse_args()
+    channels = ["ideal"] + [c for c in args.channels if c != "ideal"]
     files = args.files or [
         f
         for f in sorted((ROOT / "problems").glob("*.toml"))
@@ -147,7 +165,7 @@ def main() -> None:
     rows: list[dict] = []
     t0 = time.perf_counter()
     for f in files:
-        rows += _rows(f, args.runs)
+        rows += _rows(f, args.runs, channels)
         print(f"{f.stem}: done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
     print(_fmt(rows, args.runs))
     misses = _acceptance(rows)

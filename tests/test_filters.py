@@ -35,6 +35,7 @@ import pytest
 from obsplan.core.errors import ConfigError
 from obsplan.estimation import EstimationConfig
 from obsplan.estimation.batch import RunBatch, RunRecord
+from obsplan.estimation.channel import SCALE_PRIOR_STD
 from obsplan.estimation.columns import N_INFO
 from obsplan.estimation.filters.base import REGISTRY, Filter, make_filter
 from obsplan.estimation.filters.gsf import GaussianSumFilter
@@ -48,7 +49,12 @@ TOL = 1e-9
 RUNS = 3
 
 
-def _case(name: str, range_form: str = "half-squared", ekf_update: str = "first-order"):
+def _case(
+    name: str,
+    range_form: str = "half-squared",
+    ekf_update: str = "first-order",
+    scale_state: str = "auto",
+):
     if name == "circle-2d-range":
         traj = gen.circle(30.0, 1.5, 12.0, center=(4.0, -2.0)).sample(0.1)
         model = make_model(2, "range", beacon=(1.0, 3.0), range_form=range_form)
@@ -60,6 +66,7 @@ def _case(name: str, range_form: str = "half-squared", ekf_update: str = "first-
         kf_coupling=False,
         process_noise=False,
         ekf_update=ekf_update,
+        scale_state=scale_state,
     )
     setup = PathSetup(traj, cfg, tuple(REGISTRY), None, RUNS)
     plan = setup.plan
@@ -214,11 +221,11 @@ def ref_gsf(filt, traj, cfg, setup, Y, states):
 
 def ref_kf(filt, traj, cfg, setup, Y, states):
     model, n = cfg.model, cfg.model.dim
-    mx = model.state_dim
+    mx, m, ks = model.state_dim, filt.state_dim, filt.scale_index
     s = cfg.noise["range"]
     qk = setup.noise.q_kf
     assert not np.any(qk[mx:]) and not np.any(qk[:, mx:])  # no noise on (α, β): none on the chain
-    Q = np.zeros((mx + 3, mx + 3))
+    Q = np.zeros((m, m))
     Q[:mx, :mx] = qk[:mx, :mx]
     bz = model.beacon_array[-1] if n == 3 else 0.0
     hists, finals = [], []
@@ -232,18 +239,29 @@ def ref_kf(filt, traj, cfg, setup, Y, states):
                 u = traj.u[k - 1]
                 z = _step(z, h, u, n)
                 d, dd = d + h * dd + 0.5 * h * h * u, dd + h * u
-                F = _F(mx + 3, n, h)
+                F = _F(m, n, h)
                 F[mx, mx + 1], F[mx, mx + 2], F[mx + 1, mx + 2] = h, h * h, 2 * h
                 z = np.r_[z[:mx], F[mx:, mx:] @ z[mx:]]
                 P = F @ P @ F.T + Q
             rows, nus, Rs = [], [], []
             if k and np.isfinite(Yr[k, 0]):
-                H = np.zeros(mx + 3)
+                H = np.zeros(m)
+                ym = 0.5 * Yr[k, 0] ** 2 - 0.5 * s * s - y0  # the measured y - y0
                 H[:n], H[mx] = d, 1.0
+                R = Yr[k, 0] ** 2 * s * s + 0.5 * s**4
+                nu = ym + 0.5 * d @ d - H @ z
+                if ks >= 0:  # y - y0 = (1 + g) A, A = hᵀz - ½|d|²: Gaussian moments of g A
+                    hA = H.copy()
+                    A = hA @ z - 0.5 * d @ d
+                    pga, paa = hA @ P[:, ks], hA @ P @ hA
+                    H = (1.0 + z[ks]) * hA
+                    H[ks] = A
+                    nu = ym - (1.0 + z[ks]) * A - pga
+                    R += P[ks, ks] * paa + pga**2
                 rows.append(H)
-                nus.append(0.5 * Yr[k, 0] ** 2 - 0.5 * s * s - y0 + 0.5 * d @ d - H @ z)
-                Rs.append(Yr[k, 0] ** 2 * s * s + 0.5 * s**4)
-            for o, (H, off, sensor) in enumerate(_linear_rows(model, mx + 3, bz), start=1):
+                nus.append(nu)
+                Rs.append(R)
+            for o, (H, off, sensor) in enumerate(_linear_rows(model, m, bz), start=1):
                 if np.isfinite(Yr[k, o]):
                     rows.append(H)
                     nus.append(Yr[k, o] - H @ z - off)
@@ -316,6 +334,37 @@ def test_filter_matches_its_reference(case, name):
     for r, (x_ref, P_ref) in enumerate(finals):
         close(X[:, r], x_ref, f"{name} state, run {r}")
         close(P[:, :, r], P_ref, f"{name} covariance, run {r}")
+
+
+@pytest.mark.parametrize("case_name", CASES)
+def test_kf_scale_state_matches_its_reference(case_name):
+    """The augmented KF with a range-scale state ``g = k² - 1`` (the bilinear row ``(1 + g) A``
+    by its Gaussian moments), batch and epoch by epoch, against the numpy recursion; the state
+    is the chain's plus one, with the prior ``(2 σ_s)²`` and no correlation."""
+    traj, cfg, setup, Y, truth, starts = _case(case_name, scale_state="on")
+    f = setup.filters["kf"]
+    mx = cfg.model.state_dim
+    assert f.state_dim == mx + 4 and f.scale_index == mx + 3
+    states = [f.start(*st) for st in starts]
+    P0 = states[0][1]
+    assert P0[mx + 3, mx + 3] == pytest.approx((2 * SCALE_PRIOR_STD) ** 2)
+    assert not np.any(P0[mx + 3, : mx + 3]) and states[0][0][mx + 3] == 0.0
+    hists, finals = ref_kf(f, traj, cfg, setup, Y, states)
+    rec = setup.records
+    n2 = 2 * cfg.model.dim
+    sums = np.zeros((2, rec.size, 3 + n2))
+    ex = np.zeros((2, rec.size, n2))
+    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, np.zeros((RUNS, N_INFO)), 0, ex))
+    close(ex[0], np.array([hists[0][k][0] for k in rec]), "kf batch estimate")
+    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
+    X, P = f.state(run), f.covariance(run)
+    for r, (x_ref, P_ref) in enumerate(finals):
+        close(X[:, r], x_ref, f"kf state, run {r}")
+        close(P[:, :, r], P_ref, f"kf covariance, run {r}")
+    # the readings are unscaled: the scale's estimate stays near 0 (g = k² - 1 at k = 1),
+    # within 4 of its posterior stds
+    c, sc = X[mx + 3], np.sqrt(P[mx + 3, mx + 3])
+    assert np.all(np.abs(c) < 4 * sc) and np.all(sc < 2 * SCALE_PRIOR_STD)
 
 
 SECOND_ORDER = [(c, f) for c in CASES for f in ("half-squared", "range")]

@@ -337,10 +337,10 @@ class EstimationConfig:
         :data:`~obsplan.estimation.channel.GATE_PROBABILITY` when the channel has outliers,
         off otherwise; :func:`~obsplan.estimation.channel.default_gate`).
     scale_state : "auto", "on" or "off", optional
-        A range-scale state in the EKF and the Gaussian sum (a sound-speed error estimated,
-        prior std :data:`~obsplan.estimation.channel.SCALE_PRIOR_STD`): ``"auto"`` (default)
-        adds it when the channel is not ideal (ranges at sea have an unknown sound speed), never
-        on the ideal channel (whose numbers stay those of before).
+        A range-scale state in the EKF, the Gaussian sum and the augmented KF (a sound-speed
+        error estimated, prior std :data:`~obsplan.estimation.channel.SCALE_PRIOR_STD`):
+        ``"auto"`` (default) adds it when the channel is not ideal (ranges at sea have an
+        unknown sound speed), never on the ideal channel (whose numbers stay those of before).
 
     Instances pickle (the model is rebuilt from its parameters), so they can be shipped to worker
     processes.

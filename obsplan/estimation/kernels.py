@@ -1552,7 +1552,7 @@ def kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp):
         The last segment's noise sums, updated.
     """
     n, cur, ep_d, ce = mdl.n, mdl.cur, mdl.ep_d, cor.ce
-    mx = X.shape[0] - 3
+    mx = mdl.kc
     B = X.shape[1]
     corr = ce.shape[0] > 0
     for i in range(n):
@@ -1575,10 +1575,53 @@ def kf_predict(X, P, Q, kw, ws, mdl, e, cor, Sp):
         correct_inputs(X, ce, e, tab[e, TAB_T], n, 1)
 
 
+@inline
+def kf_scale_row(P, ws, n, b, kc, ks, A, g1):
+    """Member ``b``'s KF range row with the scale state ``g``: the bilinear prediction ``(1 +
+    g) A`` (``A = dᵀp + κ - ½|d|²``) by its exact Gaussian moments.
+
+    The row on ``(p, κ, g)`` is ``((1 + ĝ) d, 1 + ĝ, Â)``; the mean is ``(1 + ĝ) Â + P_gA`` and
+    the variance adds ``P_gg P_AA + P_gA²`` to the reading's (the product's second-order
+    terms, exact for a Gaussian prior). Writes the row into ``ws[WS_VAL]`` (its first ``n``
+    entries ``d`` on entry), the mean into ``ws[WS_SC, SC_NU]`` and the added variance into
+    ``ws[WS_SC, SC_R]``.
+
+    Parameters
+    ----------
+    P : ndarray, shape (m, m, R)
+        The runs' priors.
+    ws : ndarray
+        Workspace (module docstring).
+    n, b, kc, ks : int
+        Spatial dimension, run, index of ``κ`` and of ``g``.
+    A : float
+        ``Â`` at the prior [m²].
+    g1 : float
+        ``1 + ĝ``.
+    """
+    pga = P[kc, ks, b]
+    paa = P[kc, kc, b]
+    for i in range(n):
+        di = ws[WS_VAL, i, b]
+        pga += di * P[i, ks, b]
+        paa += 2.0 * di * P[i, kc, b]
+        for j in range(n):
+            paa += di * ws[WS_VAL, j, b] * P[i, j, b]
+    for i in range(n):
+        ws[WS_VAL, i, b] *= g1
+    ws[WS_VAL, n, b] = g1
+    ws[WS_VAL, n + 1, b] = A
+    ws[WS_SC, SC_NU, b] = g1 * A + pga
+    ws[WS_SC, SC_R, b] = P[ks, ks, b] * paa + pga * pga
+
+
 @inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
 def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
-    """The augmented KF's updates at epoch ``e`` (the linear range row ``ȳ``, then the linear
-    rows) of every run, and their NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``).
+    """The augmented KF's updates at epoch ``e`` (the linear range row ``ȳ``, bilinear with a
+    scale state ``mdl.ks``, :func:`kf_scale_row`; then the linear rows) of every run, and their
+    NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``). The range gate is late-arrival aware as
+    the EKF's (:func:`gate_rows`; a late range is long in ``ȳ`` too, by about ``r`` times its
+    excess).
 
     Parameters
     ----------
@@ -1603,17 +1646,21 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
     """
     n, ep_d, ce, y0, var0 = mdl.n, mdl.ep_d, cor.ce, anc.y0, anc.var0
     var_r = mdl.sig_r * mdl.sig_r
-    kc = X.shape[0] - 3
+    kc, ks = mdl.kc, mdl.ks
+    nnz = n + 2 if ks >= 0 else n + 1
     B = X.shape[1]
     corr = ce.shape[0] > 0
     for b in range(B):
         ws[WS_SC, SC_NIS, b] = 0.0
         ws[WS_SC, SC_CNT, b] = 0.0
     if e > 0:
-        # ȳ = y - y0 + ½|d|² = dᵀp + κ (+ noise): linear
+        # ȳ = y - y0 + ½|d|² = dᵀp + κ (+ noise): linear; with the scale state g,
+        # ȳ = (1 + g) A + ½|d|², A = dᵀp + κ - ½|d|² (module kf's "A sound-speed scale")
         for i in range(n):
             iw[i] = i
         iw[n] = kc
+        if ks >= 0:
+            iw[n + 1] = ks
         any_ok = False
         for b in range(B):
             rm = Y[e, 0, b]
@@ -1627,14 +1674,20 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
                 pred += di * X[i, b]
             ws[WS_VAL, n, b] = 1.0
             r = rm * rm * var_r + 0.5 * var_r * var_r + (var0[b] if mdl.inflate else 0.0)
-            nu = 0.5 * rm * rm - 0.5 * var_r - y0[b] + 0.5 * d2 - pred
+            ym = 0.5 * rm * rm - 0.5 * var_r - y0[b]  # the measured y - y0
+            nu = ym + 0.5 * d2 - pred
+            if ks >= 0:
+                kf_scale_row(P, ws, n, b, kc, ks, pred - 0.5 * d2, 1.0 + X[ks, b])
+                nu = ym - ws[WS_SC, SC_NU, b]
+                r += ws[WS_SC, SC_R, b]
             ws[WS_SC, SC_NU, b] = nu if ok else 0.0
             ws[WS_SC, SC_R, b] = r if ok else 1.0
             ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
+            ws[WS_SC, SC_LATE, b] = LATE_MAX_M * rm if ok else LATE_MAX_M
             any_ok = any_ok or ok
         if any_ok:
-            gate_rows(X, P, iw, ws, n + 1, n, 1, mdl.gate, rg, False)
-            update_rows(X, P, iw, ws, n + 1)
+            gate_rows(X, P, iw, ws, nnz, n, 1, mdl.gate, rg, True)
+            update_rows(X, P, iw, ws, nnz)
     if Y.shape[1] > 1:
         linear_updates(X, P, Y, e, mdl.lin, iw, ws, 1)
     for b in range(B):

@@ -57,6 +57,26 @@ unchanged. It is exact for the beacon sampled at the epochs, however it moves be
 velocity jumps of a piecewise-linear path need no impulse: they are inside ``b``), and it is
 built by :func:`~obsplan.estimation.filters.bundles.kf_relative`; records add back the beacon of
 their epoch. A depth gauge reads ``r_z + b_z``, so it needs the beacon at a constant depth.
+
+A sound-speed scale
+-------------------
+A sound-speed error scales every range, the anchor's too: ``r_m = k r`` (``k = 1 + s``), so the
+measured ``y - y0 = k² (½ r² - ½ r0²) + η - η0`` (``η``: the reading's noise on ``y``). With
+``g = k² - 1`` and ``A = ½ r² - ½ r0² = dᵀp + κ - ½|d|²`` the range row becomes
+
+    ȳ = y - y0 + ½|d|² = (1 + g) A + ½|d|² + η
+
+bilinear in the state (the anchor's error enters ``κ`` times ``1 + g``: a term ``g η0`` of
+second order is left out). The filter updates with its exact Gaussian moments: the row ``((1 +
+ĝ) d, 1 + ĝ, Â)`` on ``(p, κ, g)``, the mean ``(1 + ĝ) Â + P_gA`` and the variance ``R + P_gg
+P_AA + P_gA²`` — the second-order filter, exact for a bilinear output under a Gaussian prior
+(early on ``P_gg P_AA`` is many times ``R``: without it the filter is over-confident). ``g`` is
+the filter's last state, constant, with prior ``N(0, (2 σ_s)²)`` for a scale prior ``N(1,
+σ_s²)`` (``g ≈ 2 s``). It is observable only where ``A`` is not a quadratic in time, i.e.
+where the path manoeuvres, as the EKF's scale state. Using the *measured* ``y - y0`` as the
+coefficient of a linear scale row instead would keep the filter linear but correlate that
+coefficient with the reading's own noise (an errors-in-variables bias of ``g`` towards
+``-1``, large on short noisy runs).
 """
 
 from __future__ import annotations
@@ -114,6 +134,10 @@ class AugmentedKalmanFilter(Filter):
     coupling : bool, optional
         Model the process-noise coupling ``e`` of the output (default); ``False`` is the paper's
         output model.
+    scale_std : float or None, optional
+        With a value, the state gets a last entry ``g = k² - 1`` of the range scale ``k``
+        (``1 + s`` of a sound-speed error), constant, with prior ``N(0, (2 scale_std)²)``
+        (module docstring, "A sound-speed scale"). None (default): no scale state.
     """
 
     name = "kf"
@@ -127,12 +151,17 @@ class AugmentedKalmanFilter(Filter):
         noise: dict[str, float],
         y0_mode: Y0Mode = "augment",
         coupling: bool = True,
+        scale_std: float | None = None,
     ) -> None:
         self.model = model
         self.p0 = np.array(p0, dtype=float)
         n, mx = model.dim, model.state_dim
         self.aug = augmented_model(model)
-        self.state_dim = mx + 3
+        #: the prior std of the scale state ``g`` (``2 scale_std``: ``g ≈ 2 s``), None: none
+        self.scale_g_std = None if scale_std is None else 2.0 * float(scale_std)
+        #: the index of the scale state ``g``, -1 without one
+        self.scale_index = -1 if scale_std is None else mx + 3
+        self.state_dim = mx + 3 + (scale_std is not None)
         self.noise = dict(noise)
         self.y0_mode = y0_mode
         self.coupling = bool(coupling)
@@ -158,7 +187,8 @@ class AugmentedKalmanFilter(Filter):
     def from_config(
         cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
     ) -> AugmentedKalmanFilter:
-        """The augmented KF of ``config`` (``p0_kf``, ``q_kf``, ``y0_mode``, ``kf_coupling``).
+        """The augmented KF of ``config`` (``p0_kf``, ``q_kf``, ``y0_mode``, ``kf_coupling``,
+        ``scale_prior_std``).
 
         Parameters
         ----------
@@ -182,11 +212,12 @@ class AugmentedKalmanFilter(Filter):
             dict(config.noise),
             config.y0_mode,
             config.kf_coupling,
+            config.scale_prior_std,
         )
 
     def to_chain(self, mz: int) -> np.ndarray:
         """``M`` with ``z_chain(t0) = M (p - b, v[, v_f], α, β)``: ``φ = α``, ``γ = ½β``, ``κ = 0``
-        (the anchor's variance is added to ``κ`` by :meth:`start`).
+        (the anchor's variance is added to ``κ`` by :meth:`start`; a scale state's row is zero).
 
         Parameters
         ----------
@@ -255,6 +286,8 @@ class AugmentedKalmanFilter(Filter):
         P = M @ self.p0 @ M.T
         if self.y0_mode == "augment":
             P[mx, mx] += float(var0)
+        if self.scale_g_std is not None:
+            P[self.scale_index, self.scale_index] = self.scale_g_std**2
         return M @ zp, kalman.symmetrize(P), float(y0), float(var0)
 
     def run(self, batch: RunBatch, record: RunRecord) -> None:

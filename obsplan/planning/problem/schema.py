@@ -929,8 +929,9 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "str",
             "auto",
             "-",
-            "A range-scale state (a sound-speed error, prior std 2 %) in the EKF and the "
-            'Gaussian sum: "on", "off", or "auto" (on when the channel is not ideal).',
+            "A range-scale state (a sound-speed error, prior std 2 %) in the EKF, the "
+            'Gaussian sum and the augmented KF: "on", "off", or "auto" (on when the channel is '
+            "not ideal).",
         ),
     ),
 }
