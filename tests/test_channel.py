@@ -465,8 +465,9 @@ def test_weighted_update_is_the_moment_matched_mixture():
 
 @pytest.mark.slow
 def test_sparse_pings_at_sea_lose_no_run():
-    """The shipped problem of one ping per 10 s, at sea: the gated EKF and Gaussian sum (with
-    the late-arrival-aware update) lose no run of a small seeded batch on the lawn-mower
+    """The shipped problem of one ping per 10 s, at sea: the gated EKF, Gaussian sum and
+    augmented KF (with the late-arrival-aware update; the KF with its scale state) lose no run
+    of a small seeded batch on the lawn-mower
     (as the ideal channel loses none), and the EKF's RMSE stays within a few times the ideal's
     (the acceptance's 1.5x is measured over 100 runs by ``benchmarks/bench_channel.py``)."""
     pb = load_problem(ROOT / "problems" / "lowrate-range.toml")
@@ -474,9 +475,9 @@ def test_sparse_pings_at_sea_lose_no_run():
     out = {}
     for label, change in (("ideal", {}), ("sea", {"channel": "at-sea"})):
         pbc = pb.with_changes(validation=change) if change else pb
-        out[label] = validate_paths({"p": traj}, pbc, runs=20, filters=("ekf", "gsf"))["p"]
+        out[label] = validate_paths({"p": traj}, pbc, runs=20, filters=("ekf", "gsf", "kf"))["p"]
     bound = out["ideal"].result.crlb_final_pos_std
-    for name in ("ekf", "gsf"):
+    for name in ("ekf", "gsf", "kf"):
         ideal = out["ideal"].result.stats(name)
         sea = out["sea"].result.stats(name)
         assert sea.lost_runs(bound) == ideal.lost_runs(bound) == 0, name
