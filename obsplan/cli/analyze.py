@@ -32,7 +32,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     argparse.ArgumentParser
         The parser of ``obsplan analyze``: ``TRAJ.csv``, the vehicle options
         (:func:`~obsplan.cli.common.add_vehicle_arguments`), ``--beacon-path``,
-        ``--length-scale``, ``--time-scale`` and ``--json``.
+        ``--length-scale``, ``--time-scale``, ``--calibration`` and ``--json``.
     """
     p = subparsers.add_parser(
         "analyze",
@@ -61,6 +61,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         default=DEFAULT_SCALES.time_s,
         help=f"time scale of min_eig/log_det/condition [s] (default {DEFAULT_SCALES.time_s:g})",
     )
+    p.add_argument(
+        "--calibration",
+        action="store_true",
+        help=(
+            "also say whether the range's scale (a sound-speed error) and bias (a clock "
+            "offset) are observable along the trajectory (JSON key range_calibration)"
+        ),
+    )
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     return p
 
@@ -80,7 +88,7 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
     str
         Four lines: the dimension and sensors, the LWO verdict along the trajectory, the
         augmented Gramian's rank, and the scaled Gramian's ``min_eig``, ``log_det`` and
-        ``condition``.
+        ``condition``; then, when the report has it, the range's calibration (three lines).
     """
     lwo, g = rep.lwo, rep.gramian
     verdict = "YES" if lwo.along_trajectory else "NO"
@@ -97,6 +105,8 @@ def format_report(rep: ObservabilityReport, path: str) -> str:
         f"  scaled Gramian (L = {g.scales.length_m:g} m, T = {g.scales.time_s:g} s): "
         f"min_eig {g.min_eig:.4g}, log_det {g.log_det:.4g}, condition {g.condition:.4g}",
     ]
+    if rep.calibration is not None:
+        lines += ["  " + line for line in rep.calibration.summary().splitlines()]
     return "\n".join(lines)
 
 
@@ -137,6 +147,7 @@ def run(args: argparse.Namespace) -> int:
         beacon=beacon,
         scales=scales,
         beacon_path=path,
+        calibration=bool(args.calibration),
     )
     try:
         rep.gramian.check_metrics()  # never print min_eig 0, log_det -inf for a full rank

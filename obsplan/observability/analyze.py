@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from obsplan.core.errors import InputError
 from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import RangeForm, make_model, parse_sensors
+from obsplan.observability.calibration import CalibrationReport, calibration_report
 from obsplan.observability.gramian import GramianReport, gramian_report
 from obsplan.observability.lwo import LWOReport, lwo_report
 from obsplan.observability.scaling import DEFAULT_SCALES, RANK_TOL, Scales
@@ -70,6 +71,9 @@ class ObservabilityReport:
         ``gramian.full_rank_from_t`` (eigenvalues of the equilibrated Gramian).
     beacon_motion
         ``"fixed"``, or ``"path"`` for a beacon on a known path.
+    calibration
+        Whether the range's scale and bias are observable along the path
+        (:mod:`obsplan.observability.calibration`); None if not asked for.
     """
 
     dim: int
@@ -80,6 +84,7 @@ class ObservabilityReport:
     exact: ExactRankProfile | None = None
     rank_tol: float = RANK_TOL
     beacon_motion: str = "fixed"
+    calibration: CalibrationReport | None = None
 
     def to_dict(self) -> dict:
         """The stable keys of ``obsplan analyze --json``, JSON-serialisable.
@@ -92,7 +97,9 @@ class ObservabilityReport:
         dict
             ``dim``, ``sensors``, ``current``, ``lwo`` (:meth:`LWOReport.to_dict`) and
             ``gramian``; non-finite metrics are None. A moving beacon adds
-            ``"beacon_motion": "path"`` (a fixed beacon's keys are the stable ones only).
+            ``"beacon_motion": "path"`` and the range's calibration ``"range_calibration"``
+            (:meth:`CalibrationReport.to_dict`) when asked for (the default keys are the
+            stable ones only).
         """
         g = self.gramian.to_dict()
         g["rank_tol"] = float(self.rank_tol)
@@ -109,6 +116,8 @@ class ObservabilityReport:
         }
         if self.beacon_motion != "fixed":
             out["beacon_motion"] = self.beacon_motion
+        if self.calibration is not None:
+            out["range_calibration"] = self.calibration.to_dict()
         return out
 
 
@@ -121,6 +130,7 @@ def analyze(
     range_form: RangeForm = "half-squared",
     exact: bool = True,
     beacon_path: BeaconPath | None = None,
+    calibration: bool = False,
 ) -> ObservabilityReport:
     """Both observability verdicts of ``trajectory``.
 
@@ -145,6 +155,9 @@ def analyze(
     beacon_path : BeaconPath or None, optional
         A beacon moving on a known path covering the trajectory's span, of its dimension;
         excludes ``beacon``. None: a fixed beacon.
+    calibration : bool, optional
+        Also say whether the range's scale (a sound-speed error) and bias (a clock offset) are
+        observable along the path (``report.calibration``).
 
     Returns
     -------
@@ -196,4 +209,9 @@ def analyze(
         exact=exact_rank_profile(trajectory, model) if exact and beacon_path is None else None,
         rank_tol=RANK_TOL,
         beacon_motion="fixed" if beacon_path is None else "path",
+        calibration=(
+            calibration_report(trajectory, model, scales, RANK_TOL, beacon_path)
+            if calibration
+            else None
+        ),
     )

@@ -167,12 +167,17 @@ def local_interval_gramians(
     beacon: np.ndarray,
     row_weights: np.ndarray,
     scales: Scales,
+    calibration: bool = False,
 ) -> np.ndarray:
     """Contribution of every interval of ``traj`` to the local Gramian about ``x(t_0)``,
     ``∫ Φᵀ Hᵀ W H Φ`` by Simpson's rule (module docstring), shape ``(N-1, m, m)``.
 
     ``row_weights`` (n_outputs,) are each row's information rate in ``scales``
-    (:func:`~obsplan.observability.windowed.local_row_weights`); ``beacon`` [m].
+    (:func:`~obsplan.observability.windowed.local_row_weights`); ``beacon`` [m]. With
+    ``calibration`` the parameters of a range ``k |p - b| + β`` join ``x(t_0)``: the scale
+    ``k`` (its column ``|p - b| / L`` at ``k = 1``) and the bias ``β / L`` (column 1), on the
+    range row only, so the Gramian is ``(N-1, m + 2, m + 2)``
+    (:mod:`obsplan.observability.calibration`).
 
     Parameters
     ----------
@@ -186,10 +191,12 @@ def local_interval_gramians(
         Information rate of each output row, in ``scales``.
     scales : Scales
         Nondimensionalisation (length [m] and time [s]).
+    calibration : bool, optional
+        Add the range's scale and bias as the last two parameters.
 
     Returns
     -------
-    ndarray, shape (N-1, m, m)
+    ndarray, shape (N-1, m, m), or (N-1, m + 2, m + 2) with ``calibration``
         The contribution of every interval, symmetric positive semi-definite.
 
     Raises
@@ -206,12 +213,17 @@ def local_interval_gramians(
     tau = tr.t - tr.t[0]
     w = np.asarray(row_weights, float)
     d2 = (LOS_FLOOR_M / L) ** 2
-    G = np.zeros((h.size, lm.state_dim, lm.state_dim))
+    m = lm.state_dim + (2 if calibration else 0)
+    G = np.zeros((h.size, m, m))
     for s, c in zip(SIMPSON_NODES, SIMPSON_WEIGHTS, strict=True):
         sh = (s * h)[:, None]
         q = p[:-1] + sh * tr.v[:-1] + 0.5 * sh**2 * tr.u[:-1]
-        los = q / np.sqrt(np.sum(q**2, axis=1, keepdims=True) + d2)
-        R = lm.rows(los, tau[:-1] + s * h)
+        rho = np.sqrt(np.sum(q**2, axis=1, keepdims=True) + d2)
+        R = lm.rows(q / rho, tau[:-1] + s * h)
+        if calibration:  # the range row (output 0) on (k, β / L): (ρ / L, 1)
+            R = np.concatenate([R, np.zeros((*R.shape[:2], 2))], axis=2)
+            R[:, 0, -2] = rho[:, 0]
+            R[:, 0, -1] = 1.0
         G += (c * h)[:, None, None] * np.einsum("kri,r,krj->kij", R, w, R)
     return G
 
