@@ -136,6 +136,8 @@ def run_one(
         + (f"/{pb.objective_mode}" if pb.objective.kind.endswith(("position", "std")) else ""),
         "status": res.solve.status,
         "success": bool(res.success),
+        "converged_starts": sum(st.success for st in res.solve.starts),
+        "starts": len(res.solve.starts),
         "solve_s": res.solve.wall_s,
         "wall_s": wall,
         "closest_m": res.metrics["planned"].closest_approach_m if res.trajectory else None,
@@ -171,6 +173,10 @@ def run_one(
                 "violation_fraction": tb.violation_fraction,
             }
         comps = res.verdict.comparisons
+        # every decided loss, against every baseline compared (not only the two columns)
+        row["losses"] = sorted(
+            f"{b} {k}" for b, c in comps.items() for k in c if c[k].outcome == "worse"
+        )
         for b in VERDICT_BASELINES:
             if b in comps:
                 row["verdicts"][b] = {
