@@ -67,9 +67,11 @@ from obsplan.estimation.channel import (
     gate_nis,
 )
 from obsplan.estimation.kalman import integrated_noise
+from obsplan.estimation.schedule import Schedule, make_schedule
 from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import SENSOR_ALIASES, SENSORS, VehicleModel
 from obsplan.observability.gramian import augmented_model
+from obsplan.trajectory.sampled import Trajectory
 
 #: Largest sensor noise standard deviation accepted (m or m/s): beyond it no reading says
 #: anything about a vehicle, and squares of it overflow the filters.
@@ -341,6 +343,11 @@ class EstimationConfig:
         error estimated, prior std :data:`~obsplan.estimation.channel.SCALE_PRIOR_STD`):
         ``"auto"`` (default) adds it when the channel is not ideal (ranges at sea have an
         unknown sound speed), never on the ideal channel (whose numbers stay those of before).
+    range_times : ndarray or None, optional
+        A ping schedule [s, on the path's clock: from the mission's start for a plan], strictly
+        increasing (e.g. the range times of a logged mission): the ranges report there (the
+        first sample at or after each, :func:`~obsplan.estimation.schedule.make_schedule`)
+        instead of at ``rates_hz["range"]``. None (default): the rate.
 
     Instances pickle (the model is rebuilt from its parameters), so they can be shipped to worker
     processes.
@@ -368,6 +375,7 @@ class EstimationConfig:
     channel: Channel = CHANNEL_PRESETS["ideal"]
     gate: float | str = "auto"
     scale_state: str = "auto"
+    range_times: np.ndarray | None = None
 
     def __reduce__(self):
         # the model may hold CasADi symbols (not picklable) and the mappings are read-only
@@ -395,6 +403,7 @@ class EstimationConfig:
                 "channel",
                 "gate",
                 "scale_state",
+                "range_times",
             )
         }
         for f in ("rates_hz", "noise", "dropout"):
@@ -435,6 +444,7 @@ class EstimationConfig:
         object.__setattr__(self, "dropout", MappingProxyType(drop))
         _check_beacon_path(model, self.beacon_path)
         self._check_channel(drop)
+        self._check_range_times()
 
         mx = model.state_dim
         mz = augmented_model(model).state_dim
@@ -501,6 +511,18 @@ class EstimationConfig:
                     f"got {self.monitor_window_s!r}"
                 )
 
+    def _check_range_times(self) -> None:
+        """A ping schedule: finite, strictly increasing, at least one ping; kept read-only."""
+        if self.range_times is None:
+            return
+        rt = np.array(self.range_times, dtype=float).ravel()
+        if rt.size == 0 or not np.all(np.isfinite(rt)) or np.any(np.diff(rt) <= 0):
+            raise ConfigError(
+                "range_times must be finite ping times [s], strictly increasing, at least one"
+            )
+        rt.setflags(write=False)
+        object.__setattr__(self, "range_times", rt)
+
     def _check_channel(self, drop: Mapping[str, float]) -> None:
         if not isinstance(self.channel, Channel):
             raise ConfigError("channel must be a Channel (obsplan.estimation.channel)")
@@ -522,6 +544,22 @@ class EstimationConfig:
             raise ConfigError(f"gate must be a confidence in (0, 1], 'auto' or 'off', got {g!r}")
         else:
             object.__setattr__(self, "gate", float(g))
+
+    def schedule(self, traj: Trajectory) -> Schedule:
+        """Which sensor reports at which sample of ``traj``: the rates, or the ping schedule
+        ``range_times`` for the range (:func:`~obsplan.estimation.schedule.make_schedule`).
+
+        Parameters
+        ----------
+        traj : Trajectory
+            The path whose samples are the filters' steps.
+
+        Returns
+        -------
+        Schedule
+            The report mask.
+        """
+        return make_schedule(traj, self.model.sensors, self.rates_hz, self.range_times)
 
     @property
     def scale_prior_std(self) -> float | None:
@@ -708,6 +746,8 @@ class EstimationConfig:
             out["channel"] = self.channel.to_dict()
             out["gate"] = self.gate_probability
             out["scale_state"] = self.scale_prior_std is not None
+        if self.range_times is not None:
+            out["range_pings"] = int(self.range_times.size)
         if self.beacon_path is not None:
             out["beacon_motion"] = "path"
             out["beacon_path_span_s"] = [self.beacon_path.start, self.beacon_path.end]

@@ -33,7 +33,7 @@ from obsplan.estimation.bounds.riccati import (
 )
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.epochs import epoch_beacons, nominal_states
-from obsplan.estimation.schedule import Schedule, make_schedule, sample_rate
+from obsplan.estimation.schedule import Schedule, sample_rate
 from obsplan.estimation.sensors import output_model
 from obsplan.model.vehicle import VehicleModel
 from obsplan.observability.gramian import augmented_model, rank_scales
@@ -213,7 +213,7 @@ def posterior_crlb(
     dt = 1.0 / sample_rate(traj)
     cov = config.covariances(dt)
     if schedule is None:
-        schedule = make_schedule(traj, model.sensors, config.rates_hz)
+        schedule = config.schedule(traj)
     epochs = make_epochs(traj.t, schedule.mask)
     rec = pcrb_model_of(config, dt)
     xs = nominal_states(traj, model, config.current_array)
@@ -264,7 +264,7 @@ def sampled_rank_over_time(
     """
     model = config.model
     aug = augmented_model(model)
-    sched = make_schedule(traj, model.sensors, config.rates_hz)
+    sched = config.schedule(traj)
     scales = rank_scales(traj) if scales is None else scales
     tr = traj.scaled(scales.length_m, scales.time_s)
     d = tr.displacement()

@@ -41,7 +41,7 @@ from obsplan.estimation.montecarlo.truth import (
     run_rng,
     truth_factor,
 )
-from obsplan.estimation.schedule import make_schedule, sample_rate
+from obsplan.estimation.schedule import sample_rate
 
 #: The estimators the Monte Carlo can run, by name: their one-line descriptions
 #: (:data:`obsplan.estimation.filters.base.REGISTRY` holds the classes).
@@ -158,7 +158,7 @@ class PathSetup:
         dt = 1.0 / sample_rate(traj)
         self.cov = config.covariances(dt)
         self.noise = pn = config.process_noise_model(dt)
-        self.schedule = make_schedule(traj, model.sensors, config.rates_hz)
+        self.schedule = config.schedule(traj)
         self.records = record_samples(traj.n_samples, record_every)
         self.plan = plan = epoch_plan(
             traj, self.schedule, self.records, rules="kf" in names, continuous=pn.continuous

@@ -58,7 +58,7 @@ from obsplan.estimation.bounds.riccati import RecursionModel, faulhaber, make_ep
 from obsplan.estimation.channel import CHANNEL_PRESETS, Channel
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.epochs import epoch_beacons, nominal_states
-from obsplan.estimation.schedule import make_schedule, sample_rate
+from obsplan.estimation.schedule import sample_rate
 from obsplan.model.beacon import BeaconPath
 from obsplan.model.vehicle import VehicleModel
 from obsplan.trajectory.sampled import Trajectory
@@ -312,7 +312,7 @@ def range_recursion(vehicle: Trajectory, config: EstimationConfig) -> RangeRecur
         raise ConfigError("planning the beacon needs the range sensor in config.model.sensors")
     dt = 1.0 / sample_rate(vehicle)
     rec = pcrb_model_of(config, dt)
-    sched = make_schedule(vehicle, model.sensors, config.rates_hz)
+    sched = config.schedule(vehicle)
     epochs = make_epochs(vehicle.t, sched.mask)
     ri = model.sensors.index("range")
     is_range = epochs.mask[:, ri] > 0

@@ -697,6 +697,39 @@ def _check_validation(pb: ProblemData) -> None:
             "validation.range_rate",
             f"gives fewer than 2 ranges over horizon.duration = {hor.duration:g} s",
         )
+    _check_ping_times(pb)
+
+
+#: How far ``validation.range_rate`` may be from a ping schedule's mean rate (a factor).
+PING_RATE_FACTOR = 1.5
+
+
+def _check_ping_times(pb: ProblemData) -> None:
+    """``validation.range_times``: a readable schedule with 2 pings in the horizon, and
+    ``range_rate`` its mean rate (the Gramian and LWO objectives weigh ranges by the rate)."""
+    if pb.validation.range_times is None:
+        return
+    try:
+        t = pb.range_times
+    except InputError as exc:
+        raise field_error(
+            "validation.range_times", str(exc).removeprefix("validation.range_times: ")
+        ) from None
+    assert t is not None
+    T, rate = pb.horizon.duration, pb.validation.range_rate
+    inside = int(np.sum(t <= T))
+    if inside < 2:
+        raise field_error(
+            "validation.range_times",
+            f"has {inside} ping(s) within horizon.duration = {T:g} s; the filters need at least 2",
+        )
+    mean = inside / T
+    if not (mean / PING_RATE_FACTOR <= rate <= mean * PING_RATE_FACTOR):
+        raise field_error(
+            "validation.range_rate",
+            f"{rate:g} Hz, but validation.range_times has {inside} pings in "
+            f"{T:g} s ({mean:.3g} Hz on average); set range_rate = {mean:.3g}",
+        )
 
 
 def _check_budget(pb: ProblemData) -> None:

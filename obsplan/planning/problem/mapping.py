@@ -607,7 +607,10 @@ def _validation_to_dict(val: ValidationSpec) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in val.__dataclass_fields__:
         v = getattr(val, f)
-        new_field = f in ("channel", "gate", "scale_state", "stress_channel") or f in CHANNEL_KEYS
+        new_field = (
+            f in ("channel", "gate", "scale_state", "stress_channel", "range_times")
+            or f in CHANNEL_KEYS
+        )
         if new_field and v == getattr(ValidationSpec, f):
             continue
         out[f] = list(v) if isinstance(v, tuple) else v
@@ -681,8 +684,9 @@ def problem_to_toml(pb: ProblemData) -> str:
 
 
 def resolve_problem_files(data: Mapping[str, Any], base: str | Path) -> Mapping[str, Any]:
-    """``beacon.path`` and ``vehicle.path`` (a CSV, not ``"lawnmower"``) resolved against the
-    folder of the problem file that names them, as the loader reads them.
+    """``beacon.path``, ``vehicle.path`` (a CSV, not ``"lawnmower"``) and
+    ``validation.range_times`` resolved against the folder of the problem file that names them,
+    as the loader reads them.
 
     Parameters
     ----------
@@ -698,14 +702,14 @@ def resolve_problem_files(data: Mapping[str, Any], base: str | Path) -> Mapping[
         malformed value is left for the parser to name).
     """
     out = dict(data)
-    for section in ("beacon", "vehicle"):
-        sec = data.get(section)
-        if not isinstance(sec, Mapping) or not isinstance(sec.get("path"), str):
+    for section, key in (("beacon", "path"), ("vehicle", "path"), ("validation", "range_times")):
+        sec = out.get(section)
+        if not isinstance(sec, Mapping) or not isinstance(sec.get(key), str):
             continue
-        name = sec["path"]
+        name = sec[key]
         if (section == "vehicle" and name == LAWNMOWER_PATH) or Path(name).is_absolute():
             continue
-        out[section] = {**sec, "path": str(Path(base) / name)}
+        out[section] = {**sec, key: str(Path(base) / name)}
     return out
 
 

@@ -933,6 +933,18 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             'Gaussian sum and the augmented KF: "on", "off", or "auto" (on when the channel is '
             "not ideal).",
         ),
+        FieldSpec(
+            "range_times",
+            "str",
+            _NONE,
+            "-",
+            "A ping schedule: a CSV with a column t [s from the mission's start] (relative to "
+            "the problem file; e.g. the range times of a logged mission): the validation, the "
+            "bounds and the planner's pcrb/kf objectives take the ranges there (the first filter "
+            "step at or after each ping) instead of every 1/range_rate; range_rate must then be "
+            "its mean rate over the horizon (within a factor 1.5: the Gramian and LWO objectives "
+            "weigh ranges by it). Default none (the rate).",
+        ),
     ),
 }
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from obsplan.estimation.channel import Channel, channel_preset
 from obsplan.estimation.config import DEFAULT_ACCEL_NOISE
+from obsplan.estimation.schedule import read_ping_times
 from obsplan.model.beacon import BeaconPath, BeaconVehicle, read_beacon_path
 from obsplan.model.frames import GeodeticOrigin
 from obsplan.model.vehicle import VehicleModel
@@ -242,6 +243,7 @@ class ValidationSpec:
     channel_ping_jitter: float | None = None
     gate: float | str = "auto"
     scale_state: str = "auto"
+    range_times: str | None = None
 
     def channel_model(self) -> Channel:
         """The acoustic channel of the validation: the preset ``channel`` with the
@@ -302,6 +304,19 @@ class ProblemData:
     @property
     def dim(self) -> int:
         return self.vehicle.dim
+
+    @cached_property
+    def range_times(self) -> np.ndarray | None:
+        """The ping schedule of ``validation.range_times`` [s from the start], or None.
+
+        Raises
+        ------
+        TrajectoryFormatError
+            A file that is missing or malformed (:func:`~obsplan.estimation.schedule.
+            read_ping_times`).
+        """
+        name = self.validation.range_times
+        return None if name is None else read_ping_times(name, where="validation.range_times")
 
     @cached_property
     def beacon_path(self) -> BeaconPath | None:

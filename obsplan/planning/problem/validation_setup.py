@@ -20,7 +20,6 @@ from obsplan.core.errors import field_error
 from obsplan.estimation.bounds.riccati import Epochs, make_epochs
 from obsplan.estimation.config import EstimationConfig, paper_covariances
 from obsplan.estimation.montecarlo.guidance import Guidance, TruthLimits
-from obsplan.estimation.schedule import make_schedule
 from obsplan.model.beacon import BeaconPath
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.trajectory.sampled import Trajectory
@@ -98,6 +97,7 @@ def estimation_config(
         p0_kf=cov["p0_kf"],
         ekf_update=val.ekf_update,  # type: ignore[arg-type]
         beacon_path=path,
+        range_times=pb.range_times,
         channel=val.channel_model(),
         gate=val.gate,
         scale_state=val.scale_state,
@@ -241,6 +241,5 @@ def filter_epochs(pb: PlanningProblem) -> Epochs:
     """
     t = pb.filter_times
     z = np.zeros((t.size, pb.dim))
-    rates = dict(estimation_config(pb).rates_hz)
-    sched = make_schedule(Trajectory(t=t, p=z, v=z, u=z), pb.model.sensors, rates)
+    sched = estimation_config(pb).schedule(Trajectory(t=t, p=z, v=z, u=z))
     return make_epochs(t, sched.mask)
