@@ -4,6 +4,8 @@ the problem file's errors."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -98,3 +100,21 @@ def test_problem_file_errors_name_the_field(tmp_path):
     rows = "t\n" + "\n".join(f"{t:g}" for t in np.arange(1.0, T, 10.0)) + "\n"
     with pytest.raises(ProblemError, match="validation.range_rate.*set range_rate = 0.1"):
         load_problem(_problem(tmp_path, rows, 1.0))
+
+
+def test_cli_simulate_range_times(tmp_path, capsys):
+    from obsplan.cli import main
+    from obsplan.trajectory.sampled import write_csv
+
+    traj = tmp_path / "c.csv"
+    write_csv(TRAJ, traj)
+    pings = tmp_path / "pings.csv"
+    pings.write_text("t\n" + "\n".join(str(t) for t in range(3, 60, 7)) + "\n")
+    args = ["simulate", str(traj), "--runs", "4", "--quiet", "--json"]
+    assert main([*args, "--range-times", str(pings)]) == 0
+    sched = json.loads(capsys.readouterr().out)
+    assert main(args) == 0  # every sample: another schedule, other numbers
+    every = json.loads(capsys.readouterr().out)
+    assert sched["ekf"]["final_pos_std"] > every["ekf"]["final_pos_std"]
+    assert main([*args, "--range-times", str(pings), "--problem", "default"]) == 2
+    assert "--range-times cannot be combined with --problem" in capsys.readouterr().err

@@ -44,7 +44,7 @@ from obsplan.estimation.montecarlo.simulate import (
     MonteCarloResult,
     monte_carlo,
 )
-from obsplan.estimation.schedule import sample_rate
+from obsplan.estimation.schedule import read_ping_times, sample_rate
 from obsplan.model.vehicle import make_model
 
 #: Options that apply only to some runs (:func:`obsplan.cli.common.check_applies`).
@@ -61,6 +61,7 @@ PROBLEM_REPLACES = {
     "beacon_path": "[beacon]",
     "origin": "[origin]",
     "rates": "validation.*_rate",
+    "range_times": "validation.range_times",
     "noise": "validation.*_std",
     "dt": "validation.dt",
     "init_error": "validation.init_pos_error / init_vel_error",
@@ -111,6 +112,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         metavar="S=HZ,...",
         default=None,
         help="report rate per sensor [Hz], e.g. range=0.1 (default: every sample)",
+    )
+    p.add_argument(
+        "--range-times",
+        metavar="PINGS.csv",
+        default=None,
+        help="a ping schedule (e.g. a log's range times): a CSV with a column t [s, on the "
+        "trajectory's clock]; the ranges report at the first sample at or after each ping "
+        "instead of at --rates' range rate",
     )
     p.add_argument(
         "--noise",
@@ -471,6 +480,11 @@ def run(args: argparse.Namespace) -> int:
                 "process_noise": not args.no_process_noise,
                 "beacon_path": path,
                 "channel": _channel(args.channel),
+                "range_times": (
+                    None
+                    if args.range_times is None
+                    else read_ping_times(args.range_times, f"--range-times {args.range_times}")
+                ),
             }
             if args.paper_noise:
                 cfg = EstimationConfig.paper(model, 1.0 / sample_rate(fine), **common)
