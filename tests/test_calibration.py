@@ -25,8 +25,9 @@ LAWNMOWER = gen.lawnmower((-40.0, -30.0), 80.0, 20.0, 4, 1.0).sample(1.0)
 
 
 def _verdict(traj, sensors="range", current=False, **kw):
-    rep = calibration_report(traj, make_model(traj.dim, sensors, current=current), **kw)
-    return {k: v for k, v in rep.observable.items()}
+    return dict(
+        calibration_report(traj, make_model(traj.dim, sensors, current=current), **kw).observable
+    )
 
 
 def test_straight_line_without_a_velocity_reference_has_no_scale():

@@ -70,7 +70,9 @@ bilinear in the state (the anchor's error enters ``κ`` times ``1 + g``: a term 
 second order is left out). The filter updates with its exact Gaussian moments: the row ``((1 +
 ĝ) d, 1 + ĝ, Â)`` on ``(p, κ, g)``, the mean ``(1 + ĝ) Â + P_gA`` and the variance ``R + P_gg
 P_AA + P_gA²`` — the second-order filter, exact for a bilinear output under a Gaussian prior
-(early on ``P_gg P_AA`` is many times ``R``: without it the filter is over-confident). ``g`` is
+(early on ``P_gg P_AA`` dominates: at 100 m from the beacon with a 10 m position std and the 2 %
+scale prior it is about ``(0.04 · 1000 m²)² = 1600 m⁴`` against ``R ≈ 100 m⁴`` for a 0.1 m
+range noise). ``g`` is
 the filter's last state, constant, with prior ``N(0, (2 σ_s)²)`` for a scale prior ``N(1,
 σ_s²)`` (``g ≈ 2 s``). It is observable only where ``A`` is not a quadratic in time, i.e.
 where the path manoeuvres, as the EKF's scale state. Using the *measured* ``y - y0`` as the
