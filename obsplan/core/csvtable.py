@@ -222,16 +222,34 @@ class CsvTable:
             raise TrajectoryFormatError(
                 f"{where}: needs at least 2 data rows, found {data.shape[0]}"
             )
-        t = data[:, 0]
+        self.check_increasing(data[:, 0], where, "times must be strictly increasing")
+        return data
+
+    def check_increasing(self, t: np.ndarray, where: str, fix: str) -> None:
+        """Refuse times ``t`` (one per data row) that do not strictly increase, naming the
+        first offending row and its predecessor.
+
+        Parameters
+        ----------
+        t : ndarray, shape (rows,)
+            The table's times [s], in row order.
+        where : str
+            What the message starts with (the file, or the field naming it).
+        fix : str
+            The message's last clause: what the user should do.
+
+        Raises
+        ------
+        TrajectoryFormatError
+            At the first time that is not larger than the one before it.
+        """
         bad = np.flatnonzero(np.diff(t) <= 0)
         if bad.size:
             k = int(bad[0])
             raise TrajectoryFormatError(
                 f"{where}: row {self.lines[k + 1]}, column 't': time {float(t[k + 1])!r} does "
-                f"not increase (row {self.lines[k]} has {float(t[k])!r}); times must be strictly "
-                "increasing"
+                f"not increase (row {self.lines[k]} has {float(t[k])!r}); {fix}"
             )
-        return data
 
 
 def read_table(path: str | Path, example_header: str) -> CsvTable:

@@ -1583,8 +1583,7 @@ def kf_scale_row(P, ws, n, b, kc, ks, A, g1):
     The row on ``(p, κ, g)`` is ``((1 + ĝ) d, 1 + ĝ, Â)``; the mean is ``(1 + ĝ) Â + P_gA`` and
     the variance adds ``P_gg P_AA + P_gA²`` to the reading's (the product's second-order
     terms, exact for a Gaussian prior). Writes the row into ``ws[WS_VAL]`` (its first ``n``
-    entries ``d`` on entry), the mean into ``ws[WS_SC, SC_NU]`` and the added variance into
-    ``ws[WS_SC, SC_R]``.
+    entries ``d`` on entry).
 
     Parameters
     ----------
@@ -1598,6 +1597,13 @@ def kf_scale_row(P, ws, n, b, kc, ks, A, g1):
         ``Â`` at the prior [m²].
     g1 : float
         ``1 + ĝ``.
+
+    Returns
+    -------
+    mean : float
+        The prediction's mean [m²].
+    var : float
+        The variance it adds to the reading's [m⁴].
     """
     pga = P[kc, ks, b]
     paa = P[kc, kc, b]
@@ -1611,8 +1617,7 @@ def kf_scale_row(P, ws, n, b, kc, ks, A, g1):
         ws[WS_VAL, i, b] *= g1
     ws[WS_VAL, n, b] = g1
     ws[WS_VAL, n + 1, b] = A
-    ws[WS_SC, SC_NU, b] = g1 * A + pga
-    ws[WS_SC, SC_R, b] = P[ks, ks, b] * paa + pga * pga
+    return g1 * A + pga, P[ks, ks, b] * paa + pga * pga
 
 
 @inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
@@ -1677,9 +1682,9 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
             ym = 0.5 * rm * rm - 0.5 * var_r - y0[b]  # the measured y - y0
             nu = ym + 0.5 * d2 - pred
             if ks >= 0:
-                kf_scale_row(P, ws, n, b, kc, ks, pred - 0.5 * d2, 1.0 + X[ks, b])
-                nu = ym - ws[WS_SC, SC_NU, b]
-                r += ws[WS_SC, SC_R, b]
+                mean, dvar = kf_scale_row(P, ws, n, b, kc, ks, pred - 0.5 * d2, 1.0 + X[ks, b])
+                nu = ym - mean
+                r += dvar
             ws[WS_SC, SC_NU, b] = nu if ok else 0.0
             ws[WS_SC, SC_R, b] = r if ok else 1.0
             ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0

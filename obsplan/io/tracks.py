@@ -323,14 +323,7 @@ def track_from_table(table: CsvTable, origin: Any = None) -> Track:
 
 
 def _check_increasing(t: np.ndarray, table: CsvTable) -> None:
-    bad = np.flatnonzero(np.diff(t) <= 0)
-    if bad.size:
-        k = int(bad[0])
-        raise TrajectoryFormatError(
-            f"{table.path}: row {table.lines[k + 1]}, column 't': time {float(t[k + 1])!r} does "
-            f"not increase (row {table.lines[k]} has {float(t[k])!r}); sort the log or drop "
-            "duplicated samples"
-        )
+    table.check_increasing(t, str(table.path), "sort the log or drop duplicated samples")
 
 
 def read_track_csv(path: str | Path, origin: Any = None) -> Track:

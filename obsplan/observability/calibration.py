@@ -58,21 +58,23 @@ class CalibrationReport:
 
     Attributes
     ----------
-    observable : dict of str to bool
-        Per parameter set (``"scale"``, ``"bias"``, ``"scale_and_bias"``): observable over the
-        whole path.
     from_t : dict of str to float or None
-        The end time [s] of the first interval after which it is observable; None if never.
+        Per parameter set (``"scale"``, ``"bias"``, ``"scale_and_bias"``): the end time [s] of
+        the first interval after which it is observable; None if it never is on the path.
     state_rank : int
         The rank of the vehicle's own local Gramian over the path (of ``state_dim``).
     state_dim : int
         The dimension of ``x(t_0)``.
     """
 
-    observable: dict[str, bool]
     from_t: dict[str, float | None]
     state_rank: int
     state_dim: int
+
+    @property
+    def observable(self) -> dict[str, bool]:
+        """Per parameter set: observable over the whole path (it becomes so at some time)."""
+        return {k: self.from_t[k] is not None for k in PARAMETERS}
 
     def to_dict(self) -> dict:
         """The JSON form: per parameter set ``{"observable": bool, "from_t": float | None}``.
@@ -122,7 +124,7 @@ def calibration_report(
     traj : Trajectory
         The sampled path.
     model : VehicleModel
-        Its sensors (with a range), current and fixed beacon.
+        Its sensors (a model always has the range), current and fixed beacon.
     scales : Scales, optional
         Metric scales of the Gramian.
     rank_tol : float, optional
@@ -134,14 +136,7 @@ def calibration_report(
     -------
     CalibrationReport
         The verdicts.
-
-    Raises
-    ------
-    ValueError
-        If the model has no range sensor.
     """
-    if "range" not in model.sensors:
-        raise ValueError("the range's scale and bias need a range sensor")
     lm = linearised_model(model)
     beacon = model.beacon_array
     if beacon_path is not None:
@@ -151,14 +146,10 @@ def calibration_report(
     G = np.cumsum(local_interval_gramians(traj, lm, beacon, w, scales, calibration=True), axis=0)
     m = lm.state_dim
     base = np.atleast_1d(numerical_rank(G[:, :m, :m], rank_tol))
-    observable: dict[str, bool] = {}
     from_t: dict[str, float | None] = {}
     for name, cols in PARAMETERS.items():
         idx = list(range(m)) + [m + c for c in cols]
         ok = np.atleast_1d(numerical_rank(G[:, idx][:, :, idx], rank_tol)) - base == len(cols)
-        observable[name] = bool(ok[-1])
         first = np.flatnonzero(ok)
         from_t[name] = float(traj.t[first[0] + 1]) if first.size else None
-    return CalibrationReport(
-        observable=observable, from_t=from_t, state_rank=int(base[-1]), state_dim=m
-    )
+    return CalibrationReport(from_t=from_t, state_rank=int(base[-1]), state_dim=m)
