@@ -130,26 +130,40 @@ def _joint(x, P, H, nu, R):
     return x + K @ nu, IKH @ P @ IKH.T + K @ R @ K.T, ll
 
 
-def _ekf_update(model, cfg, x, P, y):
+def _ekf_update(model, cfg, x, P, y, ks=-1):
+    """The EKF's joint update; ``ks >= 0``: ``x[ks]`` is the range scale ``k`` (the range row
+    predicts ``k ρ``, ``½ k² ρ²`` half-squared), and the second-order terms take the Hessian
+    over ``(p, k)``."""
     n, m, s = model.dim, x.size, cfg.noise["range"]
     rows, nus, Rs = [], [], []
     if np.isfinite(y[0]):
         rel = x[:n] - model.beacon_array
+        rho = np.linalg.norm(rel)
+        k = x[ks] if ks >= 0 else 1.0
+        idx = list(range(n)) + ([ks] if ks >= 0 else [])
+        G = np.zeros((len(idx), len(idx)))  # the Hessian over (p, k)
         H = np.zeros(m)
         if model.range_form == "half-squared":
-            H[:n] = rel
-            nu = 0.5 * y[0] ** 2 - 0.5 * s * s - 0.5 * rel @ rel
+            H[:n] = k * k * rel
+            nu = 0.5 * y[0] ** 2 - 0.5 * s * s - 0.5 * k * k * rho**2
             R = y[0] ** 2 * s * s + 0.5 * s**4
-            M = np.eye(n)  # the Hessian of ½|p - b|²
+            G[:n, :n] = k * k * np.eye(n)  # the Hessian of ½ k² |p - b|²
+            if ks >= 0:
+                H[ks] = k * rho**2
+                G[:n, n] = G[n, :n] = 2 * k * rel
+                G[n, n] = rho**2
         else:
-            rho = np.linalg.norm(rel)
-            H[:n] = rel / rho
-            nu, R = y[0] - rho, s * s
-            M = (np.eye(n) - np.outer(rel, rel) / rho**2) / rho  # the Hessian of |p - b|
+            u = rel / rho
+            H[:n] = k * u
+            nu, R = y[0] - k * rho, s * s
+            G[:n, :n] = k * (np.eye(n) - np.outer(u, u)) / rho  # the Hessian of k |p - b|
+            if ks >= 0:
+                H[ks] = rho
+                G[:n, n] = G[n, :n] = u
         if cfg.ekf_update == "second-order":  # Gaussian second-order filter
-            MP = M @ P[:n, :n]
-            nu -= 0.5 * np.trace(MP)
-            R += 0.5 * np.trace(MP @ MP)
+            GP = G @ P[np.ix_(idx, idx)]
+            nu -= 0.5 * np.trace(GP)
+            R += 0.5 * np.trace(GP @ GP)
         rows.append(H)
         nus.append(nu)
         Rs.append(R)
@@ -163,11 +177,13 @@ def _ekf_update(model, cfg, x, P, y):
     return _joint(x, P, np.array(rows), np.array(nus), np.diag(Rs))
 
 
-def _ekf_ref(traj, cfg, setup, starts_x):
+def _ekf_ref(traj, cfg, setup, starts_x, ks=-1):
     """Members (x, P, readings (E, outputs)) -> their histories: per sample (x, P, summed
-    log-likelihood)."""
+    log-likelihood); ``ks``: the index of the range scale (-1: none), constant."""
     model, n = cfg.model, cfg.model.dim
     q = setup.noise.q_ekf
+    if ks >= 0:
+        q = np.pad(q, ((0, 1), (0, 1)))
     out = []
     for x, P, Yr in starts_x:
         ll, hist = 0.0, []
@@ -177,7 +193,7 @@ def _ekf_ref(traj, cfg, setup, starts_x):
                 x = _step(x, h, traj.u[k - 1], n)
                 F = _F(x.size, n, h)
                 P = F @ P @ F.T + q
-            x, P, dl = _ekf_update(model, cfg, x, P, Yr[k])
+            x, P, dl = _ekf_update(model, cfg, x, P, Yr[k], ks)
             ll += dl
             hist.append((x, P, ll))
         out.append(hist)
@@ -191,7 +207,8 @@ def _nav(model, x, P, off):
 
 
 def ref_ekf(filt, traj, cfg, setup, Y, states):
-    hist = _ekf_ref(traj, cfg, setup, [(s[0], s[1], Y[:, :, r]) for r, s in enumerate(states)])
+    members = [(s[0], s[1], Y[:, :, r]) for r, s in enumerate(states)]
+    hist = _ekf_ref(traj, cfg, setup, members, filt.scale_index)
     return [[_nav(cfg.model, x, P, 0.0) for x, P, _ in h] for h in hist], [
         (h[-1][0], h[-1][1]) for h in hist
     ]
@@ -201,7 +218,8 @@ def ref_gsf(filt, traj, cfg, setup, Y, states):
     hists, finals = [], []
     for r, (X0, P0, lw0) in enumerate(states):
         C = len(lw0)
-        comps = _ekf_ref(traj, cfg, setup, [(X0[c], P0[c], Y[:, :, r]) for c in range(C)])
+        members = [(X0[c], P0[c], Y[:, :, r]) for c in range(C)]
+        comps = _ekf_ref(traj, cfg, setup, members, filt.ekf.scale_index)
         run = []
         for k in range(traj.n_samples):
             lw = np.array([lw0[c] + comps[c][k][2] for c in range(len(lw0))])
@@ -399,6 +417,40 @@ def test_second_order_update_matches_its_reference(case_name, range_form, name):
     run1 = f1.filter_all(f1.begin(RunBatch(setup.ctx, states, Y)))
     gap = np.max(np.abs(f1.covariance(run1) - f.covariance(run))) / np.max(np.abs(P_ref))
     assert gap > 1e3 * TOL
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ekf_update", ["first-order", "second-order"])
+@pytest.mark.parametrize("name", ["ekf", "gsf"])
+@pytest.mark.parametrize("case_name, range_form", SECOND_ORDER)
+def test_ekf_scale_state_matches_its_reference(case_name, range_form, name, ekf_update):
+    """The EKF and the Gaussian sum's components with a range-scale state ``k`` (prior
+    ``N(1, σ_s²)``, constant) on ranges 1 % long, batch and epoch by epoch, against the numpy
+    recursion; second order with the Hessian over ``(p, k)``, whose cross terms ``∂²h/∂p∂k``
+    (``u``, ``2 k (p - b)`` half-squared) couple the scale's covariance with the position's.
+    """
+    traj, cfg, setup, Y, truth, starts = _case(case_name, range_form, ekf_update, "on")
+    Y = Y.copy()
+    Y[:, 0, :] *= 1.01
+    f = setup.filters[name]
+    ekf = f.ekf if name == "gsf" else f
+    ks = ekf.scale_index
+    assert ks == cfg.model.state_dim and ekf.second_order == (ekf_update == "second-order")
+    states = [f.start(*st) for st in starts]
+    hists, finals = REFERENCES[name](f, traj, cfg, setup, Y, states)
+    rec = setup.records
+    n2 = 2 * cfg.model.dim
+    sums, ex = np.zeros((2, rec.size, 3 + n2)), np.zeros((2, rec.size, n2))
+    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, np.zeros((RUNS, N_INFO)), 0, ex))
+    close(ex[0], np.array([hists[0][k][0] for k in rec]), f"{name} batch estimate")
+    close(ex[1], np.array([np.sqrt(np.diag(hists[0][k][1])) for k in rec]), f"{name} std")
+    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
+    X, P = f.state(run), f.covariance(run)
+    for r, (x_ref, P_ref) in enumerate(finals):
+        close(X[:, r], x_ref, f"{name} state, run {r}")
+        close(P[:, :, r], P_ref, f"{name} covariance, run {r}")
+    # the scale's estimate is consistent with the readings' 1.01 (within 4 posterior stds)
+    assert np.all(np.abs(X[ks] - 1.01) < 4 * np.sqrt(P[ks, ks]))
 
 
 def test_second_order_terms_are_the_moments_of_the_range_over_the_prior():

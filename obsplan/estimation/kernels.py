@@ -1162,7 +1162,7 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
                 nu -= 0.5 * (trp - uw) / rho
                 r += 0.5 * (trp2 - 2.0 * ww + uw * uw) / (rho * rho)
         if ks >= 0 and ok:
-            scale_row(X, P, ws, n, b, ks, half_sq, rm, rho2, var_r, nu, r)
+            scale_row(X, P, ws, n, b, ks, half_sq, second, rm, rho2, var_r, nu, r)
         else:
             ws[WS_SC, SC_NU, b] = nu if ok else 0.0
             ws[WS_SC, SC_R, b] = r if ok else 1.0
@@ -1173,13 +1173,19 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
 
 
 @inline
-def scale_row(X, P, ws, n, b, ks, half_sq, rm, rho2, var_r, nu, r):
+def scale_row(X, P, ws, n, b, ks, half_sq, second, rm, rho2, var_r, nu, r):
     """Member ``b``'s range row with the range-scale state ``k = X[ks, b]``, from the row
     without it (``ws[WS_VAL, :n, b]``, innovation ``nu`` and variance ``r`` of ``k = 1``).
 
-    Range form: prediction ``k ρ`` and row ``(k u, ρ)``; the second-order terms (``nu - rm +
-    ρ``, ``r - var_r``) scale by ``k``, ``k²``. Half-squared: prediction ``½ k² ρ²``, row
-    ``(k² (p - b), k ρ²)``, terms by ``k²``, ``k⁴``.
+    Range form: prediction ``k ρ`` and row ``(k u, ρ)``; the second-order terms over the
+    position (``nu - rm + ρ``, ``r - var_r``) scale by ``k``, ``k²``. Half-squared: prediction
+    ``½ k² ρ²``, row ``(k² (p - b), k ρ²)``, terms by ``k²``, ``k⁴``. Second order, the Hessian
+    over ``(p, k)`` also has the cross block ``∂²h/∂p∂k`` (``u``; ``2 k (p - b)``) and, half-
+    squared, ``∂²h/∂k² = ρ²``: with ``A = P_pp``, ``c = P_pk``, ``s = P_kk`` they add to the
+    prediction's mean ``uᵀc`` (``2 k dᵀc + ½ ρ² s``) and to its variance the rest of
+    ``½ tr((H P)²)`` (:func:`scale_cross_terms`). They matter early in a run, where the position
+    std is metres and the scale's percents: ``uᵀc`` is then a sizeable fraction of the range
+    noise.
 
     Parameters
     ----------
@@ -1189,14 +1195,15 @@ def scale_row(X, P, ws, n, b, ks, half_sq, rm, rho2, var_r, nu, r):
         Workspace: the row (updated), innovation and variance (set).
     n, b, ks : int
         Spatial dimension, member, index of the scale state.
-    half_sq : bool
-        The half-squared range form.
+    half_sq, second : bool
+        The half-squared range form; the Gaussian second-order update.
     rm, rho2, var_r : float
         The reading [m], ``ρ²`` at the prior [m²], the range noise variance [m²].
     nu, r : float
         The innovation and variance of the row without the scale.
     """
     k = X[ks, b]
+    dmean, dvar = scale_cross_terms(X, P, ws, n, b, ks, half_sq, rho2) if second else (0.0, 0.0)
     if half_sq:
         base = 0.5 * rm * rm - 0.5 * var_r - 0.5 * rho2
         r0 = rm * rm * var_r + 0.5 * var_r * var_r
@@ -1213,8 +1220,62 @@ def scale_row(X, P, ws, n, b, ks, half_sq, rm, rho2, var_r, nu, r):
         for i in range(n):
             ws[WS_VAL, i, b] *= k
         ws[WS_VAL, n, b] = rho
-    ws[WS_SC, SC_NU, b] = nu_s
-    ws[WS_SC, SC_R, b] = r_s
+    ws[WS_SC, SC_NU, b] = nu_s - dmean
+    ws[WS_SC, SC_R, b] = r_s + dvar
+
+
+@inline
+def scale_cross_terms(X, P, ws, n, b, ks, half_sq, rho2):
+    """The second-order terms of the range row that involve the scale ``k = X[ks, b]``: with
+    the Hessian over ``(p, k)`` ``H = [[H_pp, g], [gᵀ, h]]`` and the prior blocks ``A = P_pp``,
+    ``c = P_pk``, ``s = P_kk``, their share of the mean ``½ tr(H P)`` and of the variance
+    ``½ tr((H P)²)`` beyond the position block's (``½ tr(H_pp A)``, ``½ tr((H_pp A)²)``).
+
+    Range form (``H_pp = k M``, ``M = (I - u uᵀ)/ρ``, ``g = u``, ``h = 0``; ``M u = 0``): mean
+    ``uᵀc``, variance ``2 k cᵀM A u + (uᵀc)² + s uᵀA u``. Half-squared (``H_pp = a I``,
+    ``a = k²``, ``g = 2 k d``, ``h = ρ²``): mean ``gᵀc + ½ h s``, variance
+    ``½ [4 a gᵀA c + (gᵀc)² + 2 s gᵀA g + 2 a h |c|² + 2 h s gᵀc + (gᵀc + h s)²]``.
+
+    Parameters
+    ----------
+    X, P : ndarray, shapes (m, B), (m, m, B)
+        The members' priors.
+    ws : ndarray
+        Workspace holding the row on ``p`` at ``k = 1`` (``u``; ``d = p - b`` half-squared).
+    n, b, ks : int
+        Spatial dimension, member, index of the scale state.
+    half_sq : bool
+        The half-squared range form.
+    rho2 : float
+        ``ρ²`` at the prior [m²].
+
+    Returns
+    -------
+    tuple of float
+        What the scale adds to the prediction's mean [m or m²] and to its variance.
+    """
+    k = X[ks, b]
+    s = P[ks, ks, b]
+    gc = 0.0  # gᵀc (range form: uᵀc)
+    gAg = 0.0
+    gAc = 0.0
+    cc = 0.0
+    for i in range(n):
+        ci = P[i, ks, b]
+        gi = ws[WS_VAL, i, b]
+        gc += gi * ci
+        cc += ci * ci
+        for j in range(n):
+            gAg += gi * P[i, j, b] * ws[WS_VAL, j, b]
+            gAc += gi * P[i, j, b] * P[j, ks, b]
+    if half_sq:
+        a, h = k * k, rho2
+        gc, gAg, gAc = 2.0 * k * gc, 4.0 * k * k * gAg, 2.0 * k * gAc
+        dvar = 4.0 * a * gAc + gc * gc + 2.0 * s * gAg + 2.0 * a * h * cc + 2.0 * h * s * gc
+        return gc + 0.5 * h * s, 0.5 * (dvar + (gc + h * s) ** 2)
+    # cᵀ M A u = (cᵀA u - (cᵀu)(uᵀA u))/ρ
+    cmau = (gAc - gc * gAg) / math.sqrt(rho2)
+    return gc, 2.0 * k * cmau + gc * gc + s * gAg
 
 
 @jit
