@@ -23,7 +23,9 @@ pings) with
   outliers and lost pings alone cost;
 * ``at-sea, no outliers`` and ``at-sea, no lost pings``: the preset without its multipath or
   without its lost pings, and ``ideal, scale state``: Gaussian ranges to filters with the
-  range-scale state, what the state alone costs (``--channels`` picks these; they are not in
+  range-scale state, what the state alone costs; ``at-sea, 2 ms clock offset`` (a 3 m range
+  bias the preset does not have: the filters' range-bias state on, ``validation.bias_state =
+  "auto"``) and the same without the bias state (``--channels`` picks these; they are not in
   the default set).
 
 Per path and channel it prints the EKF's position RMSE and mean final error, the lost runs of
@@ -60,9 +62,22 @@ CHANNELS = {
     "at-sea, no outliers": {"channel": "at-sea", "channel_outlier_fraction": 0.0},
     "at-sea, no lost pings": {"channel": "at-sea", "channel_dropout": 0.0},
     "ideal, scale state": {"scale_state": "on"},
+    "at-sea, 2 ms clock offset": {"channel": "at-sea", "channel_clock_offset": 0.002},
+    "at-sea, 2 ms clock offset, no bias state": {
+        "channel": "at-sea",
+        "channel_clock_offset": 0.002,
+        "bias_state": "off",
+    },
 }
-#: Channels run only when ``--channels`` names them (diagnostics of one component's cost).
-OPTIONAL = ("at-sea, no outliers", "at-sea, no lost pings", "ideal, scale state")
+#: Channels run only when ``--channels`` names them (diagnostics of one component's cost, and
+#: the clock offset the preset does not have).
+OPTIONAL = (
+    "at-sea, no outliers",
+    "at-sea, no lost pings",
+    "ideal, scale state",
+    "at-sea, 2 ms clock offset",
+    "at-sea, 2 ms clock offset, no bias state",
+)
 #: The acceptance's bound on the at-sea EKF RMSE relative to the ideal's.
 RMSE_RATIO = 1.5
 FILTERS = ("ekf", "kf", "gsf")

@@ -54,6 +54,7 @@ def _case(
     range_form: str = "half-squared",
     ekf_update: str = "first-order",
     scale_state: str = "auto",
+    bias_state: str = "auto",
 ):
     if name == "circle-2d-range":
         traj = gen.circle(30.0, 1.5, 12.0, center=(4.0, -2.0)).sample(0.1)
@@ -67,6 +68,7 @@ def _case(
         process_noise=False,
         ekf_update=ekf_update,
         scale_state=scale_state,
+        bias_state=bias_state,
     )
     setup = PathSetup(traj, cfg, tuple(REGISTRY), None, RUNS)
     plan = setup.plan
@@ -130,38 +132,45 @@ def _joint(x, P, H, nu, R):
     return x + K @ nu, IKH @ P @ IKH.T + K @ R @ K.T, ll
 
 
-def _ekf_update(model, cfg, x, P, y, ks=-1):
-    """The EKF's joint update; ``ks >= 0``: ``x[ks]`` is the range scale ``k`` (the range row
-    predicts ``k ρ``, ``½ k² ρ²`` half-squared), and the second-order terms take the Hessian
-    over ``(p, k)``."""
+def _range_function(x, beacon, range_form, ks=-1, kb=-1):
+    """The predicted range ``h`` (``r̃ = k ρ + β``, or ``½ r̃²`` half-squared), its gradient
+    and its Hessian over the whole state ``x``."""
+    n, m = beacon.size, x.size
+    rel = x[:n] - beacon
+    rho = np.linalg.norm(rel)
+    u = rel / rho
+    k = x[ks] if ks >= 0 else 1.0
+    rt = k * rho + (x[kb] if kb >= 0 else 0.0)
+    g = np.zeros(m)  # the gradient of r̃
+    g[:n] = k * u
+    Hr = np.zeros((m, m))  # the Hessian of r̃
+    Hr[:n, :n] = k * (np.eye(n) - np.outer(u, u)) / rho
+    if ks >= 0:
+        g[ks] = rho
+        Hr[:n, ks] = Hr[ks, :n] = u
+    if kb >= 0:
+        g[kb] = 1.0
+    if range_form == "half-squared":
+        return 0.5 * rt * rt, rt * g, np.outer(g, g) + rt * Hr
+    return rt, g, Hr
+
+
+def _ekf_update(model, cfg, x, P, y, ks=-1, kb=-1):
+    """The EKF's joint update; ``ks``, ``kb >= 0``: ``x[ks]`` is the range scale ``k`` and
+    ``x[kb]`` the range bias ``β``: the range row predicts ``r̃ = k ρ + β`` (``½ r̃²``
+    half-squared), and the second-order terms take the Hessian over ``(p, k, β)``."""
     n, m, s = model.dim, x.size, cfg.noise["range"]
     rows, nus, Rs = [], [], []
     if np.isfinite(y[0]):
-        rel = x[:n] - model.beacon_array
-        rho = np.linalg.norm(rel)
-        k = x[ks] if ks >= 0 else 1.0
-        idx = list(range(n)) + ([ks] if ks >= 0 else [])
-        G = np.zeros((len(idx), len(idx)))  # the Hessian over (p, k)
-        H = np.zeros(m)
+        h, H, G = _range_function(x, model.beacon_array, model.range_form, ks, kb)
+        idx = list(range(n)) + [i for i in (ks, kb) if i >= 0]
         if model.range_form == "half-squared":
-            H[:n] = k * k * rel
-            nu = 0.5 * y[0] ** 2 - 0.5 * s * s - 0.5 * k * k * rho**2
+            nu = 0.5 * y[0] ** 2 - 0.5 * s * s - h
             R = y[0] ** 2 * s * s + 0.5 * s**4
-            G[:n, :n] = k * k * np.eye(n)  # the Hessian of ½ k² |p - b|²
-            if ks >= 0:
-                H[ks] = k * rho**2
-                G[:n, n] = G[n, :n] = 2 * k * rel
-                G[n, n] = rho**2
         else:
-            u = rel / rho
-            H[:n] = k * u
-            nu, R = y[0] - k * rho, s * s
-            G[:n, :n] = k * (np.eye(n) - np.outer(u, u)) / rho  # the Hessian of k |p - b|
-            if ks >= 0:
-                H[ks] = rho
-                G[:n, n] = G[n, :n] = u
+            nu, R = y[0] - h, s * s
         if cfg.ekf_update == "second-order":  # Gaussian second-order filter
-            GP = G @ P[np.ix_(idx, idx)]
+            GP = G[np.ix_(idx, idx)] @ P[np.ix_(idx, idx)]
             nu -= 0.5 * np.trace(GP)
             R += 0.5 * np.trace(GP @ GP)
         rows.append(H)
@@ -177,13 +186,14 @@ def _ekf_update(model, cfg, x, P, y, ks=-1):
     return _joint(x, P, np.array(rows), np.array(nus), np.diag(Rs))
 
 
-def _ekf_ref(traj, cfg, setup, starts_x, ks=-1):
+def _ekf_ref(traj, cfg, setup, starts_x, ks=-1, kb=-1):
     """Members (x, P, readings (E, outputs)) -> their histories: per sample (x, P, summed
-    log-likelihood); ``ks``: the index of the range scale (-1: none), constant."""
+    log-likelihood); ``ks``, ``kb``: the indices of the range scale and bias (-1: none),
+    constant."""
     model, n = cfg.model, cfg.model.dim
     q = setup.noise.q_ekf
-    if ks >= 0:
-        q = np.pad(q, ((0, 1), (0, 1)))
+    c = (ks >= 0) + (kb >= 0)
+    q = np.pad(q, ((0, c), (0, c)))
     out = []
     for x, P, Yr in starts_x:
         ll, hist = 0.0, []
@@ -193,7 +203,7 @@ def _ekf_ref(traj, cfg, setup, starts_x, ks=-1):
                 x = _step(x, h, traj.u[k - 1], n)
                 F = _F(x.size, n, h)
                 P = F @ P @ F.T + q
-            x, P, dl = _ekf_update(model, cfg, x, P, Yr[k], ks)
+            x, P, dl = _ekf_update(model, cfg, x, P, Yr[k], ks, kb)
             ll += dl
             hist.append((x, P, ll))
         out.append(hist)
@@ -208,7 +218,7 @@ def _nav(model, x, P, off):
 
 def ref_ekf(filt, traj, cfg, setup, Y, states):
     members = [(s[0], s[1], Y[:, :, r]) for r, s in enumerate(states)]
-    hist = _ekf_ref(traj, cfg, setup, members, filt.scale_index)
+    hist = _ekf_ref(traj, cfg, setup, members, filt.scale_index, filt.bias_index)
     return [[_nav(cfg.model, x, P, 0.0) for x, P, _ in h] for h in hist], [
         (h[-1][0], h[-1][1]) for h in hist
     ]
@@ -219,7 +229,7 @@ def ref_gsf(filt, traj, cfg, setup, Y, states):
     for r, (X0, P0, lw0) in enumerate(states):
         C = len(lw0)
         members = [(X0[c], P0[c], Y[:, :, r]) for c in range(C)]
-        comps = _ekf_ref(traj, cfg, setup, members, filt.ekf.scale_index)
+        comps = _ekf_ref(traj, cfg, setup, members, filt.ekf.scale_index, filt.ekf.bias_index)
         run = []
         for k in range(traj.n_samples):
             lw = np.array([lw0[c] + comps[c][k][2] for c in range(len(lw0))])
@@ -419,23 +429,33 @@ def test_second_order_update_matches_its_reference(case_name, range_form, name):
     assert gap > 1e3 * TOL
 
 
+CALIBRATIONS = {"scale": ("on", "off"), "bias": ("off", "on"), "scale and bias": ("on", "on")}
+
+
 @pytest.mark.slow
+@pytest.mark.parametrize("calibration", list(CALIBRATIONS))
 @pytest.mark.parametrize("ekf_update", ["first-order", "second-order"])
 @pytest.mark.parametrize("name", ["ekf", "gsf"])
 @pytest.mark.parametrize("case_name, range_form", SECOND_ORDER)
-def test_ekf_scale_state_matches_its_reference(case_name, range_form, name, ekf_update):
+def test_ekf_calibration_states_match_their_reference(
+    case_name, range_form, name, ekf_update, calibration
+):
     """The EKF and the Gaussian sum's components with a range-scale state ``k`` (prior
-    ``N(1, σ_s²)``, constant) on ranges 1 % long, batch and epoch by epoch, against the numpy
-    recursion; second order with the Hessian over ``(p, k)``, whose cross terms ``∂²h/∂p∂k``
-    (``u``, ``2 k (p - b)`` half-squared) couple the scale's covariance with the position's.
+    ``N(1, σ_s²)``) and/or a range-bias state ``β`` (prior ``N(0, σ_β²)``), constant, on ranges
+    1 % long and 2 m late, batch and epoch by epoch, against the numpy recursion; second order
+    with the Hessian over ``(p, k, β)``, whose cross terms ``∂²h/∂p∂k`` (``u``; half-squared
+    also the products of the gradient) couple the calibration's covariance with the position's.
     """
-    traj, cfg, setup, Y, truth, starts = _case(case_name, range_form, ekf_update, "on")
+    scale, bias = CALIBRATIONS[calibration]
+    traj, cfg, setup, Y, truth, starts = _case(case_name, range_form, ekf_update, scale, bias)
     Y = Y.copy()
-    Y[:, 0, :] *= 1.01
+    Y[:, 0, :] = 1.01 * Y[:, 0, :] + 2.0
     f = setup.filters[name]
     ekf = f.ekf if name == "gsf" else f
-    ks = ekf.scale_index
-    assert ks == cfg.model.state_dim and ekf.second_order == (ekf_update == "second-order")
+    ks, kb, mx = ekf.scale_index, ekf.bias_index, cfg.model.state_dim
+    assert (ks >= 0, kb >= 0) == (scale == "on", bias == "on")
+    assert ekf.state_dim == mx + (ks >= 0) + (kb >= 0) and max(ks, kb) == ekf.state_dim - 1
+    assert ekf.second_order == (ekf_update == "second-order")
     states = [f.start(*st) for st in starts]
     hists, finals = REFERENCES[name](f, traj, cfg, setup, Y, states)
     rec = setup.records
@@ -449,8 +469,35 @@ def test_ekf_scale_state_matches_its_reference(case_name, range_form, name, ekf_
     for r, (x_ref, P_ref) in enumerate(finals):
         close(X[:, r], x_ref, f"{name} state, run {r}")
         close(P[:, :, r], P_ref, f"{name} covariance, run {r}")
-    # the scale's estimate is consistent with the readings' 1.01 (within 4 posterior stds)
-    assert np.all(np.abs(X[ks] - 1.01) < 4 * np.sqrt(P[ks, ks]))
+
+
+@pytest.mark.parametrize("range_form", ["half-squared", "range"])
+def test_the_reference_range_row_is_the_functions_derivatives(range_form):
+    """The reference's gradient and Hessian of the calibrated range over ``(p, v, k, β)`` are
+    the central differences of the function itself (step 1e-4: truncation ~1e-8, rounding
+    ~1e-12 / 1e-8 on the Hessian; tolerance 1e-5 relative)."""
+    beacon = np.array([1.0, -2.0, 3.0])
+    x = np.array([21.0, 9.0, -4.0, 0.5, 0.2, 0.0, 1.013, 2.4])
+    ks, kb, eps = 6, 7, 1e-4
+
+    def h(z):
+        return _range_function(z, beacon, range_form, ks, kb)[0]
+
+    _, H, G = _range_function(x, beacon, range_form, ks, kb)
+    E = np.eye(x.size) * eps
+    grad = np.array([(h(x + E[i]) - h(x - E[i])) / (2 * eps) for i in range(x.size)])
+    hess = np.array(
+        [
+            [
+                (h(x + E[i] + E[j]) - h(x + E[i] - E[j]) - h(x - E[i] + E[j]) + h(x - E[i] - E[j]))
+                / (4 * eps * eps)
+                for j in range(x.size)
+            ]
+            for i in range(x.size)
+        ]
+    )
+    np.testing.assert_allclose(H, grad, rtol=1e-5, atol=1e-5 * np.abs(H).max())
+    np.testing.assert_allclose(G, hess, rtol=1e-5, atol=1e-5 * np.abs(G).max())
 
 
 def test_second_order_terms_are_the_moments_of_the_range_over_the_prior():

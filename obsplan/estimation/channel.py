@@ -100,6 +100,11 @@ LOST_FACTOR = 10.0
 #: a sound speed known to ±30 m/s of 1500 m/s (the spread of sea water's from 0 to 30 °C at a
 #: given salinity is about 60 m/s) is known to 2 %.
 SCALE_PRIOR_STD = 0.02
+#: Prior standard deviation [m] of the range-bias state of the EKF and the Gaussian sum: a clock
+#: offset of 2 ms (at :data:`SOUND_SPEED`). One-way-travel-time modems run synchronised clocks,
+#: so a residual offset is milliseconds; an offset of many of this prior's stds is a setup error
+#: (an unsynchronised clock) to correct before filtering, not to learn from the ranges.
+BIAS_PRIOR_STD_M = 3.0
 #: The filters' model of late arrivals (the late-arrival-aware update, module docstring): the prior
 #: probability that a range is a multipath arrival and the largest excess [m] they expect, the
 #: multipath statistics stated for the at-sea preset (its sources, module docstring). The

@@ -60,6 +60,7 @@ from obsplan.core.csvtable import COLUMN_LIMITS
 from obsplan.core.errors import ConfigError
 from obsplan.core.textfiles import check_magnitude
 from obsplan.estimation.channel import (
+    BIAS_PRIOR_STD_M,
     CHANNEL_PRESETS,
     SCALE_PRIOR_STD,
     Channel,
@@ -343,6 +344,12 @@ class EstimationConfig:
         error estimated, prior std :data:`~obsplan.estimation.channel.SCALE_PRIOR_STD`):
         ``"auto"`` (default) adds it when the channel is not ideal (ranges at sea have an
         unknown sound speed), never on the ideal channel (whose numbers stay those of before).
+    bias_state : "auto", "on" or "off", optional
+        A range-bias state in the EKF and the Gaussian sum (a clock offset estimated, prior std
+        :data:`~obsplan.estimation.channel.BIAS_PRIOR_STD_M`): ``"auto"`` (default) adds it
+        when the channel has a clock offset. The augmented KF has none: its row is the squared
+        range, in which a bias enters times the range itself (``(r + β)²``), not linearly in
+        its states; with a bias it filters the biased ranges as they come.
     range_times : ndarray or None, optional
         A ping schedule [s, on the path's clock: from the mission's start for a plan], strictly
         increasing (e.g. the range times of a logged mission): the ranges report there (the
@@ -376,6 +383,7 @@ class EstimationConfig:
     gate: float | str = "auto"
     scale_state: str = "auto"
     range_times: np.ndarray | None = None
+    bias_state: str = "auto"
 
     def __reduce__(self):
         # the model may hold CasADi symbols (not picklable) and the mappings are read-only
@@ -404,6 +412,7 @@ class EstimationConfig:
                 "gate",
                 "scale_state",
                 "range_times",
+                "bias_state",
             )
         }
         for f in ("rates_hz", "noise", "dropout"):
@@ -530,10 +539,9 @@ class EstimationConfig:
             raise ConfigError(
                 "dropout['range'] and the channel's dropout are the same loss of pings: give one"
             )
-        if self.scale_state not in ("auto", "on", "off"):
-            raise ConfigError(
-                f"scale_state must be 'auto', 'on' or 'off', got {self.scale_state!r}"
-            )
+        for f in ("scale_state", "bias_state"):
+            if getattr(self, f) not in ("auto", "on", "off"):
+                raise ConfigError(f"{f} must be 'auto', 'on' or 'off', got {getattr(self, f)!r}")
         g = self.gate
         if isinstance(g, str):
             if g not in ("auto", "off"):
@@ -566,6 +574,15 @@ class EstimationConfig:
         """The prior std of the filters' range-scale state, None without one."""
         on = self.scale_state == "on" or (self.scale_state == "auto" and not self.channel.is_ideal)
         return SCALE_PRIOR_STD if on else None
+
+    @property
+    def bias_prior_std(self) -> float | None:
+        """The prior std [m] of the EKF's and the Gaussian sum's range-bias state, None without
+        one."""
+        on = self.bias_state == "on" or (
+            self.bias_state == "auto" and self.channel.clock_offset_s != 0.0
+        )
+        return BIAS_PRIOR_STD_M if on else None
 
     @property
     def gate_probability(self) -> float | None:
@@ -746,6 +763,7 @@ class EstimationConfig:
             out["channel"] = self.channel.to_dict()
             out["gate"] = self.gate_probability
             out["scale_state"] = self.scale_prior_std is not None
+            out["bias_state"] = self.bias_prior_std is not None
         if self.range_times is not None:
             out["range_pings"] = int(self.range_times.size)
         if self.beacon_path is not None:

@@ -1066,7 +1066,7 @@ def record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm
 
 # ----------------------------------------------------------------------------- EKF
 @inline
-def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
+def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks, kb, Hs, T):
     """The range row of every member, linearised at its prior; returns whether any reports.
 
     ``second``: the Gaussian second-order update (Jazwinski 1970, sec. 9.3; Bar-Shalom, Li and
@@ -1074,7 +1074,8 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
     ``½ δᵀ M δ`` (``M = I`` for the half-squared form, ``(I - u uᵀ)/ρ`` for the range) adds its
     mean ``½ tr(M P_pp)`` to the prediction and its variance ``½ tr((M P_pp)²)`` to the
     reading's. Where the position is uncertain on the scale of ``sqrt(2 ρ σ_r)`` the first-order
-    update takes the curvature of the range for information it does not have.
+    update takes the curvature of the range for information it does not have. With the range's
+    calibration states the row is :func:`calibrated_row`'s.
 
     Parameters
     ----------
@@ -1085,7 +1086,7 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
     e : int
         The epoch.
     iw : ndarray of int, shape (m,)
-        Receives the row's state indices (the position).
+        Receives the row's state indices (the position, then ``ks`` and ``kb`` if any).
     ws : ndarray
         Workspace: receives the row, innovation, variance and validity of every member.
     n : int
@@ -1100,10 +1101,10 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
         The Gaussian second-order update.
     var_r : float
         Variance of the range noise [m²].
-    ks : int
-        Index of the range-scale state ``k`` (-1: none): the row predicts ``k ρ`` (``½ k² ρ²``
-        half-squared), its entry on ``k`` is ``ρ`` (``k ρ²``) in position ``n`` of the row, and
-        the row on ``p`` and the second-order terms carry ``k`` (``k²``).
+    ks, kb : int
+        Indices of the range-scale state ``k`` and the range-bias state ``β`` (-1: none).
+    Hs, T : ndarray, shape (q, q)
+        Scratch for :func:`calibrated_row` (``q`` the row's entries; unused without one).
 
     Returns
     -------
@@ -1113,10 +1114,16 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
     B = X.shape[1]
     any_ok = False
     eb = e if beacon.shape[0] > 1 else 0
+    cal = ks >= 0 or kb >= 0
     for i in range(n):
         iw[i] = i
+    q = n
     if ks >= 0:
-        iw[n] = ks
+        iw[q] = ks
+        q += 1
+    if kb >= 0:
+        iw[q] = kb
+        q += 1
     for b in range(B):
         rm = Y[e, 0, b // G]
         ok = math.isfinite(rm)
@@ -1125,7 +1132,15 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
             h = X[i, b] - beacon[eb, i]
             ws[WS_VAL, i, b] = h
             rho2 += h * h
-        if half_sq:
+        nu = 0.0
+        r = 1.0
+        if cal:
+            ok = ok and rho2 > 0.0  # at the beacon the range has no gradient
+            if ok:
+                nu, r = calibrated_row(
+                    X, P, ws, iw, n, q, b, ks, kb, half_sq, second, rm, rho2, var_r, Hs, T
+                )
+        elif half_sq:
             nu = 0.5 * rm * rm - 0.5 * var_r - 0.5 * rho2
             r = rm * rm * var_r + 0.5 * var_r * var_r
             if second:  # M = I
@@ -1161,11 +1176,11 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
                     uw += ws[WS_VAL, i, b] * wi
                 nu -= 0.5 * (trp - uw) / rho
                 r += 0.5 * (trp2 - 2.0 * ww + uw * uw) / (rho * rho)
-        if ks >= 0 and ok:
-            scale_row(X, P, ws, n, b, ks, half_sq, second, rm, rho2, var_r, nu, r)
-        else:
-            ws[WS_SC, SC_NU, b] = nu if ok else 0.0
-            ws[WS_SC, SC_R, b] = r if ok else 1.0
+        if not ok:
+            for i in range(q):
+                ws[WS_VAL, i, b] = 0.0
+        ws[WS_SC, SC_NU, b] = nu if ok else 0.0
+        ws[WS_SC, SC_R, b] = r if ok else 1.0
         ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0
         ws[WS_SC, SC_LATE, b] = LATE_MAX_M * rm if half_sq and ok else LATE_MAX_M
         any_ok = any_ok or ok
@@ -1173,109 +1188,85 @@ def ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
 
 
 @inline
-def scale_row(X, P, ws, n, b, ks, half_sq, second, rm, rho2, var_r, nu, r):
-    """Member ``b``'s range row with the range-scale state ``k = X[ks, b]``, from the row
-    without it (``ws[WS_VAL, :n, b]``, innovation ``nu`` and variance ``r`` of ``k = 1``).
+def calibrated_row(X, P, ws, iw, n, q, b, ks, kb, half_sq, second, rm, rho2, var_r, Hs, T):
+    """Member ``b``'s range row with the range's calibration states: the scale ``k = X[ks, b]``
+    and the bias ``β = X[kb, b]`` (1 and 0 where absent), over the row's states ``z`` (the
+    position, then ``k``, then ``β``: ``iw[:q]``).
 
-    Range form: prediction ``k ρ`` and row ``(k u, ρ)``; the second-order terms over the
-    position (``nu - rm + ρ``, ``r - var_r``) scale by ``k``, ``k²``. Half-squared: prediction
-    ``½ k² ρ²``, row ``(k² (p - b), k ρ²)``, terms by ``k²``, ``k⁴``. Second order, the Hessian
-    over ``(p, k)`` also has the cross block ``∂²h/∂p∂k`` (``u``; ``2 k (p - b)``) and, half-
-    squared, ``∂²h/∂k² = ρ²``: with ``A = P_pp``, ``c = P_pk``, ``s = P_kk`` they add to the
-    prediction's mean ``uᵀc`` (``2 k dᵀc + ½ ρ² s``) and to its variance the rest of
-    ``½ tr((H P)²)`` (:func:`scale_cross_terms`). They matter early in a run, where the position
-    std is metres and the scale's percents: ``uᵀc`` is then a sizeable fraction of the range
-    noise.
+    The range predicts ``r̃ = k ρ + β`` with gradient ``g = (k u, ρ, 1)`` and Hessian
+    ``[[k M, u, 0], [uᵀ, 0, 0], [0, 0, 0]]`` (``u = (p - b)/ρ``, ``M = (I - u uᵀ)/ρ``); the
+    range form's row is ``r̃``'s, the half-squared ``h = ½ r̃²``'s: gradient ``r̃ g``, Hessian
+    ``g gᵀ + r̃ ∇²r̃``. Second order the Hessian ``H`` over ``z`` with the prior ``P_zz`` adds
+    ``½ tr(H P_zz)`` to the prediction and ``½ tr((H P_zz)²)`` to the reading's variance: the
+    scale's cross block ``∂²h/∂p∂k`` couples its covariance with the position's, which matters
+    early in a run, where the position std is metres and the scale's percents.
 
     Parameters
     ----------
     X, P : ndarray, shapes (m, B), (m, m, B)
         The members' priors.
     ws : ndarray
-        Workspace: the row (updated), innovation and variance (set).
-    n, b, ks : int
-        Spatial dimension, member, index of the scale state.
+        Workspace holding ``p - b`` in ``ws[WS_VAL, :n, b]``; receives the row there.
+    iw : ndarray of int
+        The row's state indices (``q`` of them).
+    n, q, b, ks, kb : int
+        Spatial dimension, the row's entries, member, the calibration states' indices.
     half_sq, second : bool
         The half-squared range form; the Gaussian second-order update.
     rm, rho2, var_r : float
-        The reading [m], ``ρ²`` at the prior [m²], the range noise variance [m²].
-    nu, r : float
-        The innovation and variance of the row without the scale.
-    """
-    k = X[ks, b]
-    dmean, dvar = scale_cross_terms(X, P, ws, n, b, ks, half_sq, rho2) if second else (0.0, 0.0)
-    if half_sq:
-        base = 0.5 * rm * rm - 0.5 * var_r - 0.5 * rho2
-        r0 = rm * rm * var_r + 0.5 * var_r * var_r
-        k2 = k * k
-        nu_s = 0.5 * rm * rm - 0.5 * var_r - 0.5 * k2 * rho2 + k2 * (nu - base)
-        r_s = r0 + k2 * k2 * (r - r0)
-        for i in range(n):
-            ws[WS_VAL, i, b] *= k2
-        ws[WS_VAL, n, b] = k * rho2
-    else:
-        rho = math.sqrt(rho2)
-        nu_s = rm - k * rho + k * (nu - rm + rho)
-        r_s = var_r + k * k * (r - var_r)
-        for i in range(n):
-            ws[WS_VAL, i, b] *= k
-        ws[WS_VAL, n, b] = rho
-    ws[WS_SC, SC_NU, b] = nu_s - dmean
-    ws[WS_SC, SC_R, b] = r_s + dvar
-
-
-@inline
-def scale_cross_terms(X, P, ws, n, b, ks, half_sq, rho2):
-    """The second-order terms of the range row that involve the scale ``k = X[ks, b]``: with
-    the Hessian over ``(p, k)`` ``H = [[H_pp, g], [gᵀ, h]]`` and the prior blocks ``A = P_pp``,
-    ``c = P_pk``, ``s = P_kk``, their share of the mean ``½ tr(H P)`` and of the variance
-    ``½ tr((H P)²)`` beyond the position block's (``½ tr(H_pp A)``, ``½ tr((H_pp A)²)``).
-
-    Range form (``H_pp = k M``, ``M = (I - u uᵀ)/ρ``, ``g = u``, ``h = 0``; ``M u = 0``): mean
-    ``uᵀc``, variance ``2 k cᵀM A u + (uᵀc)² + s uᵀA u``. Half-squared (``H_pp = a I``,
-    ``a = k²``, ``g = 2 k d``, ``h = ρ²``): mean ``gᵀc + ½ h s``, variance
-    ``½ [4 a gᵀA c + (gᵀc)² + 2 s gᵀA g + 2 a h |c|² + 2 h s gᵀc + (gᵀc + h s)²]``.
-
-    Parameters
-    ----------
-    X, P : ndarray, shapes (m, B), (m, m, B)
-        The members' priors.
-    ws : ndarray
-        Workspace holding the row on ``p`` at ``k = 1`` (``u``; ``d = p - b`` half-squared).
-    n, b, ks : int
-        Spatial dimension, member, index of the scale state.
-    half_sq : bool
-        The half-squared range form.
-    rho2 : float
-        ``ρ²`` at the prior [m²].
+        The reading [m], ``ρ² > 0`` at the prior [m²], the range noise variance [m²].
+    Hs, T : ndarray, shape (>= q, >= q)
+        Scratch: the Hessian and its product with the prior.
 
     Returns
     -------
     tuple of float
-        What the scale adds to the prediction's mean [m or m²] and to its variance.
+        The innovation and the reading's variance.
     """
-    k = X[ks, b]
-    s = P[ks, ks, b]
-    gc = 0.0  # gᵀc (range form: uᵀc)
-    gAg = 0.0
-    gAc = 0.0
-    cc = 0.0
+    k = X[ks, b] if ks >= 0 else 1.0
+    rho = math.sqrt(rho2)
+    rt = k * rho + (X[kb, b] if kb >= 0 else 0.0)
+    for i in range(q):
+        for j in range(q):
+            Hs[i, j] = 0.0
     for i in range(n):
-        ci = P[i, ks, b]
-        gi = ws[WS_VAL, i, b]
-        gc += gi * ci
-        cc += ci * ci
+        ws[WS_VAL, i, b] /= rho  # u
+    for i in range(n):
+        ui = ws[WS_VAL, i, b]
         for j in range(n):
-            gAg += gi * P[i, j, b] * ws[WS_VAL, j, b]
-            gAc += gi * P[i, j, b] * P[j, ks, b]
+            Hs[i, j] = k * ((1.0 if i == j else 0.0) - ui * ws[WS_VAL, j, b]) / rho
+        if ks >= 0:
+            Hs[i, n] = ui
+            Hs[n, i] = ui
+    for i in range(n):
+        ws[WS_VAL, i, b] *= k
+    if ks >= 0:
+        ws[WS_VAL, n, b] = rho
+    if kb >= 0:
+        ws[WS_VAL, q - 1, b] = 1.0
     if half_sq:
-        a, h = k * k, rho2
-        gc, gAg, gAc = 2.0 * k * gc, 4.0 * k * k * gAg, 2.0 * k * gAc
-        dvar = 4.0 * a * gAc + gc * gc + 2.0 * s * gAg + 2.0 * a * h * cc + 2.0 * h * s * gc
-        return gc + 0.5 * h * s, 0.5 * (dvar + (gc + h * s) ** 2)
-    # cᵀ M A u = (cᵀA u - (cᵀu)(uᵀA u))/ρ
-    cmau = (gAc - gc * gAg) / math.sqrt(rho2)
-    return gc, 2.0 * k * cmau + gc * gc + s * gAg
+        nu = 0.5 * rm * rm - 0.5 * var_r - 0.5 * rt * rt
+        r = rm * rm * var_r + 0.5 * var_r * var_r
+        for i in range(q):
+            for j in range(q):
+                Hs[i, j] = ws[WS_VAL, i, b] * ws[WS_VAL, j, b] + rt * Hs[i, j]
+        for i in range(q):
+            ws[WS_VAL, i, b] *= rt
+    else:
+        nu = rm - rt
+        r = var_r
+    if second:
+        for i in range(q):
+            for j in range(q):
+                acc = 0.0
+                for c in range(q):
+                    acc += Hs[i, c] * P[iw[c], iw[j], b]
+                T[i, j] = acc
+        for i in range(q):
+            nu -= 0.5 * T[i, i]
+            for j in range(q):
+                r += 0.5 * T[i, j] * T[j, i]
+    return nu, r
 
 
 @jit
@@ -1300,6 +1291,7 @@ def ekf_measure(
     gate,
     rg,
     ks,
+    kb,
 ):
     """The EKF's updates at epoch ``e`` (range row, then the linear rows) of every member, and
     their NIS: per run, or for a Gaussian sum (``G > 1``) the mixture's with the prior weights,
@@ -1331,17 +1323,19 @@ def ekf_measure(
         The innovation gate on the ranges (:func:`gate_rows`; ``inf``: none).
     rg : ndarray, shape (4, R)
         Each run's gate counters (:func:`gate_rows`).
-    ks : int
-        Index of the range-scale state (-1: none; :func:`ekf_range_row`).
+    ks, kb : int
+        Indices of the range-scale and range-bias states (-1: none; :func:`ekf_range_row`).
     """
     B = X.shape[1]
     R = B // G
-    nnz = n + 1 if ks >= 0 else n
+    nnz = n + (ks >= 0) + (kb >= 0)
+    Hs = np.empty((nnz, nnz))
+    T = np.empty((nnz, nnz))
     for b in range(B):
         ws[WS_SC, SC_NIS, b] = 0.0
         ws[WS_SC, SC_CNT, b] = 0.0
         ws[WS_SC, SC_LL, b] = 0.0
-    if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks):
+    if ekf_range_row(X, P, Y, e, iw, ws, n, G, beacon, half_sq, second, var_r, ks, kb, Hs, T):
         gate_rows(X, P, iw, ws, nnz, n, G, gate, rg, True)
         update_rows(X, P, iw, ws, nnz)
     if Y.shape[1] > 1:
@@ -1472,6 +1466,7 @@ def ekf_batch(X0, P0, lw0, G, Y, mdl, rcd, out, cor):
             mdl.gate,
             rg,
             mdl.ks,
+            mdl.kb,
         )
         while ri < n_rec and rec_base[ri] == e:
             record_batch(X, P, lw, w, G, e, ri, n, cur, rec, buf, ex, ex_run, nw, xm, Pm, ce, cr)

@@ -25,8 +25,9 @@ from obsplan.model.vehicle import VehicleModel
 #: epoch's range ``beacon`` (E, n) (one row (1, n): a fixed beacon),
 #: range form ``half_sq``, the second-order range update ``second`` and the range noise
 #: ``sig_r`` [m], the innovation gate on the ranges ``gate`` (the largest NIS used; ``inf``:
-#: none) and the index ``ks`` of the range-scale state (-1: none).
-EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig_r gate ks")
+#: none) and the indices ``ks`` of the range-scale state and ``kb`` of the range-bias state
+#: (-1: none).
+EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig_r gate ks kb")
 
 #: What the augmented KF predicts and updates with: as :data:`EkfModel` plus the segments'
 #: Gauss rules ``rule``, the input displacement and rate at the epochs ``ep_d`` (E, 2n), the
@@ -87,6 +88,7 @@ def ekf_model(model: VehicleModel, ctx: RunContext, filt) -> EkfModel:
         sig_r=float(filt.noise["range"]),
         gate=float(ctx.gate_nis),
         ks=int(filt.scale_index),
+        kb=int(filt.bias_index),
     )
 
 

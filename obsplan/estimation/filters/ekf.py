@@ -35,28 +35,28 @@ from obsplan.estimation.filters.base import Filter, FilterRun, register
 from obsplan.model.vehicle import VehicleModel
 
 
-def pad_scale(a: np.ndarray, var: float | None) -> np.ndarray:
-    """``a`` (m, m) with a last row and column for the range-scale state, zero but for the
-    diagonal ``var``; ``a`` itself when ``var`` is None.
+def pad_calibration(a: np.ndarray, variances: Sequence[float]) -> np.ndarray:
+    """``a`` (m, m) with a last row and column per range-calibration state (the scale, then the
+    bias), zero but for their diagonal ``variances``; ``a`` itself when there is none.
 
     Parameters
     ----------
     a : ndarray, shape (m, m)
         A covariance (or noise term) of the kinematic state.
-    var : float or None
-        The scale's entry.
+    variances : sequence of float
+        The calibration states' entries, in their order.
 
     Returns
     -------
-    ndarray, shape (m + 1, m + 1) or (m, m)
+    ndarray, shape (m + len(variances), m + len(variances))
         The padded matrix.
     """
-    if var is None:
+    if not len(variances):
         return a
-    m = a.shape[0]
-    out = np.zeros((m + 1, m + 1))
+    m, c = a.shape[0], len(variances)
+    out = np.zeros((m + c, m + c))
     out[:m, :m] = a
-    out[m, m] = var
+    out[m:, m:] = np.diag(np.asarray(variances, float))
     return out
 
 
@@ -80,6 +80,10 @@ class ExtendedKalmanFilter(Filter):
         With a value, the state gets a last entry ``k``, the range scale (``1 + s`` of a
         sound-speed error), constant, with prior ``N(1, scale_std²)``: the range row predicts
         ``k |p - b|`` (``½ k² |p - b|²`` half-squared). None (default): no scale state.
+    bias_std : float or None, optional
+        With a value [m], the state gets a last entry ``β``, a range bias (a clock offset's
+        ``c Δt``), constant, with prior ``N(0, bias_std²)``: the range row predicts
+        ``k |p - b| + β`` (``½ (k |p - b| + β)²`` half-squared). None (default): none.
     """
 
     name = "ekf"
@@ -93,21 +97,29 @@ class ExtendedKalmanFilter(Filter):
         noise: dict[str, float],
         second_order: bool = False,
         scale_std: float | None = None,
+        bias_std: float | None = None,
     ) -> None:
         self.model = model
         self.second_order = bool(second_order)
         n, m = model.dim, model.state_dim
         self.scale_std = None if scale_std is None else float(scale_std)
+        self.bias_std = None if bias_std is None else float(bias_std)
+        stds = [s for s in (self.scale_std, self.bias_std) if s is not None]
         #: the index of the range-scale state, -1 without one
         self.scale_index = -1 if scale_std is None else m
-        var = None if scale_std is None else float(scale_std) ** 2
-        self.p0 = pad_scale(np.array(p0, dtype=float), var)
-        self.state_dim = m + (scale_std is not None)
+        #: the index of the range-bias state, -1 without one
+        self.bias_index = -1 if bias_std is None else m + len(stds) - 1
+        #: the calibration states' nominal values (the scale's 1, the bias's 0), in their order
+        self.calibration_nominal = np.array(
+            [1.0] * (scale_std is not None) + [0.0] * (bias_std is not None)
+        )
+        self.p0 = pad_calibration(np.array(p0, dtype=float), [s * s for s in stds])
+        self.state_dim = m + len(stds)
         self.noise = dict(noise)
         self.q = np.asarray(q, float)
         terms = kalman.composed_noise_terms(self.q, n, model.current)
-        zero = None if var is None else 0.0  # the scale is constant: no process noise
-        self.q_terms = np.ascontiguousarray(np.stack([pad_scale(t, zero) for t in terms]))
+        zero = [0.0] * len(stds)  # the calibration is constant: no process noise
+        self.q_terms = np.ascontiguousarray(np.stack([pad_calibration(t, zero) for t in terms]))
         self.q_nav = kalman.nav_noise(self.q, n, model.current)
         self.transition = kalman.Transition.build(kalman.kinematic_entries(n, model.current))
         self.rows = kalman.linear_rows(model, self.noise, 0.0)
@@ -117,7 +129,8 @@ class ExtendedKalmanFilter(Filter):
     def from_config(
         cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
     ) -> ExtendedKalmanFilter:
-        """The EKF of ``config`` (``p0_ekf``, ``q_ekf``, noises, ``ekf_update``).
+        """The EKF of ``config`` (``p0_ekf``, ``q_ekf``, noises, ``ekf_update``, the range's
+        calibration states).
 
         Parameters
         ----------
@@ -135,8 +148,8 @@ class ExtendedKalmanFilter(Filter):
             The filter.
         """
         second = config.ekf_update == "second-order"
-        scale = config.scale_prior_std
-        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), second, scale)
+        scale, bias = config.scale_prior_std, config.bias_prior_std
+        return cls(config.model, pn.q_ekf, cov["p0_ekf"], dict(config.noise), second, scale, bias)
 
     def start(
         self, xhat0: np.ndarray, extra0: np.ndarray | None = None, r0: float | None = None
@@ -160,9 +173,7 @@ class ExtendedKalmanFilter(Filter):
         P0 : ndarray, shape (state_dim, state_dim)
             Initial covariance (the filter's ``p0``).
         """
-        x0 = np.array(xhat0, dtype=float)
-        if self.scale_index >= 0:
-            x0 = np.append(x0, 1.0)
+        x0 = np.append(np.asarray(xhat0, dtype=float), self.calibration_nominal)
         return x0, self.p0.copy()
 
     def run(self, batch: RunBatch, record: RunRecord) -> None:
@@ -318,5 +329,6 @@ class ExtendedKalmanFilter(Filter):
             mdl.gate,
             run.rg,
             mdl.ks,
+            mdl.kb,
         )
         run.updated = True

@@ -37,7 +37,7 @@ from obsplan.core.errors import ConfigError
 from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.config import EstimationConfig, ProcessNoise
 from obsplan.estimation.filters.base import Filter, FilterRun, register
-from obsplan.estimation.filters.ekf import ExtendedKalmanFilter, pad_scale
+from obsplan.estimation.filters.ekf import ExtendedKalmanFilter, pad_calibration
 from obsplan.model.vehicle import VehicleModel
 
 #: Points per velocity axis and component std (whitened) by dimension: 25 components in 2D,
@@ -115,8 +115,8 @@ class GaussianSumFilter(Filter):
         ``(points per velocity axis, component std)``; default :data:`DEFAULT_SPLIT`.
     second_order : bool, optional
         The components' range update (as for the EKF).
-    scale_std : float or None, optional
-        The components' range-scale state (as for the EKF; not split).
+    scale_std, bias_std : float or None, optional
+        The components' range-scale and range-bias states (as for the EKF; not split).
     """
 
     name = "gsf"
@@ -131,8 +131,9 @@ class GaussianSumFilter(Filter):
         split: tuple[int, float] | None = None,
         second_order: bool = False,
         scale_std: float | None = None,
+        bias_std: float | None = None,
     ) -> None:
-        self.ekf = ExtendedKalmanFilter(model, q, p0, noise, second_order, scale_std)
+        self.ekf = ExtendedKalmanFilter(model, q, p0, noise, second_order, scale_std, bias_std)
         self.model = model
         self.state_dim = self.ekf.state_dim
         k, s = DEFAULT_SPLIT[model.dim] if split is None else split
@@ -148,10 +149,12 @@ class GaussianSumFilter(Filter):
         self.log_weights = np.log(np.array(weights))
         shrink = 0.0 if len(w1) == 1 else 1.0 - s * s
         cov = np.asarray(p0, float) - shrink * (D @ D.T)
-        if scale_std is not None:  # the split is over the velocity: the scale is not split
-            self.offsets = np.hstack([self.offsets, np.zeros((self.offsets.shape[0], 1))])
-            cov = pad_scale(cov, float(scale_std) ** 2)
-        self.component_cov = cov
+        # the split is over the velocity: the range's calibration is not split
+        c = self.ekf.calibration_nominal.size
+        self.offsets = np.hstack([self.offsets, np.zeros((self.offsets.shape[0], c))])
+        self.component_cov = pad_calibration(
+            cov, list(np.diag(self.ekf.p0)[self.ekf.state_dim - c :])
+        )
 
     @classmethod
     def from_config(
@@ -175,8 +178,8 @@ class GaussianSumFilter(Filter):
             The filter.
         """
         second = config.ekf_update == "second-order"
-        noise, scale = dict(config.noise), config.scale_prior_std
-        return cls(config.model, pn.q_ekf, cov["p0_ekf"], noise, None, second, scale)
+        noise, scale, bias = dict(config.noise), config.scale_prior_std, config.bias_prior_std
+        return cls(config.model, pn.q_ekf, cov["p0_ekf"], noise, None, second, scale, bias)
 
     @property
     def components(self) -> int:
@@ -206,9 +209,7 @@ class GaussianSumFilter(Filter):
             Their log weights.
         """
         C = self.components
-        x0 = np.asarray(xhat0, float)
-        if self.ekf.scale_index >= 0:
-            x0 = np.append(x0, 1.0)
+        x0 = np.append(np.asarray(xhat0, float), self.ekf.calibration_nominal)
         X0 = x0[None, :] + self.offsets
         P0 = np.ascontiguousarray(
             np.broadcast_to(self.component_cov, (C, *self.component_cov.shape))

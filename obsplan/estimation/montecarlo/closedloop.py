@@ -73,7 +73,7 @@ GRID_RTOL = 1e-9
 NavPath = namedtuple(
     "NavPath",
     "h xplan nuplan uplan ep_of rec_of nxt tab qt tr lin qz beacon beacon_s n cur half_sq second "
-    "sig_r L expo scaled box has_box alim G rscale gate ks",
+    "sig_r L expo scaled box has_box alim G rscale gate ks kb",
 )
 NavGains = namedtuple("NavGains", "kp kd amax vmax kv truth")
 NavState = namedtuple("NavState", "pos X P c d dl Q Sp ws iw nw xm Pm lw w sc hp u nu sat vl")
@@ -235,15 +235,15 @@ class ClosedLoop:
             rscale=1.0 + self.config.channel.sound_speed_scale,
             gate=s.ctx.gate_nis,
             ks=int(f.scale_index),
+            kb=int(f.bias_index),
         )
 
     def _xplan(self) -> np.ndarray:
-        """The plan's states in the navigation filter's state: with a range-scale state its
-        nominal value 1 appended (the estimate is the plan plus the offset ``d``)."""
+        """The plan's states in the navigation filter's state: with range-calibration states
+        their nominal values appended (the estimate is the plan plus the offset ``d``)."""
         s = self.setup.states
-        if self.nav_filter.scale_index >= 0:
-            s = np.hstack([s, np.ones((s.shape[0], 1))])
-        return np.ascontiguousarray(s)
+        nom = self.nav_filter.calibration_nominal
+        return np.ascontiguousarray(np.hstack([s, np.broadcast_to(nom, (s.shape[0], nom.size))]))
 
     def _gains_bundle(self):
         g, n = self.guidance, self.config.model.dim
@@ -261,10 +261,10 @@ class ClosedLoop:
         x0 = s.states[0]
         err0 = np.stack([dr.err0 for dr in self._draws], axis=1)
         G = self.members
-        mf = self.nav_filter.state_dim  # m, or m + 1 with a range-scale state
-        if mf > m:  # the scale starts at its nominal 1: no offset
+        mf = self.nav_filter.state_dim  # m, plus the range's calibration states
+        if mf > m:  # the calibration starts at its nominal values: no offset
             err0 = np.vstack([err0, np.zeros((mf - m, R))])
-            x0 = np.append(x0, np.ones(mf - m))
+            x0 = np.append(x0, self.nav_filter.calibration_nominal)
         if self.nav_mixture is None:
             X0 = x0[:, None] + err0
             P0 = np.repeat(np.asarray(self.nav_filter.p0, float)[:, :, None], R, axis=2)

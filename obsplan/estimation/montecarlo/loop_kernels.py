@@ -136,6 +136,7 @@ def nav_measure(pt, gn, st, io, k, e):
         pt.gate,
         io.rg,
         pt.ks,
+        pt.kb,
     )
     for g in range(R):  # the estimate's offset: its mixture's mean (one member: w = 1 exactly)
         mixture_weights(st.lw, st.w, g, G)

@@ -617,10 +617,11 @@ def _check_channel(val: ValidationSpec) -> None:
                 channel_preset("ideal", **{name: v})
             except ConfigError as exc:
                 raise field_error(f"validation.{key}", str(exc).split(" ", 2)[-1]) from None
-    if val.scale_state not in ("auto", "on", "off"):
-        raise field_error(
-            "validation.scale_state", f'must be "auto", "on" or "off", got {val.scale_state!r}'
-        )
+    for f in ("scale_state", "bias_state"):
+        if getattr(val, f) not in ("auto", "on", "off"):
+            raise field_error(
+                f"validation.{f}", f'must be "auto", "on" or "off", got {getattr(val, f)!r}'
+            )
     g = val.gate
     if isinstance(g, str) and g not in ("auto", "off") or not isinstance(g, str) and not 0 < g < 1:
         raise field_error(

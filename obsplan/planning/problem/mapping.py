@@ -608,7 +608,7 @@ def _validation_to_dict(val: ValidationSpec) -> dict[str, Any]:
     for f in val.__dataclass_fields__:
         v = getattr(val, f)
         new_field = (
-            f in ("channel", "gate", "scale_state", "stress_channel", "range_times")
+            f in ("channel", "gate", "scale_state", "bias_state", "stress_channel", "range_times")
             or f in CHANNEL_KEYS
         )
         if new_field and v == getattr(ValidationSpec, f):

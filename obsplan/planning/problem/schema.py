@@ -934,6 +934,15 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "not ideal).",
         ),
         FieldSpec(
+            "bias_state",
+            "str",
+            "auto",
+            "-",
+            "A range-bias state (a clock offset, prior std 3 m) in the EKF and the Gaussian sum "
+            '(the augmented KF has none): "on", "off", or "auto" (on when the channel has a '
+            "clock offset).",
+        ),
+        FieldSpec(
             "range_times",
             "str",
             _NONE,

@@ -244,6 +244,7 @@ class ValidationSpec:
     gate: float | str = "auto"
     scale_state: str = "auto"
     range_times: str | None = None
+    bias_state: str = "auto"
 
     def channel_model(self) -> Channel:
         """The acoustic channel of the validation: the preset ``channel`` with the

@@ -37,8 +37,9 @@ def estimation_config(
     ``dt``), or ``"paper-per-step"``, the paper's ``Q`` per filter step of ``dt``; the EKF's
     range update ``validation.ekf_update``; the acoustic channel of the truth
     (``validation.channel`` and its ``channel_*`` fields), the filters' range gate
-    (``validation.gate``) and range-scale state (``validation.scale_state``). Used by the
-    validation and by the planning objectives (which read none of the last three).
+    (``validation.gate``) and range-calibration states (``validation.scale_state``,
+    ``validation.bias_state``). Used by the validation and by the planning objectives (which
+    read none of the last four).
 
     A moving beacon: ``beacon_path``, or the known path of ``beacon.motion = "path"``
     (:attr:`~obsplan.planning.problem.sections.ProblemData.beacon_path`), becomes the
@@ -101,6 +102,7 @@ def estimation_config(
         channel=val.channel_model(),
         gate=val.gate,
         scale_state=val.scale_state,
+        bias_state=val.bias_state,
         **noise_model,
     )
 
@@ -109,7 +111,8 @@ def channel_dict(pb: PlanningProblem) -> dict:
     """``report.json``'s ``validation.channel``: the acoustic channel of the validation's truth
     (its ``name`` and fields, :meth:`Channel.to_dict
     <obsplan.estimation.channel.Channel.to_dict>`), the filters' range ``gate`` (its
-    confidence; None: no gate) and whether they carry a range-scale state (``scale_state``).
+    confidence; None: no gate) and whether they carry a range-scale state (``scale_state``) and a
+    range-bias state (``bias_state``).
 
     Parameters
     ----------
@@ -124,12 +127,17 @@ def channel_dict(pb: PlanningProblem) -> dict:
     val = pb.validation
     channel = val.channel_model()
     cfg = EstimationConfig(
-        model=pb.model, channel=channel, gate=val.gate, scale_state=val.scale_state
+        model=pb.model,
+        channel=channel,
+        gate=val.gate,
+        scale_state=val.scale_state,
+        bias_state=val.bias_state,
     )
     return {
         **channel.to_dict(),
         "gate": cfg.gate_probability,
         "scale_state": cfg.scale_prior_std is not None,
+        "bias_state": cfg.bias_prior_std is not None,
     }
 
 
