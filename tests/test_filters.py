@@ -35,7 +35,7 @@ import pytest
 from obsplan.core.errors import ConfigError
 from obsplan.estimation import EstimationConfig
 from obsplan.estimation.batch import RunBatch, RunRecord
-from obsplan.estimation.channel import SCALE_PRIOR_STD
+from obsplan.estimation.channel import BIAS_PRIOR_STD_M, SCALE_PRIOR_STD
 from obsplan.estimation.columns import N_INFO
 from obsplan.estimation.filters.base import REGISTRY, Filter, make_filter
 from obsplan.estimation.filters.gsf import GaussianSumFilter
@@ -249,7 +249,7 @@ def ref_gsf(filt, traj, cfg, setup, Y, states):
 
 def ref_kf(filt, traj, cfg, setup, Y, states):
     model, n = cfg.model, cfg.model.dim
-    mx, m, ks = model.state_dim, filt.state_dim, filt.scale_index
+    mx, m, ks, kb = model.state_dim, filt.state_dim, filt.scale_index, filt.bias_index
     s = cfg.noise["range"]
     qk = setup.noise.q_kf
     assert not np.any(qk[mx:]) and not np.any(qk[:, mx:])  # no noise on (α, β): none on the chain
@@ -286,6 +286,16 @@ def ref_kf(filt, traj, cfg, setup, Y, states):
                     H[ks] = A
                     nu = ym - (1.0 + z[ks]) * A - pga
                     R += P[ks, ks] * paa + pga**2
+                if kb >= 0:  # + β (R_t - R_0), linearised (module kf, "A range bias")
+                    W = (H[:n] @ z[:n] + H[mx] * z[mx]) - (1.0 + (z[ks] if ks >= 0 else 0.0)) * (
+                        0.5 * d @ d
+                    )
+                    beta = z[kb]
+                    R0 = np.sqrt(2 * y0 + s * s) - beta
+                    Rt = np.sqrt(R0**2 + 2 * W)
+                    H = (1.0 + beta / Rt) * H
+                    H[kb] = Rt - R0 + beta * (1.0 - R0 / Rt)
+                    nu -= beta * (Rt - R0)
                 rows.append(H)
                 nus.append(nu)
                 Rs.append(R)
@@ -393,6 +403,39 @@ def test_kf_scale_state_matches_its_reference(case_name):
     # within 4 of its posterior stds
     c, sc = X[mx + 3], np.sqrt(P[mx + 3, mx + 3])
     assert np.all(np.abs(c) < 4 * sc) and np.all(sc < 2 * SCALE_PRIOR_STD)
+
+
+@pytest.mark.parametrize("scale_state", ["off", "on"])
+@pytest.mark.parametrize("case_name", CASES)
+def test_kf_bias_state_matches_its_reference(case_name, scale_state):
+    """The augmented KF with a range-bias state ``β_r`` (the row's entry ``r_m - r_0``, exact
+    for the difference of the squared ranges; module kf, "A range bias"), alone and after a
+    scale state, on ranges 2 m long (the anchor's too), batch and epoch by epoch, against the
+    numpy recursion; the bias's estimate is consistent with the 2 m."""
+    traj, cfg, setup, Y, truth, starts = _case(case_name, scale_state=scale_state, bias_state="on")
+    Y = Y.copy()
+    Y[:, 0, :] += 2.0
+    starts = [(x0, extra0, Y[0, 0, r]) for r, (x0, extra0, _) in enumerate(starts)]
+    f = setup.filters["kf"]
+    mx, kb = cfg.model.state_dim, f.bias_index
+    assert f.state_dim == mx + 4 + (scale_state == "on") and kb == f.state_dim - 1
+    states = [f.start(*st) for st in starts]
+    P0 = states[0][1]
+    assert P0[kb, kb] == pytest.approx(BIAS_PRIOR_STD_M**2) and not np.any(P0[kb, :kb])
+    assert states[0][0][kb] == 0.0
+    hists, finals = ref_kf(f, traj, cfg, setup, Y, states)
+    rec = setup.records
+    n2 = 2 * cfg.model.dim
+    sums, ex = np.zeros((2, rec.size, 3 + n2)), np.zeros((2, rec.size, n2))
+    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, np.zeros((RUNS, N_INFO)), 0, ex))
+    close(ex[0], np.array([hists[0][k][0] for k in rec]), "kf batch estimate")
+    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
+    X, P = f.state(run), f.covariance(run)
+    for r, (x_ref, P_ref) in enumerate(finals):
+        close(X[:, r], x_ref, f"kf state, run {r}")
+        close(P[:, :, r], P_ref, f"kf covariance, run {r}")
+    assert np.all(np.abs(X[kb] - 2.0) < 4 * np.sqrt(P[kb, kb]))
+    assert np.all(np.sqrt(P[kb, kb]) < BIAS_PRIOR_STD_M)
 
 
 SECOND_ORDER = [(c, f) for c in CASES for f in ("half-squared", "range")]

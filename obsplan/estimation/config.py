@@ -345,14 +345,10 @@ class EstimationConfig:
         ``"auto"`` (default) adds it when the channel is not ideal (ranges at sea have an
         unknown sound speed), never on the ideal channel (whose numbers stay those of before).
     bias_state : "auto", "on" or "off", optional
-        A range-bias state in the EKF and the Gaussian sum (a clock offset estimated, prior std
-        :data:`~obsplan.estimation.channel.BIAS_PRIOR_STD_M`): ``"auto"`` (default) adds it
-        when the channel has a clock offset. The augmented KF has none: its row is the squared
-        range, in which a bias enters times the range itself (``(r + β)²``); exactly,
-        ``y - y0 = A + β (r_m - r_0)``, but with the *measured* ``r_m - r_0`` as the coefficient
-        the reading's noise is in both sides, and where the range's change is explained by the
-        KF's other states the estimate of ``β`` is biased (errors in variables;
-        docs/validation.md). With a clock offset the KF filters the biased ranges as they come.
+        A range-bias state in the EKF, the Gaussian sum and the augmented KF (a clock offset
+        estimated, prior std :data:`~obsplan.estimation.channel.BIAS_PRIOR_STD_M`; the KF's
+        row :mod:`obsplan.estimation.filters.kf`, "A range bias"): ``"auto"`` (default) adds
+        it when the channel has a clock offset.
     range_times : ndarray or None, optional
         A ping schedule [s, on the path's clock: from the mission's start for a plan], strictly
         increasing (e.g. the range times of a logged mission): the ranges report there (the

@@ -1676,10 +1676,47 @@ def kf_scale_row(P, ws, n, b, kc, ks, A, g1):
     return g1 * A + pga, P[ks, ks, b] * paa + pga * pga
 
 
+@inline
+def kf_bias_row(X, ws, nnz, b, kb, wp, y0, var_r):
+    """Run ``b``'s KF range row with the range-bias state ``β = X[kb, b]`` (module kf, "A range
+    bias"): the prediction ``W + β (R_t - R_0)`` with ``R_0 = r_0 - β`` (``r_0`` from the anchor
+    ``y0 = ½ r_0² - ½ σ²``) and ``R_t = sqrt(R_0² + 2 W)``, linearised at the prior: the row on
+    ``W``'s states (``ws[WS_VAL, :nnz - 1, b]`` on entry) times ``1 + β/R_t``, and on ``β``
+    ``R_t - R_0 + β (1 - R_0/R_t)``.
+
+    Parameters
+    ----------
+    X : ndarray, shape (m, R)
+        The runs' priors.
+    ws : ndarray
+        Workspace: the row on ``W``'s states; receives the whole row.
+    nnz, b, kb : int
+        The row's entries (the bias's last), the run, the bias's index.
+    wp : float
+        ``W`` at the prior [m²] (``½ R_t² - ½ R_0²`` of the unbiased ranges).
+    y0, var_r : float
+        The anchor [m²] and the range noise variance [m²].
+
+    Returns
+    -------
+    float
+        ``β (R_t - R_0)``, what the bias adds to the prediction [m²].
+    """
+    beta = X[kb, b]
+    r0 = math.sqrt(max(2.0 * y0 + var_r, 0.0)) - beta
+    rt = math.sqrt(max(r0 * r0 + 2.0 * wp, 1e-12 * (1.0 + r0 * r0)))
+    fac = 1.0 + beta / rt
+    for i in range(nnz - 1):
+        ws[WS_VAL, i, b] *= fac
+    ws[WS_VAL, nnz - 1, b] = rt - r0 + beta * (1.0 - r0 / rt)
+    return beta * (rt - r0)
+
+
 @inline  # inlined in kf_batch (no per-epoch bundle passing); compiled alone from Python
 def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
     """The augmented KF's updates at epoch ``e`` (the linear range row ``ȳ``, bilinear with a
-    scale state ``mdl.ks``, :func:`kf_scale_row`; then the linear rows) of every run, and their
+    scale state ``mdl.ks``, :func:`kf_scale_row`, with the entry ``r_m - r_0`` on a range-bias
+    state ``mdl.kb`` (module kf, "A range bias"); then the linear rows) of every run, and their
     NIS; epoch 0 is the anchor ``y0`` (``ȳ_0 ≡ 0``). The range gate is late-arrival aware as
     the EKF's (:func:`gate_rows`; a late range is long in ``ȳ`` too, by about ``r`` times its
     excess).
@@ -1707,8 +1744,8 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
     """
     n, ep_d, ce, y0, var0 = mdl.n, mdl.ep_d, cor.ce, anc.y0, anc.var0
     var_r = mdl.sig_r * mdl.sig_r
-    kc, ks = mdl.kc, mdl.ks
-    nnz = n + 2 if ks >= 0 else n + 1
+    kc, ks, kb = mdl.kc, mdl.ks, mdl.kb
+    nnz = n + 1 + (ks >= 0) + (kb >= 0)
     B = X.shape[1]
     corr = ce.shape[0] > 0
     for b in range(B):
@@ -1722,6 +1759,8 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
         iw[n] = kc
         if ks >= 0:
             iw[n + 1] = ks
+        if kb >= 0:
+            iw[nnz - 1] = kb
         any_ok = False
         for b in range(B):
             rm = Y[e, 0, b]
@@ -1737,10 +1776,14 @@ def kf_measure(X, P, Y, e, iw, ws, mdl, anc, cor, run_nis, run_cnt, rg):
             r = rm * rm * var_r + 0.5 * var_r * var_r + (var0[b] if mdl.inflate else 0.0)
             ym = 0.5 * rm * rm - 0.5 * var_r - y0[b]  # the measured y - y0
             nu = ym + 0.5 * d2 - pred
+            wp = pred - 0.5 * d2  # W = A, or (1 + g) A with the scale state
             if ks >= 0:
-                mean, dvar = kf_scale_row(P, ws, n, b, kc, ks, pred - 0.5 * d2, 1.0 + X[ks, b])
+                mean, dvar = kf_scale_row(P, ws, n, b, kc, ks, wp, 1.0 + X[ks, b])
                 nu = ym - mean
                 r += dvar
+                wp *= 1.0 + X[ks, b]
+            if kb >= 0:
+                nu -= kf_bias_row(X, ws, nnz, b, kb, wp, y0[b], var_r)
             ws[WS_SC, SC_NU, b] = nu if ok else 0.0
             ws[WS_SC, SC_R, b] = r if ok else 1.0
             ws[WS_SC, SC_OK, b] = 1.0 if ok else 0.0

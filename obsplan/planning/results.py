@@ -637,19 +637,12 @@ def channel_lines(pb: PlanningProblem, validation: Mapping[str, PathValidation])
     info = channel_dict(pb)
     gate = "no gate" if info["gate"] is None else f"gate at {info['gate']:g}"
     scale = ", a range-scale state" if info["scale_state"] else ""
-    scale += ", a range-bias state in the EKF and the Gaussian sum" if info["bias_state"] else ""
+    scale += ", a range-bias state" if info["bias_state"] else ""
     lines = [
         f"channel {channel.name}: {channel.describe()}, unknown to the filters ({gate}{scale}); "
         "per run, ranges used / rejected, and runs lost (final error > "
         f"{LOST_FACTOR:g}x the bound):"
     ]
-    if channel.clock_offset_s and any(
-        "kf" in (v.result.filters or {}) for v in validation.values()
-    ):
-        lines[0] += (
-            " the augmented KF has no range-bias state (a bias enters its squared range times "
-            "the range): the clock offset biases it"
-        )
     for name, v in validation.items():
         cells = []
         for f in v.result.filters or {}:

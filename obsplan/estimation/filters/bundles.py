@@ -33,10 +33,10 @@ EkfModel = namedtuple("EkfModel", "tab qt tr lin n cur beacon half_sq second sig
 #: Gauss rules ``rule``, the input displacement and rate at the epochs ``ep_d`` (E, 2n), the
 #: full augmented noise ``qk``, whether it is diagonal ``qdiag``, the coupling switch
 #: ``couple`` and ``inflate`` (``y0_mode="inflate"``), the index ``kc`` of the first chain state
-#: and ``ks`` of the range-scale state (-1: none). With a moving beacon ``tab`` and ``ep_d`` are
-#: the relative motion's (:func:`kf_relative`).
+#: ``ks`` of the range-scale state and ``kb`` of the range-bias state (-1: none). With a moving
+#: beacon ``tab`` and ``ep_d`` are the relative motion's (:func:`kf_relative`).
 KfModel = namedtuple(
-    "KfModel", "tab rule ep_d qt qk qdiag couple tr lin n cur beacon sig_r inflate gate kc ks"
+    "KfModel", "tab rule ep_d qt qk qdiag couple tr lin n cur beacon sig_r inflate gate kc ks kb"
 )
 
 #: The KF's anchors per run: ``y0`` (R,) and their variances ``var0`` (R,).
@@ -133,6 +133,7 @@ def kf_model(model: VehicleModel, ctx: RunContext, filt) -> KfModel:
         gate=float(ctx.gate_nis),
         kc=int(model.state_dim),
         ks=int(filt.scale_index),
+        kb=int(filt.bias_index),
     )
 
 

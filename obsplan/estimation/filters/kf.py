@@ -79,6 +79,26 @@ where the path manoeuvres, as the EKF's scale state. Using the *measured* ``y - 
 coefficient of a linear scale row instead would keep the filter linear but correlate that
 coefficient with the reading's own noise (an errors-in-variables bias of ``g`` towards
 ``-1``, large on short noisy runs).
+
+A range bias
+------------
+A clock offset adds ``β_r`` to every range, the anchor's too: ``r_m = k r + β_r + ε``. With the
+scaled true ranges ``R_t = k r(t)``, ``R_0 = k r(t_0)`` the measured ``y - y0 = ½ r_m² - ½ r_0²``
+(``r_0`` the anchor's reading) is
+
+    y - y0 = W + β_r (R_t - R_0) + (R_t + β_r) ε + ...,     W = ½ R_t² - ½ R_0² = (1 + g) A
+
+(exactly: ``½ (R + β_r)² = ½ R² + β_r R + ½ β_r²``, the ``½ β_r²`` cancels in the difference), and
+``R_0 = r_0 - β_r`` (the anchor's noise left out), ``R_t = sqrt(R_0² + 2 W)``. The row is
+linearised at the prior as the EKF's: on ``W``'s states the row above times ``1 + β̂_r/R_t``, on
+``β_r`` ``R_t - R_0 + β̂_r (1 - R_0/R_t)``, the prediction adds ``β̂_r (R_t - R_0)``; the reading's
+variance is unchanged (the noise's coefficient ``R_t + β_r`` is the measured range). ``β_r`` is the
+filter's last state, constant, with prior ``N(0, σ_β²)``. The exact identity
+``y - y0 = W + β_r (r_m - r_0)`` would keep the row linear, but its coefficient ``r_m - r_0``
+carries the reading's own noise: where the chain's free polynomial explains the range's
+change, what is left of the coefficient is that noise, correlated with the reading's, and the
+estimate of ``β_r`` is biased by a sizeable fraction of the range (errors in variables), so the
+predicted ``R_t - R_0`` is used instead.
 """
 
 from __future__ import annotations
@@ -140,6 +160,10 @@ class AugmentedKalmanFilter(Filter):
         With a value, the state gets a last entry ``g = k² - 1`` of the range scale ``k``
         (``1 + s`` of a sound-speed error), constant, with prior ``N(0, (2 scale_std)²)``
         (module docstring, "A sound-speed scale"). None (default): no scale state.
+    bias_std : float or None, optional
+        With a value [m], the state gets a last entry ``β_r``, a range bias (a clock offset's
+        ``c Δt``), constant, with prior ``N(0, bias_std²)`` (module docstring, "A range bias").
+        None (default): none.
     """
 
     name = "kf"
@@ -154,6 +178,7 @@ class AugmentedKalmanFilter(Filter):
         y0_mode: Y0Mode = "augment",
         coupling: bool = True,
         scale_std: float | None = None,
+        bias_std: float | None = None,
     ) -> None:
         self.model = model
         self.p0 = np.array(p0, dtype=float)
@@ -163,7 +188,11 @@ class AugmentedKalmanFilter(Filter):
         self.scale_g_std = None if scale_std is None else 2.0 * float(scale_std)
         #: the index of the scale state ``g``, -1 without one
         self.scale_index = -1 if scale_std is None else mx + 3
-        self.state_dim = mx + 3 + (scale_std is not None)
+        #: the prior std [m] of the range-bias state, None: none
+        self.bias_std = None if bias_std is None else float(bias_std)
+        self.state_dim = mx + 3 + (scale_std is not None) + (bias_std is not None)
+        #: the index of the range-bias state, -1 without one
+        self.bias_index = -1 if bias_std is None else self.state_dim - 1
         self.noise = dict(noise)
         self.y0_mode = y0_mode
         self.coupling = bool(coupling)
@@ -190,7 +219,7 @@ class AugmentedKalmanFilter(Filter):
         cls, config: EstimationConfig, cov: dict[str, np.ndarray], pn: ProcessNoise
     ) -> AugmentedKalmanFilter:
         """The augmented KF of ``config`` (``p0_kf``, ``q_kf``, ``y0_mode``, ``kf_coupling``,
-        ``scale_prior_std``).
+        ``scale_prior_std``, ``bias_prior_std``).
 
         Parameters
         ----------
@@ -215,11 +244,13 @@ class AugmentedKalmanFilter(Filter):
             config.y0_mode,
             config.kf_coupling,
             config.scale_prior_std,
+            config.bias_prior_std,
         )
 
     def to_chain(self, mz: int) -> np.ndarray:
         """``M`` with ``z_chain(t0) = M (p - b, v[, v_f], α, β)``: ``φ = α``, ``γ = ½β``, ``κ = 0``
-        (the anchor's variance is added to ``κ`` by :meth:`start`; a scale state's row is zero).
+        (the anchor's variance is added to ``κ`` by :meth:`start`; the scale's and the bias's
+        rows are zero).
 
         Parameters
         ----------
@@ -290,6 +321,8 @@ class AugmentedKalmanFilter(Filter):
             P[mx, mx] += float(var0)
         if self.scale_g_std is not None:
             P[self.scale_index, self.scale_index] = self.scale_g_std**2
+        if self.bias_std is not None:
+            P[self.bias_index, self.bias_index] = self.bias_std**2
         return M @ zp, kalman.symmetrize(P), float(y0), float(var0)
 
     def run(self, batch: RunBatch, record: RunRecord) -> None:

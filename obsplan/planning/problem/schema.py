@@ -938,9 +938,9 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "str",
             "auto",
             "-",
-            "A range-bias state (a clock offset, prior std 3 m) in the EKF and the Gaussian sum "
-            '(the augmented KF has none): "on", "off", or "auto" (on when the channel has a '
-            "clock offset).",
+            "A range-bias state (a clock offset, prior std 3 m) in the EKF, the Gaussian sum "
+            'and the augmented KF: "on", "off", or "auto" (on when the channel has a clock '
+            "offset).",
         ),
         FieldSpec(
             "range_times",
