@@ -374,6 +374,25 @@ def test_filter_matches_its_reference(case, name):
         close(P[:, :, r], P_ref, f"{name} covariance, run {r}")
 
 
+def _matches_reference(name, f, traj, cfg, setup, Y, truth, states):
+    """Filter ``f`` (registered as ``name``) batch and epoch by epoch against its numpy
+    reference on the readings ``Y``: run 0's estimate and std at the records, every run's
+    final state and covariance; returns the filter's final ``(X, P)``."""
+    hists, finals = REFERENCES[name](f, traj, cfg, setup, Y, states)
+    rec = setup.records
+    n2 = 2 * cfg.model.dim
+    sums, ex = np.zeros((2, rec.size, 3 + n2)), np.zeros((2, rec.size, n2))
+    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, np.zeros((RUNS, N_INFO)), 0, ex))
+    close(ex[0], np.array([hists[0][k][0] for k in rec]), f"{name} batch estimate")
+    close(ex[1], np.array([np.sqrt(np.diag(hists[0][k][1])) for k in rec]), f"{name} std")
+    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
+    X, P = f.state(run), f.covariance(run)
+    for r, (x_ref, P_ref) in enumerate(finals):
+        close(X[:, r], x_ref, f"{name} state, run {r}")
+        close(P[:, :, r], P_ref, f"{name} covariance, run {r}")
+    return X, P
+
+
 @pytest.mark.parametrize("case_name", CASES)
 def test_kf_scale_state_matches_its_reference(case_name):
     """The augmented KF with a range-scale state ``g = k² - 1`` (the bilinear row ``(1 + g) A``
@@ -387,18 +406,7 @@ def test_kf_scale_state_matches_its_reference(case_name):
     P0 = states[0][1]
     assert P0[mx + 3, mx + 3] == pytest.approx((2 * SCALE_PRIOR_STD) ** 2)
     assert not np.any(P0[mx + 3, : mx + 3]) and states[0][0][mx + 3] == 0.0
-    hists, finals = ref_kf(f, traj, cfg, setup, Y, states)
-    rec = setup.records
-    n2 = 2 * cfg.model.dim
-    sums = np.zeros((2, rec.size, 3 + n2))
-    ex = np.zeros((2, rec.size, n2))
-    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, np.zeros((RUNS, N_INFO)), 0, ex))
-    close(ex[0], np.array([hists[0][k][0] for k in rec]), "kf batch estimate")
-    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
-    X, P = f.state(run), f.covariance(run)
-    for r, (x_ref, P_ref) in enumerate(finals):
-        close(X[:, r], x_ref, f"kf state, run {r}")
-        close(P[:, :, r], P_ref, f"kf covariance, run {r}")
+    X, P = _matches_reference("kf", f, traj, cfg, setup, Y, truth, states)
     # the readings are unscaled: the scale's estimate stays near 0 (g = k² - 1 at k = 1),
     # within 4 of its posterior stds
     c, sc = X[mx + 3], np.sqrt(P[mx + 3, mx + 3])
@@ -423,17 +431,7 @@ def test_kf_bias_state_matches_its_reference(case_name, scale_state):
     P0 = states[0][1]
     assert P0[kb, kb] == pytest.approx(BIAS_PRIOR_STD_M**2) and not np.any(P0[kb, :kb])
     assert states[0][0][kb] == 0.0
-    hists, finals = ref_kf(f, traj, cfg, setup, Y, states)
-    rec = setup.records
-    n2 = 2 * cfg.model.dim
-    sums, ex = np.zeros((2, rec.size, 3 + n2)), np.zeros((2, rec.size, n2))
-    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, np.zeros((RUNS, N_INFO)), 0, ex))
-    close(ex[0], np.array([hists[0][k][0] for k in rec]), "kf batch estimate")
-    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
-    X, P = f.state(run), f.covariance(run)
-    for r, (x_ref, P_ref) in enumerate(finals):
-        close(X[:, r], x_ref, f"kf state, run {r}")
-        close(P[:, :, r], P_ref, f"kf covariance, run {r}")
+    X, P = _matches_reference("kf", f, traj, cfg, setup, Y, truth, states)
     assert np.all(np.abs(X[kb] - 2.0) < 4 * np.sqrt(P[kb, kb]))
     assert np.all(np.sqrt(P[kb, kb]) < BIAS_PRIOR_STD_M)
 
@@ -499,19 +497,7 @@ def test_ekf_calibration_states_match_their_reference(
     assert (ks >= 0, kb >= 0) == (scale == "on", bias == "on")
     assert ekf.state_dim == mx + (ks >= 0) + (kb >= 0) and max(ks, kb) == ekf.state_dim - 1
     assert ekf.second_order == (ekf_update == "second-order")
-    states = [f.start(*st) for st in starts]
-    hists, finals = REFERENCES[name](f, traj, cfg, setup, Y, states)
-    rec = setup.records
-    n2 = 2 * cfg.model.dim
-    sums, ex = np.zeros((2, rec.size, 3 + n2)), np.zeros((2, rec.size, n2))
-    f.run(RunBatch(setup.ctx, states, Y), RunRecord(truth, sums, np.zeros((RUNS, N_INFO)), 0, ex))
-    close(ex[0], np.array([hists[0][k][0] for k in rec]), f"{name} batch estimate")
-    close(ex[1], np.array([np.sqrt(np.diag(hists[0][k][1])) for k in rec]), f"{name} std")
-    run = f.filter_all(f.begin(RunBatch(setup.ctx, states, Y)))
-    X, P = f.state(run), f.covariance(run)
-    for r, (x_ref, P_ref) in enumerate(finals):
-        close(X[:, r], x_ref, f"{name} state, run {r}")
-        close(P[:, :, r], P_ref, f"{name} covariance, run {r}")
+    _matches_reference(name, f, traj, cfg, setup, Y, truth, [f.start(*st) for st in starts])
 
 
 @pytest.mark.parametrize("range_form", ["half-squared", "range"])
