@@ -78,6 +78,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         help="what the dv* columns measure: bottom-track v + current (default) or water-track v",
     )
     p.add_argument("--current", action="store_true", help="estimate an unknown constant current")
+    p.add_argument(
+        "--scale-state",
+        action="store_true",
+        help="estimate the ranges' scale (a sound-speed error; prior std 2 %%)",
+    )
+    p.add_argument(
+        "--bias-state",
+        action="store_true",
+        help="estimate a range bias (a clock offset; prior std 3 m)",
+    )
     for opt, unit, default in (
         ("--range-std", "m", DEFAULT_RANGE_STD),
         ("--dvl-std", "m/s", DEFAULT_DVL_STD),
@@ -163,6 +173,8 @@ def _config(args: argparse.Namespace, dim: int) -> ReplayConfig:
         init_velocity=_vector(args.init_velocity, dim, "--init-velocity"),
         init_velocity_std=args.init_velocity_std,
         current=args.current,
+        scale_state=args.scale_state,
+        bias_state=args.bias_state,
         gate_probability=args.gate,
         reacquire_after=args.reacquire_after or None,
         beacon=parse_beacon(args.beacon, dim),

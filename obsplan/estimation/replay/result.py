@@ -15,6 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from obsplan.core.errors import ConfigError
+from obsplan.estimation.channel import SOUND_SPEED
 
 #: The figures of :meth:`ReplayResult.plot`, by kind.
 PLOT_KINDS = ("track", "ranges")
@@ -29,7 +30,8 @@ class ReplayResult:
     t : ndarray, shape (N,)
         Row times [s].
     state_names : tuple of str
-        Names of the ``m`` states (``px, py, vx, vy[, vfx, vfy]``).
+        Names of the ``m`` states (``px, py, vx, vy[, vfx, vfy][, range_scale][, range_bias]``:
+        the range's calibration states last, when the replay estimated them).
     dim : int
         Spatial dimension ``n``.
     sensors : tuple of str
@@ -100,6 +102,25 @@ class ReplayResult:
         return int(np.count_nonzero(self.inflation > 1.0))
 
     # ------------------------------------------------------------------ statistics
+    @property
+    def calibration(self) -> dict[str, dict[str, float]]:
+        """The range's calibration states the replay estimated (constant: the smoothed values):
+        ``{"range_scale": {"estimate", "std"}, "range_bias_m": {...}}``, each only when
+        estimated; empty otherwise.
+
+        Returns
+        -------
+        dict of str to dict of str to float
+            The scale (dimensionless) and the bias [m], with their standard deviations.
+        """
+        out = {}
+        for state, key in (("range_scale", "range_scale"), ("range_bias", "range_bias_m")):
+            if state in self.state_names:
+                i = self.state_names.index(state)
+                est, var = self.x_smooth[-1, i], self.P_smooth[-1, i, i]
+                out[key] = {"estimate": float(est), "std": float(np.sqrt(max(var, 0.0)))}
+        return out
+
     def std(self, which: str = "smoothed") -> np.ndarray:
         """Standard deviation of every state at every row.
 
@@ -183,7 +204,8 @@ class ReplayResult:
         dict
             ``rows``, ``dim``, ``sensors``, ``ranges`` (total, used, rejected,
             reacquisitions), ``gate`` (probability, nis), ``final_pos_std`` [m] (smoothed and
-            filtered) and, with truth, ``rmse_pos`` [m] (smoothed and filtered).
+            filtered), with truth ``rmse_pos`` [m] (smoothed and filtered), and with the
+            range's calibration states ``calibration`` (:attr:`calibration`).
         """
         n = self.dim
         out: dict = {
@@ -205,6 +227,8 @@ class ReplayResult:
         }
         if self.truth is not None:
             out["rmse_pos"] = {w: self.rmse(w) for w in ("smoothed", "filtered")}
+        if self.calibration:
+            out["calibration"] = self.calibration
         return out
 
     def summary(self) -> str:
@@ -225,6 +249,22 @@ class ReplayResult:
             f"  final position std: smoothed {d['final_pos_std']['smoothed']:.3g} m, filtered "
             f"{d['final_pos_std']['filtered']:.3g} m",
         ]
+        cal = d.get("calibration", {})
+        if cal:
+            said = []
+            if "range_scale" in cal:
+                k = cal["range_scale"]
+                said.append(
+                    f"scale {k['estimate']:.4f} ± {k['std']:.4f} (a sound speed "
+                    f"{100 * (k['estimate'] - 1):+.2f} % off)"
+                )
+            if "range_bias_m" in cal:
+                b = cal["range_bias_m"]
+                said.append(
+                    f"bias {b['estimate']:+.2f} ± {b['std']:.2f} m (a clock offset of "
+                    f"{1e3 * b['estimate'] / SOUND_SPEED:+.2f} ms)"
+                )
+            lines.append("  ranges' " + ", ".join(said) + " (smoothed, 1σ)")
         if "rmse_pos" in d:
             e = d["rmse_pos"]
             lines.append(

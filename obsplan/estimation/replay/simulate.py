@@ -94,6 +94,8 @@ def simulate_log(
     outlier_fraction: float = 0.0,
     outlier_excess: tuple[float, float] = (2.0, 30.0),
     dropout: float = 0.0,
+    range_scale: float = 0.0,
+    range_bias: float = 0.0,
     seed: int = 0,
 ) -> SimulatedLog:
     """Fly ``traj`` with process noise and log it (module docstring).
@@ -127,6 +129,10 @@ def simulate_log(
         Bounds of an outlier's excess range [m].
     dropout : float, optional
         Probability that a range is lost, in [0, 1].
+    range_scale : float, optional
+        Relative error ``s`` of the sound speed: every range scaled by ``1 + s``, in (-0.5, 0.5).
+    range_bias : float, optional
+        Bias of every range [m] (a clock offset's ``c Δt``).
     seed : int, optional
         Seed of the generator (every random draw comes from it).
 
@@ -156,7 +162,10 @@ def simulate_log(
     b = _beacon(beacon, t, is_range, n)
     ranges = np.full(N, np.nan)
     r_true = np.linalg.norm(p[is_range] - b[is_range], axis=1)
-    ranges[is_range] = r_true + range_std * rng.standard_normal(r_true.size)
+    if not -0.5 < range_scale < 0.5:
+        raise InputError(f"range_scale {range_scale!r} must be in (-0.5, 0.5)")
+    noise = range_std * rng.standard_normal(r_true.size)
+    ranges[is_range] = (1.0 + range_scale) * r_true + range_bias + noise
     outliers = np.zeros(N, bool)
     outliers[is_range] = rng.random(r_true.size) < outlier_fraction
     ranges[outliers] += rng.uniform(*outlier_excess, size=int(outliers.sum()))

@@ -68,9 +68,16 @@ from scipy.stats import chi2
 from obsplan.core.budget import check_log_rows
 from obsplan.core.errors import InputError
 from obsplan.estimation import kalman
-from obsplan.estimation.channel import GATE_PROBABILITY, LATE_MAX_M, REACQUIRE_AFTER
+from obsplan.estimation.channel import (
+    BIAS_PRIOR_STD_M,
+    GATE_PROBABILITY,
+    LATE_MAX_M,
+    REACQUIRE_AFTER,
+    SCALE_PRIOR_STD,
+)
 from obsplan.estimation.config import CURRENT_PRIOR_STD
 from obsplan.estimation.filters import linear
+from obsplan.estimation.filters.ekf import pad_calibration
 from obsplan.estimation.kernels import GATE_REACQUIRE, GATE_USE, gate_action, late_weight
 from obsplan.estimation.replay.log import MissionLog
 from obsplan.estimation.replay.result import ReplayResult
@@ -129,6 +136,12 @@ class ReplayConfig:
         ``beacon_path`` gives a moving one).
     beacon_path : BeaconPath or None
         A moving beacon, read at each range's time.
+    scale_state : bool
+        Estimate the ranges' scale ``k`` (a sound-speed error; prior ``N(1,``
+        :data:`~obsplan.estimation.channel.SCALE_PRIOR_STD` ``²)``), constant.
+    bias_state : bool
+        Estimate a range bias ``β`` [m] (a clock offset; prior ``N(0,``
+        :data:`~obsplan.estimation.channel.BIAS_PRIOR_STD_M` ``²)``), constant.
     """
 
     range_std: float = DEFAULT_RANGE_STD
@@ -145,6 +158,8 @@ class ReplayConfig:
     second_order: bool = True
     beacon: tuple[float, ...] | None = None
     beacon_path: BeaconPath | None = None
+    scale_state: bool = False
+    bias_state: bool = False
 
     def __post_init__(self) -> None:
         for name in ("range_std", "dvl_std", "depth_std", "accel_std"):
@@ -364,6 +379,73 @@ def _range_row(
     return nu, h, r, float(h @ P @ h)
 
 
+@dataclass(frozen=True)
+class _Calibration:
+    """The range's calibration states after the model's ``m`` states: their names, indices
+    (-1: absent), nominal values and prior variances."""
+
+    m: int
+    scale: bool
+    bias: bool
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return ("range_scale",) * self.scale + ("range_bias",) * self.bias
+
+    @property
+    def size(self) -> int:
+        return int(self.scale) + int(self.bias)
+
+    @property
+    def ks(self) -> int:
+        return self.m if self.scale else -1
+
+    @property
+    def kb(self) -> int:
+        return self.m + self.size - 1 if self.bias else -1
+
+    def pad(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(x, P)`` with the calibration's nominal values and prior variances appended."""
+        nominal = [1.0] * self.scale + [0.0] * self.bias
+        var = [SCALE_PRIOR_STD**2] * self.scale + [BIAS_PRIOR_STD_M**2] * self.bias
+        return np.append(x, nominal), pad_calibration(P, var)
+
+    def predicted_range(self, x: np.ndarray, b: np.ndarray) -> float:
+        """``k |p - b| + β`` [m] at the state ``x``."""
+        k = x[self.ks] if self.scale else 1.0
+        return k * float(np.linalg.norm(x[: b.size] - b)) + (x[self.kb] if self.bias else 0.0)
+
+
+def _calibrated_range_row(
+    cal: _Calibration, x: np.ndarray, P: np.ndarray, b: np.ndarray, y: float, r: float, second: bool
+) -> tuple[float, np.ndarray, float, float]:
+    """:func:`_range_row` with the calibration states: the half-squared reading ``y`` against
+    ``½ r̃²``, ``r̃ = k ρ + β``, its gradient ``r̃ g`` and Hessian ``g gᵀ + r̃ ∇²r̃`` over the
+    whole state (``g = ∇r̃``; the EKF's row, :func:`obsplan.estimation.kernels.calibrated_row`)."""
+    n, m = b.size, x.size
+    rel = x[:n] - b
+    rho = float(np.linalg.norm(rel))
+    u = rel / rho
+    k = x[cal.ks] if cal.scale else 1.0
+    rt = cal.predicted_range(x, b)
+    g = np.zeros(m)
+    g[:n] = k * u
+    Hr = np.zeros((m, m))
+    Hr[:n, :n] = k * (np.eye(n) - np.outer(u, u)) / rho
+    if cal.scale:
+        g[cal.ks] = rho
+        Hr[:n, cal.ks] = Hr[cal.ks, :n] = u
+    if cal.bias:
+        g[cal.kb] = 1.0
+    h = rt * g
+    nu = y - 0.5 * rt * rt
+    if second:
+        HP = (np.outer(g, g) + rt * Hr) @ P
+        nu -= 0.5 * float(np.trace(HP))
+        r += 0.5 * float(np.sum(HP * HP.T))
+    return nu, h, r, float(h @ P @ h)
+
+
 def replay(log: MissionLog, config: ReplayConfig | None = None) -> ReplayResult:
     """Filter and smooth one logged mission (module docstring).
 
@@ -391,7 +473,8 @@ def replay(log: MissionLog, config: ReplayConfig | None = None) -> ReplayResult:
     beacons = beacon_rows(log, config)
     model = VehicleModel(dim=log.dim, sensors=log.sensors, current=config.current)
     om = output_model(model)
-    x, P = _start(log, config, model, beacons)
+    cal = _Calibration(model.state_dim, config.scale_state, config.bias_state)
+    x, P = cal.pad(*_start(log, config, model, beacons))
     noise = {"range": config.range_std, "depth": config.depth_std}
     noise |= {"dvl-bottom": config.dvl_std, "dvl-water": config.dvl_std}
     readings = {"range": log.ranges[:, None]}
@@ -400,7 +483,7 @@ def replay(log: MissionLog, config: ReplayConfig | None = None) -> ReplayResult:
     if log.depth is not None:
         readings["depth"] = log.depth[:, None]
     Y, V = to_outputs(model, readings, noise)
-    filt = _filter(log, config, model, om, beacons, x, P, Y, V)
+    filt = _filter(log, config, model, om, cal, beacons, x, P, Y, V)
     xs, Ps = linear.rts_smooth(
         filt["xf"][:, None],
         filt["Pf"][:, None],
@@ -408,12 +491,15 @@ def replay(log: MissionLog, config: ReplayConfig | None = None) -> ReplayResult:
         filt["Pp"][:, None],
         filt["F"],
     )
-    return _result(log, config, model, beacons, filt, xs[:, 0], kalman.symmetrize(Ps[:, 0]))
+    Ps = kalman.symmetrize(Ps[:, 0])
+    return _result(log, config, model, cal, beacons, filt, xs[:, 0], Ps)
 
 
-def _filter(log, config, model, om, beacons, x, P, Y, V) -> dict[str, np.ndarray]:
-    """The forward pass: stored predicted/filtered moments, transitions and the gate's record."""
-    N, n, m = log.n_rows, log.dim, model.state_dim
+def _filter(log, config, model, om, cal, beacons, x, P, Y, V) -> dict[str, np.ndarray]:
+    """The forward pass: stored predicted/filtered moments, transitions and the gate's record
+    (the calibration states ``cal`` constant: identity transition, no process noise)."""
+    N, n, m = log.n_rows, log.dim, model.state_dim + cal.size
+    mx = model.state_dim
     xp, xf = np.empty((N, m)), np.empty((N, m))
     Pp, Pf = np.empty((N, m, m)), np.empty((N, m, m))
     F = np.empty((max(N - 1, 0), m, m))
@@ -425,29 +511,41 @@ def _filter(log, config, model, om, beacons, x, P, Y, V) -> dict[str, np.ndarray
     rec["used"] = np.zeros(R, bool)
     u = np.zeros(n)
     lin = [o for o in range(1, model.output_dim) if om.linear_rows[o]]
+    g_lin = {o: np.append(om.g[o], np.zeros(cal.size)) for o in lin}
+
+    def row(x, P, b, y, r):
+        if cal.size:
+            return _calibrated_range_row(cal, x, P, b, y, r, config.second_order)
+        return _range_row(om, x, P, b, y, r, config.second_order)
+
     j = 0
     for k in range(N):
         if k > 0:
             dt = float(log.t[k] - log.t[k - 1])
-            Fk, Gk = model.transition(dt)
+            Fx, Gk = model.transition(dt)
+            Fk = np.eye(m)
+            Fk[:mx, :mx] = Fx
             F[k - 1] = Fk
-            x = Fk @ x + Gk @ u
-            P = kalman.symmetrize(Fk @ P @ Fk.T + kalman.integrated_noise(W, n, model.current, dt))
+            x = Fk @ x
+            x[:mx] += Gk @ u
+            Qk = np.zeros((m, m))
+            Qk[:mx, :mx] = kalman.integrated_noise(W[:mx, :mx], n, model.current, dt)
+            P = kalman.symmetrize(Fk @ P @ Fk.T + Qk)
         if log.u is not None and np.isfinite(log.u[k, 0]):
             u = log.u[k]  # held from this row on
         if np.isfinite(Y[k, 0]):
             b = beacons[k]
-            nu, h, r, hPh = _range_row(om, x, P, b, Y[k, 0], V[k, 0], config.second_order)
+            nu, h, r, hPh = row(x, P, b, Y[k, 0], V[k, 0])
             s = hPh + r
             # the half-squared reading's late extent: ½(r + e)² - ½r² ≈ r e (as the kernels')
             use, alpha, beta = gate.judge(nu, s, hPh, r, LATE_MAX_M * float(log.ranges[k]))
-            rec["residual"][j] = log.ranges[k] - float(np.linalg.norm(x[:n] - b))
+            rec["residual"][j] = log.ranges[k] - cal.predicted_range(x, b)
             rec["nis"][j] = nu * nu / s
             rec["used"][j], rec["inflation"][j] = use, alpha
             if alpha > 1.0:  # re-acquisition: the widened prior is this row's prediction
                 P = P.copy()
                 P[:n, :n] += (alpha - 1.0) * hPh / float(h[:n] @ h[:n]) * np.eye(n)
-                nu, h, r, hPh = _range_row(om, x, P, b, Y[k, 0], V[k, 0], config.second_order)
+                nu, h, r, hPh = row(x, P, b, Y[k, 0], V[k, 0])
             xp[k], Pp[k] = x, P
             if use:
                 x, P = joseph_update(x, P, h, nu, r, beta)
@@ -456,18 +554,20 @@ def _filter(log, config, model, om, beacons, x, P, Y, V) -> dict[str, np.ndarray
             xp[k], Pp[k] = x, P
         for o in lin:  # linear rows (om.linear_rows): h = c + g x exactly
             if np.isfinite(Y[k, o]):
-                x, P = joseph_update(x, P, om.g[o], Y[k, o] - om.c[o] - float(om.g[o] @ x), V[k, o])
+                go = g_lin[o]
+                x, P = joseph_update(x, P, go, Y[k, o] - om.c[o] - float(go @ x), V[k, o])
         xf[k], Pf[k] = x, P
     return {"xp": xp, "Pp": Pp, "xf": xf, "Pf": Pf, "F": F, **rec}
 
 
-def _result(log, config, model, beacons, filt, xs, Ps) -> ReplayResult:
+def _result(log, config, model, cal, beacons, filt, xs, Ps) -> ReplayResult:
     rows = log.range_rows
     n = log.dim
-    smoothed = log.ranges[rows] - np.linalg.norm(xs[rows, :n] - beacons[rows], axis=1)
+    predicted = [cal.predicted_range(xs[k], beacons[k]) for k in rows]
+    smoothed = log.ranges[rows] - np.array(predicted)
     return ReplayResult(
         t=log.t,
-        state_names=model.state_names,
+        state_names=(*model.state_names, *cal.names),
         dim=n,
         sensors=log.sensors,
         x_filt=filt["xf"],
