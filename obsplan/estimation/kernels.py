@@ -1704,6 +1704,8 @@ def kf_bias_row(X, ws, nnz, b, kb, wp, y0, var_r):
     """
     beta = X[kb, b]
     r0 = math.sqrt(max(2.0 * y0 + var_r, 0.0)) - beta
+    # a prior far off (early in a run) can put R_t² below zero: the floor, a relative 1e-12 of
+    # R_0², keeps the row finite; the update then moves the state back where R_t² > 0
     rt = math.sqrt(max(r0 * r0 + 2.0 * wp, 1e-12 * (1.0 + r0 * r0)))
     fac = 1.0 + beta / rt
     for i in range(nnz - 1):
