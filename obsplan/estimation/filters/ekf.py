@@ -18,6 +18,11 @@ Gaussian second-order filter's: the range's curvature over the prior, ``½ δᵀ
 ``½ tr((M P_pp)²)`` to the reading's (``M = I`` half-squared, ``(I - u uᵀ)/|p - b|`` for the
 range). It matters where the position std reaches ``sqrt(2 |p - b| σ_r)``: a wide prior, a
 long range-only leg, a close pass.
+
+The range's calibration states (``EstimationConfig.scale_state``, ``bias_state``), constant,
+follow the kinematic state: the scale ``k`` (nominal 1) then the bias ``β`` (nominal 0); the
+range row predicts ``k |p - b| + β`` and its second-order terms take the Hessian over the
+position and these states together (:func:`obsplan.estimation.kernels.calibrated_row`).
 """
 
 from __future__ import annotations
@@ -33,6 +38,29 @@ from obsplan.estimation.config import EstimationConfig, ProcessNoise
 from obsplan.estimation.filters import bundles
 from obsplan.estimation.filters.base import Filter, FilterRun, register
 from obsplan.model.vehicle import VehicleModel
+
+
+def calibration_prior(
+    scale_std: float | None, bias_std: float | None
+) -> tuple[np.ndarray, list[float]]:
+    """The range's calibration states, in their order (the scale, then the bias): their
+    nominal values and prior variances; the absent ones left out.
+
+    Parameters
+    ----------
+    scale_std, bias_std : float or None
+        The prior std of the scale (relative) and of the bias [m]; None: no such state.
+
+    Returns
+    -------
+    nominal : ndarray, shape (c,)
+        The scale's 1, the bias's 0.
+    variances : list of float
+        Their prior variances.
+    """
+    states = [(1.0, scale_std), (0.0, bias_std)]
+    present = [(nom, float(std) ** 2) for nom, std in states if std is not None]
+    return np.array([nom for nom, _ in present]), [var for _, var in present]
 
 
 def pad_calibration(a: np.ndarray, variances: Sequence[float]) -> np.ndarray:
@@ -104,21 +132,19 @@ class ExtendedKalmanFilter(Filter):
         n, m = model.dim, model.state_dim
         self.scale_std = None if scale_std is None else float(scale_std)
         self.bias_std = None if bias_std is None else float(bias_std)
-        stds = [s for s in (self.scale_std, self.bias_std) if s is not None]
+        #: the calibration states' nominal values (the scale's 1, the bias's 0), in their order
+        self.calibration_nominal, variances = calibration_prior(self.scale_std, self.bias_std)
+        c = len(variances)
         #: the index of the range-scale state, -1 without one
         self.scale_index = -1 if scale_std is None else m
         #: the index of the range-bias state, -1 without one
-        self.bias_index = -1 if bias_std is None else m + len(stds) - 1
-        #: the calibration states' nominal values (the scale's 1, the bias's 0), in their order
-        self.calibration_nominal = np.array(
-            [1.0] * (scale_std is not None) + [0.0] * (bias_std is not None)
-        )
-        self.p0 = pad_calibration(np.array(p0, dtype=float), [s * s for s in stds])
-        self.state_dim = m + len(stds)
+        self.bias_index = -1 if bias_std is None else m + c - 1
+        self.p0 = pad_calibration(np.array(p0, dtype=float), variances)
+        self.state_dim = m + c
         self.noise = dict(noise)
         self.q = np.asarray(q, float)
         terms = kalman.composed_noise_terms(self.q, n, model.current)
-        zero = [0.0] * len(stds)  # the calibration is constant: no process noise
+        zero = [0.0] * c  # the calibration is constant: no process noise
         self.q_terms = np.ascontiguousarray(np.stack([pad_calibration(t, zero) for t in terms]))
         self.q_nav = kalman.nav_noise(self.q, n, model.current)
         self.transition = kalman.Transition.build(kalman.kinematic_entries(n, model.current))

@@ -37,7 +37,11 @@ from obsplan.core.errors import ConfigError
 from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.config import EstimationConfig, ProcessNoise
 from obsplan.estimation.filters.base import Filter, FilterRun, register
-from obsplan.estimation.filters.ekf import ExtendedKalmanFilter, pad_calibration
+from obsplan.estimation.filters.ekf import (
+    ExtendedKalmanFilter,
+    calibration_prior,
+    pad_calibration,
+)
 from obsplan.model.vehicle import VehicleModel
 
 #: Points per velocity axis and component std (whitened) by dimension: 25 components in 2D,
@@ -150,11 +154,9 @@ class GaussianSumFilter(Filter):
         shrink = 0.0 if len(w1) == 1 else 1.0 - s * s
         cov = np.asarray(p0, float) - shrink * (D @ D.T)
         # the split is over the velocity: the range's calibration is not split
-        c = self.ekf.calibration_nominal.size
-        self.offsets = np.hstack([self.offsets, np.zeros((self.offsets.shape[0], c))])
-        self.component_cov = pad_calibration(
-            cov, list(np.diag(self.ekf.p0)[self.ekf.state_dim - c :])
-        )
+        _, variances = calibration_prior(scale_std, bias_std)
+        self.offsets = np.hstack([self.offsets, np.zeros((self.offsets.shape[0], len(variances)))])
+        self.component_cov = pad_calibration(cov, variances)
 
     @classmethod
     def from_config(

@@ -77,7 +77,7 @@ from obsplan.estimation.channel import (
 )
 from obsplan.estimation.config import CURRENT_PRIOR_STD
 from obsplan.estimation.filters import linear
-from obsplan.estimation.filters.ekf import pad_calibration
+from obsplan.estimation.filters.ekf import calibration_prior, pad_calibration
 from obsplan.estimation.kernels import GATE_REACQUIRE, GATE_USE, gate_action, late_weight
 from obsplan.estimation.replay.log import MissionLog
 from obsplan.estimation.replay.result import ReplayResult
@@ -405,9 +405,11 @@ class _Calibration:
         return self.m + self.size - 1 if self.bias else -1
 
     def pad(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(x, P)`` with the calibration's nominal values and prior variances appended."""
-        nominal = [1.0] * self.scale + [0.0] * self.bias
-        var = [SCALE_PRIOR_STD**2] * self.scale + [BIAS_PRIOR_STD_M**2] * self.bias
+        """``(x, P)`` with the calibration's nominal values and prior variances appended (the
+        Monte Carlo filters' priors, :func:`~obsplan.estimation.filters.ekf.calibration_prior`)."""
+        nominal, var = calibration_prior(
+            SCALE_PRIOR_STD if self.scale else None, BIAS_PRIOR_STD_M if self.bias else None
+        )
         return np.append(x, nominal), pad_calibration(P, var)
 
     def predicted_range(self, x: np.ndarray, b: np.ndarray) -> float:
@@ -421,7 +423,9 @@ def _calibrated_range_row(
 ) -> tuple[float, np.ndarray, float, float]:
     """:func:`_range_row` with the calibration states: the half-squared reading ``y`` against
     ``½ r̃²``, ``r̃ = k ρ + β``, its gradient ``r̃ g`` and Hessian ``g gᵀ + r̃ ∇²r̃`` over the
-    whole state (``g = ∇r̃``; the EKF's row, :func:`obsplan.estimation.kernels.calibrated_row`)."""
+    whole state (``g = ∇r̃``). The Monte Carlo EKF's row,
+    :func:`obsplan.estimation.kernels.calibrated_row`, in numpy: that one is a numba kernel on the
+    batched workspace, and the replay is numpy throughout (no compile for one log)."""
     n, m = b.size, x.size
     rel = x[:n] - b
     rho = float(np.linalg.norm(rel))
