@@ -149,6 +149,8 @@ def run_one(
         "runs": None,
         "verdicts": {},
         "notes": list(res.verdict.notes),
+        "solver_note": res.solve.note,
+        "kf_guard": None if res.solve.kf_guard is None else res.solve.kf_guard.to_dict(),
     }
     v = res.validation
     if "planned" in v:

@@ -44,7 +44,7 @@ from obsplan.planning.problem.parse import LOCALISE_PROBLEM, problem_from_dict
 from obsplan.planning.problem.sections import Horizon, Limits
 from obsplan.planning.problem.validation_setup import estimation_config
 from obsplan.planning.solver.formulation import build_formulation
-from obsplan.planning.solver.ipopt import make_projection, stop_reason
+from obsplan.planning.solver.ipopt import lbfgs_options, make_projection, stop_reason
 from obsplan.planning.solver.ipopt import project as _project
 from obsplan.planning.solver.starts import run_forked
 from obsplan.planning.transcription.grid import Grid
@@ -453,6 +453,43 @@ def test_sparse_range_epochs_converge_with_the_monotone_barrier():
     assert res.success and res.starts[0].success and res.starts[0].note == ""
     assert res.status == "Solve_Succeeded" and res.note == ""
     assert res.objective < res.starts[0].initial_objective
+    assert_limits_and_dynamics(res.trajectory, pb)
+
+
+#: The linearisation penalty's stall class at a size that solves in seconds: 3D with a depth
+#: gauge, the beacon 50 m below the start, ``gramian-log-det`` with its default penalty.
+DEEP_LOG_DET = {
+    "problem": {"name": "3D depth gauge, deep beacon, log-det"},
+    "vehicle": {"dim": 3, "sensors": ["range", "depth"]},
+    "beacon": {"position": [30.0, -10.0, 50.0]},
+    "start": {"position": [5.0, 30.0, 10.0], "velocity": [0.0, 0.0, 0.0]},
+    "limits": {
+        "accel": [0.05, 0.05, 0.02],
+        "speed": 1.0,
+        "depth": [2.0, 45.0],
+        "area": {"x": [-70.0, 70.0], "y": [-70.0, 70.0]},
+    },
+    "horizon": {"duration": 900.0, "steps": 60},
+    "objective": {"kind": "gramian-log-det", "starts": 1},
+    "validation": {
+        **{"runs": 8, "dt": 0.1, "range_rate": 1.0, "range_std": 0.2},
+        **{"depth_rate": 1.0, "depth_std": 0.05},
+    },
+}
+
+
+def test_the_linearisation_penalty_is_solved_with_the_monotone_barrier():
+    # the penalty sits on the bound at a few early epochs, curvature on a few nodes that the
+    # quasi-Newton model cannot hold: under IPOPT's adaptive barrier mu collapsed with the dual
+    # infeasibility high and this start stopped at the iteration limit; monotone, it converges
+    pb = problem_from_dict(DEEP_LOG_DET)
+    assert pb.objective.resolved_linearisation_bound > 0
+    assert lbfgs_options(pb, sr1=True)["mu_strategy"] == "monotone"
+    unbounded = replace(pb, objective=replace(pb.objective, linearisation_bound=0.0))
+    assert "mu_strategy" not in lbfgs_options(unbounded, sr1=True)  # dense epochs, no penalty
+    res = solve(pb, processes=1)
+    assert res.success and res.starts[0].success and res.starts[0].note == ""
+    assert res.objective > res.starts[0].initial_objective  # log det: larger is better
     assert_limits_and_dynamics(res.trajectory, pb)
 
 

@@ -56,13 +56,14 @@ PLANNER_VALUES = {
     "flex_relax_cross": 10.0,
     "flex_relax_vel": 3.0,
     "speed_eps": 1e-8,
-    # objectives/windowed.py, lwo.py, linearisation.py
+    # objectives/windowed.py, lwo.py, linearisation.py, kf_guard.py
     "window_floor_rel": 1e-8,
     "min_window_samples": 10.0,
     "auto_stride_fraction": 1.0 / 8.0,
     "lwo_beta": 20.0,
     "lwo_ridge": 1e-9,
     "linearisation_penalty": 1.0,
+    "kf_guard_penalty": 100.0,
     # solver/ipopt.py (PROJECTION_TOL, WARM_START)
     "projection_tol": 1e-10,
     "warm_bound_push": 1e-9,

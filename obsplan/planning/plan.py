@@ -142,7 +142,7 @@ def plan(
     rep = None
     if replan is not None and res.trajectory is not None:
         rep = replan_monte_carlo(
-            pb,
+            res.problem,  # the guarded problem when the KF's guard engaged: re-solves keep it
             res.trajectory,
             replan,
             baselines={k: b.trajectory for k, b in bls.items()},

@@ -155,6 +155,7 @@ class ValidationResult:
             notes,
             lines=survey,
             keepout_confidence=self.problem.limits.keepout_confidence,
+            objective=self.problem.objective,
         )
 
     def paths(self) -> dict[str, Trajectory]:

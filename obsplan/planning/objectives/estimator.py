@@ -492,8 +492,22 @@ def covariance_stds(traj: Trajectory, pb: PlanningProblem, kind: str) -> tuple[f
 
 
 @cache_per_tuning
-def _reference_stds(pb: PlanningProblem, kind: str) -> tuple:
-    """``(mission-average, final, lines)`` std [m] on the reference path (lines: None without)."""
+def reference_stds(pb: PlanningProblem, kind: str) -> tuple:
+    """``(mission-average, final, lines)`` std [m] of the ``kind`` recursion on the reference
+    path (:func:`~obsplan.planning.transcription.guesses.reference_path`).
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+    kind : str
+        ``"pcrb-position"`` or ``"kf-position-std"`` (:func:`covariance_objective`).
+
+    Returns
+    -------
+    tuple
+        ``(average, final, lines)`` [m]; ``lines`` None without survey lines.
+    """
     grid = Grid.from_problem(pb)
     return covariance_objective(pb, kind).evaluate_all(
         grid, grid.from_trajectory(reference_path(pb))
@@ -503,7 +517,7 @@ def _reference_stds(pb: PlanningProblem, kind: str) -> tuple:
 def _timed(pb: PlanningProblem, kind: str, grid: Grid, W):
     """The ``kind`` recursion on ``W`` in the problem's time mode (CasADi or number)."""
     avg, final, on = covariance_objective(pb, kind).evaluate_all(grid, W)
-    return timed_value(pb.objective_mode, avg, final, _reference_stds(pb, kind), on)
+    return timed_value(pb.objective_mode, avg, final, reference_stds(pb, kind), on)
 
 
 def covariance_expr(pb: PlanningProblem, grid: Grid, W):
@@ -569,7 +583,7 @@ def pcrb_problem(pb: PlanningProblem) -> PlanningProblem:
 @cache_per_tuning
 def _reference_timed(pb: PlanningProblem, kind: str) -> float:
     """The ``kind`` recursion on the reference path in the problem's time mode (> 0)."""
-    ref = _reference_stds(pb, kind)
+    ref = reference_stds(pb, kind)
     return max(float(timed_value(pb.objective_mode, ref[0], ref[1], ref, ref[2])), 1e-12)
 
 

@@ -147,6 +147,25 @@ def penalty_expr(pb: PlanningProblem, grid: Grid, W, bound: float):
     return penalty * ca.sumsqr(ca.fmax(x, 0.0))
 
 
+def penalty_bound(pb: PlanningProblem) -> float:
+    """``κ`` of the problem's linearisation penalty [range stds]: the resolved
+    ``objective.linearisation_bound``, 0 when it is off or the vehicle has no range.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        The problem.
+
+    Returns
+    -------
+    float
+        The bound the planner's penalty holds; 0: no penalty in the NLP.
+    """
+    if "range" not in pb.model.sensors:
+        return 0.0
+    return max(pb.objective.resolved_linearisation_bound, 0.0)
+
+
 def linearisation_part(pb: PlanningProblem, grid: Grid, W: ca.MX) -> FormulationPart | None:
     """The penalty of ``objective.linearisation_bound`` (None when it is 0 or the vehicle has no
     range).
@@ -166,7 +185,7 @@ def linearisation_part(pb: PlanningProblem, grid: Grid, W: ca.MX) -> Formulation
         ``"linearisation"`` with the penalty of :func:`penalty_expr`; None when it does not
         apply.
     """
-    bound = pb.objective.resolved_linearisation_bound
-    if bound <= 0 or "range" not in pb.model.sensors:
+    bound = penalty_bound(pb)
+    if bound <= 0:
         return None
     return FormulationPart("linearisation", penalty=penalty_expr(pb, grid, W, bound))

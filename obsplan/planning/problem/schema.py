@@ -93,6 +93,11 @@ OBJECTIVES: tuple[str, ...] = tuple(OBJECTIVE_KINDS)
 #: the KF's std, each relative to the reference path
 #: (:func:`~obsplan.planning.objectives.estimator.covariance_expr` has the evidence).
 KF_PCRB_WEIGHT = 1.0
+#: The bound of ``objective.kf_guard`` when unset: the augmented KF's predicted position std
+#: (mission mean and final) allowed, as a multiple of its value on the lawn-mower, applied by a
+#: re-solve only to a plan that exceeds it (:mod:`obsplan.planning.objectives.kf_guard`; the
+#: evidence is in docs/problem-files.md).
+KF_GUARD = 1.0
 #: Default ``objective.linearisation_bound`` [range stds] of the kinds in
 #: :data:`LINEARISATION_KINDS` with ``weights = "information"`` (:mod:`obsplan.planning.
 #: linearisation` has the evidence); 0 (off) for every other kind and form.
@@ -572,6 +577,20 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "with it: docs/problem-files.md); set for an objective with an exact Hessian "
             "(lwo-condition, the paper's forms), IPOPT gets that Hessian without the "
             "penalty's curvature (the recursion's is dense).",
+        ),
+        FieldSpec(
+            "kf_guard",
+            "float",
+            _NONE,
+            "-",
+            "Bound on the augmented KF's predicted position std along the plan (its mission "
+            "mean and its final value, the exact Riccati recursion of the validation's KF), as "
+            "a multiple of its value on the lawn-mower: the plan pays a quadratic penalty above "
+            "it, so that an objective scoring the EKF's information does not trade the KF "
+            "away. Unset (default): a plan whose predicted KF std exceeds the lawn-mower's is "
+            "re-solved with the bound at 1 (report.json solver.kf_guard says so); a number g > 0: "
+            "the penalty in every solve; 0: off. Not for kf-position-std (it plans for the KF) "
+            "or a beacon that moves.",
         ),
     ),
     "scales": (

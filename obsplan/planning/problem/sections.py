@@ -137,6 +137,7 @@ class ObjectiveSpec:
     robust_aggregate: str = "worst"
     pcrb_weight: float | None = None
     linearisation_bound: float | None = None
+    kf_guard: float | None = None
 
     @property
     def paper_form(self) -> bool:

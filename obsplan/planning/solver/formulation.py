@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from obsplan.planning.objectives.kf_guard import kf_guard_part
 from obsplan.planning.objectives.linearisation import linearisation_part
 from obsplan.planning.objectives.registry import objective_of
 from obsplan.planning.problem.definition import PlanningProblem
@@ -51,8 +52,8 @@ from obsplan.trajectory.sampled import Trajectory
 
 #: Builders of the parts appended to every NLP after the objective, in order (each returns None
 #: for a problem it does not apply to): a mission's survey lines with their timing variables, the
-#: penalty on the EKF's linearisation stress.
-PARTS: tuple[PartBuilder, ...] = (mission_part, linearisation_part)
+#: penalty on the EKF's linearisation stress, the augmented KF's guard.
+PARTS: tuple[PartBuilder, ...] = (mission_part, linearisation_part, kf_guard_part)
 
 
 @dataclass(frozen=True, eq=False)

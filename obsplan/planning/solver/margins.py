@@ -78,18 +78,25 @@ from obsplan.estimation.bounds.loop_covariance import LoopCovariance, loop_covar
 from obsplan.estimation.bounds.riccati import run_recursion
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.montecarlo.guidance import SPEED_RESERVE_CAP, Guidance
-from obsplan.planning.objectives.estimator import CovarianceObjective, covariance_objective
+from obsplan.planning.objectives.estimator import (
+    CovarianceObjective,
+    covariance_objective,
+    covariance_stds,
+    reference_stds,
+)
 from obsplan.planning.objectives.evaluate import objective_value
+from obsplan.planning.objectives.kf_guard import engages, guard_ratios_of
 from obsplan.planning.objectives.robust import condition_problems, is_robust
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.feasibility import beacon_of, check_limits, range_extremes
+from obsplan.planning.problem.schema import KF_GUARD
 from obsplan.planning.problem.validation_setup import (
     confidence_quantile,
     estimation_config,
     validation_guidance,
 )
 from obsplan.planning.solver.formulation import Formulation, build_formulation
-from obsplan.planning.solver.solve import SolveResult, solve
+from obsplan.planning.solver.solve import KfGuardOutcome, SolveResult, solve
 from obsplan.planning.solver.starts import StartOutcome, run_start, start_context
 from obsplan.planning.transcription.grid import Grid, distance_times
 from obsplan.planning.tuning import cache_per_tuning, tuning
@@ -1134,7 +1141,19 @@ def _report(
 
 
 def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, KeepoutReport]:
-    """:func:`~obsplan.planning.solver.solve.solve`, then :func:`keep_out` on its plan.
+    """:func:`~obsplan.planning.solver.solve.solve`, then :func:`keep_out` on its plan, and the
+    same again with the augmented KF's guard where the default guard engages on the kept plan
+    (:mod:`obsplan.planning.objectives.kf_guard`).
+
+    With ``objective.kf_guard`` unset, the kept plan is returned when its predicted KF std
+    (mission mean and final) is at most :data:`~obsplan.planning.problem.schema.KF_GUARD`
+    times the lawn-mower's (the keep-out re-solve moves the plan, so it is judged after it);
+    otherwise the problem is solved and kept out again, every start, with ``objective.kf_guard``
+    at that bound, and that result is returned (its ``problem`` the guarded one; ``wall_s`` both
+    passes'; ``note`` says so). A guarded pass that finds no path, does not converge where the
+    first did, or raises the EKF's bound (the posterior CRB's mission mean or final std) above
+    both the lawn-mower's and the first plan's returns the first, with the reason: the guard
+    holds the KF where that costs the EKF little, not by losing the EKF's verdicts.
 
     Parameters
     ----------
@@ -1148,11 +1167,82 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
     result : SolveResult
         The kept path (its objective recomputed, its status, success and iterations those of
         the re-solve that returned it, a note of that re-solve's status) when a re-solve kept
-        the margins, else the nominal result unchanged.
+        the margins, else the nominal result unchanged; ``kf_guard`` set when the default guard
+        was evaluated.
     report : KeepoutReport
-        :func:`keep_out`'s report; "no plan to keep out" (0 rounds) when ``solve`` returned no
-        path.
+        :func:`keep_out`'s report of the returned pass; "no plan to keep out" (0 rounds) when
+        ``solve`` returned no path.
     """
+    first, rep = _solve_kept(pb, **kwargs)
+    if first.trajectory is None:
+        return first, rep
+    engaged, unguarded = engages(first.trajectory, pb)
+    if unguarded is None:
+        return first, rep
+    if not engaged:
+        return replace(
+            first, kf_guard=KfGuardOutcome(False, False, KF_GUARD, unguarded, unguarded)
+        ), rep
+    guarded = replace(pb, objective=replace(pb.objective, kf_guard=KF_GUARD))
+    second, rep2 = _solve_kept(guarded, **kwargs)
+    words = (
+        f"the plan without the KF guard had the augmented KF's predicted std at "
+        f"{unguarded[0]:.3f}x / {unguarded[1]:.3f}x the lawn-mower's (mean / final)"
+    )
+    if second.trajectory is None or (first.success and not second.success):
+        # a converged plan is not traded for one that did not converge
+        why = "found no path" if second.trajectory is None else f"ended {second.status}"
+        note = (
+            f"{words}; the re-solve with objective.kf_guard = {KF_GUARD:g} {why}: the plan "
+            "without the guard is kept"
+        )
+        outcome = KfGuardOutcome(True, False, KF_GUARD, unguarded, unguarded)
+        return replace(first, kf_guard=outcome, note=_join(first.note, note)), rep
+    ratios = guard_ratios_of(second.trajectory, guarded)
+    costly = _ekf_cost(pb, first.trajectory, second.trajectory)
+    if costly:
+        note = (
+            f"{words}; the re-solve with objective.kf_guard = {KF_GUARD:g} held it at "
+            f"{ratios[0]:.3f}x / {ratios[1]:.3f}x but raised the EKF's bound (posterior CRB) "
+            f"{costly} the lawn-mower's: the plan without the guard is kept"
+        )
+        outcome = KfGuardOutcome(True, False, KF_GUARD, unguarded, unguarded)
+        return replace(first, kf_guard=outcome, note=_join(first.note, note)), rep
+    note = (
+        f"{words}: re-solved with objective.kf_guard = {KF_GUARD:g}, "
+        f"{ratios[0]:.3f}x / {ratios[1]:.3f}x"
+    )
+    res = replace(
+        second,
+        kf_guard=KfGuardOutcome(True, True, KF_GUARD, unguarded, ratios),
+        wall_s=first.wall_s + second.wall_s,
+        note=_join(second.note, note),
+    )
+    return res, rep2
+
+
+def _ekf_cost(pb: PlanningProblem, unguarded: Trajectory, guarded: Trajectory) -> str:
+    """Where the guarded plan's posterior CRB (mission mean, final) is above both the
+    lawn-mower's and the unguarded plan's, in words (``"mean 1.2x / final 1.4x"`` of the
+    lawn-mower's); ``""`` where it is not: the guard may not make the EKF's bound lose to the
+    lawn-mower where the plan without it did not."""
+    ref = reference_stds(pb, "pcrb-position")
+    before = covariance_stds(unguarded, pb, "pcrb-position")
+    after = covariance_stds(guarded, pb, "pcrb-position")
+    words = []
+    for name, r, b, a in zip(("mean", "final"), ref[:2], before, after, strict=True):
+        if a > max(r, b):
+            words.append(f"{name} to {a / r:.2f}x")
+    return " and ".join(words)
+
+
+def _join(*notes: str) -> str:
+    return "; ".join(n for n in notes if n)
+
+
+def _solve_kept(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, KeepoutReport]:
+    """:func:`~obsplan.planning.solver.solve.solve`, then :func:`keep_out` on its plan (the
+    result of :func:`solve_with_keepout` without the KF guard)."""
     res = solve(pb, **kwargs)
     if res.trajectory is None:
         return res, KeepoutReport(

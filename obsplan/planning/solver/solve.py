@@ -63,6 +63,55 @@ from obsplan.trajectory.sampled import Trajectory
 GUESS_STATUS = "Guess_Returned"
 
 
+@dataclass(frozen=True)
+class KfGuardOutcome:
+    """What the default augmented-KF guard did
+    (:func:`~obsplan.planning.solver.margins.solve_with_keepout`).
+
+    Attributes
+    ----------
+    engaged : bool
+        The plan solved without the guard exceeded the bound, and the problem was re-solved
+        with it.
+    applied : bool
+        The returned plan is the guarded re-solve's (False when not engaged, or when that
+        re-solve found no path, did not converge or cost the EKF's bound: the note says which).
+    bound : float
+        The bound, a multiple of the lawn-mower's predicted KF std
+        (:data:`~obsplan.planning.problem.schema.KF_GUARD`).
+    unguarded : tuple of float
+        ``(mean, final)`` predicted KF std of the plan solved without the guard, relative to
+        the lawn-mower's.
+    ratios : tuple of float
+        The same for the returned plan (equal to ``unguarded`` when not engaged).
+    """
+
+    engaged: bool
+    applied: bool
+    bound: float
+    unguarded: tuple[float, float]
+    ratios: tuple[float, float]
+
+    def to_dict(self) -> dict:
+        """JSON-ready form (``solver.kf_guard`` of report.json).
+
+        Returns
+        -------
+        dict
+            ``engaged``, ``applied``, ``bound``, ``unguarded_mean_ratio``,
+            ``unguarded_final_ratio``, ``mean_ratio`` and ``final_ratio``.
+        """
+        return {
+            "engaged": self.engaged,
+            "applied": self.applied,
+            "bound": self.bound,
+            "unguarded_mean_ratio": _num(self.unguarded[0]),
+            "unguarded_final_ratio": _num(self.unguarded[1]),
+            "mean_ratio": _num(self.ratios[0]),
+            "final_ratio": _num(self.ratios[1]),
+        }
+
+
 @dataclass(frozen=True, eq=False)
 class SolveResult:
     """Outcome of :func:`solve`.
@@ -90,6 +139,7 @@ class SolveResult:
     chosen: str | None = None
     note: str = ""
     start_paths: dict[str, Trajectory] = field(default_factory=dict, repr=False)
+    kf_guard: KfGuardOutcome | None = None  # None: the default guard was not evaluated
 
     def __post_init__(self) -> None:
         # the one meaning of success (module docstring): a result that says otherwise is a bug
@@ -109,8 +159,9 @@ class SolveResult:
             JSON-ready: ``success``, ``status``, ``iterations``, ``wall_s`` [s],
             ``objective_kind``, ``objective_mode``, ``objective`` and ``lifted_objective`` (None
             when absent or not finite), ``best_start``, ``chosen``, ``note``,
-            ``converged_starts`` (how many starts converged), ``build_s`` [s] and ``starts``
-            (each start's :meth:`~obsplan.planning.solver.starts.StartOutcome.to_dict`).
+            ``converged_starts`` (how many starts converged), ``build_s`` [s], ``starts``
+            (each start's :meth:`~obsplan.planning.solver.starts.StartOutcome.to_dict`) and
+            ``kf_guard`` (:meth:`KfGuardOutcome.to_dict`, or None).
         """
         return {
             "success": bool(self.success),
@@ -127,6 +178,7 @@ class SolveResult:
             "converged_starts": sum(s.success for s in self.starts),
             "build_s": float(self.build_s),
             "starts": [s.to_dict() for s in self.starts],
+            "kf_guard": None if self.kf_guard is None else self.kf_guard.to_dict(),
         }
 
 

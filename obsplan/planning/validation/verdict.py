@@ -42,6 +42,7 @@ from obsplan.estimation.montecarlo.stats import FilterStats
 from obsplan.model.beacon import BeaconPath
 from obsplan.planning.objectives.evaluate import PathMetrics
 from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.sections import ObjectiveSpec
 from obsplan.planning.tuning import tuning
 from obsplan.planning.validation.validate import PathValidation, merge_validations, validate_paths
 from obsplan.trajectory.sampled import Trajectory
@@ -512,6 +513,7 @@ def verdict(
     notes: Sequence[str] = (),
     lines: bool = False,
     keepout_confidence: float = 0.0,
+    objective: ObjectiveSpec | None = None,
 ) -> Verdict:
     """Compare ``validation["planned"]`` with every other validated path (intervals seeded by the
     validation's seed; ``notes``: said first, e.g. :func:`objective_notes`; ``lines``: also on
@@ -530,6 +532,8 @@ def verdict(
         Compare the RMSE on the survey lines too.
     keepout_confidence : float, optional
         The plan's ``limits.keepout_confidence`` (0: no limit notes).
+    objective : ObjectiveSpec or None, optional
+        The plan's objective, for :func:`estimator_notes` (None: no such notes).
 
     Returns
     -------
@@ -560,7 +564,92 @@ def verdict(
             *notes,
             *filter_notes(validation),
             *limit_notes(validation, comps, keepout_confidence),
+            *estimator_notes(comps, objective),
         ),
+    )
+
+
+#: The two filters whose verdicts the objective can trade, by the key's prefix.
+_ESTIMATORS = {"ekf": "EKF", "kf": "augmented KF"}
+
+
+def estimator_notes(
+    comparisons: Mapping[str, Mapping[str, Comparison]], objective: ObjectiveSpec | None
+) -> tuple[str, ...]:
+    """A sentence per baseline against which one filter's verdict is a decided loss while the
+    other's is a decided win: which estimator the plan serves there and why.
+
+    The objective scores one estimator's information: ``kf-position-std`` the augmented KF's
+    predicted std (with the posterior CRB at ``objective.pcrb_weight``), every other kind what an
+    EKF can use. The augmented KF reads the ranges through its linear model of the half-squared
+    range (eqs. 20-24), whose information differs from the EKF's; ``objective.kf_guard``
+    (:mod:`obsplan.planning.objectives.kf_guard`) holds its *predicted* std at a multiple of the
+    lawn-mower's, which a loss in the Monte Carlo says the runs did not follow.
+
+    Parameters
+    ----------
+    comparisons : Mapping of str to Mapping of str to Comparison
+        ``{baseline: {metric: Comparison}}`` of the verdict.
+    objective : ObjectiveSpec or None
+        The plan's objective (None: nothing to say).
+
+    Returns
+    -------
+    tuple of str
+        The sentences, possibly none.
+    """
+    if objective is None:
+        return ()
+    out = []
+    for name, comps in comparisons.items():
+        lost: dict[str, list[str]] = {g: [] for g in _ESTIMATORS}
+        won = dict.fromkeys(_ESTIMATORS, False)
+        for key, c in comps.items():
+            group = key.split(".")[0]
+            if key not in RUN_METRICS or group not in _ESTIMATORS or not c.decided:
+                continue
+            if c.better:
+                won[group] = True
+            else:
+                lost[group].append(dict((*METRICS, *LINES_METRICS))[key])
+        for loser, winner in (("kf", "ekf"), ("ekf", "kf")):
+            if lost[loser] and won[winner]:
+                out.append(_served_words(name, winner, loser, lost[loser], objective))
+    return tuple(out)
+
+
+def _served_words(
+    name: str, winner: str, loser: str, lost: Sequence[str], obj: ObjectiveSpec
+) -> str:
+    """The sentence of :func:`estimator_notes` for one baseline."""
+    kf_objective = obj.kind == "kf-position-std"
+    served = "kf" if kf_objective else "ekf"
+    why = (
+        f"objective kf-position-std scores the augmented KF's std, with the EKF's bound at "
+        f"objective.pcrb_weight = {obj.resolved_pcrb_weight:g}"
+        if kf_objective
+        else f"its objective, {obj.kind}, scores the information an EKF uses"
+    )
+    head = f"the plan serves the {_ESTIMATORS[served]} ({why})"
+    loses = f"the {_ESTIMATORS[loser]}'s verdict against the {name} on {', '.join(lost)}"
+    if loser != served and kf_objective:
+        return f"{head} and loses {loses}; raise objective.pcrb_weight to weigh the EKF more"
+    if loser != served:
+        held = (
+            "objective.kf_guard = 0 turned off the guard on the KF's predicted std"
+            if obj.kf_guard == 0
+            else "objective.kf_guard holds the KF's predicted std (its Riccati recursion on the "
+            "nominal path) at the lawn-mower's only where the EKF's bound does not pay for it "
+            "(solver.kf_guard and solver.note say whether it did), and the runs' errors may "
+            "differ from the prediction; a kf_guard set lower holds it in every solve"
+        )
+        return (
+            f"{head} and loses {loses}: the augmented KF reads the ranges through its linear "
+            f"model of the half-squared range, whose information differs; {held}"
+        )
+    return (
+        f"{head}, yet loses {loses} where the {_ESTIMATORS[winner]} wins: the filter did not "
+        "realise the plan's information on these runs (the notes above say what else differs)"
     )
 
 
