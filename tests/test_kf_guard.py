@@ -23,6 +23,7 @@ from obsplan.planning.objectives.kf_guard import (
 )
 from obsplan.planning.problem.parse import problem_from_dict, problem_to_dict
 from obsplan.planning.problem.sections import ObjectiveSpec
+from obsplan.planning.solver.formulation import build_formulation
 from obsplan.planning.solver.margins import solve_with_keepout
 from obsplan.planning.solver.solve import solve
 from obsplan.planning.transcription.grid import Grid
@@ -79,6 +80,17 @@ def test_the_guard_applies_where_the_planner_has_the_kfs_recursion():
     assert not applies(_objective(pb, kf_guard=0.0))
     assert not applies(_objective(pb, kind="kf-position-std"))
     assert not applies(load_problem(ROOT / "problems/ship-track.toml"))  # a moving beacon
+
+
+def test_a_guarded_exact_hessian_objective_solves_with_a_limited_memory_hessian():
+    # the guard's penalty is a whole-path functional: no exact Hessian without its curvature
+    pb = _objective(load_problem(OFFSET), kind="lwo-condition").with_changes(horizon={"steps": 20})
+    assert build_formulation(pb).hessian == "exact"
+    assert build_formulation(_objective(pb, kf_guard=1.0)).hessian == "limited-memory"
+    # the linearisation penalty keeps the objective's exact Hessian, without its own curvature
+    bounded = _objective(pb, linearisation_bound=0.25)
+    assert build_formulation(bounded).hessian == "exact-without-penalty"
+    assert build_formulation(_objective(bounded, kf_guard=1.0)).hessian == "limited-memory"
 
 
 @pytest.mark.parametrize("value", [-0.1, float("nan"), float("inf")])

@@ -273,6 +273,19 @@ def path_constraints(grid: Grid, pb: PlanningProblem, Wsym) -> list[ConstraintBl
     return out
 
 
+def _hessian(objective: Hessian, built: Sequence[FormulationPart]) -> Hessian:
+    """The NLP's Hessian mode: the objective's, except with a penalty part. An exact objective
+    Hessian then leaves out the penalty's curvature (``exact-without-penalty``), unless the part
+    is the augmented KF's guard: its penalty is a function of the whole path's covariance (the
+    mission mean and final std), not of a few epochs, and without its curvature the guarded
+    ``lwo-condition`` re-solves stopped at the iteration limit where a limited-memory Hessian
+    converges (docs/problem-files.md, "The augmented KF's guard")."""
+    names = {part.name for part in built if part.penalty is not None}
+    if not names or objective != "exact":
+        return objective
+    return "limited-memory" if "kf_guard" in names else "exact-without-penalty"
+
+
 def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS) -> Formulation:
     """Assemble the NLP (variables, objective, constraints, bounds) of ``pb``.
 
@@ -294,7 +307,8 @@ def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS)
     Formulation
         Symbols, bounds and blocks of the NLP. Its Hessian is the objective's, except that an
         exact one leaves out the parts' penalty's curvature (``exact-without-penalty``): that
-        penalty's exact Hessian is dense and can exhaust memory.
+        penalty's exact Hessian is dense and can exhaust memory; with the KF guard's penalty
+        it is limited-memory (:func:`_hessian`).
     """
     grid = Grid.from_problem(pb)
     n, N = grid.n, grid.N
@@ -335,7 +349,7 @@ def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS)
         # 24 GB building it): the objective's and constraints' exact one without the penalty's
         # curvature then (its gradient is exact). L-BFGS instead left lwo-condition at
         # Maximum_Iterations at N = 1000 (benchmarks/bench_gramian_objectives.py)
-        hessian="exact-without-penalty" if penalties and term.hessian == "exact" else term.hessian,
+        hessian=_hessian(term.hessian, built),
         n_path_constraints=int(sum(c.size for c in path)),
         parameters=ca.MX.sym("p", 0),
         parameter_values=np.zeros(0),
