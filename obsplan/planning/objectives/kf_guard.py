@@ -20,18 +20,19 @@ over the mission and at its end, with the penalty
 ``kf.final_pos_err``'s; ``c`` ``Tuning.kf_guard_penalty``). A penalty rather than a constraint
 for the same reasons as the linearisation bound's (:mod:`obsplan.planning.objectives.
 linearisation`): one scalar whose gradient is one reverse sweep of the recursion, and elastic
-where the bound cannot hold. Its curvature is left out of an exact Hessian
-(``exact-without-penalty``).
+where the bound cannot hold. Its curvature is dense (the KF's std is a function of the whole
+path), so an NLP with it runs a limited-memory Hessian even for an objective with an exact one
+(:func:`obsplan.planning.solver.formulation.build_formulation`).
 
 When it applies. ``objective.kf_guard = g > 0`` puts the penalty in every solve. Unset (the
 default), the problem is solved without it and re-solved with ``g = 1``
-(:data:`~obsplan.planning.problem.schema.KF_GUARD`) only when the plan's predicted KF std,
+(:data:`~obsplan.planning.problem.schema.KF_GUARD`) only when the kept plan's predicted KF std,
 mean or final, exceeds the lawn-mower's (:func:`engages`;
-:func:`~obsplan.planning.solver.solve.solve_guarding_kf`): the penalty is zero on such a plan's
-competitors that keep the KF, but its presence changes IPOPT's path on every problem (another
-Hessian function, a gradient wherever an iterate passes above the bound), so always on it would
-move plans that never traded the KF. ``0`` turns it off; ``kf-position-std`` plans for the KF
-itself and a moving beacon has no KF recursion in the planner: off there.
+:func:`~obsplan.planning.solver.margins.solve_with_keepout`, which also keeps the plan without
+the guard where the guarded one raises the EKF's bound). Not always on: the penalty's mere
+presence changes IPOPT's path (another Hessian, a gradient wherever an iterate passes above the
+bound), so it would move plans that never traded the KF. ``0`` turns it off; ``kf-position-std``
+plans for the KF itself and a moving beacon has no KF recursion in the planner: off there.
 
 The KF's prediction is its Riccati recursion with the gains taken on the nominal path, which a
 closed-loop run follows to within its estimation error. docs/problem-files.md ("The augmented
@@ -141,7 +142,7 @@ def applies(pb: PlanningProblem) -> bool:
     """
     return (
         pb.objective.kf_guard != 0
-        and pb.objective.kind != "kf-position-std"
+        and pb.objective.kind != KF_KIND
         and "range" in pb.model.sensors
         and pb.beacon_path is None
     )

@@ -1189,22 +1189,12 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
         f"the plan without the KF guard had the augmented KF's predicted std at "
         f"{unguarded[0]:.3f}x / {unguarded[1]:.3f}x the lawn-mower's (mean / final)"
     )
-    if second.trajectory is None or (first.success and not second.success):
-        # a converged plan is not traded for one that did not converge
-        why = "found no path" if second.trajectory is None else f"ended {second.status}"
+    ratios = None if second.trajectory is None else guard_ratios_of(second.trajectory, guarded)
+    why = _not_kept(pb, first.trajectory, first.success, second, ratios)
+    if ratios is None or why:
         note = (
             f"{words}; the re-solve with objective.kf_guard = {KF_GUARD:g} {why}: the plan "
             "without the guard is kept"
-        )
-        outcome = KfGuardOutcome(True, False, KF_GUARD, unguarded, unguarded)
-        return replace(first, kf_guard=outcome, note=_join(first.note, note)), rep
-    ratios = guard_ratios_of(second.trajectory, guarded)
-    costly = _ekf_cost(pb, first.trajectory, second.trajectory)
-    if costly:
-        note = (
-            f"{words}; the re-solve with objective.kf_guard = {KF_GUARD:g} held it at "
-            f"{ratios[0]:.3f}x / {ratios[1]:.3f}x but raised the EKF's bound (posterior CRB) "
-            f"{costly} the lawn-mower's: the plan without the guard is kept"
         )
         outcome = KfGuardOutcome(True, False, KF_GUARD, unguarded, unguarded)
         return replace(first, kf_guard=outcome, note=_join(first.note, note)), rep
@@ -1221,11 +1211,35 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
     return res, rep2
 
 
+def _not_kept(
+    pb: PlanningProblem,
+    unguarded: Trajectory,
+    converged: bool,
+    second: SolveResult,
+    ratios: tuple[float, float] | None,
+) -> str:
+    """Why the guarded result ``second`` (its KF ratios ``ratios``, None without a path) is not
+    returned instead of the plan ``unguarded`` (``converged``: its solve's success), in words;
+    ``""`` when it is. A converged plan is not traded for one that did not converge, nor the
+    EKF's bound for the KF's (:func:`_ekf_cost`)."""
+    if second.trajectory is None or ratios is None:
+        return "found no path"
+    if converged and not second.success:
+        return f"ended {second.status}"
+    costly = _ekf_cost(pb, unguarded, second.trajectory)
+    if costly:
+        return (
+            f"held it at {ratios[0]:.3f}x / {ratios[1]:.3f}x but raised the EKF's bound "
+            f"(posterior CRB) {costly} the lawn-mower's"
+        )
+    return ""
+
+
 def _ekf_cost(pb: PlanningProblem, unguarded: Trajectory, guarded: Trajectory) -> str:
     """Where the guarded plan's posterior CRB (mission mean, final) is above both the
-    lawn-mower's and the unguarded plan's, in words (``"mean 1.2x / final 1.4x"`` of the
-    lawn-mower's); ``""`` where it is not: the guard may not make the EKF's bound lose to the
-    lawn-mower where the plan without it did not."""
+    lawn-mower's and the unguarded plan's, in words relative to the lawn-mower's (``"mean to
+    1.17x and final to 1.36x"``); ``""`` where it is not: the guard may not make the EKF's bound
+    lose to the lawn-mower where the plan without it did not."""
     ref = reference_stds(pb, "pcrb-position")
     before = covariance_stds(unguarded, pb, "pcrb-position")
     after = covariance_stds(guarded, pb, "pcrb-position")
