@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from obsplan.planning import load_problem
-from obsplan.planning.objectives.kf_guard import kf_guard_part
+from obsplan.planning.objectives.guards import ekf_guard_part, kf_guard_part
 from obsplan.planning.objectives.linearisation import linearisation_part
 from obsplan.planning.objectives.registry import REGISTRY
 from obsplan.planning.problem.parse import LOCALISE_PROBLEM
@@ -53,7 +53,7 @@ def test_a_part_is_appended_after_the_objective(kind):
     pb = _problem(kind)
     plain = build_formulation(pb)
     form = build_formulation(pb, parts=(_part, lambda pb, grid, W: None))
-    assert PARTS == (mission_part, linearisation_part, kf_guard_part)
+    assert PARTS == (mission_part, linearisation_part, kf_guard_part, ekf_guard_part)
     # a mission's constraints: None without a [mission]
     assert mission_part(pb, Grid.from_problem(pb), ca.MX.sym("W", 3 * pb.dim, 4)) is None
     # variables: the path, the objective's lifting, then the part's two

@@ -63,7 +63,7 @@ PLANNER_VALUES = {
     "lwo_beta": 20.0,
     "lwo_ridge": 1e-9,
     "linearisation_penalty": 1.0,
-    "kf_guard_penalty": 100.0,
+    "guard_penalty": 100.0,
     # solver/ipopt.py (PROJECTION_TOL, WARM_START)
     "projection_tol": 1e-10,
     "warm_bound_push": 1e-9,

@@ -180,11 +180,11 @@ class Tuning:
     #: [normalised objective] Cost of an excess of the whole linearisation bound at one range
     #: epoch: how hard the EKF's linearisation stress is held against the observability gained.
     linearisation_penalty: float = 1.0
-    #: [normalised objective] Cost of the augmented KF's predicted std exceeding its bound
-    #: (``objective.kf_guard``) by the whole bound, on its mission mean or its final value: how
-    #: hard the KF is held against the objective's gain (:mod:`obsplan.planning.objectives.
-    #: kf_guard`).
-    kf_guard_penalty: float = 100.0
+    #: [normalised objective] Cost of an estimator's predicted std exceeding its guard's bound
+    #: (``objective.kf_guard``, ``objective.ekf_guard``) by the whole bound, on its mission mean
+    #: or its final value: how hard the estimator is held against the objective's gain
+    #: (:mod:`obsplan.planning.objectives.guards`).
+    guard_penalty: float = 100.0
 
     # -- IPOPT (obsplan.planning.solver.ipopt) ---------------------------------------------------
     #: [intrinsic units] Tolerance of the projection onto the limits (constraint violation and
@@ -279,7 +279,7 @@ _RANGES: dict[str, tuple[float | None, bool, float | None, bool]] = {
             "limit_rtol",
             "consistency_tol",
             "linearisation_penalty",
-            "kf_guard_penalty",
+            "guard_penalty",
             "stress_note_level",
         ),
         (0, True, None, False),

@@ -554,12 +554,13 @@ def _check_objective(pb: ProblemData) -> None:
             "objective.linearisation_bound",
             f"must be a finite number of range stds >= 0 (0: off), got {lb}",
         )
-    kg = obj.kf_guard
-    if kg is not None and not (np.isfinite(kg) and kg >= 0):
-        raise field_error(
-            "objective.kf_guard",
-            f"must be a finite multiple of the lawn-mower's KF std >= 0 (0: off), got {kg}",
-        )
+    for est, what in (("kf", "KF std"), ("ekf", "posterior CRB")):
+        kg = getattr(obj, f"{est}_guard")
+        if kg is not None and not (np.isfinite(kg) and kg >= 0):
+            raise field_error(
+                f"objective.{est}_guard",
+                f"must be a finite multiple of the lawn-mower's {what} >= 0 (0: off), got {kg}",
+            )
     if obj.robust_aggregate not in ("worst", "mean"):
         raise field_error(
             "objective.robust_aggregate", f'must be "worst" or "mean", got {obj.robust_aggregate!r}'

@@ -95,9 +95,12 @@ OBJECTIVES: tuple[str, ...] = tuple(OBJECTIVE_KINDS)
 KF_PCRB_WEIGHT = 1.0
 #: The bound of ``objective.kf_guard`` when unset: the augmented KF's predicted position std
 #: (mission mean and final) allowed, as a multiple of its value on the lawn-mower, applied by a
-#: re-solve only to a plan that exceeds it (:mod:`obsplan.planning.objectives.kf_guard`; the
+#: re-solve only to a plan that exceeds it (:mod:`obsplan.planning.objectives.guards`; the
 #: evidence is in docs/problem-files.md).
 KF_GUARD = 1.0
+#: The bound of ``objective.ekf_guard`` when unset: the same for the EKF's bound (the posterior
+#: CRB's position std) under an observability objective.
+EKF_GUARD = 1.0
 #: Default ``objective.linearisation_bound`` [range stds] of the kinds in
 #: :data:`LINEARISATION_KINDS` with ``weights = "information"`` (:mod:`obsplan.planning.
 #: linearisation` has the evidence); 0 (off) for every other kind and form.
@@ -591,6 +594,21 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "re-solved with the bound at 1 (report.json solver.kf_guard says so); a number g > 0: "
             "the penalty in every solve; 0: off. Not for kf-position-std (it plans for the KF) "
             "or a beacon that moves.",
+        ),
+        FieldSpec(
+            "ekf_guard",
+            "float",
+            _NONE,
+            "-",
+            "Bound on the EKF's bound along the plan (the posterior CRB's position std, its "
+            "mission mean and its final value), as a multiple of its value on the lawn-mower: "
+            "the plan pays a quadratic penalty above it, so that an observability objective "
+            "does not raise the Gramian or the LWO conditioning where the EKF's error gets "
+            "worse than on the lawn-mower. Unset (default): a plan whose posterior CRB exceeds "
+            "the lawn-mower's is re-solved with the bound at 1 (report.json solver.ekf_guard "
+            "says so); a number g > 0: the penalty in every solve; 0: off. Only for the "
+            "observability objectives (pcrb-position and kf-position-std plan for the bound "
+            "already) and a fixed beacon.",
         ),
     ),
     "scales": (

@@ -138,6 +138,7 @@ class ObjectiveSpec:
     pcrb_weight: float | None = None
     linearisation_bound: float | None = None
     kf_guard: float | None = None
+    ekf_guard: float | None = None
 
     @property
     def paper_form(self) -> bool:

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from obsplan.planning.objectives.kf_guard import kf_guard_part
+from obsplan.planning.objectives.guards import ekf_guard_part, kf_guard_part
 from obsplan.planning.objectives.linearisation import linearisation_part
 from obsplan.planning.objectives.registry import objective_of
 from obsplan.planning.problem.definition import PlanningProblem
@@ -53,7 +53,12 @@ from obsplan.trajectory.sampled import Trajectory
 #: Builders of the parts appended to every NLP after the objective, in order (each returns None
 #: for a problem it does not apply to): a mission's survey lines with their timing variables, the
 #: penalty on the EKF's linearisation stress, the augmented KF's guard.
-PARTS: tuple[PartBuilder, ...] = (mission_part, linearisation_part, kf_guard_part)
+PARTS: tuple[PartBuilder, ...] = (
+    mission_part,
+    linearisation_part,
+    kf_guard_part,
+    ekf_guard_part,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,14 +281,15 @@ def path_constraints(grid: Grid, pb: PlanningProblem, Wsym) -> list[ConstraintBl
 def _hessian(objective: Hessian, built: Sequence[FormulationPart]) -> Hessian:
     """The NLP's Hessian mode: the objective's, except with a penalty part. An exact objective
     Hessian then leaves out the penalty's curvature (``exact-without-penalty``), unless the part
-    is the augmented KF's guard: its penalty is a function of the whole path's covariance (the
-    mission mean and final std), not of a few epochs, and without its curvature the guarded
+    is an estimator's guard: its penalty is a function of the whole path's covariance (the
+    mission mean and final std), not of a few epochs, and without its curvature the KF-guarded
     ``lwo-condition`` re-solves stopped at the iteration limit where a limited-memory Hessian
-    converges (docs/problem-files.md, "The augmented KF's guard")."""
+    converges (docs/problem-files.md, "The estimators' guards")."""
     names = {part.name for part in built if part.penalty is not None}
     if not names or objective != "exact":
         return objective
-    return "limited-memory" if "kf_guard" in names else "exact-without-penalty"
+    guarded = names & {"kf_guard", "ekf_guard"}
+    return "limited-memory" if guarded else "exact-without-penalty"
 
 
 def build_formulation(pb: PlanningProblem, parts: Sequence[PartBuilder] = PARTS) -> Formulation:

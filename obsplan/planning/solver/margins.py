@@ -78,25 +78,26 @@ from obsplan.estimation.bounds.loop_covariance import LoopCovariance, loop_covar
 from obsplan.estimation.bounds.riccati import run_recursion
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.montecarlo.guidance import SPEED_RESERVE_CAP, Guidance
-from obsplan.planning.objectives.estimator import (
-    CovarianceObjective,
-    covariance_objective,
-    covariance_stds,
-    reference_stds,
-)
+from obsplan.planning.objectives.estimator import CovarianceObjective, covariance_objective
 from obsplan.planning.objectives.evaluate import objective_value
-from obsplan.planning.objectives.kf_guard import engages, guard_ratios_of
+from obsplan.planning.objectives.guards import (
+    DEFAULT_BOUNDS,
+    ESTIMATORS,
+    HELD,
+    SHORT,
+    engages,
+    guard_ratios_of,
+)
 from obsplan.planning.objectives.robust import condition_problems, is_robust
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.feasibility import beacon_of, check_limits, range_extremes
-from obsplan.planning.problem.schema import KF_GUARD
 from obsplan.planning.problem.validation_setup import (
     confidence_quantile,
     estimation_config,
     validation_guidance,
 )
 from obsplan.planning.solver.formulation import Formulation, build_formulation
-from obsplan.planning.solver.solve import KfGuardOutcome, SolveResult, solve
+from obsplan.planning.solver.solve import GuardOutcome, SolveResult, solve
 from obsplan.planning.solver.starts import StartOutcome, run_start, start_context
 from obsplan.planning.transcription.grid import Grid, distance_times
 from obsplan.planning.tuning import cache_per_tuning, tuning
@@ -1142,18 +1143,19 @@ def _report(
 
 def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, KeepoutReport]:
     """:func:`~obsplan.planning.solver.solve.solve`, then :func:`keep_out` on its plan, and the
-    same again with the augmented KF's guard where the default guard engages on the kept plan
-    (:mod:`obsplan.planning.objectives.kf_guard`).
+    same again with the estimators' guards where a default guard engages on the kept plan
+    (:mod:`obsplan.planning.objectives.guards`).
 
-    With ``objective.kf_guard`` unset, the kept plan is returned when its predicted KF std
-    (mission mean and final) is at most :data:`~obsplan.planning.problem.schema.KF_GUARD`
-    times the lawn-mower's (the keep-out re-solve moves the plan, so it is judged after it);
-    otherwise the problem is solved and kept out again, every start, with ``objective.kf_guard``
-    at that bound, and that result is returned (its ``problem`` the guarded one; ``wall_s`` both
-    passes'; ``note`` says so). A guarded pass that finds no path, does not converge where the
-    first did, or raises the EKF's bound (the posterior CRB's mission mean or final std) above
-    both the lawn-mower's and the first plan's returns the first, with the reason: the guard
-    holds the KF where that costs the EKF little, not by losing the EKF's verdicts.
+    With ``objective.kf_guard`` and ``objective.ekf_guard`` unset, the kept plan is returned when
+    the predicted std of every guarded estimator (the augmented KF's Riccati recursion, the
+    EKF's posterior CRB; mission mean and final) is at most its default bound times the
+    lawn-mower's (the keep-out re-solve moves the plan, so it is judged after it); otherwise
+    the problem is solved and kept out again, every start, with the guard of each estimator
+    that exceeded it at that bound, and that result is returned (its ``problem`` the guarded
+    one; ``wall_s`` both passes'; ``note`` says so). A guarded pass that finds no path, does not
+    converge where the first did, or raises an unguarded estimator's prediction (mean or final)
+    above both the lawn-mower's and the first plan's returns the first, with the reason: a guard
+    holds one estimator where that costs the other little, not by losing the other's verdicts.
 
     Parameters
     ----------
@@ -1167,8 +1169,8 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
     result : SolveResult
         The kept path (its objective recomputed, its status, success and iterations those of
         the re-solve that returned it, a note of that re-solve's status) when a re-solve kept
-        the margins, else the nominal result unchanged; ``kf_guard`` set when the default guard
-        was evaluated.
+        the margins, else the nominal result unchanged; ``kf_guard`` / ``ekf_guard`` set when
+        that default guard was evaluated.
     report : KeepoutReport
         :func:`keep_out`'s report of the returned pass; "no plan to keep out" (0 rounds) when
         ``solve`` returned no path.
@@ -1176,77 +1178,96 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
     first, rep = _solve_kept(pb, **kwargs)
     if first.trajectory is None:
         return first, rep
-    engaged, unguarded = engages(first.trajectory, pb)
-    if unguarded is None:
-        return first, rep
+    checks = engages(first.trajectory, pb)
+    engaged = [est for est, (on, _) in checks.items() if on]
     if not engaged:
-        return replace(
-            first, kf_guard=KfGuardOutcome(False, False, KF_GUARD, unguarded, unguarded)
-        ), rep
-    guarded = replace(pb, objective=replace(pb.objective, kf_guard=KF_GUARD))
+        idle = {
+            e: GuardOutcome(False, False, DEFAULT_BOUNDS[e], r, r) for e, (_, r) in checks.items()
+        }
+        return replace(first, **_outcome_fields(idle)), rep
+    bounds = {f"{e}_guard": DEFAULT_BOUNDS[e] for e in engaged}
+    guarded = replace(pb, objective=replace(pb.objective, **bounds))
     second, rep2 = _solve_kept(guarded, **kwargs)
-    words = (
-        f"the plan without the KF guard had the augmented KF's predicted std at "
-        f"{unguarded[0]:.3f}x / {unguarded[1]:.3f}x the lawn-mower's (mean / final)"
+    without = "the plan without the guard" + ("s" if len(engaged) > 1 else "")
+    words = f"{without} had " + " and ".join(
+        f"{HELD[e]} at {checks[e][1][0]:.3f}x / {checks[e][1][1]:.3f}x the lawn-mower's "
+        "(mean / final)"
+        for e in engaged
     )
-    ratios = None if second.trajectory is None else guard_ratios_of(second.trajectory, guarded)
-    why = _not_kept(pb, first.trajectory, first.success, second, ratios)
-    if ratios is None or why:
-        note = (
-            f"{words}; the re-solve with objective.kf_guard = {KF_GUARD:g} {why}: the plan "
-            "without the guard is kept"
-        )
-        outcome = KfGuardOutcome(True, False, KF_GUARD, unguarded, unguarded)
-        return replace(first, kf_guard=outcome, note=_join(first.note, note)), rep
-    note = (
-        f"{words}: re-solved with objective.kf_guard = {KF_GUARD:g}, "
-        f"{ratios[0]:.3f}x / {ratios[1]:.3f}x"
-    )
+    setting = " and ".join(f"objective.{k} = {v:g}" for k, v in bounds.items())
+    after = None
+    if second.trajectory is not None:
+        after = {e: guard_ratios_of(second.trajectory, guarded, e) for e in ESTIMATORS}
+    why = _not_kept(pb, first, second, engaged, after)
+    if after is None or why:
+        note = f"{words}; the re-solve with {setting} {why}: {without} is kept"
+        kept = {
+            e: GuardOutcome(e in engaged, False, DEFAULT_BOUNDS[e], r, r)
+            for e, (_, r) in checks.items()
+        }
+        return replace(first, note=_join(first.note, note), **_outcome_fields(kept)), rep
+    held = _held(after, engaged)
+    applied = {
+        e: GuardOutcome(e in engaged, e in engaged, DEFAULT_BOUNDS[e], r, after[e])
+        for e, (_, r) in checks.items()
+    }
     res = replace(
         second,
-        kf_guard=KfGuardOutcome(True, True, KF_GUARD, unguarded, ratios),
         wall_s=first.wall_s + second.wall_s,
-        note=_join(second.note, note),
+        note=_join(second.note, f"{words}: re-solved with {setting}, {held}"),
+        **_outcome_fields(applied),
     )
     return res, rep2
 
 
+def _outcome_fields(outcomes: dict[str, GuardOutcome]) -> dict[str, GuardOutcome]:
+    """``SolveResult`` fields (``kf_guard``, ``ekf_guard``) of the guards' outcomes."""
+    return {f"{e}_guard": out for e, out in outcomes.items()}
+
+
+def _held(after: dict[str, tuple[float, float]], engaged: list[str]) -> str:
+    """The guarded estimators' ratios in words (``"EKF 0.998x / 0.870x"``)."""
+    return " and ".join(f"{SHORT[e]} {after[e][0]:.3f}x / {after[e][1]:.3f}x" for e in engaged)
+
+
 def _not_kept(
     pb: PlanningProblem,
-    unguarded: Trajectory,
-    converged: bool,
+    first: SolveResult,
     second: SolveResult,
-    ratios: tuple[float, float] | None,
+    engaged: list[str],
+    after: dict[str, tuple[float, float]] | None,
 ) -> str:
-    """Why the guarded result ``second`` (its KF ratios ``ratios``, None without a path) is not
-    returned instead of the plan ``unguarded`` (``converged``: its solve's success), in words;
-    ``""`` when it is. A converged plan is not traded for one that did not converge, nor the
-    EKF's bound for the KF's (:func:`_ekf_cost`)."""
-    if second.trajectory is None or ratios is None:
+    """Why the guarded result ``second`` (its ratios ``after`` per estimator, None without a
+    path) is not returned instead of the result ``first`` solved without the guards of
+    ``engaged``, in words; ``""`` when it is. A converged plan is not traded for one that did
+    not converge, nor an unguarded estimator's prediction for a guarded one's (:func:`_cost`)."""
+    if second.trajectory is None or after is None:
         return "found no path"
-    if converged and not second.success:
+    if first.success and not second.success:
         return f"ended {second.status}"
-    costly = _ekf_cost(pb, unguarded, second.trajectory)
-    if costly:
-        return (
-            f"held it at {ratios[0]:.3f}x / {ratios[1]:.3f}x but raised the EKF's bound "
-            f"(posterior CRB) {costly} the lawn-mower's"
-        )
+    assert first.trajectory is not None  # solve_with_keepout returns earlier without a path
+    for est in ESTIMATORS:
+        if est in engaged:
+            continue
+        costly = _cost(pb, est, first.trajectory, second.trajectory)
+        if costly:
+            held = _held(after, engaged)
+            return f"held it at {held} but raised {HELD[est]} {costly} the lawn-mower's"
     return ""
 
 
-def _ekf_cost(pb: PlanningProblem, unguarded: Trajectory, guarded: Trajectory) -> str:
-    """Where the guarded plan's posterior CRB (mission mean, final) is above both the
-    lawn-mower's and the unguarded plan's, in words relative to the lawn-mower's (``"mean to
-    1.17x and final to 1.36x"``); ``""`` where it is not: the guard may not make the EKF's bound
-    lose to the lawn-mower where the plan without it did not."""
-    ref = reference_stds(pb, "pcrb-position")
-    before = covariance_stds(unguarded, pb, "pcrb-position")
-    after = covariance_stds(guarded, pb, "pcrb-position")
-    words = []
-    for name, r, b, a in zip(("mean", "final"), ref[:2], before, after, strict=True):
-        if a > max(r, b):
-            words.append(f"{name} to {a / r:.2f}x")
+def _cost(pb: PlanningProblem, estimator: str, unguarded: Trajectory, guarded: Trajectory) -> str:
+    """Where the guarded plan's predicted std of ``estimator`` (mission mean, final) is above
+    both the lawn-mower's and the unguarded plan's, in words relative to the lawn-mower's
+    (``"mean to 1.17x and final to 1.36x"``); ``""`` where it is not: a guard may not make
+    another estimator lose to the lawn-mower where the plan without it did not."""
+    before = guard_ratios_of(unguarded, pb, estimator)
+    after = guard_ratios_of(guarded, pb, estimator)
+    words = [
+        f"{name} to {a:.2f}x"
+        for name, b, a in zip(("mean", "final"), before, after, strict=True)
+        if a > max(1.0, b)
+    ]
     return " and ".join(words)
 
 

@@ -64,9 +64,10 @@ GUESS_STATUS = "Guess_Returned"
 
 
 @dataclass(frozen=True)
-class KfGuardOutcome:
-    """What the default augmented-KF guard did
-    (:func:`~obsplan.planning.solver.margins.solve_with_keepout`).
+class GuardOutcome:
+    """What an estimator's default guard did (the augmented KF's or the EKF's:
+    :mod:`obsplan.planning.objectives.guards`,
+    :func:`~obsplan.planning.solver.margins.solve_with_keepout`).
 
     Attributes
     ----------
@@ -75,13 +76,16 @@ class KfGuardOutcome:
         with it.
     applied : bool
         The returned plan is the guarded re-solve's (False when not engaged, or when that
-        re-solve found no path, did not converge or cost the EKF's bound: the note says which).
+        re-solve found no path, did not converge or raised the other estimator's prediction:
+        the note says which).
     bound : float
-        The bound, a multiple of the lawn-mower's predicted KF std
-        (:data:`~obsplan.planning.problem.schema.KF_GUARD`).
+        The bound, a multiple of the lawn-mower's predicted std
+        (:data:`~obsplan.planning.problem.schema.KF_GUARD`,
+        :data:`~obsplan.planning.problem.schema.EKF_GUARD`).
     unguarded : tuple of float
-        ``(mean, final)`` predicted KF std of the plan solved without the guard, relative to
-        the lawn-mower's.
+        ``(mean, final)`` predicted std of the estimator (the augmented KF's Riccati recursion,
+        the EKF's posterior CRB) on the plan solved without the guard, relative to the
+        lawn-mower's.
     ratios : tuple of float
         The same for the returned plan (equal to ``unguarded`` when not engaged).
     """
@@ -93,7 +97,7 @@ class KfGuardOutcome:
     ratios: tuple[float, float]
 
     def to_dict(self) -> dict:
-        """JSON-ready form (``solver.kf_guard`` of report.json).
+        """JSON-ready form (``solver.kf_guard``, ``solver.ekf_guard`` of report.json).
 
         Returns
         -------
@@ -139,7 +143,9 @@ class SolveResult:
     chosen: str | None = None
     note: str = ""
     start_paths: dict[str, Trajectory] = field(default_factory=dict, repr=False)
-    kf_guard: KfGuardOutcome | None = None  # None: the default guard was not evaluated
+    # None: the default guard was not evaluated
+    kf_guard: GuardOutcome | None = None
+    ekf_guard: GuardOutcome | None = None
 
     def __post_init__(self) -> None:
         # the one meaning of success (module docstring): a result that says otherwise is a bug
@@ -161,7 +167,7 @@ class SolveResult:
             when absent or not finite), ``best_start``, ``chosen``, ``note``,
             ``converged_starts`` (how many starts converged), ``build_s`` [s], ``starts``
             (each start's :meth:`~obsplan.planning.solver.starts.StartOutcome.to_dict`) and
-            ``kf_guard`` (:meth:`KfGuardOutcome.to_dict`, or None).
+            ``kf_guard`` and ``ekf_guard`` (:meth:`GuardOutcome.to_dict`, or None).
         """
         return {
             "success": bool(self.success),
@@ -179,6 +185,7 @@ class SolveResult:
             "build_s": float(self.build_s),
             "starts": [s.to_dict() for s in self.starts],
             "kf_guard": None if self.kf_guard is None else self.kf_guard.to_dict(),
+            "ekf_guard": None if self.ekf_guard is None else self.ekf_guard.to_dict(),
         }
 
 

@@ -42,6 +42,7 @@ from obsplan.estimation.montecarlo.stats import FilterStats
 from obsplan.model.beacon import BeaconPath
 from obsplan.planning.objectives.evaluate import PathMetrics
 from obsplan.planning.problem.definition import PlanningProblem
+from obsplan.planning.problem.schema import OBJECTIVE_KINDS
 from obsplan.planning.problem.sections import ObjectiveSpec
 from obsplan.planning.tuning import tuning
 from obsplan.planning.validation.validate import PathValidation, merge_validations, validate_paths
@@ -583,8 +584,9 @@ def estimator_notes(
     predicted std (with the posterior CRB at ``objective.pcrb_weight``), every other kind what an
     EKF can use. The augmented KF reads the ranges through its linear model of the half-squared
     range (eqs. 20-24), whose information differs from the EKF's; ``objective.kf_guard``
-    (:mod:`obsplan.planning.objectives.kf_guard`) holds its *predicted* std at a multiple of the
-    lawn-mower's, which a loss in the Monte Carlo says the runs did not follow.
+    (:mod:`obsplan.planning.objectives.guards`) holds its *predicted* std at a multiple of the
+    lawn-mower's, and ``objective.ekf_guard`` the EKF's bound under an observability objective,
+    which a loss in the Monte Carlo says the runs did not follow.
 
     Parameters
     ----------
@@ -647,10 +649,20 @@ def _served_words(
             f"{head} and loses {loses}: the augmented KF reads the ranges through its linear "
             f"model of the half-squared range, whose information differs; {held}"
         )
-    return (
+    tail = (
         f"{head}, yet loses {loses} where the {_ESTIMATORS[winner]} wins: the filter did not "
         "realise the plan's information on these runs (the notes above say what else differs)"
     )
+    if OBJECTIVE_KINDS[obj.kind].timed:  # pcrb-position: the bound is the objective itself
+        return tail
+    guard = (
+        "objective.ekf_guard = 0 turned off the guard on the EKF's bound"
+        if obj.ekf_guard == 0
+        else "objective.ekf_guard holds the EKF's bound (the posterior CRB on the nominal path) "
+        "at the lawn-mower's where the plan exceeded it (solver.ekf_guard and solver.note say "
+        "whether it did), which the runs' errors follow only to within the EKF's linearisation"
+    )
+    return f"{tail}; {guard}"
 
 
 def ekf_diverges(v: PathValidation) -> bool:
