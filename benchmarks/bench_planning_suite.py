@@ -151,6 +151,7 @@ def run_one(
         "notes": list(res.verdict.notes),
         "solver_note": res.solve.note,
         "kf_guard": None if res.solve.kf_guard is None else res.solve.kf_guard.to_dict(),
+        "ekf_guard": None if res.solve.ekf_guard is None else res.solve.ekf_guard.to_dict(),
     }
     v = res.validation
     if "planned" in v:

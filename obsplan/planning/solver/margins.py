@@ -1184,9 +1184,16 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
         idle = {
             e: GuardOutcome(False, False, DEFAULT_BOUNDS[e], r, r) for e, (_, r) in checks.items()
         }
-        return replace(first, **_outcome_fields(idle)), rep
-    bounds = {f"{e}_guard": DEFAULT_BOUNDS[e] for e in engaged}
-    guarded = replace(pb, objective=replace(pb.objective, **bounds))
+        return _with_outcomes(first, idle), rep
+    obj = pb.objective
+    guarded = replace(
+        pb,
+        objective=replace(
+            obj,
+            kf_guard=DEFAULT_BOUNDS["kf"] if "kf" in engaged else obj.kf_guard,
+            ekf_guard=DEFAULT_BOUNDS["ekf"] if "ekf" in engaged else obj.ekf_guard,
+        ),
+    )
     second, rep2 = _solve_kept(guarded, **kwargs)
     without = "the plan without the guard" + ("s" if len(engaged) > 1 else "")
     words = f"{without} had " + " and ".join(
@@ -1194,7 +1201,7 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
         "(mean / final)"
         for e in engaged
     )
-    setting = " and ".join(f"objective.{k} = {v:g}" for k, v in bounds.items())
+    setting = " and ".join(f"objective.{e}_guard = {DEFAULT_BOUNDS[e]:g}" for e in engaged)
     after = None
     if second.trajectory is not None:
         after = {e: guard_ratios_of(second.trajectory, guarded, e) for e in ESTIMATORS}
@@ -1205,24 +1212,25 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
             e: GuardOutcome(e in engaged, False, DEFAULT_BOUNDS[e], r, r)
             for e, (_, r) in checks.items()
         }
-        return replace(first, note=_join(first.note, note), **_outcome_fields(kept)), rep
+        return _with_outcomes(first, kept, note=_join(first.note, note)), rep
     held = _held(after, engaged)
     applied = {
         e: GuardOutcome(e in engaged, e in engaged, DEFAULT_BOUNDS[e], r, after[e])
         for e, (_, r) in checks.items()
     }
-    res = replace(
+    res = _with_outcomes(
         second,
+        applied,
         wall_s=first.wall_s + second.wall_s,
         note=_join(second.note, f"{words}: re-solved with {setting}, {held}"),
-        **_outcome_fields(applied),
     )
     return res, rep2
 
 
-def _outcome_fields(outcomes: dict[str, GuardOutcome]) -> dict[str, GuardOutcome]:
-    """``SolveResult`` fields (``kf_guard``, ``ekf_guard``) of the guards' outcomes."""
-    return {f"{e}_guard": out for e, out in outcomes.items()}
+def _with_outcomes(res: SolveResult, outcomes: dict[str, GuardOutcome], **fields) -> SolveResult:
+    """``res`` with the guards' outcomes (``kf_guard``, ``ekf_guard``; None: not evaluated) and
+    ``fields`` replaced."""
+    return replace(res, kf_guard=outcomes.get("kf"), ekf_guard=outcomes.get("ekf"), **fields)
 
 
 def _held(after: dict[str, tuple[float, float]], engaged: list[str]) -> str:
