@@ -329,8 +329,11 @@ def update_page(text: str, rows: list[dict], command: str, wall_s: float) -> str
     counts and medians are of its own rows), the planned beacons' paragraph rewritten."""
     lines = text.rstrip("\n").split("\n")
     new = {f"| `{_name(r)}` |": table_row(r) for r in rows}
+    # rows the page has are replaced where they stand (a suite row too, below the first suite
+    # line); the others are inserted before the suite's rows
+    present = {k for k in new if any(line.startswith(k) for line in lines)}
     everything = [r for r in rows if "beacon_verdicts" in r]
-    out, inserted, kept = [], set(), []
+    out, inserted, kept = [], set(present), []
     for line in lines:
         if line.startswith(BEACON_PARAGRAPH):
             if not everything:  # no planned beacon re-run: its verdicts stay those of before
@@ -339,7 +342,6 @@ def update_page(text: str, rows: list[dict], command: str, wall_s: float) -> str
         key = next((k for k in new if line.startswith(k)), None)
         if key is not None:
             out.append(new[key])
-            inserted.add(key)
             continue
         if line.startswith("| `suite/") and not inserted >= set(new):
             out += [new[k] for k in new if k not in inserted]

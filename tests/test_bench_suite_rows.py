@@ -78,6 +78,21 @@ def test_rows_are_replaced_or_added_and_the_rest_is_kept():
     assert sum(x.startswith("Rows of `asv.toml`") for x in again.splitlines()) == 1
 
 
+def test_an_updated_suite_row_is_replaced_where_it_stands():
+    bench = _bench()
+    fixed = [
+        _fixed_row("a.toml", 0.5),
+        _fixed_row("suite/b.toml", 0.4),
+        _fixed_row("suite/c.toml", 0.6),
+    ]
+    page = bench.markdown_page(fixed, "python bench X", 600.0)
+    out = bench.update_page(page, [_fixed_row("suite/c.toml", 0.2)], "python bench Y", 60.0)
+    rows = [x for x in out.splitlines() if x.startswith("| `")]
+    names = [r.split("|")[1].strip() for r in rows]
+    assert names == ["`a.toml`", "`suite/b.toml`", "`suite/c.toml`"]  # once, in its place
+    assert rows[2] == bench.table_row(_fixed_row("suite/c.toml", 0.2))
+
+
 def test_a_later_update_keeps_what_it_did_not_rerun_and_drops_what_it_superseded():
     bench = _bench()
     fixed = [_fixed_row("a.toml", 0.5), _fixed_row("suite/b.toml", 0.4)]
