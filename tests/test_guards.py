@@ -200,6 +200,7 @@ def test_the_default_guard_changes_nothing_unless_it_engages_and_then_re_solves(
 
     # a bound every plan keeps: the default returns exactly the plan solved without the guard
     monkeypatch.setitem(guards_module.DEFAULT_BOUNDS, est, 2.0 * max(unguarded))
+    monkeypatch.setitem(guards_module.ENGAGE_ABOVE, est, 2.0 * max(unguarded))
     kept, _ = solve_with_keepout(_only(pb, est), processes=1)
     out = getattr(kept, f"{est}_guard")
     assert not out.engaged and not out.applied
@@ -209,6 +210,7 @@ def test_the_default_guard_changes_nothing_unless_it_engages_and_then_re_solves(
     # a bound the plan breaks: re-solved with it, and said so
     bound = 0.85 * max(unguarded)
     monkeypatch.setitem(guards_module.DEFAULT_BOUNDS, est, bound)
+    monkeypatch.setitem(guards_module.ENGAGE_ABOVE, est, bound)
     res, _ = solve_with_keepout(_only(pb, est), processes=1)
     out = getattr(res, f"{est}_guard")
     assert out.engaged and out.applied and out.unguarded == pytest.approx(unguarded, rel=1e-12)
@@ -244,10 +246,11 @@ def test_the_ekfs_default_guard_holds_a_plan_that_trades_the_ekf(monkeypatch):
     out = res.ekf_guard
     assert out.engaged and out.applied and res.success
     assert out.unguarded == pytest.approx(unguarded, rel=1e-12)  # the same first solve
-    assert res.problem.objective.ekf_guard == guards_module.DEFAULT_BOUNDS["ekf"] == 1.0
+    bound = guards_module.DEFAULT_BOUNDS["ekf"]
+    assert res.problem.objective.ekf_guard == bound == 0.95  # engaged above 1, held below it
     assert out.ratios == pytest.approx(guard_ratios_of(res.trajectory, pb, "ekf"), rel=1e-12)
-    assert max(out.ratios) <= 1.03  # the tolerance of the KF's test above
-    assert "re-solved with objective.ekf_guard = 1, EKF" in res.note
+    assert max(out.ratios) <= 1.03 * bound  # the tolerance of the KF's test above
+    assert "re-solved with objective.ekf_guard = 0.95, EKF" in res.note
     assert res.to_dict()["ekf_guard"]["applied"] is True and res.kf_guard is None  # KF's off
     # the KF's prediction was checked, and not raised above both the lawn-mower's and the plan's
     # without the guard
@@ -280,6 +283,7 @@ def test_a_guarded_plan_that_costs_the_other_estimator_is_not_kept(monkeypatch, 
     free, _ = solve_with_keepout(_only(pb, est, 0.0), processes=1)
     bound = 0.85 * max(guard_ratios_of(free.trajectory, pb, est))
     monkeypatch.setitem(guards_module.DEFAULT_BOUNDS, est, bound)
+    monkeypatch.setitem(guards_module.ENGAGE_ABOVE, est, bound)
     monkeypatch.setattr(margins_module, "_cost", lambda pb, e, a, b: "final to 1.50x")
     res, _ = solve_with_keepout(_only(pb, est), processes=1)
     out = getattr(res, f"{est}_guard")

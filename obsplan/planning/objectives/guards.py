@@ -32,10 +32,11 @@ limited-memory Hessian even for an objective with an exact one
 (:func:`obsplan.planning.solver.formulation.build_formulation`).
 
 When they apply. ``objective.<estimator>_guard = g > 0`` puts the penalty in every solve. Unset
-(the default), the problem is solved without them and re-solved with ``g = 1``
-(:data:`~obsplan.planning.problem.schema.KF_GUARD`, :data:`~obsplan.planning.problem.schema.
-EKF_GUARD`) on each estimator whose predicted std, mean or final, exceeds the lawn-mower's on the
-kept plan (:func:`engages`; :func:`~obsplan.planning.solver.margins.solve_with_keepout`, which
+(the default), the problem is solved without them and re-solved with the guard of each
+estimator whose predicted std, mean or final, exceeds the lawn-mower's on the kept plan, at
+``g = 1`` for the KF (:data:`~obsplan.planning.problem.schema.KF_GUARD`) and ``g = 0.95`` for
+the EKF (:data:`~obsplan.planning.problem.schema.EKF_GUARD`: its error sits above its bound, so a
+bound held at exactly the lawn-mower's ties at best) (:func:`engages`; :func:`~obsplan.planning.solver.margins.solve_with_keepout`, which
 keeps the plan without them where the guarded one raises an unguarded estimator's prediction
 above both the lawn-mower's and its own). Not always on: a penalty's mere presence changes
 IPOPT's path (another Hessian, a gradient wherever an iterate passes above the bound), so it
@@ -68,6 +69,9 @@ KF_KIND = "kf-position-std"
 RECURSIONS = {"kf": KF_KIND, "ekf": "pcrb-position"}
 #: The default bound of each guard, a multiple of the lawn-mower's std.
 DEFAULT_BOUNDS = {"kf": KF_GUARD, "ekf": EKF_GUARD}
+#: The predicted std, a multiple of the lawn-mower's, above which a default guard engages: the
+#: lawn-mower's own (a plan predicted to do no worse than it is left alone).
+ENGAGE_ABOVE = {"kf": 1.0, "ekf": 1.0}
 #: What each guard holds, in words.
 HELD = {"kf": "the augmented KF's predicted std", "ekf": "the EKF's bound (posterior CRB)"}
 #: Each estimator's short name.
@@ -215,8 +219,9 @@ def applies(pb: PlanningProblem, estimator: str = "kf") -> bool:
 
 def engages(traj: Trajectory, pb: PlanningProblem) -> dict[str, tuple[bool, tuple[float, float]]]:
     """Which default guards (``objective.<estimator>_guard`` unset) engage on a plan solved
-    without them: the estimator's predicted std, mission mean or final, above its default bound
-    (:data:`DEFAULT_BOUNDS`) times the lawn-mower's.
+    without them: the estimator's predicted std, mission mean or final, above
+    :data:`ENGAGE_ABOVE` times the lawn-mower's (they then re-solve with the bound at
+    :data:`DEFAULT_BOUNDS`).
 
     Parameters
     ----------
@@ -236,7 +241,7 @@ def engages(traj: Trajectory, pb: PlanningProblem) -> dict[str, tuple[bool, tupl
     for est in ESTIMATORS:
         if applies(pb, est) and bound_of(pb, est) is None:
             ratios = guard_ratios_of(traj, pb, est)
-            out[est] = (max(ratios) > DEFAULT_BOUNDS[est], ratios)
+            out[est] = (max(ratios) > ENGAGE_ABOVE[est], ratios)
     return out
 
 

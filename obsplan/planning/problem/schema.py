@@ -99,8 +99,11 @@ KF_PCRB_WEIGHT = 1.0
 #: evidence is in docs/problem-files.md).
 KF_GUARD = 1.0
 #: The bound of ``objective.ekf_guard`` when unset: the same for the EKF's bound (the posterior
-#: CRB's position std) under an observability objective.
-EKF_GUARD = 1.0
+#: CRB's position std) under an observability objective, applied to a plan whose bound exceeds
+#: the lawn-mower's; below 1 because the EKF's error sits above its bound, so a plan held at
+#: exactly the lawn-mower's bound ties its error at best (docs/problem-files.md, "The
+#: estimators' guards", has the evidence).
+EKF_GUARD = 0.95
 #: Default ``objective.linearisation_bound`` [range stds] of the kinds in
 #: :data:`LINEARISATION_KINDS` with ``weights = "information"`` (:mod:`obsplan.planning.
 #: linearisation` has the evidence); 0 (off) for every other kind and form.
@@ -605,7 +608,8 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "the plan pays a quadratic penalty above it, so that an observability objective "
             "does not raise the Gramian or the LWO conditioning where the EKF's error gets "
             "worse than on the lawn-mower. Unset (default): a plan whose posterior CRB exceeds "
-            "the lawn-mower's is re-solved with the bound at 1 (report.json solver.ekf_guard "
+            "the lawn-mower's is re-solved with the bound at 0.95, the EKF's error sitting above its bound "
+            "(report.json solver.ekf_guard "
             "says so); a number g > 0: the penalty in every solve; 0: off. Only for the "
             "observability objectives (pcrb-position and kf-position-std plan for the bound "
             "already) and a fixed beacon.",
