@@ -36,9 +36,10 @@ When they apply. ``objective.<estimator>_guard = g > 0`` puts the penalty in eve
 estimator whose predicted std, mean or final, exceeds the lawn-mower's on the kept plan, at
 ``g = 1`` for the KF (:data:`~obsplan.planning.problem.schema.KF_GUARD`) and ``g = 0.95`` for
 the EKF (:data:`~obsplan.planning.problem.schema.EKF_GUARD`: its error sits above its bound, so a
-bound held at exactly the lawn-mower's ties at best) (:func:`engages`; :func:`~obsplan.planning.solver.margins.solve_with_keepout`, which
-keeps the plan without them where the guarded one raises an unguarded estimator's prediction
-above both the lawn-mower's and its own). Not always on: a penalty's mere presence changes
+bound held at exactly the lawn-mower's ties at best): :func:`engages`,
+:func:`~obsplan.planning.solver.margins.solve_with_keepout`, which keeps the plan without them
+where the guarded one raises an unguarded estimator's prediction above both the lawn-mower's and
+its own. Not always on: a penalty's mere presence changes
 IPOPT's path (another Hessian, a gradient wherever an iterate passes above the bound), so it
 would move plans that never traded an estimator. ``0`` turns a guard off. The KF's guard is off
 for ``kf-position-std`` (it plans for the KF), the EKF's for both estimator objectives

@@ -608,9 +608,9 @@ SCHEMA: dict[str, tuple[FieldSpec, ...]] = {
             "the plan pays a quadratic penalty above it, so that an observability objective "
             "does not raise the Gramian or the LWO conditioning where the EKF's error gets "
             "worse than on the lawn-mower. Unset (default): a plan whose posterior CRB exceeds "
-            "the lawn-mower's is re-solved with the bound at 0.95, the EKF's error sitting above its bound "
-            "(report.json solver.ekf_guard "
-            "says so); a number g > 0: the penalty in every solve; 0: off. Only for the "
+            "the lawn-mower's is re-solved with the bound at 0.95, the EKF's error sitting "
+            "above its bound (report.json solver.ekf_guard says so); a number g > 0: the "
+            "penalty in every solve; 0: off. Only for the "
             "observability objectives (pcrb-position and kf-position-std plan for the bound "
             "already) and a fixed beacon.",
         ),
