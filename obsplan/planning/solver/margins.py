@@ -1148,11 +1148,12 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
 
     With ``objective.kf_guard`` and ``objective.ekf_guard`` unset, the kept plan is returned when
     the predicted std of every guarded estimator (the augmented KF's Riccati recursion, the
-    EKF's posterior CRB; mission mean and final) is at most its default bound times the
-    lawn-mower's (the keep-out re-solve moves the plan, so it is judged after it); otherwise
-    the problem is solved and kept out again, every start, with the guard of each estimator
-    that exceeded it at that bound, and that result is returned (its ``problem`` the guarded
-    one; ``wall_s`` both passes'; ``note`` says so). A guarded pass that finds no path, does not
+    EKF's posterior CRB; mission mean and final) is at most the lawn-mower's
+    (:data:`~obsplan.planning.objectives.guards.ENGAGE_ABOVE`; the keep-out re-solve moves the
+    plan, so it is judged after it); otherwise the problem is solved and kept out again, every
+    start, with the guard of each estimator that exceeded it at its default bound
+    (:data:`~obsplan.planning.objectives.guards.DEFAULT_BOUNDS`), and that result is returned
+    (its ``problem`` the guarded one; ``wall_s`` both passes'; ``note`` says so). A guarded pass that finds no path, does not
     converge where the first did, or raises an unguarded estimator's prediction (mean or final)
     above both the lawn-mower's and the first plan's returns the first, with the reason: a guard
     holds one estimator where that costs the other little, not by losing the other's verdicts.
