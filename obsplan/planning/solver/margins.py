@@ -1154,9 +1154,10 @@ def solve_with_keepout(pb: PlanningProblem, **kwargs) -> tuple[SolveResult, Keep
     start, with the guard of each estimator that exceeded it at its default bound
     (:data:`~obsplan.planning.objectives.guards.DEFAULT_BOUNDS`), and that result is returned
     (its ``problem`` the guarded one; ``wall_s`` both passes'; ``note`` says so). A guarded
-    pass that finds no path, does not converge where the first did, or raises an unguarded estimator's prediction (mean or final)
-    above both the lawn-mower's and the first plan's returns the first, with the reason: a guard
-    holds one estimator where that costs the other little, not by losing the other's verdicts.
+    pass that finds no path, does not converge where the first did, or raises an unguarded
+    estimator's prediction (mean or final) above both the lawn-mower's and the first plan's
+    returns the first, with the reason: a guard holds one estimator where that costs the other
+    little, not by losing the other's verdicts.
 
     Parameters
     ----------
