@@ -222,7 +222,9 @@ def beacon_row(path: Path, pb, runs: int | None, max_runs: int | None) -> dict:
     }
     return {
         "problem": str(path.relative_to(ROOT) if path.is_relative_to(ROOT) else path),
-        "objective": "planned beacon (pcrb lines + final)",
+        "objective": "planned beacon"
+        + (" and vehicle, jointly" if res.joint is not None else "")
+        + " (pcrb lines + final)",
         "status": res.solve.status,
         "success": bool(res.success),
         "solve_s": res.planning_s,
@@ -300,14 +302,22 @@ def table_row(r: dict) -> str:
     return "| " + " | ".join(cells) + " |"
 
 
-def beacon_sentences(rows: list[dict]) -> list[str]:
+def beacon_sentences(rows: list[dict], earlier: dict[str, str] | None = None) -> list[str]:
     """A paragraph on the rows of planned beacons: their verdicts against every beacon
-    baseline (none without such rows)."""
-    said = [f"`{_name(r)}` {beacon_letters(r)}" for r in rows if "beacon_verdicts" in r]
+    baseline (none without such rows); ``earlier``: the verdicts an earlier paragraph gave, by
+    problem (``"`name`"``), kept where ``rows`` has no new ones."""
+    new = {
+        f"`{_name(r)}`": f"`{_name(r)}` {beacon_letters(r)}" for r in rows if "beacon_verdicts" in r
+    }
+    merged = dict(earlier or {})
+    merged.update(new)
+    said = list(merged.values())
     if not said:
         return []
     return [
-        f"{BEACON_PARAGRAPH} the vehicle flies its lawn-mower with every beacon, so the ratio "
+        f"{BEACON_PARAGRAPH} the vehicle flies its lawn-mower with every beacon (planned "
+        "jointly: the planned vehicle with the planned beacon, the lawn-mower with every "
+        "baseline and with `beacon-planned`, the craft planned alone for it), so the ratio "
         "columns do not apply; the circle's column is `beacon-circle`, the true closest "
         "approach (a range) and the runs inside `min_range` are the vehicle's to the planned "
         "craft over the validation's runs (not flown alone; `min_range` is the craft's "
@@ -334,10 +344,12 @@ def update_page(text: str, rows: list[dict], command: str, wall_s: float) -> str
     present = {k for k in new if any(line.startswith(k) for line in lines)}
     everything = [r for r in rows if "beacon_verdicts" in r]
     out, inserted, kept = [], set(present), []
+    earlier: dict[str, str] = {}
     for line in lines:
         if line.startswith(BEACON_PARAGRAPH):
             if not everything:  # no planned beacon re-run: its verdicts stay those of before
                 kept = [line, ""]
+            earlier = _beacon_verdicts_said(line)
             continue
         key = next((k for k in new if line.startswith(k)), None)
         if key is not None:
@@ -358,8 +370,15 @@ def update_page(text: str, rows: list[dict], command: str, wall_s: float) -> str
     ran = {f"`{_name(r)}`" for r in rows}
     out = [x for x in out if not (x.startswith("Rows of ") and _row_names(x) <= ran)]
     out.insert(1, note)
-    tail = beacon_sentences(everything) if everything else kept
+    tail = beacon_sentences(everything, earlier) if everything else kept
     return "\n".join(out).rstrip("\n") + "\n\n" + "\n".join(tail)
+
+
+def _beacon_verdicts_said(paragraph: str) -> dict[str, str]:
+    """The per-problem verdicts of a planned beacons' paragraph (:func:`beacon_sentences`), by
+    problem (``"`name`"``)."""
+    body = paragraph.split(" are: ", 1)[1].rstrip().removesuffix(".")
+    return {seg.split(" ", 1)[0]: seg for seg in body.split("; ")}
 
 
 def _row_names(note: str) -> set[str]:

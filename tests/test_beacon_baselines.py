@@ -159,7 +159,10 @@ def test_plan_and_validate_refuse_a_moving_beacon_and_say_what_to_use():
 @pytest.mark.parametrize(
     ("edit", "match"),
     [
-        ({"vehicle": {"path": None}}, r"^vehicle\.path: missing: planning the vehicle and the"),
+        (
+            {"vehicle": {"path": None}, "objective": {"kind": "gramian-min-eig"}},
+            r'^objective\.kind: "gramian-min-eig" is not built for the vehicle planned jointly',
+        ),
     ],
 )
 def test_unsupported_moving_beacon_flows_are_refused(edit, match):
@@ -201,13 +204,15 @@ def test_obsplan_plan_writes_the_beacon_plan_and_its_verdict(tmp_path, capsys):
     assert np.array_equal(read_csv(out / "plan.csv").p[0], [-70.0, 25.0])
 
 
-def test_obsplan_plan_refuses_joint_planning_before_any_output(tmp_path, capsys):
+def test_obsplan_plan_refuses_a_joint_objective_it_cannot_plan_before_any_output(tmp_path, capsys):
     path = tmp_path / "joint.toml"
     data = tomllib.loads(load_problem("asv-survey").to_toml())
     del data["vehicle"]["path"]
+    data["objective"]["kind"] = "lwo-condition"
     path.write_text(toml_text(data))
     assert main(["plan", str(path), "--out", str(tmp_path / "o")]) == 2
-    assert "jointly is not built yet" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "objective.kind" in err and "planned jointly" in err and "pcrb-position" in err
     assert not (tmp_path / "o").exists()
 
 

@@ -111,3 +111,25 @@ def test_a_later_update_keeps_what_it_did_not_rerun_and_drops_what_it_superseded
         "Rows of `asv.toml`, `ship.toml` by `python bench W` (1 min wall); the other rows and "
         "the summary by the command above."
     ]
+
+
+def test_one_planned_beacon_re_run_keeps_the_others_verdicts_in_the_paragraph():
+    bench = _bench()
+    fixed = [_fixed_row("a.toml", 0.5), _fixed_row("suite/b.toml", 0.4)]
+    page = bench.markdown_page(fixed, "python bench X", 600.0)
+    two = bench.update_page(
+        page, [_beacon_row("asv.toml"), _beacon_row("asv3d.toml")], "python bench Y", 60.0
+    )
+    again = _beacon_row("asv3d.toml")
+    again["beacon_verdicts"]["beacon-circle"] = {
+        k: again["beacon_verdicts"]["beacon-fixed"][k] for k in bench.BEACON_METRICS
+    }
+    joint = bench.update_page(two, [again, _beacon_row("joint.toml")], "python bench Z", 60.0)
+    (para,) = [x for x in joint.splitlines() if x.startswith(bench.BEACON_PARAGRAPH)]
+    said = para.split(" are: ", 1)[1].rstrip(".").split("; ")
+    # the one not re-run keeps its verdicts, the re-run one has its new ones, in the same order
+    assert said == [
+        "`asv.toml` beacon-fixed BB, beacon-circle Bt",
+        "`asv3d.toml` beacon-fixed BB, beacon-circle BB",
+        "`joint.toml` beacon-fixed BB, beacon-circle Bt",
+    ]

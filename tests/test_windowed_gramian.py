@@ -365,11 +365,13 @@ def test_lwo_condition_information_form_earns_its_verdict():
     # suite/lwo-dvl3d.toml, coarser and with fewer runs than the suite table: the default
     # (information-weighted) form beats the lawn-mower on all four metrics, the scale-free
     # diagnostic loses on the EKF final error. Measured at N = 75 / 20 runs: 0.40 / 0.68 / 0.31 /
-    # 0.08 against 0.89 / 3.4 / 0.99 / 0.57; the margins (0.8x, 1.5x) are far from both.
+    # 0.08 against 0.89 / 3.4 / 0.99 / 0.57; the margins (0.8x, 1.5x) are far from both. The
+    # scale-free form is planned without the EKF's guard (objective.ekf_guard = 0): what is
+    # measured is the objective itself, not the guard's re-solve of it (tests/test_guards.py).
     ratios = _coarse_ratios("problems/suite/lwo-dvl3d.toml", 75)
     for key, ratio in ratios.items():
         assert ratio is not None and ratio < 0.8, key
-    scale_free = _coarse_ratios("problems/suite/lwo-dvl3d.toml", 75, weights="none")
+    scale_free = _coarse_ratios("problems/suite/lwo-dvl3d.toml", 75, weights="none", ekf_guard=0.0)
     assert scale_free["ekf.final_pos_err"] > 1.5
 
 

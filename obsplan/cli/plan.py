@@ -174,9 +174,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_moving_beacon(pb: PlanningProblem, args: argparse.Namespace) -> int:
-    """``obsplan plan`` of a beacon planned for a vehicle on a given path
-    (:func:`~obsplan.planning.plan.plan_moving_beacon`): ``plan.csv`` (the vehicle's path),
-    ``beacon.csv``, ``report.json`` and the figures; 0 when the beacon planner converged."""
+    """``obsplan plan`` of a beacon planned for a vehicle on a given path, or jointly with the
+    vehicle (:func:`~obsplan.planning.plan.plan_moving_beacon`): ``plan.csv`` (the vehicle's
+    path), ``beacon.csv``, ``report.json`` and the figures; 0 when the planners converged."""
     check_beacon_plannable(pb)  # what is not built yet is refused before any output
     if args.replan is not None:
         raise InputError("--replan re-plans a vehicle; the beacon's replanning is not built yet")
@@ -195,10 +195,12 @@ def _run_moving_beacon(pb: PlanningProblem, args: argparse.Namespace) -> int:
     print(result.summary())
     print(f"wrote {', '.join(str(p) for p in written)}")
     if not result.success:
-        print(
-            f"obsplan plan: failed: the beacon's plan did not converge (solver.status "
-            f"{result.solve.status}); its best path was written",
-            file=sys.stderr,
+        v = None if result.joint is None else result.joint.vehicle_solve
+        which = (
+            f"the vehicle's plan did not converge (solver.joint.vehicle.status {v.status})"
+            if v is not None and not v.success
+            else f"the beacon's plan did not converge (solver.status {result.solve.status})"
         )
+        print(f"obsplan plan: failed: {which}; the best paths were written", file=sys.stderr)
         return 1
     return 0

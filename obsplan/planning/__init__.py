@@ -8,7 +8,8 @@ planning): the floor :mod:`~.tuning` (the planner's numeric tuning knobs, docs/t
 
 Public API: :func:`plan` -> :class:`PlanResult`, :func:`validate` -> :class:`ValidationResult`
 (a given path validated as :func:`plan` validates its plan), :func:`plan_moving_beacon` ->
-:class:`BeaconPlanResult` (a planned beacon for a vehicle on a given path), :func:`load_problem`,
+:class:`BeaconPlanResult` (a planned beacon for a vehicle on a given path, or both jointly),
+:func:`load_problem`,
 :class:`PlanningProblem` and its sections, :func:`solve` -> :class:`SolveResult`,
 :func:`baselines`, :func:`path_metrics`, :func:`estimation_config` (the validation's filter
 configuration of a problem). The modules form

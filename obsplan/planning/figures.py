@@ -395,6 +395,7 @@ def plot_beacon_paths(
     pb: PlanningProblem,
     ax=None,
     links: int = 12,
+    baseline_vehicle: Trajectory | None = None,
 ) -> Figure:
     """The vehicle's path and the beacon's paths (planned and baselines), with range links.
 
@@ -414,6 +415,9 @@ def plot_beacon_paths(
         Axes to draw on; None makes a new figure.
     links : int, optional
         Number of range links drawn.
+    baseline_vehicle : Trajectory or None, optional
+        The path the vehicle flies with the baselines' beacons when it differs from
+        ``vehicle`` (planned jointly: the lawn-mower), drawn dashed; None: ``vehicle``.
 
     Returns
     -------
@@ -425,6 +429,9 @@ def plot_beacon_paths(
         ax = fig.add_subplot(111)
     fig = ax.figure
     ax.plot(vehicle.p[:, 0], vehicle.p[:, 1], color="k", lw=1.5, label="vehicle")
+    if baseline_vehicle is not None:
+        q = baseline_vehicle.p
+        ax.plot(q[:, 0], q[:, 1], color="0.45", lw=1.0, ls=":", label="vehicle with baselines")
     ax.plot(pb.p0[0], pb.p0[1], "ko", ms=5, label="vehicle start")
     others = iter(("tab:blue", "tab:orange", "tab:purple", "tab:red", "tab:brown", "tab:pink"))
     for name, path in beacons.items():

@@ -10,6 +10,7 @@ seeds).
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import fields, replace
@@ -33,16 +34,21 @@ from obsplan.planning.problem.checks import vehicle_path
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.parse import load_problem
 from obsplan.planning.problem.schema import LAWNMOWER_PATH
+from obsplan.planning.problem.sections import BeaconMotion
 from obsplan.planning.problem.validation_setup import estimation_config
 from obsplan.planning.replan import replan_monte_carlo, replan_nodes
 from obsplan.planning.results import (
+    ALONE,
     BeaconBound,
     BeaconPlanResult,
     BeaconSolve,
+    JointPlan,
     PlanResult,
     ValidationResult,
 )
 from obsplan.planning.solver.margins import craft_distance_margins, solve_with_keepout
+from obsplan.planning.solver.solve import GUESS_STATUS
+from obsplan.planning.transcription.guesses import initial_guesses
 from obsplan.planning.tuning import tuning
 from obsplan.planning.validation.stress import stress_active, stress_validate
 from obsplan.planning.validation.validate import PathValidation
@@ -232,9 +238,9 @@ def _fixed_only(pb: PlanningProblem, verb: str) -> None:
             return
         raise field_error(
             "beacon.motion",
-            f'"{pb.beacon_motion.motion}": {verb}() is for a fixed beacon; a beacon planned for '
-            "a vehicle on a given path is planned and validated by plan_moving_beacon "
-            "(obsplan plan does it)",
+            f'"{pb.beacon_motion.motion}": {verb}() is for a fixed beacon; a planned beacon (for '
+            "a vehicle on a given path, or jointly with it) is planned and validated by "
+            "plan_moving_beacon (obsplan plan does it)",
         )
 
 
@@ -254,6 +260,15 @@ class BeaconPlanner(Protocol):
     ) -> BeaconSolve: ...
 
 
+#: Most rounds of joint planning (the vehicle for the beacon, then the beacon for the vehicle).
+#: Each round costs a vehicle solve and a beacon solve; a second round is run only when the
+#: first lowered the objective by more than JOINT_TOL.
+JOINT_ROUNDS = 2
+#: Least relative decrease of the beacon planner's objective for a round to be kept: the beacon
+#: planner's own tolerance (SOLVER_TOL, 1e-4 relative) ten times over, so that a kept round is a
+#: change of the paths, not of where IPOPT stopped.
+JOINT_TOL = 1e-3
+
 #: The objectives a vehicle is planned with for a beacon on a known path: those that see only
 #: the positions relative to the beacon at the range epochs (the grid's sample operator takes
 #: the beacon where it is then).
@@ -261,7 +276,7 @@ KNOWN_PATH_OBJECTIVES: tuple[str, ...] = ("pcrb-position",)
 
 
 def check_beacon_plannable(pb: PlanningProblem) -> None:
-    """Refuse a moving-beacon problem ``obsplan plan`` cannot plan yet, saying what it can.
+    """Refuse a moving-beacon problem ``obsplan plan`` cannot plan, saying what it can.
 
     Parameters
     ----------
@@ -271,59 +286,55 @@ def check_beacon_plannable(pb: PlanningProblem) -> None:
     Raises
     ------
     ProblemError
-        ``beacon.motion = "path"`` with an objective other than ``pcrb-position`` (the others
-        see the relative velocity or input, or a fixed beacon's KF, and are not built for a
-        moving beacon), or ``"planned"`` without ``vehicle.path`` (planning both jointly).
+        A vehicle planned for a moving beacon (``beacon.motion = "path"``, or ``"planned"``
+        without ``vehicle.path``: planned jointly with the beacon) with an objective other than
+        ``pcrb-position`` (the others see the relative velocity or input, or a fixed beacon's
+        KF, and are not built for a moving beacon), or robust.
     """
     bm = pb.beacon_motion
-    supported = (
-        'supported: beacon.motion = "planned" with vehicle.path (a trajectory CSV or '
-        '"lawnmower"): the beacon planned for the vehicle flying that path, or a fixed beacon'
-    )
-    if bm.motion == "path":
+    if bm.motion == "path" or (bm.motion == "planned" and pb.vehicle.path is None):
+        what = (
+            'a beacon on a known path (beacon.motion = "path")'
+            if bm.motion == "path"
+            else 'the vehicle planned jointly with the beacon (beacon.motion = "planned" without '
+            'vehicle.path; give vehicle.path = "lawnmower" to plan the beacon alone)'
+        )
         if pb.objective.kind not in KNOWN_PATH_OBJECTIVES:
             raise field_error(
                 "objective.kind",
-                f'"{pb.objective.kind}" is not built for a beacon on a known path '
-                f'(beacon.motion = "path"); supported: '
+                f'"{pb.objective.kind}" is not built for {what}; supported: '
                 f"{', '.join(KNOWN_PATH_OBJECTIVES)}",
             )
         if is_robust(pb):
             raise field_error(
                 "objective.robust_prior",
-                "robust planning is not built for a beacon on a known path (beacon.motion = "
-                '"path"); remove objective.robust_prior and objective.robust_range_noise',
+                f"robust planning is not built for {what}; remove objective.robust_prior and "
+                "objective.robust_range_noise",
             )
-        return
-    if bm.motion == "planned" and pb.vehicle.path is None:
-        raise field_error(
-            "vehicle.path",
-            f"missing: planning the vehicle and the beacon jointly is not built yet; {supported}",
-        )
 
 
 def vehicle_trajectory(pb: PlanningProblem) -> Trajectory:
-    """The path the vehicle flies while the beacon is planned (``vehicle.path``).
+    """The path the vehicle flies while the beacon is planned (``vehicle.path``), or, planned
+    jointly (no ``vehicle.path``), the path it flies with the beacon baselines.
 
     Parameters
     ----------
     pb : PlanningProblem
-        A problem with ``vehicle.path``.
+        A problem with a planned beacon.
 
     Returns
     -------
     Trajectory
-        ``"lawnmower"``: the problem's lawn-mower baseline (its mission's plain lawn-mower);
-        else the trajectory CSV (:func:`~obsplan.planning.problem.checks.vehicle_path`).
+        ``"lawnmower"`` or no ``vehicle.path``: the problem's lawn-mower baseline (its mission's
+        plain lawn-mower); else the trajectory CSV
+        (:func:`~obsplan.planning.problem.checks.vehicle_path`).
 
     Raises
     ------
     ProblemError
-        On ``vehicle.path``: no path, or a lawn-mower that does not fit the problem.
+        On ``vehicle.path``: a lawn-mower that does not fit the problem.
     """
-    name = pb.vehicle.path
-    if name is None:
-        raise field_error("vehicle.path", "missing: the path the vehicle flies")
+    name = pb.vehicle.path or LAWNMOWER_PATH
     if name != LAWNMOWER_PATH:
         return vehicle_path(pb)
     bls = baselines(pb)
@@ -342,8 +353,8 @@ def plan_moving_beacon(
     max_runs: int | None = None,
     progress: bool = False,
 ) -> BeaconPlanResult:
-    """Plan the beacon's craft for a vehicle flying a given path, and validate it against the
-    beacon baselines.
+    """Plan the beacon's craft for a vehicle flying a given path, or both jointly, and validate
+    the plan against the beacon baselines.
 
     The vehicle flies ``vehicle.path`` (:func:`vehicle_trajectory`); the beacon baselines
     (:func:`~obsplan.planning.baselines.beacon.beacon_baselines`) are built first and given to
@@ -354,11 +365,17 @@ def plan_moving_beacon(
     for every beacon (paired), in batches until each verdict is decided at 95 % or
     ``validation.max_runs`` is reached.
 
+    Without ``vehicle.path`` the vehicle is planned too (``objective.kind = "pcrb-position"``,
+    its mission and limits): from its lawn-mower and the beacon planned for it, rounds plan the
+    vehicle for the beacon's path (:func:`vehicle_problem`), then the beacon for the vehicle's,
+    while each lowers the beacon planner's objective (:data:`JOINT_ROUNDS`, :data:`JOINT_TOL`).
+    The baselines' beacons then serve the vehicle on its lawn-mower (what it would fly without
+    obsplan) and the plan is the pair: ``baseline_vehicle`` and ``joint`` of the result say so.
+
     Parameters
     ----------
     problem : PlanningProblem or str or Path or None
-        A problem with ``beacon.motion = "planned"`` and ``vehicle.path`` (or its file or
-        shipped name).
+        A problem with ``beacon.motion = "planned"`` (or its file or shipped name).
     planner : callable
         The beacon planner (:class:`BeaconPlanner`).
     validate : bool, default True
@@ -376,7 +393,7 @@ def plan_moving_beacon(
     Raises
     ------
     ProblemError
-        A problem whose beacon is not planned for a given vehicle path
+        A problem whose beacon is not planned, or that cannot be planned
         (:func:`check_beacon_plannable`).
     """
     t0 = time.perf_counter()
@@ -391,19 +408,13 @@ def plan_moving_beacon(
     craft = pb.beacon_vehicle
     if craft is None:  # a planned beacon always has its craft (sections.ProblemData)
         raise field_error("beacon.speed", "missing: the craft's limits of a planned beacon")
-    vehicle = vehicle_trajectory(pb)
-    fine = resample(vehicle, pb.validation.dt)
-    chk = mission_check(vehicle, pb.mission_context)
-    on_lines = chk is not None and bool(chk.lines)
-    mask = chk.line_mask(fine.t) if chk is not None and on_lines else None
+    base = vehicle_trajectory(pb)
     T = pb.horizon.duration
     config = estimation_config(pb, BeaconPath.fixed(craft.start.tolist(), 0.0, T))
+    fine, weights, mask = _on_lines(pb, base, config)
     bls = beacon_baselines(
         fine, craft, config, centre=_survey_centre(pb), weights=mask, step=pb.validation.dt
     )
-    weights = None
-    if chk is not None and on_lines:  # 1 on the range epochs the vehicle flies on its lines
-        weights = chk.line_mask(range_epoch_times(fine, config)).astype(float)
     solve = planner(
         fine,
         craft,
@@ -412,26 +423,51 @@ def plan_moving_beacon(
         guesses=[b.path for b in bls.values()],
         guess_labels=list(bls),
     )
-    solve, margin = _keep_craft_out(pb, planner, fine, craft, config, weights, solve)
-    beacons = {"planned": solve.path, **{k: b.path for k, b in bls.items()}}
-    bounds = {k: _bound(fine, replace(config, beacon_path=b), mask) for k, b in beacons.items()}
+    vehicle, joint, first = base, None, solve
+    if pb.vehicle.path is None:
+        # the craft planned alone is compared as obsplan would fly it: kept out as below
+        first, _ = _keep_craft_out(pb, planner, fine, craft, config, weights, solve)
+        vehicle, solve, joint = _plan_jointly(pb, planner, craft, config, base, first, progress)
+    fine_v, weights_v, mask_v = _on_lines(pb, vehicle, config)
+    alone = None if joint is None else first.path
+    solve, margin = _keep_craft_out(pb, planner, fine_v, craft, config, weights_v, solve)
+    others = {k: b.path for k, b in bls.items()} if alone is None else {ALONE: alone}
+    others.update({k: b.path for k, b in bls.items()})
+    beacons = {"planned": solve.path, **others}
+    bounds = {"planned": _bound(fine_v, replace(config, beacon_path=solve.path), mask_v)}
+    bounds.update(
+        {k: _bound(fine, replace(config, beacon_path=b), mask) for k, b in others.items()}
+    )
+    vehicles = {"planned": vehicle, **{k: base for k in others}}
+    masks = None
+    if mask is not None and mask_v is not None:
+        masks = {"planned": mask_v, **{k: mask for k in others}}
     planning_s = time.perf_counter() - t0
     validation = {}
     if validate:
-        validation = _validate_beacons(vehicle, pb, beacons, runs, max_runs, progress, mask)
+        validation = _validate_beacons(vehicles, pb, beacons, runs, max_runs, progress, masks)
         extra = measured_excess(validation["planned"], pb)
         if extra > 0:
             # the true paths strayed further than the linear loop predicts (the EKF above its
             # bound, the feedback saturated): once, the margin grows by what the runs measured
             # and the craft is re-planned and validated again (same runs and seeds)
             again, wider = _keep_craft_out(
-                pb, planner, fine, craft, config, weights, solve, extra * (1.0 + tuning().inflate)
+                pb,
+                planner,
+                fine_v,
+                craft,
+                config,
+                weights_v,
+                solve,
+                extra * (1.0 + tuning().inflate),
             )
             if again is not solve:
                 solve, margin = again, wider
                 beacons["planned"] = solve.path
-                bounds["planned"] = _bound(fine, replace(config, beacon_path=solve.path), mask)
-                validation = _validate_beacons(vehicle, pb, beacons, runs, max_runs, progress, mask)
+                bounds["planned"] = _bound(fine_v, replace(config, beacon_path=solve.path), mask_v)
+                validation = _validate_beacons(
+                    vehicles, pb, beacons, runs, max_runs, progress, masks
+                )
     return BeaconPlanResult(
         problem=pb,
         vehicle=vehicle,
@@ -439,12 +475,107 @@ def plan_moving_beacon(
         baselines=bls,
         bounds=bounds,
         validation=validation,
-        lines=on_lines,
+        lines=mask is not None,
         wall_s=time.perf_counter() - t0,
-        planned_breaks=craft_limit_breaks(solve.path, solve.velocities, craft, fine),
+        planned_breaks=craft_limit_breaks(solve.path, solve.velocities, craft, fine_v),
         planning_s=planning_s,
         distance_margin_m=margin,
+        baseline_vehicle=None if joint is None else base,
+        joint=joint,
+        beacon_alone=alone,
     )
+
+
+def _on_lines(
+    pb: PlanningProblem, vehicle: Trajectory, config: EstimationConfig
+) -> tuple[Trajectory, np.ndarray | None, np.ndarray | None]:
+    """The vehicle's path on the filter's step, the beacon planner's weights (1 on the range
+    epochs the vehicle flies on its survey lines; None without lines: all equal) and the mask
+    of the filter's samples on the lines (None without lines)."""
+    fine = resample(vehicle, pb.validation.dt)
+    chk = mission_check(vehicle, pb.mission_context)
+    if chk is None or not chk.lines:
+        return fine, None, None
+    weights = chk.line_mask(range_epoch_times(fine, config)).astype(float)
+    return fine, weights, chk.line_mask(fine.t)
+
+
+def vehicle_problem(pb: PlanningProblem, beacon: BeaconPath) -> PlanningProblem:
+    """The vehicle's planning problem for a planned beacon's path: ``pb`` with the beacon on that
+    known path (``beacon.motion = "path"``, given in memory) and no distance to keep from it.
+
+    The distances between the two are the craft's limits (``beacon.min_distance`` and
+    ``beacon.max_range``), kept by the craft when it is planned for the vehicle's path: the
+    craft is the faster of the two and the one that keeps clear, as a support vessel keeps clear
+    of the vehicle it serves. Held on the vehicle's side too, the keep-out is a moving obstacle
+    next to the path the vehicle must fly (the craft's best path passes close to it), and IPOPT
+    ends locally infeasible from the feasible lawn-mower.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        A problem with ``beacon.motion = "planned"``.
+    beacon : BeaconPath
+        The craft's path, covering the horizon.
+
+    Returns
+    -------
+    PlanningProblem
+        Checked; without ``vehicle.path``; ``limits.min_range = 0``.
+    """
+    return replace(
+        pb,
+        beacon_motion=BeaconMotion(motion="path", path=beacon),
+        limits=replace(pb.limits, min_range=0.0),
+        vehicle=replace(pb.vehicle, path=None),
+    )
+
+
+def _plan_jointly(
+    pb: PlanningProblem,
+    planner: BeaconPlanner,
+    craft: BeaconVehicle,
+    config: EstimationConfig,
+    lawnmower: Trajectory,
+    first: BeaconSolve,
+    progress: bool,
+) -> tuple[Trajectory, BeaconSolve, JointPlan]:
+    """Block-coordinate descent from the lawn-mower and the beacon planned for it: each round
+    plans the vehicle for the beacon's path (its mission, limits and objective,
+    :func:`~obsplan.planning.solver.margins.solve_with_keepout`), then the beacon for that path
+    (warm from the beacon before), and is kept when the beacon planner's objective falls by more
+    than :data:`JOINT_TOL`; at most :data:`JOINT_ROUNDS` rounds."""
+    vehicle, beacon, vsolve = lawnmower, first, None
+    objectives = [float(first.objective) if first.objective is not None else math.inf]
+    stop = f"{JOINT_ROUNDS} rounds"
+    for _ in range(JOINT_ROUNDS):
+        pbv = vehicle_problem(pb, beacon.path)
+        guesses = [*initial_guesses(pbv), ("vehicle before", resample(vehicle, pbv.horizon.dt))]
+        res, _ = solve_with_keepout(
+            pbv, guesses=guesses, baselines=baselines(pbv), progress=progress
+        )
+        if res.trajectory is None or not res.success:
+            stop = (
+                "the vehicle's solve found no path better than the one before"
+                if res.status == GUESS_STATUS
+                else f"the vehicle's solve did not converge ({res.status})"
+            )
+            break
+        fine, weights, _ = _on_lines(pb, res.trajectory, config)
+        again = planner(
+            fine, craft, config, weights=weights, guesses=[beacon.path], guess_labels=["before"]
+        )
+        new = math.inf if again.objective is None else float(again.objective)
+        if not again.success or new > objectives[-1] * (1.0 - JOINT_TOL):
+            stop = (
+                f"the beacon's solve did not converge ({again.status})"
+                if not again.success
+                else f"a round lowered the objective by less than {JOINT_TOL:.1%}"
+            )
+            break
+        vehicle, beacon, vsolve = res.trajectory, again, res
+        objectives.append(new)
+    return vehicle, beacon, JointPlan(vehicle_solve=vsolve, objectives=tuple(objectives), stop=stop)
 
 
 def _keep_craft_out(
@@ -514,22 +645,22 @@ def measured_excess(validation: PathValidation, pb: PlanningProblem) -> float:
 
 
 def _validate_beacons(
-    vehicle: Trajectory,
+    vehicles: dict[str, Trajectory],
     pb: PlanningProblem,
     beacons: dict[str, BeaconPath],
     runs: int | None,
     max_runs: int | None,
     progress: bool,
-    mask: np.ndarray | None,
+    masks: dict[str, np.ndarray] | None,
 ) -> dict[str, PathValidation]:
-    """The vehicle on its path with every beacon, paired, in batches until decided."""
+    """Each vehicle path with its beacon, paired, in batches until decided."""
     return validate_until_decided(
-        {k: vehicle for k in beacons},
+        vehicles,
         pb,
         runs=runs,
         max_runs=max_runs,
         progress=progress,
-        lines=None if mask is None else {k: mask for k in beacons},
+        lines=masks,
         beacons=beacons,
     )
 

@@ -742,6 +742,62 @@ class BeaconBound:
         }
 
 
+#: The name, in a joint plan's report, of the beacon planned alone for the vehicle's lawn-mower
+#: (the first round): what obsplan plans without moving the vehicle, compared like a baseline.
+ALONE = "beacon-planned"
+
+
+@dataclass(frozen=True, eq=False)
+class JointPlan:
+    """The vehicle and the beacon planned jointly (``beacon.motion = "planned"`` without
+    ``vehicle.path``): the rounds of :func:`~obsplan.planning.plan.plan_moving_beacon`.
+
+    Attributes
+    ----------
+    vehicle_solve : SolveResult or None
+        The vehicle planner's solve of the last kept round (the vehicle planned for the beacon
+        path before it); None when no round was kept (the vehicle flies the lawn-mower).
+    objectives : tuple of float
+        The beacon planner's objective [m²] (the vehicle's weighted position variance,
+        :mod:`~obsplan.planning.beacon.recursion`) after each round, the first the beacon
+        planned for the lawn-mower; kept rounds only.
+    stop : str
+        Why the rounds stopped, in words.
+    """
+
+    vehicle_solve: SolveResult | None
+    objectives: tuple[float, ...]
+    stop: str
+
+    @property
+    def rounds(self) -> int:
+        """Rounds kept (0: the lawn-mower with its planned beacon)."""
+        return len(self.objectives) - 1
+
+    def to_dict(self) -> dict:
+        """``report.json``'s ``solver.joint``.
+
+        Returns
+        -------
+        dict
+            ``rounds``, ``objectives`` [m²], ``stop`` and the vehicle solve's ``success``,
+            ``status``, ``iterations`` (None without a kept round).
+        """
+        v = self.vehicle_solve
+        return {
+            "rounds": self.rounds,
+            "objectives": [float(x) for x in self.objectives],
+            "stop": self.stop,
+            "vehicle": None
+            if v is None
+            else {
+                "success": bool(v.success),
+                "status": str(v.status),
+                "iterations": int(v.iterations),
+            },
+        }
+
+
 def truth_distance_notes(validation: Mapping[str, PathValidation]) -> tuple[str, ...]:
     """A sentence per beacon path whose Monte Carlo's true vehicle paths broke the distance
     limits between the craft and the vehicle (``min_range`` and ``max_range`` of
@@ -781,14 +837,16 @@ def truth_distance_notes(validation: Mapping[str, PathValidation]) -> tuple[str,
 
 @dataclass(frozen=True, eq=False, repr=False)
 class BeaconPlanResult:
-    """What ``obsplan plan`` reports for a planned beacon serving a vehicle on a given path.
+    """What ``obsplan plan`` reports for a planned beacon serving a vehicle on a given path, or
+    planned jointly with the vehicle.
 
     Attributes
     ----------
     problem : PlanningProblem
-        A problem with ``beacon.motion = "planned"`` and ``vehicle.path``.
+        A problem with ``beacon.motion = "planned"``.
     vehicle : Trajectory
-        The vehicle's path (``plan.csv``), on the planning grid or the file's.
+        The vehicle's path (``plan.csv``), on the planning grid or the file's: ``vehicle.path``,
+        or the path planned jointly with the beacon.
     solve : BeaconSolve
         The beacon planner's result: the planned beacon path, status, iterations, time.
     baselines : dict[str, BeaconBaseline]
@@ -812,6 +870,14 @@ class BeaconPlanResult:
         The largest margin [m] the planned craft keeps beyond ``min_distance`` from the vehicle's
         nominal path so that its true path keeps it at ``limits.keepout_confidence``
         (:func:`~obsplan.planning.solver.margins.craft_distance_margins`); 0: none kept.
+    baseline_vehicle : Trajectory or None
+        Planned jointly: the path the vehicle flies with the beacon baselines (its mission's
+        lawn-mower, what it would fly without obsplan); None: ``vehicle``.
+    joint : JointPlan or None
+        Planned jointly: the rounds; None otherwise.
+    beacon_alone : BeaconPath or None
+        Planned jointly: the beacon planned alone for the vehicle's lawn-mower (the first
+        round), compared as :data:`ALONE`; None otherwise.
     """
 
     problem: PlanningProblem
@@ -825,11 +891,16 @@ class BeaconPlanResult:
     planned_breaks: str = ""
     planning_s: float = math.nan
     distance_margin_m: float = 0.0
+    baseline_vehicle: Trajectory | None = None
+    joint: JointPlan | None = None
+    beacon_alone: BeaconPath | None = None
 
     @property
     def success(self) -> bool:
-        """The beacon planner converged (the exit code of ``obsplan plan``)."""
-        return bool(self.solve.success)
+        """The beacon planner converged, and so did the vehicle planner where a joint round was
+        kept (the exit code of ``obsplan plan``)."""
+        v = None if self.joint is None else self.joint.vehicle_solve
+        return bool(self.solve.success) and (v is None or bool(v.success))
 
     @property
     def trajectory(self) -> Trajectory:
@@ -837,14 +908,20 @@ class BeaconPlanResult:
         return self.vehicle
 
     def beacons(self) -> dict[str, BeaconPath]:
-        """``planned`` then every baseline's beacon path.
+        """``planned``, planned jointly the beacon planned alone (:data:`ALONE`), then every
+        baseline's beacon path.
 
         Returns
         -------
         dict of str to BeaconPath
             Name -> path.
         """
-        return {"planned": self.solve.path, **{k: b.path for k, b in self.baselines.items()}}
+        alone = {} if self.beacon_alone is None else {ALONE: self.beacon_alone}
+        return {
+            "planned": self.solve.path,
+            **alone,
+            **{k: b.path for k, b in self.baselines.items()},
+        }
 
     @property
     def verdict(self) -> Verdict:
@@ -904,6 +981,7 @@ class BeaconPlanResult:
                 "wall_s": float(s.wall_s),
                 "planning_s": None if not math.isfinite(self.planning_s) else self.planning_s,
                 "objective": obj,
+                "joint": None if self.joint is None else self.joint.to_dict(),
             },
             "metrics": {k: b.to_dict() for k, b in self.bounds.items()},
             "validation": val,
@@ -923,6 +1001,16 @@ class BeaconPlanResult:
                 },
                 "paths": {
                     "planned": {"description": "planned", "breaks": self.planned_breaks},
+                    **(
+                        {}
+                        if self.beacon_alone is None
+                        else {
+                            ALONE: {
+                                "description": "planned alone for the vehicle's lawn-mower",
+                                "breaks": "",
+                            }
+                        }
+                    ),
                     **{
                         k: {"description": b.description, "breaks": b.breaks}
                         for k, b in self.baselines.items()
@@ -981,13 +1069,17 @@ class BeaconPlanResult:
         str
             Lines for the terminal.
         """
-        s, pb = self.solve, self.problem
+        s, pb, j = self.solve, self.problem, self.joint
+        what = f"beacon planned for the vehicle's path ({pb.vehicle.path})"
+        if j is not None:
+            what = "vehicle and beacon planned jointly"
         lines = [
-            f"{pb.name or 'problem'}: beacon planned for the vehicle's path ({pb.vehicle.path}): "
-            f"{s.status}, {int(s.iterations)} iterations, {float(s.wall_s):.1f} s solve, "
-            f"{self.wall_s:.1f} s total",
-            self.table(),
+            f"{pb.name or 'problem'}: {what}: {s.status}, {int(s.iterations)} iterations, "
+            f"{float(s.wall_s):.1f} s solve, {self.wall_s:.1f} s total",
         ]
+        if j is not None:
+            lines.append(self._joint_line(j))
+        lines.append(self.table())
         if self.validation:
             groups: dict[str, list[str]] = {}
             for name, o in self.outcomes().items():
@@ -995,9 +1087,47 @@ class BeaconPlanResult:
             said = {"beats": "beats", "ties": "ties with", "loses": "loses to"}
             conf = f"{100 * tuning().confidence:.0f} %"
             parts = [f"{said[o]} {', '.join(groups[o])}" for o in said if o in groups]
-            lines.append(f"the planned beacon {'; '.join(parts)} (decided at {conf})")
+            who = "the planned beacon" if self.joint is None else "the plan (vehicle and beacon)"
+            lines.append(f"{who} {'; '.join(parts)} (decided at {conf})")
         lines += self.verdict.summary()
         return "\n".join(lines)
+
+    def plot(self, ax=None) -> Figure:
+        """The vehicle's and the beacon's paths with range links
+        (:func:`~obsplan.planning.figures.plot_beacon_paths`; ``path.png`` of ``obsplan plan``).
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw on; None makes a new figure.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure.
+        """
+        return plot_beacon_paths(
+            self.vehicle,
+            self.beacons(),
+            self.problem,
+            ax=ax,
+            baseline_vehicle=self.baseline_vehicle,
+        )
+
+    @staticmethod
+    def _joint_line(j: JointPlan) -> str:
+        """The joint rounds in words: objective per round, the vehicle's last solve, the stop."""
+        objs = " -> ".join(f"{math.sqrt(x):.4g}" for x in j.objectives)
+        v = j.vehicle_solve
+        veh = (
+            "the vehicle flies its lawn-mower"
+            if v is None
+            else f"vehicle solve {v.status}, {int(v.iterations)} iterations"
+        )
+        return (
+            f"joint rounds kept: {j.rounds} (objective, rms position std [m]: {objs}); {veh}; "
+            f"stopped: {j.stop}; the baselines' beacons serve the vehicle on its lawn-mower"
+        )
 
     def __repr__(self) -> str:
         return f"<BeaconPlanResult {self.problem.name or 'problem'}: {self.solve.status}>"
@@ -1024,7 +1154,7 @@ class BeaconPlanResult:
             write_beacon_csv(out / "beacon.csv", s.times, s.positions, s.velocities),
         ]
         written.append(_write_report(out, self.to_dict()))
-        fig = plot_beacon_paths(self.vehicle, self.beacons(), self.problem)
+        fig = self.plot()
         written.append(save_figure(fig, out / FIGURES["path"]))
         if self.validation:
             fig = plot_filter_errors(self.validation, problem=self.problem.name)

@@ -583,6 +583,12 @@ def _beacon_to_dict(pb: ProblemData) -> dict[str, Any]:
     if bm.motion == "fixed":
         return {"position": list(pb.beacon)}
     if bm.motion == "path":
+        if not isinstance(bm.path, str):
+            raise field_error(
+                "beacon.path",
+                "a path given in memory has no file to name; write it with "
+                "obsplan.model.beacon.write_beacon_csv and give that file",
+            )
         return {"motion": "path", "path": bm.path}
     out: dict[str, Any] = {
         "motion": "planned",

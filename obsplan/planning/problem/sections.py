@@ -69,12 +69,14 @@ class BeaconMotion:
     """How the beacon moves (``[beacon] motion`` and its fields; units and defaults:
     :data:`~obsplan.planning.problem.schema.SCHEMA`): ``"fixed"`` at ``beacon.position``,
     ``"path"`` along the CSV ``path`` (resolved against the problem file's folder by the
-    loader), or ``"planned"``: a surface craft starting at ``beacon.position`` with the limits
+    loader; or a :class:`~obsplan.model.beacon.BeaconPath` given in memory, e.g. a planned
+    craft's path while the vehicle is planned for it, which a problem file cannot hold), or
+    ``"planned"``: a surface craft starting at ``beacon.position`` with the limits
     ``speed`` [m/s], per-axis ``accel`` [m/s²], start ``velocity`` [m/s], ``area``, ``max_range``
     and horizontal ``min_distance`` [m]."""
 
     motion: str = "fixed"
-    path: str | None = None
+    path: str | BeaconPath | None = None
     speed: float | None = None
     accel: tuple[float, float] | None = None
     velocity: tuple[float, float] | None = None
@@ -334,6 +336,8 @@ class ProblemData:
         bm = self.beacon_motion
         if bm.motion != "path" or bm.path is None:
             return None
+        if isinstance(bm.path, BeaconPath):
+            return bm.path
         return read_beacon_path(bm.path, self.dim, where="beacon.path")
 
     @property
