@@ -431,7 +431,7 @@ def plan_moving_beacon(
     fine_v, weights_v, mask_v = _on_lines(pb, vehicle, config)
     alone = None if joint is None else first.path
     solve, margin = _keep_craft_out(pb, planner, fine_v, craft, config, weights_v, solve)
-    others = {k: b.path for k, b in bls.items()} if alone is None else {ALONE: alone}
+    others = {} if alone is None else {ALONE: alone}
     others.update({k: b.path for k, b in bls.items()})
     beacons = {"planned": solve.path, **others}
     bounds = {"planned": _bound(fine_v, replace(config, beacon_path=solve.path), mask_v)}
