@@ -425,9 +425,11 @@ def plan_moving_beacon(
     )
     vehicle, joint, first = base, None, solve
     if pb.vehicle.path is None:
-        # the craft planned alone is compared as obsplan would fly it: kept out as below
+        # the rounds start from the craft planned alone before the truth margins, as each
+        # round's craft is (the margins come once, below); the alone plan is compared as obsplan
+        # would fly it, kept out like the pair
         first, _ = _keep_craft_out(pb, planner, fine, craft, config, weights, solve)
-        vehicle, solve, joint = _plan_jointly(pb, planner, craft, config, base, first, progress)
+        vehicle, solve, joint = _plan_jointly(pb, planner, craft, config, base, solve, progress)
     fine_v, weights_v, mask_v = _on_lines(pb, vehicle, config)
     alone = None if joint is None else first.path
     solve, margin = _keep_craft_out(pb, planner, fine_v, craft, config, weights_v, solve)
