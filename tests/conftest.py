@@ -1,10 +1,11 @@
-"""Fixtures shared by the planner's tests."""
+"""Fixtures shared by the planner's tests, and the order the test processes take the files in."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
 import pytest
+from xdist.scheduler import LoadScopeScheduling
 
 from obsplan.planning import load_problem
 from obsplan.planning.baselines.vehicle import baselines
@@ -23,3 +24,54 @@ def short_problem():
 def lawnmower(short_problem):
     """The lawn-mower baseline of :func:`short_problem`."""
     return baselines(short_problem)["lawnmower"].trajectory
+
+
+_PAGE = "tests/test_readme.py::test_every_block_of_a_docs_page_runs_in_order_from_a_fresh_folder"
+#: Work units of the longest run time, longest first (``pytest --durations=0`` on 2 cores; a
+#: unit is a test file, or one page of the documentation in test_readme.py). The test processes
+#: take units in this order, then the others in collection order: long ones started last would
+#: leave one process running alone at the end. The order only balances the processes: a unit
+#: missing here still runs.
+LONGEST_FIRST = (
+    "tests/test_sweep_dask.py",
+    "tests/test_output_safety.py",
+    f"{_PAGE}[guides/sweeps.md]",
+    "tests/test_package_data.py",
+    "tests/test_signals.py",
+    "tests/test_pool_signals.py",
+    "tests/test_planning.py",
+    "tests/test_guards.py",
+    "tests/test_filters.py",
+    "tests/test_notebooks.py",
+    f"{_PAGE}[guides/moving-beacon.md]",
+    "tests/test_readme.py::test_every_readme_block_runs_in_order_from_a_fresh_folder",
+    "tests/test_cli_plan.py",
+    "tests/test_margins.py",
+    "tests/test_missions.py",
+    f"{_PAGE}[guides/real-inputs.md]",
+    f"{_PAGE}[guides/command-line.md]",
+)
+
+
+def work_unit(nodeid: str) -> str:
+    """The unit one test process runs ``nodeid`` in: its file, so that a file's module fixtures
+    (a plan, a validation) are computed once; test_readme.py's tests one by one (they share
+    nothing, and together they are the longest file)."""
+    file = nodeid.split("::", 1)[0]
+    return nodeid if file.endswith("test_readme.py") else file
+
+
+class FileScheduling(LoadScopeScheduling):
+    """pytest-xdist's ``--dist loadfile``, with :func:`work_unit` as the unit."""
+
+    def _split_scope(self, nodeid: str) -> str:
+        return work_unit(nodeid)
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log) -> FileScheduling | None:
+    return FileScheduling(config, log) if config.getoption("dist") == "loadfile" else None
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    rank = {unit: i for i, unit in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(work_unit(item.nodeid), len(rank)))  # stable
