@@ -80,7 +80,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         type=float,
         metavar="EVERY",
         help="also validate with receding-horizon replanning: every EVERY s (a multiple of the "
-        "planning step) each run re-solves from its estimate (report.json key 'replan')",
+        "planning step) each run re-solves from its estimate; with a planned beacon and "
+        "vehicle.path the beacon's craft re-plans instead (report.json key 'replan')",
     )
     add_channel_argument(p)
     p.add_argument("--quiet", action="store_true", help="no progress lines")

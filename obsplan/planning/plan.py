@@ -423,6 +423,38 @@ def plan_moving_beacon(
                 "replan re-plans the craft inside the validation: pass validate=True, or no replan"
             )
         check_beacon_replan(pb, replan)  # before any work
+    result = _plan_beacon_flow(pb, planner, validate, runs, max_runs, progress, t0)
+    if replan is None:
+        return result
+    craft = result.problem.beacon_vehicle
+    assert craft is not None  # checked by _plan_beacon_flow
+    config = estimation_config(pb, BeaconPath.fixed(craft.start.tolist(), 0.0, pb.horizon.duration))
+    fine_v, _, mask_v = _on_lines(pb, result.vehicle, config)
+    rep = beacon_replan_monte_carlo(
+        pb,
+        fine_v,
+        result.solve,
+        replan,
+        config,
+        mask=mask_v,
+        runs=runs,
+        processes=processes,
+        progress=progress,
+    )
+    return replace(result, replan=rep, wall_s=time.perf_counter() - t0)
+
+
+def _plan_beacon_flow(
+    pb: PlanningProblem,
+    planner: BeaconPlanner,
+    validate: bool,
+    runs: int | None,
+    max_runs: int | None,
+    progress: bool,
+    t0: float,
+) -> BeaconPlanResult:
+    """:func:`plan_moving_beacon` without the replanning: plan (alone or jointly), keep the
+    craft out, validate against the baselines (``t0``: when the flow began, for its times)."""
     craft = pb.beacon_vehicle
     if craft is None:  # a planned beacon always has its craft (sections.ProblemData)
         raise field_error("beacon.speed", "missing: the craft's limits of a planned beacon")
@@ -488,19 +520,6 @@ def plan_moving_beacon(
                 validation = _validate_beacons(
                     vehicles, pb, beacons, runs, max_runs, progress, masks
                 )
-    rep = None
-    if replan is not None:
-        rep = beacon_replan_monte_carlo(
-            pb,
-            fine_v,
-            solve,
-            replan,
-            config,
-            mask=mask_v,
-            runs=runs,
-            processes=processes,
-            progress=progress,
-        )
     return BeaconPlanResult(
         problem=pb,
         vehicle=vehicle,
@@ -516,7 +535,6 @@ def plan_moving_beacon(
         baseline_vehicle=None if joint is None else base,
         joint=joint,
         beacon_alone=alone,
-        replan=rep,
     )
 
 

@@ -966,7 +966,8 @@ class BeaconPlanResult:
 
     def to_dict(self) -> dict:
         """``report.json``: ``solver``, ``metrics``, ``validation``, ``verdict`` (with
-        ``outcomes`` per baseline), ``beacon``, ``problem``, ``problem_file``, ``wall_s``.
+        ``outcomes`` per baseline), ``beacon``, ``problem``, ``problem_file``, ``wall_s``, and
+        ``replan`` when the craft was re-planned (:meth:`BeaconReplanResult.to_dict`).
 
         Returns
         -------
