@@ -230,7 +230,7 @@ def splice(old: tuple[np.ndarray, ...], new: BeaconPlan, t: float) -> tuple[np.n
     )
 
 
-def _weights(job: dict, rest: Trajectory, k: int) -> np.ndarray | None:
+def _weights(job: dict, rest: Trajectory) -> np.ndarray | None:
     """The remaining range epochs' weights: 1 on the lines (None without lines or none left)."""
     mask = job["mask"]
     if mask is None:
@@ -255,7 +255,7 @@ def _resolve(job: dict, in_force: tuple, t: float, k: int, est, cov, run: int):
             BeaconPath(in_force[0], in_force[1]),
             step=job["step"],
             prior=cov,
-            weights=_weights(job, rest, k),
+            weights=_weights(job, rest),
         )
     except Exception as exc:  # noqa: BLE001 - a failed re-solve keeps the path in force
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
