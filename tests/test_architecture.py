@@ -69,6 +69,7 @@ ROOMS: dict[str, tuple[str, ...]] = {
         "validation",  # Monte Carlo of every path, verdict, robustness
         "figures",
         "replan",  # receding-horizon re-solves inside the closed-loop Monte Carlo
+        "beacon_replan",  # the craft's receding horizon inside the closed-loop Monte Carlo
         "results",  # PlanResult, ValidationResult: summary, figures, report, files
         "plan",  # solve + baselines + metrics + validation; validate a given path
         "__init__",

@@ -10,7 +10,12 @@ from obsplan.cli.common import OutputDir, add_channel_argument, channel_error
 from obsplan.core import budget
 from obsplan.core.errors import InputError, ProblemError
 from obsplan.planning.beacon import plan_beacon
-from obsplan.planning.plan import check_beacon_plannable, plan, plan_moving_beacon
+from obsplan.planning.plan import (
+    check_beacon_plannable,
+    check_beacon_replan,
+    plan,
+    plan_moving_beacon,
+)
 from obsplan.planning.problem.definition import PlanningProblem
 from obsplan.planning.problem.parse import DEFAULT_PROBLEM, load_problem
 from obsplan.planning.problem.sections import Horizon
@@ -75,7 +80,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         type=float,
         metavar="EVERY",
         help="also validate with receding-horizon replanning: every EVERY s (a multiple of the "
-        "planning step) each run re-solves from its estimate (report.json key 'replan')",
+        "planning step) each run re-solves from its estimate; with a planned beacon and "
+        "vehicle.path the beacon's craft re-plans instead (report.json key 'replan')",
     )
     add_channel_argument(p)
     p.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -112,7 +118,8 @@ def _apply_overrides(pb: PlanningProblem, args: argparse.Namespace) -> PlanningP
     if args.replan is not None:
         if args.no_validate:
             raise InputError("--replan runs inside the validation: drop --no-validate")
-        replan_nodes(pb, args.replan)  # a bad EVERY is an input error before any work
+        if pb.beacon_motion.motion != "planned":  # a planned beacon: its craft's step
+            replan_nodes(pb, args.replan)  # a bad EVERY is an input error before any work
     return pb
 
 
@@ -179,7 +186,7 @@ def _run_moving_beacon(pb: PlanningProblem, args: argparse.Namespace) -> int:
     path), ``beacon.csv``, ``report.json`` and the figures; 0 when the planners converged."""
     check_beacon_plannable(pb)  # what is not built yet is refused before any output
     if args.replan is not None:
-        raise InputError("--replan re-plans a vehicle; the beacon's replanning is not built yet")
+        check_beacon_replan(pb, args.replan)  # joint planning or a bad EVERY: before any output
     out = OutputDir(args.out, args.force, inputs=[args.problem or DEFAULT_PROBLEM], verb="plan")
     with out:
         result = plan_moving_beacon(
@@ -189,6 +196,8 @@ def _run_moving_beacon(pb: PlanningProblem, args: argparse.Namespace) -> int:
             runs=args.runs,
             max_runs=args.max_runs,
             progress=not args.quiet,
+            replan=args.replan,
+            processes=None,
         )
         written = [out.final(p) for p in result.write_files(out.stage())]
         out.commit()

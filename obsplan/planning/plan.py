@@ -19,7 +19,7 @@ from typing import Protocol
 
 import numpy as np
 
-from obsplan.core.errors import ProblemError, field_error
+from obsplan.core.errors import ConfigError, ProblemError, field_error
 from obsplan.estimation.bounds.crlb import posterior_crlb
 from obsplan.estimation.config import EstimationConfig
 from obsplan.estimation.montecarlo.runs import DEFAULT_FILTERS
@@ -27,6 +27,7 @@ from obsplan.model.beacon import BeaconPath, BeaconVehicle
 from obsplan.planning.baselines.beacon import beacon_baselines, craft_limit_breaks
 from obsplan.planning.baselines.vehicle import Baseline, baselines, unfitted_baselines
 from obsplan.planning.beacon import range_epoch_times
+from obsplan.planning.beacon_replan import beacon_replan_monte_carlo, beacon_replan_times
 from obsplan.planning.missions.check import mission_check
 from obsplan.planning.objectives.evaluate import path_metrics
 from obsplan.planning.objectives.robust import is_robust
@@ -36,7 +37,7 @@ from obsplan.planning.problem.parse import load_problem
 from obsplan.planning.problem.schema import LAWNMOWER_PATH
 from obsplan.planning.problem.sections import BeaconMotion
 from obsplan.planning.problem.validation_setup import estimation_config
-from obsplan.planning.replan import replan_monte_carlo, replan_nodes
+from obsplan.planning.replan import replan_guidance, replan_monte_carlo, replan_nodes
 from obsplan.planning.results import (
     ALONE,
     BeaconBound,
@@ -352,6 +353,8 @@ def plan_moving_beacon(
     runs: int | None = None,
     max_runs: int | None = None,
     progress: bool = False,
+    replan: float | None = None,
+    processes: int | None = 1,
 ) -> BeaconPlanResult:
     """Plan the beacon's craft for a vehicle flying a given path, or both jointly, and validate
     the plan against the beacon baselines.
@@ -384,17 +387,26 @@ def plan_moving_beacon(
         Override ``validation.runs`` and ``validation.max_runs``.
     progress : bool, default False
         Progress bars.
+    replan : float or None, default None
+        Also validate with the craft re-planning every ``replan`` seconds from the vehicle's
+        estimate (a multiple of the craft's planning step;
+        :func:`~obsplan.planning.beacon_replan.beacon_replan_monte_carlo`, ``obsplan plan
+        --replan``), for a vehicle on ``vehicle.path`` only; needs ``validate``.
+    processes : int or None, default 1
+        Worker processes of the replanned Monte Carlo (None: one per core).
 
     Returns
     -------
     BeaconPlanResult
-        The planned beacon, the baselines, their bounds and validations, the verdict.
+        The planned beacon, the baselines, their bounds and validations, the verdict (and the
+        replanned Monte Carlo with ``replan``).
 
     Raises
     ------
     ProblemError
         A problem whose beacon is not planned, or that cannot be planned
-        (:func:`check_beacon_plannable`).
+        (:func:`check_beacon_plannable`), or a ``replan`` that cannot be run
+        (:func:`check_beacon_replan`).
     """
     t0 = time.perf_counter()
     pb = problem if isinstance(problem, PlanningProblem) else load_problem(problem)
@@ -405,6 +417,44 @@ def plan_moving_beacon(
             "obsplan.plan",
         )
     check_beacon_plannable(pb)
+    if replan is not None:
+        if not validate:
+            raise ProblemError(
+                "replan re-plans the craft inside the validation: pass validate=True, or no replan"
+            )
+        check_beacon_replan(pb, replan)  # before any work
+    result = _plan_beacon_flow(pb, planner, validate, runs, max_runs, progress, t0)
+    if replan is None:
+        return result
+    craft = result.problem.beacon_vehicle
+    assert craft is not None  # checked by _plan_beacon_flow
+    config = estimation_config(pb, BeaconPath.fixed(craft.start.tolist(), 0.0, pb.horizon.duration))
+    fine_v, _, mask_v = _on_lines(pb, result.vehicle, config)
+    rep = beacon_replan_monte_carlo(
+        pb,
+        fine_v,
+        result.solve,
+        replan,
+        config,
+        mask=mask_v,
+        runs=runs,
+        processes=processes,
+        progress=progress,
+    )
+    return replace(result, replan=rep, wall_s=time.perf_counter() - t0)
+
+
+def _plan_beacon_flow(
+    pb: PlanningProblem,
+    planner: BeaconPlanner,
+    validate: bool,
+    runs: int | None,
+    max_runs: int | None,
+    progress: bool,
+    t0: float,
+) -> BeaconPlanResult:
+    """:func:`plan_moving_beacon` without the replanning: plan (alone or jointly), keep the
+    craft out, validate against the baselines (``t0``: when the flow began, for its times)."""
     craft = pb.beacon_vehicle
     if craft is None:  # a planned beacon always has its craft (sections.ProblemData)
         raise field_error("beacon.speed", "missing: the craft's limits of a planned beacon")
@@ -486,6 +536,42 @@ def plan_moving_beacon(
         joint=joint,
         beacon_alone=alone,
     )
+
+
+def check_beacon_replan(pb: PlanningProblem, every: float) -> None:
+    """Refuse a ``--replan`` of a planned beacon that cannot be run, before any work.
+
+    Parameters
+    ----------
+    pb : PlanningProblem
+        A problem with ``beacon.motion = "planned"``.
+    every : float
+        The replanning period [s].
+
+    Raises
+    ------
+    ConfigError
+        Joint planning (no ``vehicle.path``), open-loop validation, or a period that is not a
+        positive multiple of the craft's planning step shorter than the horizon less one step
+        (each message names ``--replan`` and the fix).
+    """
+    if pb.vehicle.path is None:
+        raise ConfigError(
+            "--replan re-plans the beacon's craft for a vehicle on a given path; the vehicle "
+            'planned jointly with the beacon is not replanned: give vehicle.path (e.g. "lawnmower")'
+            " to plan the beacon alone, or drop --replan"
+        )
+    replan_guidance(pb)  # closed loop only
+    craft = pb.beacon_vehicle
+    if craft is None:
+        raise field_error("beacon.speed", "missing: the craft's limits of a planned beacon")
+    fine = resample(vehicle_trajectory(pb), pb.validation.dt)
+    config = estimation_config(pb, BeaconPath.fixed(craft.start.tolist(), 0.0, float(fine.t[-1])))
+    if beacon_replan_times(fine, config, every).size == 0:
+        raise ConfigError(
+            f"--replan EVERY = {every!r} s leaves no replan time: it must be shorter than the "
+            f"horizon ({float(fine.t[-1] - fine.t[0]):g} s) less one planning step of the craft"
+        )
 
 
 def _on_lines(

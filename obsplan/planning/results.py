@@ -33,6 +33,7 @@ from obsplan.estimation.channel import LOST_FACTOR
 from obsplan.model.beacon import BeaconPath, write_beacon_csv
 from obsplan.planning.baselines.beacon import BeaconBaseline
 from obsplan.planning.baselines.vehicle import Baseline
+from obsplan.planning.beacon_replan import BeaconReplanResult
 from obsplan.planning.figures import (
     plot_beacon_paths,
     plot_filter_errors,
@@ -878,6 +879,9 @@ class BeaconPlanResult:
     beacon_alone : BeaconPath or None
         Planned jointly: the beacon planned alone for the vehicle's lawn-mower (the first
         round), compared as :data:`ALONE`; None otherwise.
+    replan : BeaconReplanResult or None
+        The craft re-planned every ``--replan`` seconds in the closed-loop Monte Carlo, beside
+        the one-shot planned beacon (:mod:`obsplan.planning.beacon_replan`); None: not asked.
     """
 
     problem: PlanningProblem
@@ -894,6 +898,7 @@ class BeaconPlanResult:
     baseline_vehicle: Trajectory | None = None
     joint: JointPlan | None = None
     beacon_alone: BeaconPath | None = None
+    replan: BeaconReplanResult | None = None
 
     @property
     def success(self) -> bool:
@@ -961,7 +966,8 @@ class BeaconPlanResult:
 
     def to_dict(self) -> dict:
         """``report.json``: ``solver``, ``metrics``, ``validation``, ``verdict`` (with
-        ``outcomes`` per baseline), ``beacon``, ``problem``, ``problem_file``, ``wall_s``.
+        ``outcomes`` per baseline), ``beacon``, ``problem``, ``problem_file``, ``wall_s``, and
+        ``replan`` when the craft was re-planned (:meth:`BeaconReplanResult.to_dict`).
 
         Returns
         -------
@@ -1025,6 +1031,7 @@ class BeaconPlanResult:
             },
             "problem_file": pb.to_dict(),
             "wall_s": float(self.wall_s),
+            **({} if self.replan is None else {"replan": self.replan.to_dict()}),
         }
 
     def table(self) -> str:
@@ -1090,6 +1097,8 @@ class BeaconPlanResult:
             who = "the planned beacon" if self.joint is None else "the plan (vehicle and beacon)"
             lines.append(f"{who} {'; '.join(parts)} (decided at {conf})")
         lines += self.verdict.summary()
+        if self.replan is not None:
+            lines += self.replan.summary()
         return "\n".join(lines)
 
     def plot(self, ax=None) -> Figure:

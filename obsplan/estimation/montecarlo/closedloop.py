@@ -23,6 +23,14 @@ the next :meth:`~ClosedLoop.advance` continues with a new reference trajectory p
 is still written relative to the first plan, whose inputs ``c`` corrects). Runs are independent:
 a Monte Carlo of many runs can be simulated as several :class:`ClosedLoop` objects of a few runs
 (``run_start``), merged exactly by :func:`~obsplan.estimation.montecarlo.results.merge_monte_carlo`.
+
+A moving beacon that is re-planned during the runs (the craft's receding horizon,
+:mod:`obsplan.planning.beacon_replan`) changes its future mid-run: :meth:`ClosedLoop.set_beacon`
+replaces the beacon of every epoch and sample after the current one, for all the loop's runs (one
+beacon per loop, so a per-run beacon is a loop of one run). The ranges the truth reads, the EKF's
+updates, the passive filters run after the loop and the truth's closest approach all take the
+beacon from the same arrays, so all of them see the new path; the posterior CRB passed to
+:meth:`ClosedLoop.result` is the caller's.
 """
 
 from __future__ import annotations
@@ -41,7 +49,7 @@ from obsplan.estimation.batch import RunBatch, RunRecord
 from obsplan.estimation.bounds.crlb import CRLBResult, posterior_crlb
 from obsplan.estimation.columns import COL_AXES, INFO_RANGES_USED, N_GATE
 from obsplan.estimation.config import EstimationConfig
-from obsplan.estimation.epochs import segment_table
+from obsplan.estimation.epochs import epoch_beacons, sample_beacons, segment_table
 from obsplan.estimation.filters.ekf import ExtendedKalmanFilter
 from obsplan.estimation.filters.gsf import GaussianSumFilter
 from obsplan.estimation.montecarlo.guidance import Guidance, TruthLimits
@@ -61,6 +69,7 @@ from obsplan.estimation.montecarlo.truth import (
     reading_noise,
     run_rng,
 )
+from obsplan.model.beacon import BeaconPath
 from obsplan.trajectory.sampled import Trajectory
 
 #: Samples advanced per kernel call: bounds the process-noise normals held at once.
@@ -415,6 +424,55 @@ class ClosedLoop:
                 )
             cols.append(arr[ka - k0 : kb - k0 + 1])
         return np.ascontiguousarray(np.stack(cols, axis=2))
+
+    def set_beacon(self, path: BeaconPath) -> None:
+        """Replace the moving beacon after the current sample by ``path`` for every run of this
+        loop (module docstring): the beacon of each range epoch after the current sample (at
+        transmission, :func:`~obsplan.estimation.epochs.epoch_beacons`), of each sample after it
+        (the truth's closest approach) and the channel's nominal ranges there. What is already
+        simulated is kept; ``path`` need only cover the current time to the end.
+
+        Parameters
+        ----------
+        path : BeaconPath
+            The beacon's path [m] from the current time to the path's end, at least (before the
+            current time it should be the one in force: a range received just after it was sent
+            just before).
+
+        Raises
+        ------
+        ConfigError
+            If the loop is finished, the beacon is fixed (one row: not a moving beacon's), or
+            ``path`` has another dimension or does not cover the rest of the path.
+        """
+        if self._result is not None:
+            raise ConfigError("this ClosedLoop is finished (result() was called)")
+        s, k = self.setup, self.k
+        beacons = s.ctx.beacons
+        if beacons.shape[0] < 2 or s.sample_beacons.shape[0] < 2:
+            raise ConfigError("set_beacon needs a moving beacon (config.beacon_path)")
+        if not isinstance(path, BeaconPath) or path.dim != self.traj.dim:
+            raise ConfigError(f"set_beacon: path must be a {self.traj.dim}D BeaconPath")
+        t, model = self.traj.t, self.config.model
+        ep = s.plan.epochs
+        fut = np.flatnonzero(ep > k)
+        smp = np.arange(k + 1, t.size)
+        if smp.size == 0:
+            return
+        path.check_covers(float(t[k]), float(t[-1]), "set_beacon path")
+        if fut.size:
+            # in place: the kernels' and the passive filters' array
+            beacons[fut] = epoch_beacons(model, path, t[ep[fut]], self.traj.p[ep[fut]])
+            rel = self.traj.p[ep] - beacons  # the channel's nominal ranges, as PathSetup has them
+            s.rho_epochs[:] = np.linalg.norm(rel, axis=1)
+            vb = np.gradient(beacons, t[ep], axis=0) if ep.size > 1 else np.zeros_like(rel)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                rd = np.einsum("ki,ki->k", rel, self.traj.v[ep] - vb) / s.rho_epochs
+            s.rho_dot_epochs[:] = np.where(s.rho_epochs > 0, rd, 0.0)
+            # the channel's losses and late arrivals follow the new ranges (the same draws)
+            Yn = np.stack([self._reading_noise(dr) for dr in self._draws], axis=2)
+            self._io.Yn[fut] = Yn[fut]
+        s.sample_beacons[smp] = sample_beacons(model, path, t[smp])
 
     # ------------------------------------------------------------------ reading out
     def snapshot(self) -> ClosedLoopState:

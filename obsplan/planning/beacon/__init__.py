@@ -13,7 +13,9 @@ from obsplan.planning.beacon.planner import (
     circle_guesses,
     flyable_path,
     plan_beacon,
+    planning_step,
     range_epoch_times,
+    resolve_beacon,
 )
 
 __all__ = [
@@ -23,5 +25,7 @@ __all__ = [
     "circle_guesses",
     "flyable_path",
     "plan_beacon",
+    "planning_step",
     "range_epoch_times",
+    "resolve_beacon",
 ]

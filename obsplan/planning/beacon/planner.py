@@ -644,3 +644,100 @@ def _pick(nlp: _Nlp, outcomes: list[BeaconStart], xs: list[np.ndarray]) -> int:
         return (not o.success, _violation(nlp, xs[i]) > 1e-9, obj)
 
     return min(range(len(outcomes)), key=key)
+
+
+def planning_step(vehicle: Trajectory, config: EstimationConfig) -> float:
+    """The craft's default planning step [s] for ``vehicle`` (:func:`plan_beacon` with
+    ``step=None``): the ping interval (:data:`DEFAULT_STEP` without a range rate), at least the
+    horizon over :data:`MAX_INTERVALS`.
+
+    Parameters
+    ----------
+    vehicle : Trajectory
+        The vehicle's path (its duration).
+    config : EstimationConfig
+        Its rates (``rates_hz["range"]``).
+
+    Returns
+    -------
+    float
+        The step [s].
+    """
+    return _default_step(vehicle, config)
+
+
+def resolve_beacon(
+    vehicle: Trajectory,
+    craft: BeaconVehicle,
+    config: EstimationConfig,
+    in_force: BeaconPath,
+    *,
+    step: float,
+    prior: np.ndarray | None = None,
+    weights: np.ndarray | None = None,
+    check_dt: float = CHECK_DT,
+    tol: float = SOLVER_TOL,
+    max_iter: int = MAX_ITER,
+) -> tuple[BeaconPlan, float]:
+    """One receding-horizon re-solve of the craft: from its state (``craft.start``,
+    ``craft.velocity``) at the vehicle's first sample to its last, warm-started from the path in
+    force (fitted onto the limits from that state), one IPOPT solve, no other start.
+
+    Parameters
+    ----------
+    vehicle : Trajectory
+        The vehicle's (predicted) remaining path; its first sample is the replan time.
+    craft : BeaconVehicle
+        The craft with its state at the replan time as its start and velocity, and its limits.
+    config : EstimationConfig
+        The vehicle's sensors, rates, noises and process noise (its prior is replaced by
+        ``prior`` when given).
+    in_force : BeaconPath
+        The path in force, covering the remaining horizon.
+    step : float
+        Planning step [s] (the one-shot plan's, so the nodes fall where they did).
+    prior : ndarray, shape (m, m), or None, optional
+        The vehicle's covariance at the replan time (``(p, v[, v_f])``); None: the
+        configuration's prior.
+    weights : ndarray, shape (E,), or None, optional
+        Per remaining range epoch (:func:`range_epoch_times` of ``vehicle``); None: equal.
+    check_dt, tol, max_iter : float, float, int, optional
+        As :func:`plan_beacon`.
+
+    Returns
+    -------
+    plan : BeaconPlan
+        The re-solved path (``starts`` holds the one solve; ``hold_objective`` the craft holding
+        its position from rest).
+    in_force_objective : float
+        The objective [m²] of the path in force over the same remaining horizon, with the same
+        prior and weights (what flying on would give).
+    """
+    t_start = time.perf_counter()
+    grid = craft_grid(vehicle, craft, float(step), check_dt)
+    rec = range_recursion(vehicle, config)
+    if prior is not None:
+        rec = replace(rec, P0=np.asarray(prior, float))
+    w = _weights(weights, rec.count)
+    nlp = _build(grid, rec, w, tol, max_iter)
+    x0, fitted = _fit(grid, nlp.fit, in_force, (nlp.lbx, nlp.ubx, nlp.lbg, nlp.ubg))
+    outcome, x = _solve_start(nlp, "replan", x0, fitted)
+    W = x.reshape(6, grid.N, order="F")
+    times, positions, velocities = grid.samples(W, PATH_TOLERANCE_M)
+    plan = BeaconPlan(
+        times=times,
+        positions=positions,
+        velocities=velocities,
+        path=BeaconPath(times, positions),
+        node_times=grid.nodes.copy(),
+        accelerations=(W[0:2].T * craft.accel).copy(),
+        success=outcome.success,
+        status=outcome.status,
+        iterations=outcome.iterations,
+        wall_s=time.perf_counter() - t_start,
+        objective=float(nlp.objective(x)),
+        hold_objective=float(nlp.objective(np.zeros(6 * grid.N))),
+        starts=(outcome,),
+        label="replan",
+    )
+    return plan, float(rec.objective(rec.beacons_on_path(in_force), w))
