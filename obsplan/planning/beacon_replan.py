@@ -70,6 +70,7 @@ from obsplan.planning.replan import (
     replan_guidance,
     return_inputs,
     state_for_planner,
+    steps_of,
 )
 from obsplan.planning.solver.starts import default_processes, run_forked
 from obsplan.planning.validation.validate import PathValidation, validate_paths
@@ -123,17 +124,7 @@ def beacon_replan_times(vehicle: Trajectory, config: EstimationConfig, every: fl
         names ``--replan``).
     """
     h = planning_step(vehicle, config)
-    try:
-        e = float(every)
-    except (TypeError, ValueError):
-        e = math.nan
-    steps = e / h
-    k = round(steps) if math.isfinite(steps) else 0
-    if not (math.isfinite(e) and e > 0 and k >= 1 and abs(steps - k) <= _STEP_RTOL * max(1, k)):
-        raise ConfigError(
-            f"--replan EVERY = {every!r} s must be a positive multiple of the beacon craft's "
-            f"planning step, {h:g} s (the ping interval; e.g. {h * max(1, round(60 / h)):g})"
-        )
+    _, k = steps_of(every, h, "the beacon craft's planning step (the ping interval),")
     t0, tf = float(vehicle.t[0]), float(vehicle.t[-1])
     count = max(0, math.ceil((tf - h - t0) / (k * h) - _STEP_RTOL))
     times = t0 + k * h * np.arange(1, count + 1)

@@ -114,6 +114,44 @@ def replan_guidance(pb: PlanningProblem) -> Guidance:
     return g
 
 
+def steps_of(every: Any, h: float, step_name: str) -> tuple[float, int]:
+    """A replanning period as a whole number of planning steps, or one error naming ``--replan``.
+
+    Parameters
+    ----------
+    every : Any
+        The period [s] as given.
+    h : float
+        The planning step [s].
+    step_name : str
+        The step's name in the message (``"... step ="``).
+
+    Returns
+    -------
+    every : float
+        The period [s].
+    k : int
+        Planning steps per period (>= 1).
+
+    Raises
+    ------
+    ConfigError
+        When ``every`` is not a positive multiple of ``h`` (to :data:`_STEP_RTOL`).
+    """
+    try:
+        e = float(every)
+    except (TypeError, ValueError):
+        e = math.nan
+    steps = e / h
+    k = round(steps) if math.isfinite(steps) else 0
+    if not (math.isfinite(e) and e > 0 and k >= 1 and abs(steps - k) <= _STEP_RTOL * max(1, k)):
+        raise ConfigError(
+            f"--replan EVERY = {every!r} s must be a positive multiple of {step_name} {h:g} s "
+            f"(e.g. {h * max(1, round(60 / h)):g})"
+        )
+    return e, k
+
+
 def replan_nodes(pb: PlanningProblem, every: float) -> np.ndarray:
     """Planning nodes ``k`` at which the runs re-solve: every ``every`` s, before the end.
 
@@ -136,17 +174,7 @@ def replan_nodes(pb: PlanningProblem, every: float) -> np.ndarray:
         than the horizon (the message names ``--replan`` and the fix).
     """
     h, T = pb.horizon.dt, pb.horizon.duration
-    try:
-        e = float(every)
-    except (TypeError, ValueError):
-        e = math.nan
-    steps = e / h
-    k = round(steps) if math.isfinite(steps) else 0
-    if not (math.isfinite(e) and e > 0 and k >= 1 and abs(steps - k) <= _STEP_RTOL * max(1, k)):
-        raise ConfigError(
-            f"--replan EVERY = {every!r} s must be a positive multiple of the planning step "
-            f"horizon.duration / horizon.steps = {h:g} s (e.g. {h * max(1, round(60 / h)):g})"
-        )
+    e, k = steps_of(every, h, "the planning step horizon.duration / horizon.steps =")
     if e >= T:
         raise ConfigError(
             f"--replan EVERY = {e:g} s must be shorter than the horizon ({T:g} s) to replan at all"

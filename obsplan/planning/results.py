@@ -33,7 +33,7 @@ from obsplan.estimation.channel import LOST_FACTOR
 from obsplan.model.beacon import BeaconPath, write_beacon_csv
 from obsplan.planning.baselines.beacon import BeaconBaseline
 from obsplan.planning.baselines.vehicle import Baseline
-from obsplan.planning.beacon_replan import BeaconReplanResult
+from obsplan.planning.beacon_replan import BeaconReplanResult, BeaconSamples
 from obsplan.planning.figures import (
     plot_beacon_paths,
     plot_filter_errors,
@@ -671,21 +671,10 @@ def _schedule_dict(pb: PlanningProblem) -> dict | None:
 
 
 # ---------------------------------------------------------------------------------- moving beacon
-class BeaconSolve(Protocol):
+class BeaconSolve(BeaconSamples, Protocol):
     """What :class:`BeaconPlanResult` reads of a beacon planner's result
-    (``obsplan.planning.beacon``'s ``BeaconPlan``)."""
-
-    @property
-    def times(self) -> np.ndarray: ...  # (M,) [s]
-
-    @property
-    def positions(self) -> np.ndarray: ...  # (M, n) [m]
-
-    @property
-    def velocities(self) -> np.ndarray: ...  # (M, n) [m/s]
-
-    @property
-    def path(self) -> BeaconPath: ...
+    (``obsplan.planning.beacon``'s ``BeaconPlan``): its samples
+    (:class:`~obsplan.planning.beacon_replan.BeaconSamples`) and its solve."""
 
     @property
     def success(self) -> bool: ...

@@ -578,27 +578,7 @@ def plan_beacon(
         if callback is not None:
             callback(i, label, outcome)
     best = _pick(nlp, outcomes, xs)
-    x = xs[best]
-    W = x.reshape(6, grid.N, order="F")
-    times, positions, velocities = grid.samples(W, PATH_TOLERANCE_M)
-    hold = float(nlp.objective(np.zeros(6 * grid.N)))
-    chosen = outcomes[best]
-    return BeaconPlan(
-        times=times,
-        positions=positions,
-        velocities=velocities,
-        path=BeaconPath(times, positions),
-        node_times=grid.nodes.copy(),
-        accelerations=(W[0:2].T * craft.accel).copy(),
-        success=chosen.success,
-        status=chosen.status,
-        iterations=chosen.iterations,
-        wall_s=time.perf_counter() - t_start,
-        objective=float(nlp.objective(x)),
-        hold_objective=hold,
-        starts=tuple(outcomes),
-        label=chosen.label,
-    )
+    return _beacon_plan(grid, nlp, craft, xs[best], outcomes[best], tuple(outcomes), t_start)
 
 
 def _start_paths(
@@ -722,22 +702,28 @@ def resolve_beacon(
     nlp = _build(grid, rec, w, tol, max_iter)
     x0, fitted = _fit(grid, nlp.fit, in_force, (nlp.lbx, nlp.ubx, nlp.lbg, nlp.ubg))
     outcome, x = _solve_start(nlp, "replan", x0, fitted)
+    plan = _beacon_plan(grid, nlp, craft, x, outcome, (outcome,), t_start)
+    return plan, float(rec.objective(rec.beacons_on_path(in_force), w))
+
+
+def _beacon_plan(grid, nlp: _Nlp, craft: BeaconVehicle, x, chosen, starts, t_start: float):
+    """The :class:`BeaconPlan` of the solved variables ``x`` (the solve ``chosen`` of
+    ``starts``): the path sampled, the accelerations in m/s², the objective and holding's."""
     W = x.reshape(6, grid.N, order="F")
     times, positions, velocities = grid.samples(W, PATH_TOLERANCE_M)
-    plan = BeaconPlan(
+    return BeaconPlan(
         times=times,
         positions=positions,
         velocities=velocities,
         path=BeaconPath(times, positions),
         node_times=grid.nodes.copy(),
         accelerations=(W[0:2].T * craft.accel).copy(),
-        success=outcome.success,
-        status=outcome.status,
-        iterations=outcome.iterations,
+        success=chosen.success,
+        status=chosen.status,
+        iterations=chosen.iterations,
         wall_s=time.perf_counter() - t_start,
         objective=float(nlp.objective(x)),
         hold_objective=float(nlp.objective(np.zeros(6 * grid.N))),
-        starts=(outcome,),
-        label="replan",
+        starts=starts,
+        label=chosen.label,
     )
-    return plan, float(rec.objective(rec.beacons_on_path(in_force), w))
