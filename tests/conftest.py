@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 from xdist.scheduler import LoadScopeScheduling
 
+from obsplan.estimation import jitcache
 from obsplan.planning import load_problem
 from obsplan.planning.baselines.vehicle import baselines
 from obsplan.planning.problem.parse import LOCALISE_PROBLEM
@@ -75,3 +80,27 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log) -> FileScheduling | 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     rank = {unit: i for i, unit in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(work_unit(item.nodeid), len(rank)))  # stable
+
+
+#: A closed-loop plan's Monte Carlo compiles every numba kernel, once each
+#: (tests/test_kernel_signatures.py).
+_COMPILE = (
+    "import obsplan; pb = obsplan.load_problem('localise').with_changes("
+    "horizon={'steps': 20}, objective={'starts': 1}); "
+    "obsplan.plan(pb, runs=2, max_runs=2, processes=1)"
+)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """With test processes (``-n``) and a cold numba cache (a fresh machine, or an edited
+    kernel), compile the kernels once before the processes start: otherwise each test process,
+    and each process a test starts (Dask workers, the command line), compiles them at the same
+    time, about a minute of CPU each, and the first units run minutes late."""
+    if hasattr(config, "workerinput") or not config.getoption("numprocesses", default=None):
+        return
+    chosen = os.environ.get("NUMBA_CACHE_DIR")
+    folder = Path(chosen) if chosen else jitcache.user_cache_dir() / jitcache.kernel_fingerprint()
+    if jitcache.cache_is_cold(jitcache.KERNEL_SOURCES, folder):
+        # not checked: a failure here is one the tests themselves report
+        env = {**os.environ, "MPLBACKEND": "Agg"}
+        subprocess.run([sys.executable, "-c", _COMPILE], env=env, capture_output=True, timeout=900)
