@@ -63,8 +63,9 @@ BASE = {
     "objective": {"starts": 1},
     "validation": {"runs": 3, "dt": 1.0},
 }
-#: Six tasks of about half a second each (measured under load): long enough that an interrupt
-#: after two finished tasks still finds work in flight, short enough to keep the file fast.
+#: Six tasks of several seconds each (a 24-step plan, its keep-out re-solve, a 3-run validation):
+#: an interrupt after two finished tasks still finds work in flight; the file's cost is these
+#: plans, run about three times over (reference, resume, lost scheduler).
 STUDY = {
     "sweep": {"name": "study", "mode": "plan"},
     "base": BASE,
