@@ -426,9 +426,7 @@ def plan_moving_beacon(
     result = _plan_beacon_flow(pb, planner, validate, runs, max_runs, progress, t0)
     if replan is None:
         return result
-    craft = result.problem.beacon_vehicle
-    assert craft is not None  # checked by _plan_beacon_flow
-    config = estimation_config(pb, BeaconPath.fixed(craft.start.tolist(), 0.0, pb.horizon.duration))
+    _, config = _craft_config(pb)
     fine_v, _, mask_v = _on_lines(pb, result.vehicle, config)
     rep = beacon_replan_monte_carlo(
         pb,
@@ -455,12 +453,8 @@ def _plan_beacon_flow(
 ) -> BeaconPlanResult:
     """:func:`plan_moving_beacon` without the replanning: plan (alone or jointly), keep the
     craft out, validate against the baselines (``t0``: when the flow began, for its times)."""
-    craft = pb.beacon_vehicle
-    if craft is None:  # a planned beacon always has its craft (sections.ProblemData)
-        raise field_error("beacon.speed", "missing: the craft's limits of a planned beacon")
+    craft, config = _craft_config(pb)
     base = vehicle_trajectory(pb)
-    T = pb.horizon.duration
-    config = estimation_config(pb, BeaconPath.fixed(craft.start.tolist(), 0.0, T))
     fine, weights, mask = _on_lines(pb, base, config)
     bls = beacon_baselines(
         fine, craft, config, centre=_survey_centre(pb), weights=mask, step=pb.validation.dt
@@ -562,16 +556,23 @@ def check_beacon_replan(pb: PlanningProblem, every: float) -> None:
             " to plan the beacon alone, or drop --replan"
         )
     replan_guidance(pb)  # closed loop only
-    craft = pb.beacon_vehicle
-    if craft is None:
-        raise field_error("beacon.speed", "missing: the craft's limits of a planned beacon")
+    _, config = _craft_config(pb)
     fine = resample(vehicle_trajectory(pb), pb.validation.dt)
-    config = estimation_config(pb, BeaconPath.fixed(craft.start.tolist(), 0.0, float(fine.t[-1])))
     if beacon_replan_times(fine, config, every).size == 0:
         raise ConfigError(
             f"--replan EVERY = {every!r} s leaves no replan time: it must be shorter than the "
             f"horizon ({float(fine.t[-1] - fine.t[0]):g} s) less one planning step of the craft"
         )
+
+
+def _craft_config(pb: PlanningProblem) -> tuple[BeaconVehicle, EstimationConfig]:
+    """A planned beacon's craft and the vehicle's estimation configuration (its beacon path
+    the craft holding its start: the sensors, rates and noises; each flow sets its own path)."""
+    craft = pb.beacon_vehicle
+    if craft is None:  # a planned beacon always has its craft (sections.ProblemData)
+        raise field_error("beacon.speed", "missing: the craft's limits of a planned beacon")
+    hold = BeaconPath.fixed(craft.start.tolist(), 0.0, pb.horizon.duration)
+    return craft, estimation_config(pb, hold)
 
 
 def _on_lines(
