@@ -291,10 +291,6 @@ def _fly_run(job: dict, run: int) -> tuple[MonteCarloResult, list[ReplanSolve]]:
     return loop.result(job["crlb"]), solves
 
 
-def _run(job: dict, run: int):
-    return _fly_run(job, run)
-
-
 @dataclass(frozen=True, eq=False)
 class BeaconReplanResult(ReplanResult):
     """The craft's replanned closed-loop Monte Carlo beside the one-shot planned beacon
@@ -454,7 +450,7 @@ def beacon_replan_monte_carlo(
     nproc = default_processes(n_runs) if processes is None else max(1, int(processes))
     with tqdm(total=n_runs, disable=not progress, unit="run", desc="replanned beacon") as bar:
         done = (lambda i, _: bar.update(1)) if progress else None
-        parts = run_forked(_run, job, list(range(n_runs)), nproc, done)
+        parts = run_forked(_fly_run, job, list(range(n_runs)), nproc, done)
     replanned = merge_monte_carlo([p for p, _ in parts])
     lines = None if mask is None else {"one-shot": mask}
     validation = {"replanned": PathValidation("replanned", replanned)}
